@@ -1,0 +1,89 @@
+#!/usr/bin/env bash
+# gyro_emulator developer entry point: sets up .venv (idempotent) and runs a job.
+#
+#   ./dev.sh main   set everything up, then run the main job (the paper-validation demo)
+#   ./dev.sh test   set everything up, then run the full test suite (lint + unit + ROS integration)
+#   ./dev.sh setup  only set up .venv
+#   ./dev.sh shell  a shell with the venv and ROS environment active
+#
+# Works on a fresh Debian 12 with Python 3.11 and no ROS: everything comes from PyPI.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")"
+ROOT=$(pwd)
+VENV="$ROOT/.venv"
+
+pick_python() {
+    for cand in "${PYTHON:-}" python3.11 python3; do
+        [ -n "$cand" ] || continue
+        if command -v "$cand" >/dev/null 2>&1 &&
+            "$cand" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null; then
+            echo "$cand"; return 0
+        fi
+    done
+    echo "dev.sh: Python 3.11 is required (the ROS 2 Jazzy wheels are pinned for it)." >&2
+    echo "        On Debian 12: apt-get install python3 python3-venv" >&2
+    return 1
+}
+
+setup() {
+    # Serialise concurrent callers (parallel shells share one .venv).
+    mkdir -p "$VENV"
+    exec 9>"$VENV.lock"
+    flock 9
+    local deps_stamp="$VENV/.deps_stamp" pkg_stamp="$VENV/.pkg_stamp" want
+    if [ ! -x "$VENV/bin/python" ]; then
+        local py; py=$(pick_python)
+        echo "dev.sh: creating $VENV with $py" >&2
+        if ! "$py" -m venv "$VENV"; then
+            rm -rf "$VENV"
+            echo "dev.sh: '$py -m venv' failed. On Debian 12: apt-get install python3-venv" >&2
+            return 1
+        fi
+    fi
+    want=$(sha256sum requirements.txt | cut -d' ' -f1)
+    if [ "$(cat "$deps_stamp" 2>/dev/null)" != "$want" ]; then
+        echo "dev.sh: installing pinned dependencies into $VENV (about 40 s the first time)" >&2
+        "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r requirements.txt
+        echo "$want" > "$deps_stamp"
+    fi
+    # (Re)install the package itself whenever any source file changed. A regular
+    # install puts console scripts in bin/ and config/launch/ament marker in share/.
+    want=$( { git ls-files -co --exclude-standard -z 2>/dev/null || find . -path ./.venv -prune -o -type f -print0; } |
+        LC_ALL=C sort -z | xargs -0 sha256sum 2>/dev/null | sha256sum | cut -d' ' -f1)
+    if [ "$(cat "$pkg_stamp" 2>/dev/null)" != "$want" ]; then
+        echo "dev.sh: installing gyro_emulator into $VENV" >&2
+        "$VENV/bin/python" -m pip install -q --disable-pip-version-check --no-deps \
+            --no-build-isolation --force-reinstall .
+        rm -rf build gyro_emulator.egg-info
+        echo "$want" > "$pkg_stamp"
+    fi
+    flock -u 9
+}
+
+activate() {
+    export VIRTUAL_ENV="$VENV"
+    export PATH="$VENV/bin:$PATH"
+    export AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+    export MPLBACKEND=Agg
+    # Network rule: DDS discovery stays on this machine, on a domain of our own.
+    export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+    export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( ($$ % 90) + 10 ))}"
+}
+
+cmd="${1:-}"
+[ $# -gt 0 ] && shift
+case "$cmd" in
+    setup) setup ;;
+    main)
+        setup; activate
+        exec "$VENV/bin/python" -m gyro_emulator.main_job "$@" ;;
+    test)
+        setup; activate
+        exec "$VENV/bin/python" -m pytest test "$@" ;;
+    shell)
+        setup; activate
+        exec "${SHELL:-bash}" -i ;;
+    *)
+        sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'
+        exit 2 ;;
+esac

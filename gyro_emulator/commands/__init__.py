@@ -1,0 +1,1 @@
+"""Subcommands of the ``gyro-emulator`` command line (see ``gyro_emulator.cli``)."""

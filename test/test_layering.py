@@ -1,0 +1,100 @@
+"""Imports run one way: units/params -> physics -> ... -> ROS edge -> CLI."""
+
+import ast
+import os
+
+import pytest
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PKG = os.path.join(ROOT, 'gyro_emulator')
+
+#: Layer of each module, matched by the longest dotted prefix. A new module
+#: must be added here: the test fails for modules it cannot place.
+LAYERS = {
+    'gyro_emulator': 0,
+    'gyro_emulator.units': 0,
+    'gyro_emulator.params': 0,
+    'gyro_emulator.physics': 1,
+    'gyro_emulator.presets': 1,
+    'gyro_emulator.dynamics': 2,
+    'gyro_emulator.paper': 4,
+    'gyro_emulator.ros': 5,
+    'gyro_emulator.cli': 6,
+    'gyro_emulator.commands': 6,
+    'gyro_emulator.main_job': 6,
+}
+ROS_EDGE = 5
+ROS_MODULE_PREFIXES = ('rclpy', 'launch', 'launch_ros', 'rosidl', 'rcl_interfaces',
+                       'builtin_interfaces', 'ament_index_python')
+ROS_MODULE_SUFFIXES = ('_msgs', '_srvs', '_interfaces')
+
+
+def layer_of(module):
+    parts = module.split('.')
+    for n in range(len(parts), 0, -1):
+        key = '.'.join(parts[:n])
+        if key in LAYERS and (n > 1 or len(parts) == 1):
+            return LAYERS[key]
+    return None
+
+
+def modules():
+    for dirpath, _, files in os.walk(PKG):
+        for name in files:
+            if name.endswith('.py'):
+                rel = os.path.relpath(os.path.join(dirpath, name), ROOT)[:-3]
+                mod = rel.replace(os.sep, '.')
+                if mod.endswith('.__init__'):
+                    mod = mod[:-len('.__init__')]
+                yield mod, os.path.join(dirpath, name)
+
+
+def imports_of(path, module):
+    tree = ast.parse(open(path, encoding='utf-8').read())
+    package = module if path.endswith('__init__.py') else module.rsplit('.', 1)[0]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = package.split('.')
+                base = base[:len(base) - node.level + 1]
+                yield '.'.join(base + ([node.module] if node.module else []))
+            else:
+                yield node.module
+                for alias in node.names:
+                    if node.module == 'gyro_emulator':
+                        yield 'gyro_emulator.' + alias.name
+
+
+ALL = sorted(modules())
+
+
+@pytest.mark.parametrize('module,path', ALL, ids=[m for m, _ in ALL])
+def test_module_respects_layers(module, path):
+    own = layer_of(module)
+    assert own is not None, f'{module}: add it to LAYERS in test/test_layering.py'
+    for imported in imports_of(path, module):
+        top = imported.split('.')[0]
+        if top == 'gyro_emulator':
+            other = layer_of(imported)
+            if imported == 'gyro_emulator':
+                continue
+            assert other is not None, f'{module} imports unplaced {imported}'
+            assert other <= own, (
+                f'{module} (layer {own}) imports {imported} (layer {other}): '
+                'imports must run from higher layers to lower ones')
+        elif top.startswith(ROS_MODULE_PREFIXES) or top.endswith(ROS_MODULE_SUFFIXES):
+            assert own >= ROS_EDGE, (
+                f'{module} (layer {own}) imports {imported}: only the ROS edge '
+                '(gyro_emulator.ros) and above may import ROS packages')
+
+
+def test_the_core_imports_without_ros():
+    """Importing the physics core must not pull rclpy into the process."""
+    import subprocess
+    import sys
+    code = ('import sys, gyro_emulator.physics, gyro_emulator.paper; '
+            'sys.exit(1 if "rclpy" in sys.modules else 0)')
+    assert subprocess.run([sys.executable, '-c', code], cwd=ROOT).returncode == 0
