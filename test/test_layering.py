@@ -17,7 +17,21 @@ LAYERS = {
     'gyro_emulator.physics': 1,
     'gyro_emulator.presets': 1,
     'gyro_emulator.dynamics': 2,
+    # error model and sensor (issue 4)
+    'gyro_emulator.noise': 3,
+    'gyro_emulator.sensor': 3,
+    'gyro_emulator.sensor_config': 3,
+    'gyro_emulator.profiles': 3,
+    # analysis and recording
     'gyro_emulator.paper': 4,
+    'gyro_emulator.allan': 4,
+    'gyro_emulator.simulate': 4,
+    'gyro_emulator.dataio': 4,
+    'gyro_emulator.bag': 4,
+    'gyro_emulator.replay': 4,
+    'gyro_emulator.diagnose': 4,
+    'gyro_emulator.report': 4,
+    # ROS edge: the only modules that import rclpy or message packages
     'gyro_emulator.ros': 5,
     'gyro_emulator.cli': 6,
     'gyro_emulator.commands': 6,
