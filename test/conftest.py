@@ -1,4 +1,5 @@
-"""Shared test helpers.
+"""
+Shared test helpers.
 
 ROS processes started by tests obey the network rule: discovery stays on
 localhost (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) and each test gets a
@@ -16,7 +17,8 @@ _domains = itertools.count()
 
 
 def ros_env(**extra):
-    """Return an environment for a ROS subprocess: localhost, private domain.
+    """
+    Return an environment for a ROS subprocess: localhost, private domain.
 
     The source tree comes first on PYTHONPATH so subprocesses run the code
     under test, and AMENT_PREFIX_PATH includes the venv prefix.
