@@ -65,6 +65,8 @@ activate() {
     export PATH="$VENV/bin:$PATH"
     export AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
     export MPLBACKEND=Agg
+    # Small matrix work (ZOH, expm) stalls when OpenBLAS threads wait for a core.
+    export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-1}"
     # Network rule: DDS discovery stays on this machine, on a domain of our own.
     export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
     export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( ($$ % 90) + 10 ))}"
@@ -79,7 +81,8 @@ case "$cmd" in
         exec "$VENV/bin/python" -m gyro_emulator.main_job "$@" ;;
     test)
         setup; activate
-        exec "$VENV/bin/python" -m pytest test "$@" ;;
+        # testpaths=test (setup.cfg) applies when no path is given.
+        exec "$VENV/bin/python" -m pytest "$@" ;;
     shell)
         setup; activate
         exec "${SHELL:-bash}" -i ;;
