@@ -31,6 +31,10 @@ setup(
     entry_points={
         'console_scripts': [
             'gyro-emulator = gyro_emulator.cli:main',
+            'node = gyro_emulator.ros.node:main',
+            'scenario = gyro_emulator.ros.scenario:main',
+            'recorder = gyro_emulator.ros.recorder:main',
+            'replay = gyro_emulator.ros.replay:main',
         ],
     },
 )

@@ -14,6 +14,12 @@ import sys
 #: (subcommand, module) in the order shown by ``--help``.
 COMMANDS = (
     ('paper', 'gyro_emulator.commands.paper'),
+    ('simulate', 'gyro_emulator.commands.simulate'),
+    ('allan', 'gyro_emulator.commands.allan'),
+    ('dynamics', 'gyro_emulator.commands.dynamics'),
+    ('bag', 'gyro_emulator.commands.bag'),
+    ('diagnose', 'gyro_emulator.commands.diagnose'),
+    ('truth', 'gyro_emulator.commands.truth'),
 )
 
 

@@ -28,6 +28,7 @@ LAYERS = {
     'gyro_emulator.simulate': 4,
     'gyro_emulator.dataio': 4,
     'gyro_emulator.bag': 4,
+    'gyro_emulator.cdr': 4,
     'gyro_emulator.replay': 4,
     'gyro_emulator.diagnose': 4,
     'gyro_emulator.report': 4,
@@ -78,7 +79,11 @@ def imports_of(path, module):
             else:
                 yield node.module
                 for alias in node.names:
-                    if node.module == 'gyro_emulator':
+                    # `from gyro_emulator import physics` names a module;
+                    # `from gyro_emulator import __version__` does not.
+                    sub = os.path.join(PKG, alias.name)
+                    if node.module == 'gyro_emulator' and (
+                            os.path.isdir(sub) or os.path.exists(sub + '.py')):
                         yield 'gyro_emulator.' + alias.name
 
 

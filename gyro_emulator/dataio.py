@@ -1,0 +1,293 @@
+"""
+CSV input and output for gyro records, with clear errors.
+
+Files are plain comma-separated text with one header row (``#`` comment lines
+before it are skipped), optionally gzip-compressed (``.gz``). Values are SI;
+column names carry their units (``time_s``, ``gyro_x_rad_s``, ``temp_c``).
+
+Errors name the file, the column, the row (1-based line number in the file)
+and the offending value: a missing column, a value that is not a number, a
+non-finite value, or a ``time_s`` column that does not increase.
+"""
+
+import gzip
+import io
+import os
+
+import numpy as np
+
+#: Gyro column layouts accepted by :func:`read_gyro_csv`.
+GYRO_SINGLE = 'gyro_rad_s'
+GYRO_AXES = ('gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s')
+AXIS_NAMES = ('x', 'y', 'z')
+
+
+def _open_text(path, mode):
+    if str(path).endswith('.gz'):
+        return io.TextIOWrapper(gzip.open(path, mode + 'b'), encoding='utf-8',
+                                newline='')
+    return open(path, mode, encoding='utf-8', newline='')
+
+
+def _header(path):
+    """Return (header names, number of lines before the data)."""
+    skipped = 0
+    with _open_text(path, 'r') as handle:
+        for line in handle:
+            skipped += 1
+            text = line.strip()
+            if not text or text.startswith('#'):
+                continue
+            names = [n.strip() for n in text.split(',')]
+            if any(not n for n in names):
+                raise ValueError(f'{path}: header row {skipped} has an empty column name')
+            if len(set(names)) != len(names):
+                dup = sorted({n for n in names if names.count(n) > 1})
+                raise ValueError(f'{path}: duplicate column(s) {", ".join(dup)} in the '
+                                 'header')
+            return names, skipped
+    raise ValueError(f'{path}: the file is empty (no header row)')
+
+
+def _find_bad_cell(path, names, skip):
+    """Slow scan for the first cell that is not a number; return a message."""
+    with _open_text(path, 'r') as handle:
+        for lineno, line in enumerate(handle, start=1):
+            if lineno <= skip:
+                continue
+            text = line.strip()
+            if not text or text.startswith('#'):
+                continue
+            cells = text.split(',')
+            if len(cells) != len(names):
+                return (f'{path}: row {lineno} has {len(cells)} values, the header has '
+                        f'{len(names)} ({", ".join(names)})')
+            for name, cell in zip(names, cells):
+                try:
+                    float(cell)
+                except ValueError:
+                    return (f'{path}: row {lineno}, column {name}: {cell.strip()!r} is '
+                            'not a number')
+    return f'{path}: could not parse the data rows'
+
+
+def read_csv(path, required=(), time_order='increasing'):
+    """
+    Read a numeric CSV file into a dict of column name -> float array.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file (``.gz`` for gzip).
+    required : sequence of str
+        Columns that must be present.
+    time_order : str
+        ``'increasing'`` (default): ``time_s`` must strictly increase;
+        ``'nondecreasing'``: repeated timestamps are accepted.
+
+    Returns
+    -------
+    dict
+        Column name -> 1-D numpy array, in file order.
+
+    Raises
+    ------
+    ValueError
+        Missing columns, non-numeric or non-finite values, or a ``time_s``
+        column that does not strictly increase (the message names the file,
+        row, column and value).
+    OSError
+        The file cannot be read.
+
+    """
+    path = os.fspath(path)
+    names, skip = _header(path)
+    missing = [c for c in required if c not in names]
+    if missing:
+        raise ValueError(f'{path}: missing column(s) {", ".join(missing)}; the file '
+                         f'has {", ".join(names)}')
+    try:
+        with _open_text(path, 'r') as handle:
+            data = np.loadtxt(handle, delimiter=',', skiprows=skip, comments='#',
+                              ndmin=2, dtype=float)
+    except ValueError:
+        raise ValueError(_find_bad_cell(path, names, skip)) from None
+    if data.size == 0:
+        raise ValueError(f'{path}: no data rows after the header')
+    if data.shape[1] != len(names):
+        raise ValueError(_find_bad_cell(path, names, skip))
+    columns = {name: data[:, i].copy() for i, name in enumerate(names)}
+    for name, values in columns.items():
+        bad = ~np.isfinite(values)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(f'{path}: data row {i + 1}, column {name}: '
+                             f'{float(values[i])!r} is not finite')
+    if 'time_s' in columns:
+        check_increasing(columns['time_s'], f'{path}: time_s',
+                         strict=time_order == 'increasing')
+    return columns
+
+
+def check_increasing(time_s, what='time_s', strict=True):
+    """Raise ValueError naming the first data row where ``time_s`` does not increase."""
+    time_s = np.asarray(time_s, dtype=float)
+    step = np.diff(time_s)
+    bad = np.flatnonzero(step <= 0.0 if strict else step < 0.0)
+    if len(bad):
+        i = int(bad[0])
+        hint = '' if not strict or np.any(step < 0.0) else ' (repeated timestamp)'
+        raise ValueError(f'{what} does not increase at data row {i + 2}: '
+                         f'{float(time_s[i + 1])!r} after {float(time_s[i])!r}{hint}')
+
+
+def gyro_columns(columns, path=''):
+    """
+    Return the gyro column names present: ``[gyro_rad_s]`` or the three axes.
+
+    Raises ValueError naming the accepted layouts when neither is complete.
+    """
+    if GYRO_SINGLE in columns:
+        return [GYRO_SINGLE]
+    present = [c for c in GYRO_AXES if c in columns]
+    if len(present) == 3:
+        return list(GYRO_AXES)
+    raise ValueError(f'{path}: no gyro columns: need {GYRO_SINGLE} or '
+                     f'{", ".join(GYRO_AXES)}; the file has {", ".join(columns)}')
+
+
+def read_gyro_csv(path, axis=None, time_order='increasing'):
+    """
+    Read a gyro record: ``time_s`` plus one rate column.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        CSV with ``time_s`` and ``gyro_rad_s`` or ``gyro_{x,y,z}_rad_s``.
+    axis : str, optional
+        ``'x'``, ``'y'`` or ``'z'`` for a 3-axis file (default ``'x'``);
+        ignored for a single-axis file.
+    time_order : str
+        See :func:`read_csv`.
+
+    Returns
+    -------
+    time_s : numpy.ndarray
+        Sample times, s (strictly increasing).
+    rate_rad_s : numpy.ndarray
+        The selected rate column, rad/s.
+    column : str
+        The column read.
+
+    """
+    columns = read_csv(path, required=('time_s',), time_order=time_order)
+    names = gyro_columns(columns, path)
+    if len(names) == 1:
+        return columns['time_s'], columns[names[0]], names[0]
+    axis = 'x' if axis is None else axis
+    if axis not in AXIS_NAMES:
+        raise ValueError(f'axis = {axis!r} is not allowed: choose x, y or z')
+    name = GYRO_AXES[AXIS_NAMES.index(axis)]
+    return columns['time_s'], columns[name], name
+
+
+def sample_rate_and_segments(time_s, gap_factor=3.0):
+    """
+    Nominal sample rate and the contiguous segments of a record.
+
+    The rate is 1 / median(diff(time_s)); a step longer than ``gap_factor``
+    times the median starts a new segment (a gap in the record).
+
+    Returns
+    -------
+    rate_hz : float
+        Nominal sample rate, Hz.
+    bounds : list of (int, int)
+        Start and stop index of each segment.
+
+    """
+    t = np.asarray(time_s, dtype=float)
+    if len(t) < 2:
+        raise ValueError(f'time_s has {len(t)} samples: need >= 2')
+    step = np.diff(t)
+    dt = float(np.median(step))
+    if not dt > 0.0:
+        raise ValueError('time_s: the median time step is not positive')
+    cuts = np.flatnonzero(step > gap_factor * dt) + 1
+    edges = np.concatenate(([0], cuts, [len(t)]))
+    return 1.0 / dt, [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
+
+
+class CsvWriter:
+    """
+    Write columns of numbers to CSV in blocks (context manager).
+
+    ``finish()`` (also on leaving the ``with`` block) is safe to call twice.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; ``.gz`` compresses.
+    names : sequence of str
+        Column names (the header).
+    fmt : str or sequence of str
+        printf format per column (default ``%.10g``).
+
+    """
+
+    def __init__(self, path, names, fmt='%.10g'):
+        self.path = os.fspath(path)
+        self.names = list(names)
+        self.fmt = [fmt] * len(self.names) if isinstance(fmt, str) else list(fmt)
+        directory = os.path.dirname(os.path.abspath(self.path))
+        os.makedirs(directory, exist_ok=True)
+        self._handle = _open_text(self.path, 'w')
+        self._handle.write(','.join(self.names) + '\n')
+        self.rows = 0
+
+    def write(self, columns):
+        """Append rows: ``columns`` is a sequence of equal-length 1-D arrays."""
+        if self._handle is None:
+            raise ValueError(f'{self.path}: writer is finished')
+        if len(columns) != len(self.names):
+            raise ValueError(f'{self.path}: got {len(columns)} columns, expected '
+                             f'{len(self.names)}')
+        block = np.column_stack([np.asarray(c, dtype=float) for c in columns])
+        row = ','.join(self.fmt) + '\n'
+        for start in range(0, len(block), 20000):
+            part = block[start:start + 20000]
+            self._handle.write((row * len(part)) % tuple(part.ravel().tolist()))
+        self.rows += len(block)
+
+    def finish(self):
+        """Flush and close the file (idempotent)."""
+        if self._handle is not None:
+            self._handle.close()
+            self._handle = None
+
+    def __enter__(self):
+        """Return the writer."""
+        return self
+
+    def __exit__(self, *exc):
+        """Close the file."""
+        self.finish()
+        return False
+
+
+def write_csv(path, columns, fmt='%.10g'):
+    """
+    Write a dict of name -> 1-D array as one CSV file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file; ``.gz`` compresses.
+    columns : dict
+        Column name -> values (equal lengths), in column order.
+    fmt : str or sequence of str
+        printf format per column.
+
+    """
+    with CsvWriter(path, list(columns), fmt) as writer:
+        writer.write(list(columns.values()))

@@ -1,0 +1,267 @@
+"""
+Validation and scheduling of the commands the node receives (no ROS imports).
+
+Every command (rate, ambient temperature, specific force) passes through a
+check here before it can reach the sensor model. A bad command is either
+*rejected* (dropped, the previous value stays in force) or *clamped* (a
+temperature outside the model's range, when the policy is ``clamp``); each
+outcome is counted by reason so the node can report it in ``/diagnostics``.
+
+Rules (documented in docs/sections/5-node.md):
+
+* rate: every element finite and ``|omega_i| <= max_abs_rate_rad_s``, else
+  rejected (``non_finite_rate`` / ``rate_too_large``). Rates above the
+  sensor's full-scale range are accepted: the model saturates them.
+* temperature: finite (``non_finite_temperature``), above absolute zero
+  (``below_absolute_zero``), then inside the model range: ``clamp`` moves it
+  to the nearest bound (``temperature_clamped``), ``reject`` drops it
+  (``temperature_out_of_range``).
+* specific force: finite and ``|a_i| <= max_abs_accel_m_s2``.
+* stamps: a command applies at the first sample whose time is at or after
+  its ``header.stamp`` (a zero stamp means "on receipt"). A stamp earlier
+  than the newest accepted one on the same stream is ``out_of_order``; a
+  stamp more than ``max_stamp_lead_s`` ahead of the node clock is
+  ``future_stamp`` (typically a use_sim_time mismatch).
+"""
+
+from collections import deque
+from dataclasses import dataclass
+import math
+
+from gyro_emulator.units import ZERO_CELSIUS_K
+
+#: Every reason an input can be rejected, in report order.
+REJECT_REASONS = (
+    'non_finite_rate', 'rate_too_large', 'non_finite_temperature',
+    'below_absolute_zero', 'temperature_out_of_range',
+    'non_finite_acceleration', 'acceleration_too_large', 'out_of_order',
+    'future_stamp', 'queue_overflow')
+
+#: Inputs accepted after modification.
+CLAMP_REASONS = ('temperature_clamped',)
+
+TEMPERATURE_POLICIES = ('clamp', 'reject')
+
+
+class InputRejected(ValueError):
+    """A command failed validation; ``reason`` is one of :data:`REJECT_REASONS`."""
+
+    def __init__(self, reason, message):
+        super().__init__(message)
+        self.reason = reason
+
+
+@dataclass(frozen=True)
+class InputLimits:
+    """
+    Limits applied to incoming commands.
+
+    Attributes
+    ----------
+    max_abs_rate_rad_s : float
+        Largest accepted |rate| per axis, rad/s.
+    max_abs_accel_m_s2 : float
+        Largest accepted |specific force| per axis, m/s^2.
+    temp_range_c : tuple of float
+        (low, high) ambient temperatures the model accepts, deg C.
+    temperature_policy : str
+        ``clamp`` or ``reject`` for temperatures outside ``temp_range_c``.
+    max_stamp_lead_s : float
+        Largest accepted lead of a command stamp over the node clock, s.
+
+    """
+
+    max_abs_rate_rad_s: float = 100.0
+    max_abs_accel_m_s2: float = 1000.0
+    temp_range_c: tuple = (-60.0, 200.0)
+    temperature_policy: str = 'clamp'
+    max_stamp_lead_s: float = 1.0
+
+    def __post_init__(self):
+        """Check the limits (positive, ordered range, known policy)."""
+        for name in ('max_abs_rate_rad_s', 'max_abs_accel_m_s2', 'max_stamp_lead_s'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f'InputLimits.{name} = {value!r} is out of range: '
+                                 'allowed (0, inf)')
+        low, high = self.temp_range_c
+        if not low < high:
+            raise ValueError(f'InputLimits.temp_range_c = {self.temp_range_c!r} is not '
+                             'an increasing (low, high) pair')
+        if self.temperature_policy not in TEMPERATURE_POLICIES:
+            raise ValueError(
+                f'InputLimits.temperature_policy = {self.temperature_policy!r} is not '
+                f'allowed: choose one of {", ".join(TEMPERATURE_POLICIES)}')
+
+
+def _vector(values, name, limit, unit, nan_reason, large_reason):
+    out = tuple(float(v) for v in values)
+    for axis, value in zip('xyz', out):
+        if not math.isfinite(value):
+            raise InputRejected(nan_reason, f'{name}.{axis} = {value!r} is not finite: '
+                                'allowed finite numbers')
+        if abs(value) > limit:
+            raise InputRejected(large_reason, f'{name}.{axis} = {value!r} is out of '
+                                f'range: allowed [-{limit:g}, {limit:g}] {unit}')
+    return out
+
+
+def check_rate(values, limits):
+    """Return the rate (x, y, z) in rad/s as a tuple, or raise InputRejected."""
+    return _vector(values, 'angular_velocity', limits.max_abs_rate_rad_s, 'rad/s',
+                   'non_finite_rate', 'rate_too_large')
+
+
+def check_acceleration(values, limits):
+    """Return the specific force (x, y, z) in m/s^2, or raise InputRejected."""
+    return _vector(values, 'linear_acceleration', limits.max_abs_accel_m_s2, 'm/s^2',
+                   'non_finite_acceleration', 'acceleration_too_large')
+
+
+def check_temperature(temp_c, limits):
+    """
+    Validate an ambient temperature against absolute zero and the model range.
+
+    Parameters
+    ----------
+    temp_c : float
+        Ambient temperature, deg C.
+    limits : InputLimits
+        Range and policy.
+
+    Returns
+    -------
+    tuple of (float, bool)
+        The temperature to use, deg C, and whether it was clamped.
+
+    """
+    value = float(temp_c)
+    low, high = limits.temp_range_c
+    if not math.isfinite(value):
+        raise InputRejected('non_finite_temperature', f'temperature = {value!r} is not '
+                            f'finite: allowed [{low:g}, {high:g}] C')
+    if value <= -ZERO_CELSIUS_K:
+        raise InputRejected('below_absolute_zero', f'temperature = {value!r} C is at or '
+                            f'below absolute zero (-{ZERO_CELSIUS_K} C): allowed '
+                            f'[{low:g}, {high:g}] C')
+    if low <= value <= high:
+        return value, False
+    if limits.temperature_policy == 'reject':
+        raise InputRejected('temperature_out_of_range', f'temperature = {value!r} C is '
+                            f'out of the model range: allowed [{low:g}, {high:g}] C')
+    return min(max(value, low), high), True
+
+
+class CommandStream:
+    """
+    One command stream: stamp-ordered queue, current value and arrival time.
+
+    A command applies at the first sample whose time is at or after its stamp
+    (zero stamp: its arrival time), so a recorded or simulated sequence
+    replays sample-exactly. :meth:`offer` validates stamps, :meth:`advance`
+    moves commands whose time has come into :attr:`value`.
+
+    Parameters
+    ----------
+    name : str
+        Stream name used in messages.
+    initial : object
+        Value in force before the first command (None: none).
+    capacity : int
+        Most commands waiting for their stamp; the oldest is dropped beyond.
+
+    """
+
+    def __init__(self, name, initial=None, capacity=1000):
+        self.name = name
+        self.value = initial
+        self.capacity = int(capacity)
+        self.pending = deque()
+        self.newest_stamp_ns = None
+        self.last_arrival_ns = None
+        self.accepted = 0
+
+    def offer(self, value, stamp_ns, now_ns, max_lead_ns):
+        """
+        Queue a validated command; return the reason if it was dropped, else None.
+
+        Parameters
+        ----------
+        value : object
+            The validated command value.
+        stamp_ns : int
+            Its header stamp, ns (0 = on receipt).
+        now_ns : int
+            Node clock at arrival, ns.
+        max_lead_ns : int
+            Largest accepted lead of ``stamp_ns`` over ``now_ns``, ns.
+
+        """
+        effective = now_ns if stamp_ns == 0 else stamp_ns
+        if self.newest_stamp_ns is not None and effective < self.newest_stamp_ns:
+            raise InputRejected(
+                'out_of_order', f'{self.name}: stamp {effective * 1e-9:.9f} s is older '
+                f'than the newest accepted {self.newest_stamp_ns * 1e-9:.9f} s')
+        if effective - now_ns > max_lead_ns:
+            raise InputRejected(
+                'future_stamp', f'{self.name}: stamp {effective * 1e-9:.9f} s is '
+                f'{(effective - now_ns) * 1e-9:.3f} s ahead of the node clock '
+                f'(allowed {max_lead_ns * 1e-9:g} s; use_sim_time mismatch?)')
+        self.newest_stamp_ns = effective
+        self.last_arrival_ns = now_ns
+        self.accepted += 1
+        dropped = None
+        if len(self.pending) >= self.capacity:
+            self.pending.popleft()
+            dropped = 'queue_overflow'
+        self.pending.append((effective, value))
+        return dropped
+
+    def advance(self, now_ns):
+        """Apply every queued command due at ``now_ns``; return the value in force."""
+        pending = self.pending
+        while pending and pending[0][0] <= now_ns:
+            self.value = pending.popleft()[1]
+        return self.value
+
+    def age_s(self, now_ns):
+        """Seconds since the last accepted command arrived (None: never)."""
+        if self.last_arrival_ns is None:
+            return None
+        return (now_ns - self.last_arrival_ns) * 1e-9
+
+    def reset_clock(self):
+        """Forget stamps after the clock jumped back (e.g. a restarted simulation)."""
+        self.pending.clear()
+        self.newest_stamp_ns = None
+        self.last_arrival_ns = None
+
+
+class Throttle:
+    """
+    At most one log line per key per ``period_s``, counting what it held back.
+
+    Parameters
+    ----------
+    period_s : float
+        Minimum time between two lines of one key, s.
+    clock : callable
+        Returns the current time in s (e.g. ``time.monotonic``).
+
+    """
+
+    def __init__(self, period_s, clock):
+        self.period_s = float(period_s)
+        self.clock = clock
+        self._last = {}
+        self._held = {}
+
+    def __call__(self, key):
+        """Return None to stay quiet, or how many lines were held back since the last."""
+        now = self.clock()
+        last = self._last.get(key)
+        if last is not None and now - last < self.period_s:
+            self._held[key] = self._held.get(key, 0) + 1
+            return None
+        self._last[key] = now
+        return self._held.pop(key, 0)

@@ -1,0 +1,441 @@
+"""
+The node's parameters: descriptors, defaults from YAML, sensor-model mapping.
+
+Two families of parameters:
+
+* node parameters (:data:`NODE_PARAMS`): rate, frame, seed, input policies.
+  Their defaults are read from ``config/gyro_emulator.yaml`` (a
+  ``--params-file`` style file a user can copy and edit); the table here only
+  holds type, unit, range, description and whether the parameter is
+  structural (read-only after start).
+* error-model parameters ``sensor.<field>`` and ``sensor.terms.<term>``: one
+  per :class:`gyro_emulator.sensor_config.SensorConfig` field and
+  :class:`~gyro_emulator.sensor_config.ErrorTerms` switch. Their defaults are
+  the values of the configuration named by ``sensor_config`` (a preset or a
+  YAML path), so choosing a preset never fights hard-coded numbers; a params
+  file may override any of them. 3x3 matrices are 9 numbers, row-major;
+  ``sensor.initial_die_temp_c`` = NaN means "in equilibrium".
+
+Descriptors carry ranges for rclpy to enforce; :func:`check_value` adds the
+choices and the message format used everywhere (field, value, allowed range).
+"""
+
+from dataclasses import dataclass, fields, replace
+import math
+import os
+
+from gyro_emulator import sensor_config
+from gyro_emulator.params import MODEL_TEMP_RANGE_C
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType)
+
+NODE_NAME = 'gyro_emulator'
+DEFAULTS_FILE = 'gyro_emulator.yaml'
+SENSOR_PREFIX = 'sensor.'
+TERMS_PREFIX = 'sensor.terms.'
+#: Error terms that ``noise_enabled = false`` switches off.
+NOISE_TERMS = ('mechanical_noise', 'electronics_noise', 'bias_instability',
+               'rate_random_walk', 'timestamp_jitter')
+RATE_SOURCES = ('angular_velocity', 'odometry')
+STALE_RATE_POLICIES = ('zero', 'hold')
+INT64_MAX = 2 ** 63 - 1
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """
+    One node parameter: type, range, description and mutability.
+
+    Attributes
+    ----------
+    name : str
+        Parameter name.
+    kind : str
+        ``double``, ``integer``, ``bool`` or ``string``.
+    description : str
+        One line for ``ros2 param describe``, with the unit.
+    read_only : bool
+        Structural: fixed after start (``ros2 param set`` is refused).
+    low, high : float or None
+        Inclusive range for numbers.
+    choices : tuple of str
+        Allowed values of a string parameter (empty: any).
+
+    """
+
+    name: str
+    kind: str
+    description: str
+    read_only: bool = False
+    low: float = None
+    high: float = None
+    choices: tuple = ()
+
+
+NODE_PARAMS = (
+    ParamSpec('rate_hz', 'double', 'Output data rate, Hz (one model sample per tick)',
+              True, 1.0, 5000.0),
+    ParamSpec('frame_id', 'string', 'header.frame_id of imu/data_raw (REP 145: the '
+              'sensor frame)', True),
+    ParamSpec('seed', 'integer', 'Seed of the numpy random generator of every noise '
+              'term: same seed + same inputs = same output', True, 0, INT64_MAX),
+    ParamSpec('sensor_config', 'string', 'Error model: a preset name (paper, consumer, '
+              'tactical) or a sensor YAML path; the sensor.* defaults come from it', True),
+    ParamSpec('rate_source', 'string', 'Where the true rate comes from: '
+              'angular_velocity (cmd/angular_velocity, Vector3Stamped) or odometry '
+              '(cmd/odom, nav_msgs/Odometry twist.twist.angular)', True,
+              choices=RATE_SOURCES),
+    ParamSpec('initial_temperature_c', 'double', 'Ambient temperature before the first '
+              'cmd/temperature, deg C', True, *MODEL_TEMP_RANGE_C),
+    ParamSpec('command_timeout_s', 'double', 'A rate command older than this is stale: '
+              'stale_rate_policy applies and diagnostics warn; 0 = never stale, s',
+              False, 0.0, 3600.0),
+    ParamSpec('stale_rate_policy', 'string', 'Rate used while the command is stale: zero '
+              '(a resting gyro) or hold (last command)', False,
+              choices=STALE_RATE_POLICIES),
+    ParamSpec('temperature_policy', 'string', 'Ambient temperatures outside the model '
+              'range are clamped to it or rejected', False,
+              choices=('clamp', 'reject')),
+    ParamSpec('max_abs_rate_rad_s', 'double', 'Commands with a larger |rate| component '
+              'are rejected (the sensor range saturates below this), rad/s', False,
+              1e-3, 1e4),
+    ParamSpec('max_abs_accel_m_s2', 'double', 'Commands with a larger |specific force| '
+              'component are rejected, m/s^2', False, 1e-3, 1e6),
+    ParamSpec('max_stamp_lead_s', 'double', 'Commands stamped further ahead of the node '
+              'clock are rejected, s', False, 1e-3, 1e6),
+    ParamSpec('command_queue_size', 'integer', 'Commands per stream waiting for their '
+              'stamp; the oldest is dropped beyond', True, 1, 100000),
+    ParamSpec('noise_enabled', 'bool', 'false switches off every noise term (white '
+              'noise, bias instability, rate random walk, timestamp jitter)'),
+    ParamSpec('temperature_override_enabled', 'bool', 'true: use temperature_override_c '
+              'as the ambient temperature and ignore cmd/temperature'),
+    ParamSpec('temperature_override_c', 'double', 'Ambient temperature while the '
+              'override is enabled, deg C', False, *MODEL_TEMP_RANGE_C),
+    ParamSpec('pass_through_linear_acceleration', 'bool', 'Copy cmd/linear_acceleration '
+              'into imu/data_raw (else its covariance[0] = -1: absent)'),
+    ParamSpec('publish_truth', 'bool', 'Publish ~/truth/rate, ~/truth/bias and '
+              '~/truth/scale_factor each sample'),
+    ParamSpec('temperature_rate_hz', 'double', 'Rate of imu/temperature, Hz (at most '
+              'rate_hz)', True, 0.1, 5000.0),
+    ParamSpec('diagnostics_period_s', 'double', 'Period of /diagnostics (steady clock), '
+              's', True, 0.05, 60.0),
+    ParamSpec('block_samples', 'integer', 'Samples the model computes ahead per call '
+              '(exact: rewound when an input changes; 1 = one call per sample)', True,
+              1, 1000),
+    ParamSpec('record_dir', 'string', 'Hook for recording (issue 6, gyro_emulator.bag): '
+              'empty = no recording', True),
+)
+
+NODE_SPECS = {spec.name: spec for spec in NODE_PARAMS}
+
+#: One line per SensorConfig field for the parameter descriptors.
+SENSOR_DESCRIPTIONS = {
+    'device': 'Physics device of every axis: a physics preset name (paper, '
+              'paper_sutherland, paper_sealed); empty = the sensor_config one',
+    'mode_split_hz': 'Drive/sense frequency split of the sense dynamics (x, y, z), Hz',
+    'output_filter_hz': 'ASIC Butterworth low-pass cut-off, Hz (0 = none)',
+    'output_filter_order': 'ASIC Butterworth low-pass order (1..4)',
+    'thermal_time_constant_s': 'Die temperature lag behind ambient, s',
+    'self_heating_c': 'Steady die temperature rise over ambient, deg C',
+    'turn_on_bias_rad_s': 'Fixed turn-on bias (x, y, z), rad/s',
+    'turn_on_bias_sigma_rad_s': 'Sigma of the run-to-run turn-on bias (x, y, z), rad/s',
+    'bias_temp_coeff_rad_s_k': 'Linear bias temperature coefficient (x, y, z), rad/s/K',
+    'bias_temp_coeff2_rad_s_k2': 'Quadratic bias temperature coefficient (x, y, z), '
+                                 'rad/s/K^2',
+    'electronics_noise_rad_s_sqrt_hz': 'Electronics white rate noise density (ARW) '
+                                       '(x, y, z), rad/s/sqrt(Hz)',
+    'bias_instability_rad_s': 'Bias instability B (x, y, z), rad/s',
+    'bias_instability_band_s': 'Correlation-time band of the flicker model (short, '
+                               'long), s',
+    'bias_instability_per_decade': 'Gauss-Markov terms per decade of the flicker model',
+    'rate_random_walk_rad_s_sqrt_s': 'Rate random walk K (x, y, z), rad/s/sqrt(s)',
+    'scale_factor_error': 'Scale-factor error (x, y, z), ratio',
+    'nonlinearity_s_rad': 'Quadratic scale-factor nonlinearity (x, y, z), s/rad',
+    'misalignment': 'Cross-axis coupling, 3x3 row-major (9 numbers, zero diagonal), rad',
+    'g_sensitivity_rad_s_m_s2': 'Bias per specific force, 3x3 row-major (9 numbers), '
+                                'rad/s per m/s^2',
+    'lsb_rad_s': 'Quantisation step (x, y, z), rad/s (0 = none)',
+    'range_rad_s': 'Full-scale range (x, y, z), rad/s; beyond it the output saturates',
+    'latency_s': 'Output delay added to the imu/data_raw stamp, s',
+    'timestamp_jitter_s': 'Sigma of the Gaussian stamp jitter, s',
+    'clock_drift_ppm': 'Sensor clock error accumulated into the stamp, ppm',
+    'initial_die_temp_c': 'Die temperature at the first sample, deg C (NaN = in '
+                          'equilibrium with ambient)',
+    'terms': 'On/off switches of the error terms',
+}
+
+
+def _type_name(kind):
+    return {'double': 'a number', 'integer': 'an integer', 'bool': 'true or false',
+            'string': 'a string'}[kind]
+
+
+def check_value(spec, value):
+    """
+    Return ``value`` converted to the spec's type, or raise ValueError.
+
+    The message names the parameter, the value and the allowed range or
+    choices, like every validation error of the package.
+    """
+    kind = spec.kind
+    if kind == 'bool':
+        if not isinstance(value, bool):
+            raise ValueError(f'{spec.name} = {value!r} is not allowed: choose true or false')
+        return value
+    if kind == 'string':
+        if not isinstance(value, str):
+            raise ValueError(f'{spec.name} = {value!r} is not {_type_name(kind)}')
+        if spec.choices and value not in spec.choices:
+            raise ValueError(f'{spec.name} = {value!r} is not allowed: choose one of '
+                             f'{", ".join(spec.choices)}')
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f'{spec.name} = {value!r} is not {_type_name(kind)}')
+    if kind == 'integer':
+        if value != int(value):
+            raise ValueError(f'{spec.name} = {value!r} is not {_type_name(kind)}')
+        value = int(value)
+    else:
+        value = float(value)
+    if not math.isfinite(value) or (spec.low is not None and value < spec.low) or (
+            spec.high is not None and value > spec.high):
+        raise ValueError(f'{spec.name} = {value!r} is out of range: allowed '
+                         f'[{spec.low:g}, {spec.high:g}]')
+    return value
+
+
+def descriptor(spec):
+    """Return the rcl_interfaces ParameterDescriptor of a node parameter."""
+    kinds = {'double': ParameterType.PARAMETER_DOUBLE,
+             'integer': ParameterType.PARAMETER_INTEGER,
+             'bool': ParameterType.PARAMETER_BOOL,
+             'string': ParameterType.PARAMETER_STRING}
+    desc = ParameterDescriptor(name=spec.name, type=kinds[spec.kind],
+                               description=spec.description, read_only=spec.read_only)
+    if spec.kind == 'double' and spec.low is not None:
+        desc.floating_point_range = [FloatingPointRange(
+            from_value=float(spec.low), to_value=float(spec.high), step=0.0)]
+        desc.additional_constraints = f'[{spec.low:g}, {spec.high:g}]'
+    elif spec.kind == 'integer' and spec.low is not None:
+        desc.integer_range = [IntegerRange(
+            from_value=int(spec.low), to_value=int(spec.high), step=0)]
+        desc.additional_constraints = f'[{int(spec.low)}, {int(spec.high)}]'
+    elif spec.choices:
+        desc.additional_constraints = 'one of: ' + ', '.join(spec.choices)
+    return desc
+
+
+def default_params_path():
+    """
+    Return the path of ``config/gyro_emulator.yaml``.
+
+    The source tree's copy when running from a checkout, else the installed
+    one in the package's share directory (found through the ament index).
+    """
+    here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    source = os.path.join(here, 'config', DEFAULTS_FILE)
+    if os.path.isfile(source):
+        return source
+    from ament_index_python.packages import (get_package_share_directory,
+                                             PackageNotFoundError)
+    try:
+        share = get_package_share_directory('gyro_emulator')
+    except PackageNotFoundError:
+        raise ValueError(
+            f'cannot find {DEFAULTS_FILE}: gyro_emulator is not in the ament index '
+            '(AMENT_PREFIX_PATH) and this is not a source checkout') from None
+    return os.path.join(share, 'config', DEFAULTS_FILE)
+
+
+def _flatten(mapping, prefix=''):
+    out = {}
+    for key, value in mapping.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, dict):
+            out.update(_flatten(value, name + '.'))
+        else:
+            out[name] = value
+    return out
+
+
+def load_params_file(path, node_name=NODE_NAME):
+    """
+    Read a ``--params-file`` style YAML and return its parameters, flattened.
+
+    Parameters
+    ----------
+    path : str
+        YAML file with ``/**:`` or ``<node name>:`` then ``ros__parameters:``.
+    node_name : str
+        Node whose section is read after the ``/**`` wildcard section.
+
+    Returns
+    -------
+    dict
+        ``{'rate_hz': 200.0, 'sensor.lsb_rad_s': [...], ...}``.
+
+    """
+    import yaml
+
+    try:
+        with open(path, encoding='utf-8') as handle:
+            doc = yaml.safe_load(handle)
+    except OSError as exc:
+        raise ValueError(f'{path}: cannot read: {exc}') from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f'{path}: malformed YAML: {exc}') from None
+    if not isinstance(doc, dict):
+        raise ValueError(f'{path}: expected "/**: {{ros__parameters: {{...}}}}"')
+    params = {}
+    for key in ('/**', node_name, '/' + node_name):
+        section = doc.get(key)
+        if section is None:
+            continue
+        if not isinstance(section, dict) or not isinstance(
+                section.get('ros__parameters'), dict):
+            raise ValueError(f'{path}: section {key!r} has no ros__parameters mapping')
+        params.update(_flatten(section['ros__parameters']))
+    if not params:
+        raise ValueError(f'{path}: no "/**" or "{node_name}" section with '
+                         'ros__parameters')
+    return params
+
+
+def node_defaults(path=None):
+    """
+    Return the node parameters' defaults from ``config/gyro_emulator.yaml``.
+
+    Every entry of :data:`NODE_PARAMS` must be present and valid; unknown
+    keys other than ``sensor.*``, ``qos_overrides.*`` and ``use_sim_time``
+    are refused, so a typo cannot pass silently.
+    """
+    path = default_params_path() if path is None else path
+    raw = load_params_file(path)
+    missing = [spec.name for spec in NODE_PARAMS if spec.name not in raw]
+    if missing:
+        raise ValueError(f'{path}: missing parameter(s) {", ".join(missing)}')
+    unknown = sorted(name for name in raw if name not in NODE_SPECS and not name.startswith(
+        (SENSOR_PREFIX, 'qos_overrides.')) and name != 'use_sim_time')
+    if unknown:
+        raise ValueError(f'{path}: unknown parameter(s) {", ".join(unknown)}; allowed: '
+                         f'{", ".join(NODE_SPECS)}, sensor.*')
+    return {spec.name: check_value(spec, raw[spec.name]) for spec in NODE_PARAMS}
+
+
+# --- the error model as parameters ------------------------------------------
+
+def _config_fields():
+    return [f.name for f in fields(sensor_config.SensorConfig) if f.name != 'terms']
+
+
+def sensor_param_values(config):
+    """
+    Return ``{parameter name: ROS value}`` for a SensorConfig.
+
+    Tuples become lists of floats (3x3 matrices flattened row-major), the
+    device becomes ``''`` (keep the configuration's devices) and None becomes
+    NaN; each ErrorTerms switch is a ``sensor.terms.<name>`` bool.
+    """
+    out = {}
+    for name in _config_fields():
+        value = getattr(config, name)
+        if name == 'device':
+            value = ''
+        elif value is None:
+            value = float('nan')
+        elif isinstance(value, tuple) and value and isinstance(value[0], tuple):
+            value = [float(v) for row in value for v in row]
+        elif isinstance(value, tuple):
+            value = [float(v) for v in value]
+        elif isinstance(value, bool):
+            pass
+        elif isinstance(value, int):
+            value = int(value)
+        else:
+            value = float(value)
+        out[SENSOR_PREFIX + name] = value
+    for term in sensor_config.ErrorTerms.names():
+        out[TERMS_PREFIX + term] = bool(getattr(config.terms, term))
+    return out
+
+
+def sensor_descriptor(name, value):
+    """Return the descriptor of a ``sensor.*`` parameter (validated by SensorConfig)."""
+    if name.startswith(TERMS_PREFIX):
+        return ParameterDescriptor(
+            name=name, type=ParameterType.PARAMETER_BOOL,
+            description=f'Error term {name[len(TERMS_PREFIX):]} on or off')
+    field = name[len(SENSOR_PREFIX):]
+    text = SENSOR_DESCRIPTIONS.get(field, f'SensorConfig.{field}')
+    if field == 'device':
+        return ParameterDescriptor(name=name, type=ParameterType.PARAMETER_STRING,
+                                   description=text, read_only=True)
+    # Numbers and lists: accept ints for doubles and a scalar for a per-axis list;
+    # SensorConfig checks shape and range and names the allowed range.
+    return ParameterDescriptor(name=name, description=text, dynamic_typing=True,
+                               additional_constraints='validated by SensorConfig')
+
+
+def _from_ros(field, value, base):
+    if field == 'initial_die_temp_c':
+        return None if isinstance(value, float) and math.isnan(value) else value
+    if isinstance(value, (list, tuple)):
+        value = [float(v) if not isinstance(v, bool) else v for v in value]
+        current = getattr(base, field)
+        if isinstance(current, tuple) and current and isinstance(current[0], tuple) \
+                and len(value) == 9:
+            return tuple(tuple(value[3 * i:3 * i + 3]) for i in range(3))
+        return tuple(value)
+    return value
+
+
+def apply_sensor_params(base, values):
+    """
+    Return ``base`` with ``sensor.*`` parameter values applied (validated).
+
+    Parameters
+    ----------
+    base : SensorConfig
+        The configuration the values modify.
+    values : dict
+        ``{parameter name: ROS value}``; other names are ignored.
+
+    Returns
+    -------
+    SensorConfig
+        A new, validated configuration. Raises ValueError naming the
+        parameter, the value and the allowed range.
+
+    """
+    kwargs = {}
+    switches = {}
+    for name, value in values.items():
+        if name.startswith(TERMS_PREFIX):
+            term = name[len(TERMS_PREFIX):]
+            if term not in sensor_config.ErrorTerms.names():
+                raise ValueError(f'{name}: unknown error term; allowed: '
+                                 f'{", ".join(sensor_config.ErrorTerms.names())}')
+            switches[term] = value
+        elif name.startswith(SENSOR_PREFIX):
+            field = name[len(SENSOR_PREFIX):]
+            if field not in _config_fields():
+                raise ValueError(f'{name}: unknown error-model parameter; allowed: '
+                                 f'{", ".join(_config_fields())}')
+            if field == 'device':
+                if value:
+                    kwargs['device'] = value
+                continue
+            kwargs[field] = _from_ros(field, value, base)
+    try:
+        config = replace(base, **kwargs)
+        if switches:
+            config = config.with_terms(**switches)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'sensor parameters: {exc}') from None
+    return config
+
+
+def without_noise(config):
+    """Return ``config`` with every :data:`NOISE_TERMS` switch off."""
+    present = [t for t in NOISE_TERMS if t in sensor_config.ErrorTerms.names()]
+    return config.with_terms(**{t: False for t in present})

@@ -1,0 +1,254 @@
+"""
+``recorder``: record ROS 2 topics into a rosbag2-compatible MCAP bag.
+
+``ros2 run gyro_emulator recorder -o DIR [--topics T ...] [--regex RE] [--all]``
+
+Subscribes to the requested topics as they appear in the graph, with the
+type and QoS their publishers offer (reliable only if every publisher is,
+transient-local likewise, as rosbag2 adapts), and writes the serialised
+messages untouched (``raw=True`` subscriptions: no deserialisation).
+``log_time`` is the node clock at reception (sim time under
+``use_sim_time``); ``publish_time`` is the middleware's source timestamp.
+
+By default it records the emulator's inputs and outputs: ``cmd/angular_velocity``,
+``cmd/temperature``, ``cmd/linear_acceleration``, ``imu/data_raw``,
+``imu/temperature``, ``/diagnostics`` and every topic under the emulator
+node's ``~/truth`` namespace.
+
+Crash safety: chunks are flushed at least every ``--flush-interval`` seconds
+(a timer flushes even when messages stop), so SIGKILL loses at most that much;
+SIGINT and SIGTERM finish the bag (summary, footer, metadata.yaml).
+"""
+
+import argparse
+import datetime
+import functools
+import re
+import signal
+import sys
+import time
+
+from gyro_emulator import bag
+from gyro_emulator.ros import codec
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+#: The emulator's inputs and outputs, relative to the recorder's namespace.
+DEFAULT_TOPICS = ('cmd/angular_velocity', 'cmd/temperature', 'cmd/linear_acceleration',
+                  'imu/data_raw', 'imu/temperature', '/diagnostics')
+#: Name of the emulator node whose ``~/truth`` topics are recorded by default.
+DEFAULT_EMULATOR_NODE = 'gyro_emulator'
+#: How often the graph is searched for new topics, s.
+DISCOVERY_PERIOD_S = 0.5
+
+
+def adapted_qos(publisher_profiles, depth=100):
+    """
+    Return a subscription QoS compatible with every offered profile.
+
+    Reliable only if all publishers are reliable, transient-local only if
+    all are (rosbag2's adaptive QoS); keep-last ``depth``.
+
+    Parameters
+    ----------
+    publisher_profiles : list of rclpy.qos.QoSProfile
+        Profiles of the topic's publishers.
+    depth : int
+        Subscription history depth.
+
+    """
+    reliable = bool(publisher_profiles) and all(
+        p.reliability == ReliabilityPolicy.RELIABLE for p in publisher_profiles)
+    transient = bool(publisher_profiles) and all(
+        p.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publisher_profiles)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if transient else DurabilityPolicy.VOLATILE)
+
+
+class TopicRecorder:
+    """
+    Subscribe a node to topics as they appear and write them into a bag.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node that owns the subscriptions and timers.
+    writer : gyro_emulator.bag.BagWriter
+        Destination bag.
+    topics : iterable of str
+        Fully resolved topic names to record.
+    regexes : iterable of str
+        Also record topics whose resolved name matches one of these.
+    record_all : bool
+        Record every topic (except ``/rosout`` and parameter events).
+    exclude : iterable of str
+        Never record these resolved topic names.
+
+    """
+
+    IGNORED = ('/rosout', '/parameter_events')
+
+    def __init__(self, node, writer, topics=(), regexes=(), record_all=False, exclude=()):
+        self.node = node
+        self.writer = writer
+        self.topics = set(topics)
+        self.regexes = [re.compile(r) for r in regexes]
+        self.record_all = record_all
+        self.exclude = set(exclude)
+        self.subscriptions = {}
+        self.counts = {}
+        self._last_discovery = -1e9
+        self._timer = node.create_timer(0.1, self._tick)
+        self.discover()
+
+    def wanted(self, name):
+        """Return True if topic ``name`` should be recorded."""
+        if name in self.exclude or name in self.subscriptions:
+            return False
+        if name in self.topics:
+            return True
+        if any(r.search(name) for r in self.regexes):
+            return True
+        return self.record_all and name not in self.IGNORED
+
+    def _tick(self):
+        self.writer.flush_if_due()
+        now = time.monotonic()
+        if now - self._last_discovery >= DISCOVERY_PERIOD_S:
+            self.discover()
+
+    def discover(self):
+        """Subscribe to every wanted topic that has a publisher now."""
+        self._last_discovery = time.monotonic()
+        for name, types in self.node.get_topic_names_and_types():
+            if not self.wanted(name):
+                continue
+            if len(types) != 1:
+                self.node.get_logger().warning(
+                    f'not recording {name}: it has several types {types}')
+                self.exclude.add(name)
+                continue
+            publishers = self.node.get_publishers_info_by_topic(name)
+            if not publishers:
+                continue
+            type_name = types[0]
+            try:
+                msg_class = codec.message_class(type_name)
+                profiles = [p.qos_profile for p in publishers]
+                cid = self.writer.add_topic(
+                    name, type_name,
+                    qos_profiles=[codec.qos_to_profile(p) for p in profiles])
+            except ValueError as exc:
+                self.node.get_logger().warning(f'not recording {name}: {exc}')
+                self.exclude.add(name)
+                continue
+            self.counts[name] = 0
+            self.subscriptions[name] = self.node.create_subscription(
+                msg_class, name, functools.partial(self._on_message, name, cid),
+                adapted_qos(profiles), raw=True)
+            self.node.get_logger().info(f'recording {name} [{type_name}]')
+
+    def _on_message(self, name, cid, data, info):
+        log_time = self.node.get_clock().now().nanoseconds
+        publish = None
+        if isinstance(info, dict):
+            publish = info.get('source_timestamp') or None
+        self.writer.write(cid, data, log_time, publish)
+        self.counts[name] += 1
+
+
+def default_output():
+    """Return rosbag2's default bag name for now: ``rosbag2_YYYY_MM_DD-HH_MM_SS``."""
+    return datetime.datetime.now().strftime('rosbag2_%Y_%m_%d-%H_%M_%S')
+
+
+def build_parser():
+    """Return the ``recorder`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog='recorder', description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('-o', '--output', default=None, metavar='DIR',
+                        help='bag directory to create (default: rosbag2_<date-time>)')
+    parser.add_argument('--topics', nargs='+', default=None, metavar='TOPIC',
+                        help='topics to record (default: the emulator inputs, outputs '
+                             'and truth); relative names resolve in the recorder namespace')
+    parser.add_argument('-e', '--regex', action='append', default=[], metavar='RE',
+                        help='also record topics whose name matches RE (repeatable)')
+    parser.add_argument('-a', '--all', action='store_true', help='record every topic')
+    parser.add_argument('-x', '--exclude', nargs='+', default=[], metavar='TOPIC',
+                        help='never record these topics')
+    parser.add_argument('--emulator-node', default=DEFAULT_EMULATOR_NODE, metavar='NAME',
+                        help='emulator node whose ~/truth topics are recorded by default '
+                             '(default: %(default)s)')
+    parser.add_argument('--duration', type=float, default=None, metavar='S',
+                        help='stop after S seconds (default: until SIGINT/SIGTERM)')
+    parser.add_argument('--compression', choices=bag.COMPRESSIONS, default='zstd',
+                        help='MCAP chunk compression (default: %(default)s)')
+    parser.add_argument('--flush-interval', type=float, default=bag.DEFAULT_FLUSH_INTERVAL_S,
+                        metavar='S', help='flush to disk at least every S seconds: what a '
+                        'SIGKILL can lose (default: %(default)s)')
+    parser.add_argument('--overwrite', action='store_true',
+                        help='replace an existing bag in the output directory')
+    return parser
+
+
+def main(args=None):
+    """Run the recorder until SIGINT/SIGTERM or ``--duration``; finish the bag."""
+    argv = list(sys.argv) if args is None else ['recorder'] + list(args)
+    opts = build_parser().parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
+    if opts.duration is not None and not opts.duration > 0:
+        print(f'recorder: error: --duration = {opts.duration} is out of range: '
+              'allowed (0, inf) s', file=sys.stderr)
+        return 2
+    rclpy.init(args=argv)
+    node = writer = recorder = None
+    status = 0
+    try:
+        node = Node('gyro_recorder')
+        namespace = node.get_namespace().rstrip('/')
+        emulator_ns = f'{namespace}/{opts.emulator_node}'
+        requested = DEFAULT_TOPICS if opts.topics is None else opts.topics
+        regexes = list(opts.regex)
+        if opts.topics is None:
+            regexes.append('^' + re.escape(emulator_ns + '/truth') + '(/|$)')
+        topics = [node.resolve_topic_name(emulator_ns + t[1:] if t.startswith('~') else t)
+                  for t in requested]
+        writer = bag.BagWriter(opts.output or default_output(), compression=opts.compression,
+                               flush_interval_s=opts.flush_interval, overwrite=opts.overwrite,
+                               custom_data={'recorder': 'gyro_emulator recorder'})
+        recorder = TopicRecorder(node, writer, topics, regexes, opts.all,
+                                 [node.resolve_topic_name(t) for t in opts.exclude])
+        node.get_logger().info(f'recording to {writer.path}; waiting for '
+                               f'{", ".join(sorted(topics))}')
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        deadline = None if opts.duration is None else time.monotonic() + opts.duration
+        while rclpy.ok() and (deadline is None or time.monotonic() < deadline):
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ValueError, OSError) as exc:
+        print(f'recorder: error: {exc}', file=sys.stderr)
+        status = 2
+    finally:
+        # A second signal must not interrupt the summary being written.
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        if writer is not None:
+            writer.finish()
+            counts = ', '.join(f'{k}: {v}' for k, v in sorted(recorder.counts.items())) \
+                if recorder is not None else ''
+            print(f'recorder: wrote {writer.message_count} messages to {writer.path}'
+                  f'{" (" + counts + ")" if counts else ""}', flush=True)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,231 @@
+"""
+``replay``: republish a bag's topics with their original timing.
+
+``ros2 run gyro_emulator replay BAG [--rate R] [--loop] [--clock [HZ]]``
+
+Each message is published, serialised bytes untouched, when the wall clock
+reaches ``start + (log_time - first_log_time) / rate``; the QoS of each
+publisher is the first profile recorded for its topic (``--reliable`` forces
+reliable delivery). With ``--clock`` the bag time at the current instant,
+``first_log_time + (now - start) * rate``, is published on ``/clock``
+(rosgraph_msgs/Clock) at HZ, so nodes with ``use_sim_time`` follow the bag.
+``--loop`` starts over at the end (the bag clock jumps back, as rosbag2 does).
+
+Bags the recorder could not finish (SIGKILL) are read tolerantly: what was
+recovered is replayed and the loss is reported.
+"""
+
+import argparse
+import sys
+import time
+
+from gyro_emulator import bag
+from gyro_emulator.ros import codec
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+NS_PER_S = 1_000_000_000
+#: Longest single sleep while waiting for a message, s (keeps /clock and signals live).
+MAX_SLEEP_S = 0.05
+
+
+def build_parser():
+    """Return the ``replay`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog='replay', description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('bag', metavar='BAG', help='bag directory or .mcap file')
+    parser.add_argument('-r', '--rate', type=float, default=1.0,
+                        help='playback speed factor (default: %(default)s)')
+    parser.add_argument('-l', '--loop', action='store_true', help='start over at the end')
+    parser.add_argument('--clock', nargs='?', type=float, const=40.0, default=None,
+                        metavar='HZ', help='publish the bag time on /clock at HZ '
+                        '(default when given: 40)')
+    parser.add_argument('--topics', nargs='+', default=None, metavar='TOPIC',
+                        help='only replay these topics (default: all)')
+    parser.add_argument('--remap', nargs='+', default=[], metavar='FROM:=TO',
+                        help='publish topic FROM as TO')
+    parser.add_argument('--start-offset', type=float, default=0.0, metavar='S',
+                        help='skip the first S seconds of the bag')
+    parser.add_argument('--delay', type=float, default=0.0, metavar='S',
+                        help='wait S seconds before the first message')
+    parser.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='S',
+                        help='wait up to S seconds until every publisher has a subscriber')
+    parser.add_argument('--reliable', action='store_true',
+                        help='publish reliably whatever QoS was recorded')
+    return parser
+
+
+def _check(opts):
+    if not opts.rate > 0 or opts.rate > 1000:
+        raise ValueError(f'--rate = {opts.rate} is out of range: allowed (0, 1000]')
+    if opts.clock is not None and not 0 < opts.clock <= 10000:
+        raise ValueError(f'--clock = {opts.clock} is out of range: allowed (0, 10000] Hz')
+    for name in ('start_offset', 'delay', 'wait_for_subscribers'):
+        value = getattr(opts, name)
+        if not value >= 0:
+            raise ValueError(f'--{name.replace("_", "-")} = {value} is out of range: '
+                             'allowed [0, inf) s')
+    remap = {}
+    for rule in opts.remap:
+        source, sep, target = rule.partition(':=')
+        if not sep or not source or not target:
+            raise ValueError(f'--remap {rule!r} is not FROM:=TO')
+        remap[source] = target
+    return remap
+
+
+class Player:
+    """
+    Publish a bag's messages on a node with their recorded timing.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        Owner of the publishers.
+    reader : gyro_emulator.bag.BagReader
+        The bag.
+    topics : list of str, optional
+        Topics to replay (default all).
+    remap : dict of str to str
+        Published name of a recorded topic.
+    rate : float
+        Playback speed factor.
+    clock_hz : float, optional
+        Publish ``/clock`` at this rate.
+    reliable : bool
+        Force reliable publishers.
+
+    """
+
+    def __init__(self, node, reader, topics=None, remap=None, rate=1.0, clock_hz=None,
+                 reliable=False):
+        self.node = node
+        self.reader = reader
+        self.topics = sorted(reader.topics) if topics is None else list(topics)
+        self.rate = rate
+        self.clock_period_s = None if clock_hz is None else 1.0 / clock_hz
+        self.publishers = {}
+        self.published = 0
+        remap = remap or {}
+        for name in self.topics:
+            info = reader.topics.get(name)
+            if info is None:
+                raise ValueError(f'topic {name} is not in bag {reader.path}: topics are '
+                                 f'{", ".join(sorted(reader.topics))}')
+            profiles = info.qos_profiles
+            qos = codec.profile_to_qos(profiles[0], depth=100) if profiles else \
+                QoSProfile(depth=100)
+            if reliable:
+                qos.reliability = ReliabilityPolicy.RELIABLE
+            self.publishers[name] = node.create_publisher(
+                codec.message_class(info.type_name), remap.get(name, name), qos)
+        self.clock_publisher = None
+        if self.clock_period_s is not None:
+            from rosgraph_msgs.msg import Clock
+            self._clock_msg = Clock()
+            self.clock_publisher = node.create_publisher(
+                Clock, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+
+    def wait_for_subscribers(self, timeout_s):
+        """Wait until every publisher has a subscriber; return True if they all do."""
+        deadline = time.monotonic() + timeout_s
+        while rclpy.ok():
+            missing = [n for n, p in self.publishers.items() if p.get_subscription_count() < 1]
+            if not missing:
+                return True
+            if time.monotonic() >= deadline:
+                self.node.get_logger().warning(
+                    f'no subscriber on {", ".join(missing)} after {timeout_s} s; replaying')
+                return False
+            time.sleep(0.05)
+        return False
+
+    def wait_for_acks(self, timeout_s):
+        """Wait until reliable subscribers acknowledged everything published."""
+        from rclpy.duration import Duration
+        for publisher in self.publishers.values():
+            publisher.wait_for_all_acked(Duration(nanoseconds=int(timeout_s * NS_PER_S)))
+
+    def _publish_clock(self, bag_time_ns):
+        msg = self._clock_msg
+        msg.clock.sec, msg.clock.nanosec = divmod(int(bag_time_ns), NS_PER_S)
+        self.clock_publisher.publish(msg)
+
+    def play_once(self, start_ns):
+        """Replay the messages from bag time ``start_ns`` once; return the count."""
+        count = 0
+        wall_start = time.monotonic()
+        next_clock = wall_start
+        scale = 1.0 / (self.rate * NS_PER_S)
+        for item in self.reader.messages(self.topics, start_ns=start_ns):
+            due = wall_start + (item.log_time_ns - start_ns) * scale
+            while True:
+                now = time.monotonic()
+                if self.clock_publisher is not None and now >= next_clock:
+                    self._publish_clock(start_ns + (now - wall_start) * self.rate * NS_PER_S)
+                    next_clock += self.clock_period_s
+                    if next_clock < now:
+                        next_clock = now + self.clock_period_s
+                if now >= due:
+                    break
+                if not rclpy.ok():
+                    return count
+                wake = due if self.clock_publisher is None else min(due, next_clock)
+                time.sleep(min(MAX_SLEEP_S, max(0.0, wake - now)))
+            self.publishers[item.topic].publish(item.data)
+            count += 1
+            self.published += 1
+        return count
+
+
+def main(args=None):
+    """Replay a bag until its end (or forever with ``--loop``) or SIGINT/SIGTERM."""
+    argv = list(sys.argv) if args is None else ['replay'] + list(args)
+    opts = build_parser().parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
+    try:
+        remap = _check(opts)
+        reader = bag.BagReader(opts.bag, tolerant=True)
+    except (ValueError, OSError) as exc:
+        print(f'replay: error: {exc}', file=sys.stderr)
+        return 2
+    for note in reader.problems:
+        print(f'replay: warning: incomplete bag, {note}', file=sys.stderr)
+    rclpy.init(args=argv)
+    node = None
+    status = 0
+    player = None
+    try:
+        node = Node('gyro_replay')
+        player = Player(node, reader, opts.topics, remap, opts.rate, opts.clock,
+                        opts.reliable)
+        if opts.wait_for_subscribers > 0:
+            player.wait_for_subscribers(opts.wait_for_subscribers)
+        if opts.delay > 0:
+            time.sleep(opts.delay)
+        start_ns = reader.start_time_ns + int(round(opts.start_offset * NS_PER_S))
+        node.get_logger().info(
+            f'replaying {reader.message_count} messages of {opts.bag} at rate {opts.rate}')
+        while rclpy.ok():
+            player.play_once(start_ns)
+            if not opts.loop:
+                break
+        player.wait_for_acks(2.0)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ValueError, OSError) as exc:
+        print(f'replay: error: {exc}', file=sys.stderr)
+        status = 2
+    finally:
+        if player is not None:
+            print(f'replay: published {player.published} messages', flush=True)
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return status
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,517 @@
+"""
+``ros2 run gyro_emulator scenario [PROFILE]``: play a rate/temperature profile.
+
+A profile is a YAML file of constant-input steps. It publishes the step's
+true rate on ``cmd/angular_velocity`` (geometry_msgs/Vector3Stamped, rad/s
+along ``axis``) and its ambient temperature on ``cmd/temperature``
+(sensor_msgs/Temperature) at ``publish_rate_hz``, so a lost message is
+repaired at the next period. With ``--summary`` it also listens to
+``imu/data_raw`` and ``imu/temperature`` and prints, per step, the commanded
+and measured rate and the error in deg/s, averaged after ``settle_s``.
+
+Profile keys (SI unless the name says otherwise)::
+
+    name: paper_validation
+    axis: [0.0, 0.0, 1.0]        # rate direction in the sensor frame
+    publish_rate_hz: 50.0
+    grid:                        # every rate at every temperature ...
+      temperatures_c: [25.0, 45.0, 65.0, 85.0]
+      rates_rpm: [0.0, 10.0, 20.0, 40.0]   # or rates_deg_s / rates_rad_s
+      hold_s: 2.0                # duration of each step
+      settle_s: 0.8              # start of each step left out of the summary
+    segments:                    # ... and/or explicit steps, played after
+      - {duration_s: 2.0, rate_deg_s: 60.0, temperature_c: 25.0, settle_s: 0.5}
+    node_parameters: {}          # parameters a runner should give the node
+
+``node_parameters`` is what makes a compressed profile meaningful (e.g. a
+short die thermal time constant); ``gyro_emulator.main_job`` passes it on.
+"""
+
+import argparse
+from dataclasses import dataclass
+import math
+import os
+import signal
+import sys
+import time
+
+from gyro_emulator import units
+
+DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
+_RATE_KEYS = {'rate_rad_s': 1.0, 'rate_deg_s': math.pi / 180.0,
+              'rate_rpm': 2.0 * math.pi / 60.0}
+
+
+@dataclass(frozen=True)
+class Step:
+    """
+    One constant-input step of a profile.
+
+    Attributes
+    ----------
+    duration_s : float
+        Length of the step, s.
+    rate_rad_s : float
+        True rate along the profile axis, rad/s.
+    temperature_c : float
+        Ambient temperature, deg C.
+    settle_s : float
+        Start of the step excluded from the summary, s.
+    label : str
+        Human-readable rate as written in the profile (e.g. ``10 RPM``).
+
+    """
+
+    duration_s: float
+    rate_rad_s: float
+    temperature_c: float
+    settle_s: float = 0.0
+    label: str = ''
+
+
+@dataclass(frozen=True)
+class Profile:
+    """A parsed profile: name, unit axis, publish rate, steps, node parameters."""
+
+    name: str
+    axis: tuple
+    publish_rate_hz: float
+    steps: tuple
+    node_parameters: dict
+
+    @property
+    def duration_s(self):
+        """Total length of the profile, s."""
+        return sum(step.duration_s for step in self.steps)
+
+
+def _number(where, key, value, low=None, high=None, low_open=False):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+            not math.isfinite(value):
+        raise ValueError(f'{where}.{key} = {value!r} is not a finite number')
+    if (low is not None and (value <= low if low_open else value < low)) or (
+            high is not None and value > high):
+        lo = '-inf' if low is None else f'{low:g}'
+        hi = 'inf' if high is None else f'{high:g}'
+        raise ValueError(f'{where}.{key} = {value!r} is out of range: allowed '
+                         f'{"(" if low_open else "["}{lo}, {hi}]')
+    return float(value)
+
+
+def _rate(where, mapping, plural=False):
+    names = {('rates_' + k[5:] if plural else k): k for k in _RATE_KEYS}
+    found = [n for n in names if n in mapping]
+    if len(found) != 1:
+        raise ValueError(f'{where}: give exactly one of {", ".join(names)}')
+    return found[0], names[found[0]]
+
+
+def _step(where, raw):
+    if not isinstance(raw, dict):
+        raise ValueError(f'{where} = {raw!r} must be a mapping')
+    allowed = {'duration_s', 'temperature_c', 'settle_s'} | set(_RATE_KEYS)
+    unknown = sorted(set(raw) - allowed)
+    if unknown:
+        raise ValueError(f'{where}: unknown key(s) {", ".join(unknown)}; allowed: '
+                         f'{", ".join(sorted(allowed))}')
+    key = _rate(where, raw)[0]
+    value = _number(where, key, raw[key])
+    duration = _number(where, 'duration_s', raw.get('duration_s'), 0.0, 86400.0, True)
+    settle = _number(where, 'settle_s', raw.get('settle_s', 0.0), 0.0, duration)
+    temp = _number(where, 'temperature_c', raw.get('temperature_c'),
+                   -units.ZERO_CELSIUS_K, 1000.0, True)
+    unit = {'rate_rad_s': 'rad/s', 'rate_deg_s': 'deg/s', 'rate_rpm': 'RPM'}[key]
+    return Step(duration, value * _RATE_KEYS[key], temp, settle, f'{value:g} {unit}')
+
+
+def _grid(where, raw):
+    if not isinstance(raw, dict):
+        raise ValueError(f'{where} = {raw!r} must be a mapping')
+    plural, key = _rate(where, raw, plural=True)
+    allowed = {'temperatures_c', 'hold_s', 'settle_s', plural}
+    unknown = sorted(set(raw) - allowed)
+    if unknown:
+        raise ValueError(f'{where}: unknown key(s) {", ".join(unknown)}; allowed: '
+                         f'{", ".join(sorted(allowed))}')
+    temps, rates = raw.get('temperatures_c'), raw[plural]
+    for name, values in (('temperatures_c', temps), (plural, rates)):
+        if not isinstance(values, list) or not values:
+            raise ValueError(f'{where}.{name} = {values!r} must be a non-empty list')
+    hold = raw.get('hold_s')
+    steps = []
+    for temp in temps:
+        for rate in rates:
+            steps.append(_step(f'{where}[T={temp}, {plural}={rate}]', {
+                'duration_s': hold, key: rate, 'temperature_c': temp,
+                'settle_s': raw.get('settle_s', 0.0)}))
+    return steps
+
+
+def parse_profile(doc, source='profile'):
+    """
+    Build a :class:`Profile` from a parsed YAML mapping.
+
+    Raises ValueError naming the key, the value and the allowed range.
+    """
+    if not isinstance(doc, dict):
+        raise ValueError(f'{source}: expected a mapping, got {doc!r}')
+    allowed = {'name', 'description', 'axis', 'publish_rate_hz', 'grid', 'segments',
+               'node_parameters'}
+    unknown = sorted(set(doc) - allowed)
+    if unknown:
+        raise ValueError(f'{source}: unknown key(s) {", ".join(unknown)}; allowed: '
+                         f'{", ".join(sorted(allowed))}')
+    axis = doc.get('axis', [0.0, 0.0, 1.0])
+    if not isinstance(axis, list) or len(axis) != 3:
+        raise ValueError(f'{source}.axis = {axis!r} must be a list of 3 numbers')
+    axis = [_number(source, f'axis[{i}]', v) for i, v in enumerate(axis)]
+    norm = math.sqrt(sum(v * v for v in axis))
+    if norm == 0.0:
+        raise ValueError(f'{source}.axis = {axis!r} is the zero vector')
+    rate_hz = _number(source, 'publish_rate_hz', doc.get('publish_rate_hz', 50.0),
+                      0.0, 1000.0, True)
+    steps = []
+    if 'grid' in doc:
+        steps += _grid(f'{source}.grid', doc['grid'])
+    segments = doc.get('segments', [])
+    if not isinstance(segments, list):
+        raise ValueError(f'{source}.segments = {segments!r} must be a list')
+    steps += [_step(f'{source}.segments[{i}]', s) for i, s in enumerate(segments)]
+    if not steps:
+        raise ValueError(f'{source}: no steps (give grid and/or segments)')
+    node_parameters = doc.get('node_parameters') or {}
+    if not isinstance(node_parameters, dict):
+        raise ValueError(f'{source}.node_parameters = {node_parameters!r} must be a mapping')
+    return Profile(str(doc.get('name', os.path.basename(str(source)))),
+                   tuple(v / norm for v in axis), rate_hz, tuple(steps),
+                   dict(node_parameters))
+
+
+def default_profile_path():
+    """Return the shipped paper-validation profile (source tree or installed share)."""
+    here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    source = os.path.join(here, 'config', DEFAULT_PROFILE)
+    if os.path.isfile(source):
+        return source
+    from ament_index_python.packages import get_package_share_directory
+    return os.path.join(get_package_share_directory('gyro_emulator'), 'config',
+                        DEFAULT_PROFILE)
+
+
+def load_profile(path=None):
+    """Read and parse a profile YAML (default: the paper validation profile)."""
+    import yaml
+
+    path = default_profile_path() if path is None else path
+    try:
+        with open(path, encoding='utf-8') as handle:
+            doc = yaml.safe_load(handle)
+    except OSError as exc:
+        raise ValueError(f'{path}: cannot read: {exc}') from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f'{path}: malformed YAML: {exc}') from None
+    return parse_profile(doc, path)
+
+
+# --- the summary -----------------------------------------------------------
+
+@dataclass(frozen=True)
+class StepResult:
+    """Commanded vs measured for one step (rates along the axis, deg/s)."""
+
+    step: Step
+    commanded_deg_s: float
+    measured_deg_s: float
+    std_deg_s: float
+    die_temp_c: float
+    samples: int
+
+    @property
+    def error_deg_s(self):
+        """Measured minus commanded rate, deg/s."""
+        return self.measured_deg_s - self.commanded_deg_s
+
+
+def summarize(profile, start_ns, imu, temps):
+    """
+    Average the output over each step's measurement window.
+
+    Parameters
+    ----------
+    profile : Profile
+        The profile that was played.
+    start_ns : int
+        Clock time at which the first step began, ns.
+    imu : list of (int, tuple)
+        (stamp ns, angular velocity (x, y, z) rad/s) of every Imu received.
+    temps : list of (int, float)
+        (stamp ns, die temperature deg C) of every Temperature received.
+
+    Returns
+    -------
+    list of StepResult
+
+    """
+    import numpy as np
+
+    stamps = np.array([s for s, _ in imu], dtype=np.int64)
+    along = np.array([sum(a * w for a, w in zip(profile.axis, v)) for _, v in imu])
+    t_stamps = np.array([s for s, _ in temps], dtype=np.int64)
+    t_values = np.array([v for _, v in temps])
+    results = []
+    begin = start_ns
+    for step in profile.steps:
+        lo = begin + int(step.settle_s * 1e9)
+        hi = begin + int(step.duration_s * 1e9)
+        begin = hi
+        sel = along[(stamps >= lo) & (stamps < hi)] if len(stamps) else along
+        tsel = t_values[(t_stamps >= lo) & (t_stamps < hi)] if len(t_stamps) else t_values
+        measured = float(np.degrees(sel.mean())) if len(sel) else float('nan')
+        std = float(np.degrees(sel.std())) if len(sel) > 1 else float('nan')
+        results.append(StepResult(
+            step, math.degrees(step.rate_rad_s), measured, std,
+            float(tsel.mean()) if len(tsel) else float('nan'), int(len(sel))))
+    return results
+
+
+def format_summary(results):
+    """Return the summary table as text (one row per step)."""
+    head = (f'{"step":>4} {"T_amb C":>8} {"T_die C":>8} {"rate":>10} {"cmd deg/s":>10} '
+            f'{"meas deg/s":>11} {"err deg/s":>10} {"std deg/s":>10} {"n":>6}')
+    lines = [head, '-' * len(head)]
+    for i, r in enumerate(results):
+        lines.append(
+            f'{i:>4} {r.step.temperature_c:>8.1f} {r.die_temp_c:>8.2f} '
+            f'{r.step.label:>10} {r.commanded_deg_s:>10.3f} {r.measured_deg_s:>11.3f} '
+            f'{r.error_deg_s:>+10.3f} {r.std_deg_s:>10.3f} {r.samples:>6d}')
+    return '\n'.join(lines)
+
+
+def results_json(profile, results):
+    """Return the summary as a JSON-ready dict."""
+    return {'profile': profile.name, 'axis': list(profile.axis), 'steps': [
+        {'temperature_c': r.step.temperature_c, 'rate': r.step.label,
+         'commanded_deg_s': r.commanded_deg_s, 'measured_deg_s': r.measured_deg_s,
+         'error_deg_s': r.error_deg_s, 'std_deg_s': r.std_deg_s,
+         'die_temp_c': r.die_temp_c, 'samples': r.samples} for r in results]}
+
+
+# --- the ROS side ----------------------------------------------------------
+
+class ScenarioPlayer:
+    """
+    Publish a profile's commands from an rclpy node; optionally collect output.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node that owns publishers, subscriptions and the timer.
+    profile : Profile
+        What to play.
+    collect : bool
+        Subscribe to imu/data_raw and imu/temperature for :func:`summarize`.
+    loop : bool
+        Start over at the end instead of finishing.
+
+    """
+
+    def __init__(self, node, profile, collect=False, loop=False):
+        from geometry_msgs.msg import Vector3Stamped
+        from rclpy.qos import qos_profile_sensor_data
+        from sensor_msgs.msg import Imu, Temperature
+
+        self.node = node
+        self.profile = profile
+        self.loop = loop
+        self.rate_pub = node.create_publisher(Vector3Stamped, 'cmd/angular_velocity', 10)
+        self.temp_pub = node.create_publisher(Temperature, 'cmd/temperature', 10)
+        self._rate_msg = Vector3Stamped()
+        self._temp_msg = Temperature()
+        self.imu, self.temps = [], []
+        if collect:
+            node.create_subscription(Imu, 'imu/data_raw', self._on_imu,
+                                     qos_profile_sensor_data)
+            node.create_subscription(Temperature, 'imu/temperature', self._on_temp,
+                                     qos_profile_sensor_data)
+        self.start_ns = None
+        self.done = False
+        self._ends = []
+        total = 0
+        for step in profile.steps:
+            total += int(step.duration_s * 1e9)
+            self._ends.append(total)
+        self._timer = None
+
+    def _on_imu(self, msg):
+        v = msg.angular_velocity
+        s = msg.header.stamp
+        self.imu.append((s.sec * 1_000_000_000 + s.nanosec, (v.x, v.y, v.z)))
+
+    def _on_temp(self, msg):
+        s = msg.header.stamp
+        self.temps.append((s.sec * 1_000_000_000 + s.nanosec, msg.temperature))
+
+    def connected(self):
+        """Return True once the emulator subscribes to both command topics."""
+        return self.rate_pub.get_subscription_count() > 0 and \
+            self.temp_pub.get_subscription_count() > 0
+
+    def start(self):
+        """Begin the first step now and publish every 1 / publish_rate_hz."""
+        self.start_ns = self.node.get_clock().now().nanoseconds
+        self._publish()
+        self._timer = self.node.create_timer(1.0 / self.profile.publish_rate_hz,
+                                             self._publish)
+
+    def current_step(self, now_ns):
+        """Return the index of the step in force at ``now_ns`` (None after the end)."""
+        elapsed = now_ns - self.start_ns
+        if self.loop:
+            elapsed %= self._ends[-1]
+        for index, end in enumerate(self._ends):
+            if elapsed < end:
+                return index
+        return None
+
+    def _publish(self):
+        now_ns = self.node.get_clock().now().nanoseconds
+        index = self.current_step(now_ns)
+        if index is None:
+            self.done = True
+            self._timer.cancel()
+            return
+        step = self.profile.steps[index]
+        stamp = self.node.get_clock().now().to_msg()
+        msg = self._rate_msg
+        msg.header.stamp = stamp
+        ax = self.profile.axis
+        msg.vector.x, msg.vector.y, msg.vector.z = (a * step.rate_rad_s for a in ax)
+        self.rate_pub.publish(msg)
+        temp = self._temp_msg
+        temp.header.stamp = stamp
+        temp.temperature = step.temperature_c
+        self.temp_pub.publish(temp)
+
+    def results(self):
+        """Return the per-step :class:`StepResult` list of what was collected."""
+        return summarize(self.profile, self.start_ns, self.imu, self.temps)
+
+
+def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=None):
+    """
+    Run a profile against a running emulator in a fresh rclpy context.
+
+    Parameters
+    ----------
+    profile : Profile
+        What to play.
+    collect : bool
+        Collect the emulator's output for the summary.
+    wait_s : float
+        How long to wait for the emulator to subscribe, s.
+    loop : bool
+        Repeat forever (until SIGINT).
+    progress : callable or None
+        Called with (step index, Step) when a step begins.
+    args : list of str or None
+        ROS arguments (e.g. ``['--ros-args', '-r', '__ns:=/gyro']``).
+
+    Returns
+    -------
+    ScenarioPlayer
+        With ``results()`` for the summary. Raises RuntimeError when the
+        emulator never subscribes.
+
+    """
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    context = rclpy.Context()
+    rclpy.init(args=args, context=context)
+    node = rclpy.create_node('gyro_scenario', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    player = ScenarioPlayer(node, profile, collect=collect, loop=loop)
+    try:
+        deadline = time.monotonic() + wait_s
+        while not player.connected():
+            if time.monotonic() > deadline:
+                raise RuntimeError(
+                    f'no emulator subscribed to cmd/angular_velocity and cmd/temperature '
+                    f'within {wait_s:g} s (is `ros2 run gyro_emulator node` running on '
+                    f'ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")}?)')
+            executor.spin_once(timeout_sec=0.05)
+        if collect:
+            deadline = time.monotonic() + wait_s
+            while not player.imu and time.monotonic() < deadline:
+                executor.spin_once(timeout_sec=0.05)
+        player.start()
+        shown = None
+        while not player.done:
+            executor.spin_once(timeout_sec=0.05)
+            index = player.current_step(node.get_clock().now().nanoseconds)
+            if progress is not None and index is not None and index != shown:
+                shown = index
+                progress(index, profile.steps[index])
+    except (KeyboardInterrupt, ExternalShutdownException):
+        player.done = True
+    finally:
+        executor.shutdown()
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    return player
+
+
+def build_parser():
+    """Return the ``scenario`` argument parser."""
+    parser = argparse.ArgumentParser(
+        prog='ros2 run gyro_emulator scenario',
+        description='Play a rate/temperature profile onto the emulator cmd/ topics.')
+    parser.add_argument('profile', nargs='?', default=None,
+                        help='profile YAML (default: the paper validation profile)')
+    parser.add_argument('--summary', action='store_true',
+                        help='collect imu/data_raw and print commanded vs measured')
+    parser.add_argument('--json', metavar='FILE', help='write the summary as JSON')
+    parser.add_argument('--loop', action='store_true', help='repeat until Ctrl-C')
+    parser.add_argument('--wait', type=float, default=20.0, metavar='S',
+                        help='how long to wait for the emulator (default: %(default)s s)')
+    return parser
+
+
+def _interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def main(args=None):
+    """Entry point of ``ros2 run gyro_emulator scenario``; returns the exit status."""
+    from rclpy.utilities import remove_ros_args
+
+    argv = sys.argv[1:] if args is None else list(args)
+    opts = build_parser().parse_args(remove_ros_args(['scenario'] + argv)[1:])
+    signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        profile = load_profile(opts.profile)
+        print(f'scenario {profile.name}: {len(profile.steps)} steps, '
+              f'{profile.duration_s:g} s', flush=True)
+
+        def progress(index, step):
+            print(f'  step {index}: {step.label} at {step.temperature_c:g} C for '
+                  f'{step.duration_s:g} s', flush=True)
+
+        player = play(profile, collect=opts.summary or bool(opts.json), wait_s=opts.wait,
+                      loop=opts.loop, progress=progress, args=['scenario'] + argv)
+    except (ValueError, RuntimeError, OSError) as exc:
+        print(f'scenario: error: {exc}', file=sys.stderr)
+        return 2
+    if opts.summary or opts.json:
+        results = player.results()
+        print(format_summary(results))
+        if opts.json:
+            import json
+            with open(opts.json, 'w', encoding='utf-8') as handle:
+                json.dump(results_json(profile, results), handle, indent=1)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,163 @@
+"""The diagnose CSV contract, bag input and the decimated view."""
+
+from gyro_emulator.diagnose import data as dd
+from gyro_emulator.diagnose.data import load_csv, MeasuredData, Prepared, write_csv
+import numpy as np
+import pytest
+
+
+def _record(n=400, dt=0.01, seed=0, accel=True):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt
+    accel_m_s2 = rng.normal(size=(n, 3)) if accel else None
+    return MeasuredData(time_s=t, rate_cmd_rad_s=np.sin(2 * np.pi * 0.7 * t),
+                        temp_c=25.0 + 0.1 * t, gyro_rad_s=rng.normal(size=n),
+                        accel_m_s2=accel_m_s2)
+
+
+def test_csv_round_trip_with_and_without_accel(tmp_path):
+    for accel in (True, False):
+        rec = _record(accel=accel)
+        path = tmp_path / f'r{accel}.csv'
+        write_csv(path, rec)
+        back = load_csv(path)
+        assert back.rows == rec.rows and back.has_accel == accel
+        np.testing.assert_allclose(back.gyro_rad_s, rec.gyro_rad_s, rtol=1e-8)
+        np.testing.assert_allclose(back.temp_c, rec.temp_c, atol=1e-5)
+
+
+def test_extra_columns_ignored_and_any_column_order(tmp_path):
+    path = tmp_path / 'x.csv'
+    rows = ['note,gyro_rad_s,temp_c,time_s,rate_cmd_rad_s']
+    rows += [f'a,{0.1 * i},{20 + i},{i * 0.5},{0.0}' for i in range(30)]
+    path.write_text('\n'.join(rows) + '\n')
+    rec = load_csv(path)
+    assert rec.rows == 30 and not rec.has_accel
+    assert rec.gyro_rad_s[3] == pytest.approx(0.3)
+    assert rec.time_s[-1] == pytest.approx(14.5)
+
+
+def _csv(tmp_path, header, lines):
+    path = tmp_path / 'bad.csv'
+    path.write_text(header + '\n' + '\n'.join(lines) + '\n')
+    return path
+
+
+GOOD = [f'{i * 0.1},0,25,0.001' for i in range(30)]
+
+
+def test_missing_column_names_it(tmp_path):
+    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,gyro_rad_s',
+                [f'{i},0,0' for i in range(30)])
+    with pytest.raises(ValueError, match='missing required column.*temp_c'):
+        load_csv(path)
+
+
+def test_non_numeric_value_names_column_and_row(tmp_path):
+    lines = list(GOOD)
+    lines[4] = '0.4,0,hot,0.001'
+    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
+    with pytest.raises(ValueError, match=r"column temp_c row 6 is 'hot'"):
+        load_csv(path)
+
+
+def test_nan_value_names_column_and_row(tmp_path):
+    lines = list(GOOD)
+    lines[7] = '0.7,0,25,nan'
+    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
+    with pytest.raises(ValueError, match='column gyro_rad_s row 9 is nan'):
+        load_csv(path)
+
+
+def test_time_going_back_is_an_error_but_a_repeated_stamp_is_not(tmp_path):
+    lines = list(GOOD)
+    lines[10] = '0.85,0,25,0.001'
+    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
+    with pytest.raises(ValueError, match='time_s is not monotonic: row 12'):
+        load_csv(path)
+    lines = list(GOOD)
+    lines[10] = '0.9,0,25,0.001'
+    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
+    assert load_csv(path).rows == 30
+
+
+def test_partial_acceleration_columns_rejected(tmp_path):
+    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s,accel_x_m_s2',
+                [line + ',0' for line in GOOD])
+    with pytest.raises(ValueError, match='acceleration needs all of'):
+        load_csv(path)
+
+
+def test_out_of_model_temperature_rejected():
+    rec = _record()
+    with pytest.raises(ValueError, match=r'temp_c spans .* allowed \[-60, 200\]'):
+        MeasuredData(time_s=rec.time_s, rate_cmd_rad_s=rec.rate_cmd_rad_s,
+                     temp_c=rec.temp_c + 300, gyro_rad_s=rec.gyro_rad_s)
+
+
+def test_bin_means_and_delayed_rate_match_sample_level():
+    rec = _record(n=5000, dt=0.01)
+    prep = Prepared(rec, max_bins=300)
+    b = prep.binned
+    assert len(b) == 300 and np.sum(b.weight) == rec.rows
+    i0, i1 = prep.starts[17], prep.ends[17]
+    assert b.rate2[17] == pytest.approx(np.mean(rec.rate_cmd_rad_s[i0:i1] ** 2))
+    for delay in (0.0, 0.0137, 0.05, -0.02):
+        samples = prep.samples.delayed_rate(delay)
+        means = np.add.reduceat(samples, prep.starts) / b.weight
+        np.testing.assert_allclose(prep.binned.delayed_rate(delay)[1:-1],
+                                   means[1:-1], atol=1e-12)
+
+
+def test_thermal_lag_is_exact_on_a_ramp():
+    n, dt, slope, tau = 20000, 0.05, 0.02, 60.0
+    t = np.arange(n) * dt
+    rec = MeasuredData(time_s=t, rate_cmd_rad_s=np.zeros(n), temp_c=20 + slope * t,
+                       gyro_rad_s=np.zeros(n))
+    prep = Prepared(rec, max_bins=2000)
+    lagged = prep.lagged_temp_on_bins(tau)
+    tb = prep.binned.time_s
+    # the filter starts in equilibrium at the first bin
+    exact = 20 + slope * (tb - tau * (1 - np.exp(-(tb - tb[0]) / tau)))
+    np.testing.assert_allclose(lagged, exact, atol=1e-6)
+    rate = prep.temp_rate_on_bins
+    assert np.median(rate) == pytest.approx(slope, rel=1e-6)
+
+
+def _write_bag(path, rec, with_accel=True):
+    from gyro_emulator import bag, cdr
+    stamps = np.round(1_700_000_000e9 + rec.time_s * 1e9).astype(np.int64)
+    imu = cdr.layout_of('sensor_msgs/msg/Imu')
+    values = np.zeros((rec.rows, len(imu.fields)))
+    values[:, imu.index('angular_velocity.z')] = rec.gyro_rad_s
+    vec = np.zeros((rec.rows, 3))
+    vec[:, 2] = rec.rate_cmd_rad_s
+    temp = np.column_stack([rec.temp_c, np.zeros(rec.rows)])
+    with bag.BagWriter(str(path)) as writer:
+        batches = []
+        for topic, type_name, vals in (
+                ('/cmd/angular_velocity', 'geometry_msgs/msg/Vector3Stamped', vec),
+                ('/cmd/temperature', 'sensor_msgs/msg/Temperature', temp),
+                ('/imu/data_raw', 'sensor_msgs/msg/Imu', values)) + (
+                (('/cmd/linear_acceleration', 'geometry_msgs/msg/Vector3Stamped',
+                  rec.accel_m_s2),) if with_accel else ()):
+            writer.add_topic(topic, type_name)
+            batches.append((topic, cdr.encode(type_name, stamps, vals), stamps))
+        writer.write_batches(batches)
+
+
+def test_bag_input_maps_topics_onto_the_contract(tmp_path):
+    pytest.importorskip('gyro_emulator.bag')
+    rec = _record(n=600, dt=0.02)
+    _write_bag(tmp_path / 'run', rec)
+    back = dd.load_bag(str(tmp_path / 'run'))
+    assert back.rows == rec.rows and back.has_accel
+    np.testing.assert_allclose(back.time_s, rec.time_s, atol=1e-9)
+    np.testing.assert_allclose(back.rate_cmd_rad_s, rec.rate_cmd_rad_s, atol=1e-12)
+    np.testing.assert_allclose(back.temp_c, rec.temp_c, atol=1e-12)
+    np.testing.assert_allclose(back.gyro_rad_s, rec.gyro_rad_s, atol=1e-12)
+    np.testing.assert_allclose(back.accel_m_s2, rec.accel_m_s2, atol=1e-12)
+    no_accel = dd.load_bag(str(tmp_path / 'run'), accel_topic='none')
+    assert not no_accel.has_accel
+    with pytest.raises(ValueError, match="no topic 'imu/nope' for the gyro"):
+        dd.load_bag(str(tmp_path / 'run'), gyro_topic='imu/nope')

@@ -1,0 +1,602 @@
+"""
+The emulator node as real processes on a private, localhost-only ROS domain.
+
+A probe node in this process (its own rclpy context, same domain) talks to
+node subprocesses started with ``python -m gyro_emulator.ros.node``. Every
+wait polls with a timeout; nothing sleeps for synchronisation.
+"""
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+import types
+
+from conftest import ros_env
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Vector3Stamped
+from gyro_emulator import sensor, sensor_config
+from nav_msgs.msg import Odometry
+import numpy as np
+import pytest
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import qos_profile_sensor_data
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu, Temperature
+import yaml
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+NS = 1_000_000_000
+pytestmark = pytest.mark.ros
+
+#: A sensor with every term that shows at 200 Hz, so exact comparisons bite.
+SENSOR_YAML = {
+    'electronics_noise_rad_s_sqrt_hz': 2.0e-4, 'bias_instability_rad_s': 2.0e-5,
+    'rate_random_walk_rad_s_sqrt_s': 1.0e-5, 'thermal_time_constant_s': 0.2,
+    'output_filter_hz': 40.0, 'lsb_rad_s': 1.0e-6, 'turn_on_bias_sigma_rad_s': 1.0e-3,
+    'bias_temp_coeff_rad_s_k': 1.0e-5, 'g_sensitivity_rad_s_m_s2': 1.0e-4,
+    'mode_split_hz': [10.0, 20.0, 30.0], 'range_rad_s': 8.0}
+
+
+def stamp_ns(header):
+    return header.stamp.sec * NS + header.stamp.nanosec
+
+
+def set_stamp(header, t_ns):
+    header.stamp.sec, header.stamp.nanosec = t_ns // NS, t_ns % NS
+
+
+def vector(msg):
+    return (msg.x, msg.y, msg.z)
+
+
+class Probe:
+    """A test-side rclpy node in its own context on the nodes' domain."""
+
+    def __init__(self, env):
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=int(env['ROS_DOMAIN_ID']))
+        self.node = rclpy.create_node('probe', context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def listen(self, msg_type, topic, qos=qos_profile_sensor_data):
+        got = []
+        self.node.create_subscription(msg_type, topic, got.append, qos)
+        return got
+
+    def publisher(self, msg_type, topic, depth=100):
+        return self.node.create_publisher(msg_type, topic, depth)
+
+    def spin_until(self, predicate, timeout_s, what):
+        deadline = time.monotonic() + timeout_s
+        while not predicate():
+            if time.monotonic() > deadline:
+                raise AssertionError(f'timed out after {timeout_s} s waiting for {what}')
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def spin_for(self, seconds):
+        """Collect messages for a while (a measurement window, not a synchronisation)."""
+        end = time.monotonic() + seconds
+        while time.monotonic() < end:
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def call(self, future, timeout_s=10.0):
+        self.spin_until(future.done, timeout_s, 'a service response')
+        return future.result()
+
+    def close(self):
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+class NodeProcess:
+    """``python -m gyro_emulator.ros.node`` with its output in a file."""
+
+    def __init__(self, env, log_path, *ros_args):
+        self.log_path = log_path
+        self._log = open(log_path, 'w')
+        self.proc = subprocess.Popen(
+            [sys.executable, '-m', 'gyro_emulator.ros.node', '--ros-args', *ros_args],
+            env=env, cwd=ROOT, stdout=self._log, stderr=subprocess.STDOUT)
+
+    def log(self):
+        with open(self.log_path) as handle:
+            return handle.read()
+
+    def stop(self, sig=signal.SIGINT, timeout_s=15.0):
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout_s)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+                raise AssertionError(f'node ignored {sig!r}:\n{self.log()}')
+        self._log.close()
+        return self.proc.returncode
+
+
+def write_sensor_yaml(directory):
+    path = os.path.join(directory, 'sensor_test.yaml')
+    with open(path, 'w') as handle:
+        yaml.safe_dump(SENSOR_YAML, handle)
+    return path
+
+
+def diag_values(array):
+    status = array.status[0]
+    return status, {kv.key: kv.value for kv in status.values}
+
+
+# --- one wall-clock node, started from a copy of the shipped params file ------------
+
+@pytest.fixture(scope='module')
+def wall(tmp_path_factory):
+    tmp = str(tmp_path_factory.mktemp('wall'))
+    with open(os.path.join(ROOT, 'config', 'gyro_emulator.yaml')) as handle:
+        doc = yaml.safe_load(handle)
+    values = doc['/**']['ros__parameters']
+    values.update(rate_hz=200, frame_id='gyro_test', temperature_rate_hz=20.0,
+                  diagnostics_period_s=0.25, command_timeout_s=0.3,
+                  sensor_config=write_sensor_yaml(tmp))
+    params_file = os.path.join(tmp, 'my_gyro.yaml')
+    with open(params_file, 'w') as handle:
+        yaml.safe_dump(doc, handle)
+    env = ros_env()
+    started = time.monotonic()
+    node = NodeProcess(env, os.path.join(tmp, 'node.log'), '--params-file', params_file)
+    probe = Probe(env)
+    topics = {
+        'imu': probe.listen(Imu, 'imu/data_raw'),
+        'temp': probe.listen(Temperature, 'imu/temperature'),
+        'rate': probe.listen(Vector3Stamped, 'gyro_emulator/truth/rate'),
+        'bias': probe.listen(Vector3Stamped, 'gyro_emulator/truth/bias'),
+        'sf': probe.listen(Vector3Stamped, 'gyro_emulator/truth/scale_factor'),
+        'diag': probe.listen(DiagnosticArray, '/diagnostics', 10),
+    }
+    probe.spin_until(lambda: len(topics['imu']) > 5, 30.0, 'the first Imu messages')
+    yield types.SimpleNamespace(
+        node=node, probe=probe, topics=topics, started=started,
+        params=AsyncParameterClient(probe.node, 'gyro_emulator'),
+        sensor_yaml=os.path.join(tmp, 'sensor_test.yaml'))
+    probe.close()
+    node.stop()
+
+
+def fresh(wall):
+    for got in wall.topics.values():
+        got.clear()
+
+
+def latest_diag(wall, predicate=lambda status, values: True, timeout_s=5.0):
+    wall.topics['diag'].clear()
+    found = []
+
+    def check():
+        for array in wall.topics['diag']:
+            status, values = diag_values(array)
+            if predicate(status, values):
+                found.append((status, values))
+        return bool(found)
+    wall.probe.spin_until(check, timeout_s, 'a matching /diagnostics status')
+    return found[-1]
+
+
+def test_params_file_values_are_in_force(wall):
+    names = ['rate_hz', 'frame_id', 'temperature_rate_hz', 'command_timeout_s',
+             'sensor.electronics_noise_rad_s_sqrt_hz', 'seed']
+    got = wall.probe.call(wall.params.get_parameters(names)).values
+    assert got[0].double_value == 200.0  # written as the integer 200
+    assert got[1].string_value == 'gyro_test'
+    assert got[2].double_value == 20.0 and got[3].double_value == 0.3
+    assert list(got[4].double_array_value) == [2.0e-4] * 3
+    assert got[5].integer_value == 0
+
+
+def test_imu_contents_follow_rep_145(wall):
+    fresh(wall)
+    wall.probe.spin_until(lambda: len(wall.topics['imu']) >= 100, 10.0, '100 Imu')
+    imu = wall.topics['imu']
+    offline = sensor.GyroModel(sensor_config.load_sensor_config(wall.sensor_yaml), 200.0,
+                               np.random.default_rng(0))
+    sigma = offline.white_noise_sigma_rad_s
+    for msg in imu:
+        assert msg.header.frame_id == 'gyro_test'
+        assert msg.orientation_covariance[0] == -1.0
+        assert msg.linear_acceleration_covariance[0] == -1.0
+        cov = np.asarray(msg.angular_velocity_covariance).reshape(3, 3)
+        assert np.allclose(np.diag(cov), sigma ** 2, rtol=1e-9)
+        assert np.count_nonzero(cov - np.diag(np.diag(cov))) == 0
+    stamps = np.array([stamp_ns(m.header) for m in imu])
+    assert np.all(np.diff(stamps) > 0)
+    # The timer period is 1/rate_hz: the median stamp spacing is 5 ms.
+    assert np.median(np.diff(stamps)) == pytest.approx(5e6, rel=0.1)
+
+
+def test_temperature_and_truth_topics(wall):
+    fresh(wall)
+    wall.probe.spin_until(lambda: len(wall.topics['temp']) >= 6 and
+                          len(wall.topics['sf']) >= 20, 10.0, 'temperature and truth')
+    temps = wall.topics['temp']
+    assert all(m.header.frame_id == 'gyro_test' for m in temps)
+    assert np.median(np.diff([stamp_ns(m.header) for m in temps])) == pytest.approx(
+        50e6, rel=0.1)
+    # Resting at the calibration temperature: unity scale factor, zero true rate.
+    assert all(m.temperature == pytest.approx(25.0) for m in temps)
+    assert all(vector(m.vector) == pytest.approx((1.0, 1.0, 1.0)) for m in wall.topics['sf'])
+    assert all(vector(m.vector) == (0.0, 0.0, 0.0) for m in wall.topics['rate'])
+    imu_stamps = {stamp_ns(m.header) for m in wall.topics['imu']}
+    truth_stamps = {stamp_ns(m.header) for m in wall.topics['rate']}
+    assert len(imu_stamps & truth_stamps) > 0.5 * len(truth_stamps)
+
+
+def test_commanded_rate_and_temperature_reach_the_output(wall):
+    probe = wall.probe
+    rate_pub = probe.publisher(Vector3Stamped, 'cmd/angular_velocity')
+    temp_pub = probe.publisher(Temperature, 'cmd/temperature')
+    cmd = Vector3Stamped()
+    cmd.vector.z = 1.5
+    hot = Temperature(temperature=70.0)
+
+    def send():
+        for msg, pub in ((cmd, rate_pub), (hot, temp_pub)):
+            msg.header.stamp = probe.node.get_clock().now().to_msg()
+            pub.publish(msg)
+    timer = probe.node.create_timer(0.05, send)
+    probe.spin_until(lambda: any(vector(m.vector) == (0.0, 0.0, 1.5)
+                                 for m in wall.topics['rate']), 10.0, 'the commanded rate')
+    probe.spin_until(lambda: wall.topics['temp'] and
+                     wall.topics['temp'][-1].temperature > 69.9999, 10.0, 'die at 70 C')
+    fresh(wall)
+    probe.spin_until(lambda: len(wall.topics['imu']) >= 200 and len(wall.topics['sf']) >= 200,
+                     10.0, '200 samples at 70 C')
+    z = np.array([m.angular_velocity.z for m in wall.topics['imu']])
+    sf = np.mean([m.vector.z for m in wall.topics['sf']])
+    bias = np.mean([m.vector.z for m in wall.topics['bias']])
+    physics_sf = sensor.physics.scale_factor_ratio(sensor_config.SensorConfig().device[2],
+                                                   70.0)
+    assert sf == pytest.approx(physics_sf, rel=1e-6)
+    assert sf > 1.01  # the paper's Fig 6: hotter reads high
+    sigma = sensor.GyroModel(sensor_config.load_sensor_config(wall.sensor_yaml), 200.0,
+                             np.random.default_rng(0)).white_noise_sigma_rad_s[2]
+    # 40 Hz output filter: about 6 samples per independent value.
+    assert z.mean() == pytest.approx(1.5 * sf + bias, abs=5 * sigma * math.sqrt(6 / len(z)))
+    # Stop commanding: after command_timeout_s the rate is stale and held at zero.
+    probe.node.destroy_timer(timer)
+    status, values = latest_diag(wall, lambda s, v: v.get('stale') == 'true')
+    assert status.level == b'\x01' and 'stale rate command' in status.message
+    probe.spin_until(lambda: wall.topics['rate'] and
+                     vector(wall.topics['rate'][-1].vector) == (0.0, 0.0, 0.0), 5.0,
+                     'zero rate after the timeout')
+
+
+def test_bad_inputs_are_rejected_counted_and_logged(wall):
+    probe = wall.probe
+    rate_pub = probe.publisher(Vector3Stamped, 'cmd/angular_velocity')
+    temp_pub = probe.publisher(Temperature, 'cmd/temperature')
+    probe.spin_until(lambda: rate_pub.get_subscription_count() and
+                     temp_pub.get_subscription_count(), 10.0, 'command subscriptions')
+    _, before = latest_diag(wall)
+    now = probe.node.get_clock().now().nanoseconds
+    good = Vector3Stamped()
+    good.vector.x = 0.25
+    set_stamp(good.header, now)
+    rate_pub.publish(good)
+    probe.spin_until(lambda: any(vector(m.vector) == (0.25, 0.0, 0.0)
+                                 for m in wall.topics['rate']), 5.0, 'the good command')
+    bad = [(float('nan'), 0.0, 0.0), (0.0, float('inf'), 0.0), (0.0, 0.0, -float('inf')),
+           (0.0, 500.0, 0.0)]
+    for values in bad:
+        msg = Vector3Stamped()
+        msg.vector.x, msg.vector.y, msg.vector.z = values
+        set_stamp(msg.header, now + 1000)
+        rate_pub.publish(msg)
+    old = Vector3Stamped()
+    old.vector.z = 3.0
+    set_stamp(old.header, now - 10**9)
+    rate_pub.publish(old)
+    for temp in (float('nan'), -300.0, 500.0):
+        msg = Temperature(temperature=temp)
+        set_stamp(msg.header, now)
+        temp_pub.publish(msg)
+
+    def counted(status, values):
+        return int(values['rejected.non_finite_rate']) - int(
+            before['rejected.non_finite_rate']) == 3 and int(values['rejected.out_of_order']) \
+            > int(before['rejected.out_of_order']) and int(
+                values['clamped.temperature_clamped']) > int(
+                    before['clamped.temperature_clamped'])
+    status, values = latest_diag(wall, counted)
+    assert int(values['rejected.rate_too_large']) == int(before['rejected.rate_too_large']) + 1
+    assert int(values['rejected.non_finite_temperature']) == \
+        int(before['rejected.non_finite_temperature']) + 1
+    assert int(values['rejected.below_absolute_zero']) == \
+        int(before['rejected.below_absolute_zero']) + 1
+    # 500 C is clamped to the model's 200 C: the die heads there, never beyond.
+    probe.spin_until(lambda: wall.topics['temp'] and
+                     wall.topics['temp'][-1].temperature > 150.0, 10.0, 'the clamped heat')
+    assert max(m.temperature for m in wall.topics['temp']) <= 200.0
+    # The rejected rates never reached the model: the last good command holds.
+    fresh(wall)
+    probe.spin_until(lambda: len(wall.topics['rate']) > 3, 5.0, 'more samples')
+    assert all(vector(m.vector) in ((0.25, 0.0, 0.0), (0.0, 0.0, 0.0))
+               for m in wall.topics['rate'])
+    log = wall.node.log()
+    assert 'input rejected (non_finite_rate)' in log
+    assert 'input rejected (below_absolute_zero)' in log
+    assert 'outside the model range' in log
+    assert wall.node.proc.poll() is None
+
+
+def test_a_flood_of_commands_does_not_stop_the_output(wall):
+    probe = wall.probe
+    rate_pub = probe.publisher(Vector3Stamped, 'cmd/angular_velocity', depth=1000)
+    probe.spin_until(lambda: rate_pub.get_subscription_count() > 0, 10.0, 'subscription')
+    _, before = latest_diag(wall)
+    msg = Vector3Stamped()
+    for k in range(20000):
+        msg.vector.x = float('nan') if k % 2 else 1e-3 * (k % 100)
+        rate_pub.publish(msg)
+    fresh(wall)
+    probe.spin_until(lambda: len(wall.topics['imu']) >= 50, 20.0, 'Imu after the flood')
+    status, values = latest_diag(wall, lambda s, v: int(v['commands_accepted.rate']) >
+                                 int(before['commands_accepted.rate']))
+    assert int(values['rejected.non_finite_rate']) > int(before['rejected.non_finite_rate'])
+    assert wall.node.proc.poll() is None
+    # Throttled: at most one line per reason per second since the node started.
+    lines = wall.node.log().count('input rejected (non_finite_rate)')
+    assert 1 <= lines <= 1 + (time.monotonic() - wall.started)
+
+
+def test_runtime_parameters_are_validated(wall):
+    probe, client = wall.probe, wall.params
+
+    def set_(*pairs):
+        future = client.set_parameters([Parameter(n, value=v) for n, v in pairs])
+        return probe.call(future).results
+    refused = set_(('rate_hz', 400.0))[0]
+    assert not refused.successful and 'read-only' in refused.reason
+    refused = set_(('temperature_override_c', 250.0))[0]
+    assert not refused.successful
+    refused = set_(('stale_rate_policy', 'freeze'))[0]
+    assert not refused.successful and 'choose one of zero, hold' in refused.reason
+    refused = set_(('sensor.lsb_rad_s', [-1.0, 0.0, 0.0]))[0]
+    assert not refused.successful and 'SensorConfig.lsb_rad_s' in refused.reason
+    refused = set_(('sensor.output_filter_hz', 150.0))[0]
+    assert not refused.successful and 'Nyquist' in refused.reason
+    # Noise off: covariance zero, the output is the deterministic part only.
+    latest_diag(wall, lambda s, v: v.get('stale') == 'true')  # rate held at zero
+    assert set_(('noise_enabled', False))[0].successful
+    fresh(wall)
+    probe.spin_until(lambda: len(wall.topics['imu']) >= 40, 5.0, 'quiet samples')
+    tail = wall.topics['imu'][-20:]
+    assert all(not np.any(m.angular_velocity_covariance) for m in tail)
+    # Within one LSB (1e-6 rad/s); with noise the spread is about 1e-2 rad/s.
+    spread = np.ptp([vector(m.angular_velocity) for m in tail], axis=0)
+    assert np.all(spread < 1.5e-6), spread
+    # Temperature override: the die heads to 60 C without any cmd/temperature.
+    assert all(r.successful for r in set_(('temperature_override_c', 60.0),
+                                          ('temperature_override_enabled', True)))
+    probe.spin_until(lambda: wall.topics['temp'] and
+                     abs(wall.topics['temp'][-1].temperature - 60.0) < 0.01, 10.0,
+                     'the die at the override temperature')
+    assert all(r.successful for r in set_(('noise_enabled', True),
+                                          ('temperature_override_enabled', False)))
+
+
+def test_parameters_are_described(wall):
+    probe, client = wall.probe, wall.params
+    names = probe.call(client.list_parameters()).result.names
+    assert {'rate_hz', 'seed', 'sensor.range_rad_s', 'sensor.terms.quantization',
+            'noise_enabled', 'record_dir'} <= set(names)
+    ours = [n for n in names if not n.startswith(('qos_overrides', 'use_sim_time',
+                                                   'start_type_description'))]
+    described = probe.call(client.describe_parameters(ours)).descriptors
+    assert all(d.description for d in described)
+    by_name = {d.name: d for d in described}
+    assert by_name['rate_hz'].read_only and not by_name['noise_enabled'].read_only
+    assert by_name['rate_hz'].floating_point_range[0].from_value == 1.0
+    assert by_name['seed'].read_only and by_name['sensor_config'].read_only
+
+
+# --- sim time: exact, reproducible, against the offline model -------------------------
+
+T0_NS = 10 * NS
+PERIOD_NS = 5_000_000
+TICKS = 160
+#: (stamp offset in ticks, topic, values) played identically into every node.
+SCRIPT = [(20, 'rate', (0.0, 0.0, 1.0)), (45, 'temp', 60.0), (60, 'accel', (0.0, 0.0, 9.8)),
+          (80, 'rate', (-0.5, 0.2, 2.0)), (120, 'temp', 30.0), (130, 'rate', (0.0, 0.0, 0.0))]
+
+
+def expected_samples(sensor_yaml, seed, accel_used=True):
+    """The offline model stepped with the inputs each tick must see."""
+    model = sensor.GyroModel(sensor_config.load_sensor_config(sensor_yaml), 200.0,
+                             np.random.default_rng(seed))
+    rate, temp, accel = (0.0, 0.0, 0.0), 25.0, None
+    out = []
+    for k in range(TICKS + 1):
+        for tick, kind, value in SCRIPT:
+            if tick == k:
+                if kind == 'rate':
+                    rate = value
+                elif kind == 'temp':
+                    temp = value
+                elif accel_used:
+                    accel = value
+        out.append(model.step(rate, temp, accel))
+    return out
+
+
+def test_sim_time_output_is_exactly_the_offline_model_and_reproducible(tmp_path):
+    """Four nodes on one /clock: seeds 7, 7, 8 and 7 fed from nav_msgs/Odometry."""
+    sensor_yaml = write_sensor_yaml(str(tmp_path))
+    env = ros_env()
+    setups = {'a': (7, 'angular_velocity'), 'b': (7, 'angular_velocity'),
+              'c': (8, 'angular_velocity'), 'd': (7, 'odometry')}
+    nodes = {ns: NodeProcess(env, str(tmp_path / f'{ns}.log'), '-r', f'__ns:=/{ns}',
+                             '-p', 'use_sim_time:=true', '-p', f'seed:={seed}',
+                             '-p', f'rate_source:={source}', '-p',
+                             f'sensor_config:={sensor_yaml}', '-p', 'command_timeout_s:=0.0',
+                             '-p', 'diagnostics_period_s:=0.1', '-p', 'block_samples:=16')
+             for ns, (seed, source) in setups.items()}
+    probe = Probe(env)
+    try:
+        clock_pub = probe.publisher(Clock, '/clock', 10)
+        imu = {ns: probe.listen(Imu, f'/{ns}/imu/data_raw') for ns in nodes}
+        truth = {ns: probe.listen(Vector3Stamped, f'/{ns}/gyro_emulator/truth/bias')
+                 for ns in nodes}
+        temps = {ns: probe.listen(Temperature, f'/{ns}/imu/temperature') for ns in nodes}
+        diags = probe.listen(DiagnosticArray, '/diagnostics', 50)
+        pubs = {}
+        for ns, (_, source) in setups.items():
+            pubs[ns] = {
+                'rate': probe.publisher(Odometry, f'/{ns}/cmd/odom') if source == 'odometry'
+                else probe.publisher(Vector3Stamped, f'/{ns}/cmd/angular_velocity'),
+                'temp': probe.publisher(Temperature, f'/{ns}/cmd/temperature'),
+                'accel': probe.publisher(Vector3Stamped, f'/{ns}/cmd/linear_acceleration')}
+
+        def tick(k):
+            t_ns = T0_NS + k * PERIOD_NS
+            msg = Clock()
+            msg.clock.sec, msg.clock.nanosec = t_ns // NS, t_ns % NS
+            done = lambda: all(got and stamp_ns(got[-1].header) == t_ns  # noqa: E731
+                               for got in imu.values())
+            for _ in range(20):
+                clock_pub.publish(msg)
+                try:
+                    probe.spin_until(done, 1.0, f'tick {k}')
+                    return
+                except AssertionError:
+                    continue  # a lost /clock message: send the same time again
+            raise AssertionError(f'tick {k} never came from every node')
+        probe.spin_until(lambda: clock_pub.get_subscription_count() >= 4 and all(
+            p['temp'].get_subscription_count() for p in pubs.values()), 30.0, 'all 4 nodes')
+        tick(0)
+        # Play the script ahead of the clock; commands apply at their stamps.
+        for k, kind, value in SCRIPT:
+            for ns, (_, source) in setups.items():
+                if kind == 'temp':
+                    msg = Temperature(temperature=value)
+                elif kind == 'rate' and source == 'odometry':
+                    msg = Odometry()
+                    a = msg.twist.twist.angular
+                    a.x, a.y, a.z = value
+                else:
+                    msg = Vector3Stamped()
+                    msg.vector.x, msg.vector.y, msg.vector.z = value
+                set_stamp(msg.header, T0_NS + k * PERIOD_NS)
+                pubs[ns][kind].publish(msg)
+
+        def all_accepted():
+            seen = set()
+            for array in diags:
+                status, values = diag_values(array)
+                if values['commands_accepted.temperature'] == '2' and values[
+                        'commands_accepted.rate'] == '3' and values[
+                            'commands_accepted.linear_acceleration'] == '1':
+                    seen.add(status.name)
+            return len(seen) == 4
+        probe.spin_until(all_accepted, 20.0, 'every node to accept the script')
+        for k in range(1, TICKS + 1):
+            tick(k)
+        probe.spin_for(0.2)
+    finally:
+        probe.close()
+        codes = {ns: node.stop(signal.SIGTERM if ns in 'ab' else signal.SIGINT)
+                 for ns, node in nodes.items()}
+    assert codes == {'a': 0, 'b': 0, 'c': 0, 'd': 0}
+    for node in nodes.values():
+        assert 'Traceback' not in node.log() and 'shutting down' in node.log()
+    by_ns = {}
+    for ns in nodes:
+        by_stamp = {stamp_ns(m.header): m for m in imu[ns]}
+        stamps = [T0_NS + k * PERIOD_NS for k in range(TICKS + 1)]
+        assert all(s in by_stamp for s in stamps), f'{ns}: a tick is missing'
+        by_ns[ns] = np.array([vector(by_stamp[s].angular_velocity) for s in stamps])
+    want7 = expected_samples(sensor_yaml, 7)
+    assert np.array_equal(by_ns['a'], np.array([s.gyro_rad_s for s in want7]))
+    assert np.array_equal(by_ns['a'], by_ns['b'])
+    assert np.array_equal(by_ns['a'], by_ns['d'])
+    want8 = np.array([s.gyro_rad_s for s in expected_samples(sensor_yaml, 8)])
+    assert np.array_equal(by_ns['c'], want8)
+    assert not np.allclose(by_ns['a'], by_ns['c'])
+    # The step at tick 20 shows the sense dynamics and output filter settling.
+    z = by_ns['a'][:, 2]
+    assert 0.0 < z[21] < 0.9 and abs(z[40] - 1.0) < 0.05
+    bias = {stamp_ns(m.header): vector(m.vector) for m in truth['a']}
+    assert np.array_equal(bias[T0_NS + 100 * PERIOD_NS], want7[100].bias_rad_s)
+    die = {stamp_ns(m.header): m.temperature for m in temps['a']}
+    for t_ns, value in die.items():
+        k = (t_ns - T0_NS) // PERIOD_NS
+        assert value == want7[k].die_temp_c
+
+
+# --- start-up errors and shutdown ------------------------------------------------------
+
+@pytest.mark.parametrize('args,message', [
+    (['-p', 'rate_hz:=-5.0'], 'rate_hz'),
+    (['-p', 'stale_rate_policy:=freeze'], 'stale_rate_policy = '),
+    (['-p', 'sensor_config:=nonexistent'], "sensor config 'nonexistent'"),
+    (['-p', 'sensor.range_rad_s:=[1.0, 2.0]'], 'SensorConfig.range_rad_s'),
+], ids=['range', 'choice', 'sensor_config', 'sensor_field'])
+def test_bad_configuration_exits_with_a_clear_message(tmp_path, args, message):
+    sensor_yaml = write_sensor_yaml(str(tmp_path))
+    proc = subprocess.run(
+        [sys.executable, '-m', 'gyro_emulator.ros.node', '--ros-args',
+         '-p', f'sensor_config:={sensor_yaml}', *args],
+        env=ros_env(), cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert message in proc.stderr and 'Traceback' not in proc.stderr
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_signals_shut_the_node_down_cleanly(tmp_path, sig):
+    env = ros_env()
+    node = NodeProcess(env, str(tmp_path / 'node.log'), '-p',
+                       f'sensor_config:={write_sensor_yaml(str(tmp_path))}')
+    probe = Probe(env)
+    try:
+        got = probe.listen(Imu, 'imu/data_raw')
+        probe.spin_until(lambda: len(got) > 3, 30.0, 'Imu messages')
+    finally:
+        probe.close()
+    assert node.stop(sig) == 0
+    log = node.log()
+    assert 'Traceback' not in log and 'shutting down' in log
+
+
+def test_main_job_plays_a_profile_against_the_node_and_prints_the_summary(tmp_path):
+    profile = tmp_path / 'short.yaml'
+    profile.write_text(yaml.safe_dump({
+        'name': 'short', 'grid': {'temperatures_c': [25.0, 85.0], 'rates_rpm': [0.0, 40.0],
+                                  'hold_s': 0.6, 'settle_s': 0.3},
+        'node_parameters': {'sensor': {'thermal_time_constant_s': 0.05}}}))
+    out = tmp_path / 'out'
+    proc = subprocess.run(
+        [sys.executable, '-m', 'gyro_emulator.main_job', '--skip-paper', '--no-record',
+         '--profile', str(profile), '--out-dir', str(out), '--sensor-config',
+         write_sensor_yaml(str(tmp_path))],
+        env=ros_env(), cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert 'err deg/s' in proc.stdout and 'physics err' in proc.stdout
+    doc = json.loads((out / 'summary.json').read_text())
+    assert [s['rate'] for s in doc['steps']] == ['0 RPM', '40 RPM'] * 2
+    hot = doc['steps'][3]
+    assert hot['commanded_deg_s'] == pytest.approx(240.0)
+    assert hot['samples'] > 0 and hot['die_temp_c'] == pytest.approx(85.0, abs=0.5)
+    # At 85 C the paper's physics reads high; the node shows the same error.
+    assert hot['error_deg_s'] == pytest.approx(hot['physics_error_deg_s'], abs=0.5)
+    assert hot['physics_error_deg_s'] > 5.0
+    with open(out / 'node_params.yaml') as handle:
+        params = yaml.safe_load(handle)['/**']['ros__parameters']
+    assert params['sensor']['thermal_time_constant_s'] == 0.05

@@ -1,0 +1,366 @@
+"""The node's plain-Python parts: input rules, block stepper, parameters, profiles."""
+
+from dataclasses import fields
+import math
+import os
+import sys
+import types
+
+from gyro_emulator import sensor, sensor_config
+from gyro_emulator.ros import inputs, params, scenario
+from gyro_emulator.ros.stepper import BlockStepper
+import numpy as np
+import pytest
+import yaml
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+#: Every term with a visible effect at 200 Hz (noise, lag, filter, LSB, g-sens).
+RICH = dict(
+    electronics_noise_rad_s_sqrt_hz=2e-4, bias_instability_rad_s=2e-5,
+    rate_random_walk_rad_s_sqrt_s=1e-5, thermal_time_constant_s=0.2,
+    output_filter_hz=40.0, lsb_rad_s=1e-5, turn_on_bias_sigma_rad_s=1e-3,
+    bias_temp_coeff_rad_s_k=1e-5, g_sensitivity_rad_s_m_s2=1e-4,
+    misalignment=((0.0, 1e-3, 0.0), (0.0, 0.0, 2e-3), (-1e-3, 0.0, 0.0)),
+    mode_split_hz=(10.0, 20.0, 30.0), latency_s=0.002)
+
+
+def rich_config():
+    return sensor_config.SensorConfig(**RICH)
+
+
+# --- inputs -------------------------------------------------------------------
+
+LIMITS = inputs.InputLimits(max_abs_rate_rad_s=10.0, max_abs_accel_m_s2=100.0,
+                            temp_range_c=(-40.0, 120.0))
+
+
+@pytest.mark.parametrize('values,reason', [
+    ((float('nan'), 0.0, 0.0), 'non_finite_rate'),
+    ((0.0, float('inf'), 0.0), 'non_finite_rate'),
+    ((0.0, 0.0, -10.5), 'rate_too_large'),
+])
+def test_bad_rates_are_rejected_with_their_reason(values, reason):
+    with pytest.raises(inputs.InputRejected) as err:
+        inputs.check_rate(values, LIMITS)
+    assert err.value.reason == reason
+    assert 'angular_velocity.' in str(err.value)
+
+
+def test_good_rate_passes_unchanged():
+    assert inputs.check_rate((1.0, -2.0, 10.0), LIMITS) == (1.0, -2.0, 10.0)
+
+
+@pytest.mark.parametrize('temp,reason', [
+    (float('nan'), 'non_finite_temperature'), (float('-inf'), 'non_finite_temperature'),
+    (-273.15, 'below_absolute_zero'), (-500.0, 'below_absolute_zero')])
+def test_impossible_temperatures_are_rejected(temp, reason):
+    with pytest.raises(inputs.InputRejected) as err:
+        inputs.check_temperature(temp, LIMITS)
+    assert err.value.reason == reason
+
+
+def test_temperature_outside_model_range_is_clamped_or_rejected_by_policy():
+    assert inputs.check_temperature(150.0, LIMITS) == (120.0, True)
+    assert inputs.check_temperature(-100.0, LIMITS) == (-40.0, True)
+    assert inputs.check_temperature(20.0, LIMITS) == (20.0, False)
+    strict = inputs.InputLimits(temp_range_c=(-40.0, 120.0), temperature_policy='reject')
+    with pytest.raises(inputs.InputRejected) as err:
+        inputs.check_temperature(150.0, strict)
+    assert err.value.reason == 'temperature_out_of_range'
+    assert '[-40, 120] C' in str(err.value)
+
+
+def test_acceleration_limits():
+    assert inputs.check_acceleration((0.0, 0.0, 9.8), LIMITS) == (0.0, 0.0, 9.8)
+    for values, reason in (((float('nan'),) * 3, 'non_finite_acceleration'),
+                           ((0.0, 200.0, 0.0), 'acceleration_too_large')):
+        with pytest.raises(inputs.InputRejected) as err:
+            inputs.check_acceleration(values, LIMITS)
+        assert err.value.reason == reason
+
+
+def test_limits_are_validated():
+    with pytest.raises(ValueError, match='temperature_policy'):
+        inputs.InputLimits(temperature_policy='ignore')
+    with pytest.raises(ValueError, match='max_abs_rate_rad_s'):
+        inputs.InputLimits(max_abs_rate_rad_s=-1.0)
+
+
+def test_command_applies_at_its_stamp_and_zero_stamp_means_on_receipt():
+    stream = inputs.CommandStream('rate', initial=0)
+    lead = 10**9
+    stream.offer(1, 200, now_ns=100, max_lead_ns=lead)
+    assert stream.advance(150) == 0
+    assert stream.advance(200) == 1
+    stream.offer(2, 0, now_ns=300, max_lead_ns=lead)
+    assert stream.advance(299) == 1 and stream.advance(300) == 2
+    assert stream.accepted == 2
+    assert stream.age_s(1300) == pytest.approx(1e-6)
+
+
+def test_out_of_order_and_future_stamps_are_rejected():
+    stream = inputs.CommandStream('rate', initial=0)
+    stream.offer(1, 500, now_ns=400, max_lead_ns=1000)
+    with pytest.raises(inputs.InputRejected) as err:
+        stream.offer(2, 499, now_ns=410, max_lead_ns=1000)
+    assert err.value.reason == 'out_of_order'
+    with pytest.raises(inputs.InputRejected) as err:
+        stream.offer(3, 5000, now_ns=420, max_lead_ns=1000)
+    assert err.value.reason == 'future_stamp'
+    assert stream.accepted == 1 and stream.advance(10**6) == 1
+    stream.reset_clock()
+    assert stream.offer(4, 10, now_ns=5, max_lead_ns=1000) is None
+
+
+def test_queue_overflow_drops_the_oldest():
+    stream = inputs.CommandStream('rate', initial=0, capacity=3)
+    dropped = [stream.offer(v, 100 + v, now_ns=0, max_lead_ns=10**6) for v in range(5)]
+    assert dropped == [None, None, None, 'queue_overflow', 'queue_overflow']
+    assert [v for _, v in stream.pending] == [2, 3, 4]
+
+
+def test_throttle_lets_one_line_per_period_and_counts_the_rest():
+    now = [0.0]
+    throttle = inputs.Throttle(1.0, lambda: now[0])
+    assert throttle('a') == 0
+    assert throttle('a') is None and throttle('a') is None
+    assert throttle('b') == 0
+    now[0] = 1.5
+    assert throttle('a') == 2
+
+
+# --- block stepper ----------------------------------------------------------------
+
+def _inputs_sequence(n, seed):
+    rng = np.random.default_rng(seed)
+    rates, temps, accels = [], [], []
+    rate, temp, accel = (0.0, 0.0, 0.0), 25.0, None
+    for _ in range(n):
+        u = rng.random()
+        if u < 0.05:
+            rate = tuple(rng.normal(size=3))
+        elif u < 0.08:
+            temp = float(rng.uniform(0.0, 80.0))
+        elif u < 0.10:
+            accel = tuple(rng.normal(size=3) * 9.8)
+        rates.append(rate)
+        temps.append(temp)
+        accels.append(accel)
+    return rates, temps, accels
+
+
+@pytest.mark.parametrize('max_block', [1, 7, 64])
+def test_block_stepper_equals_per_sample_step_bit_for_bit(max_block):
+    config = rich_config()
+    rates, temps, accels = _inputs_sequence(600, seed=3)
+    ref = sensor.GyroModel(config, 200.0, np.random.default_rng(11))
+    stepper = BlockStepper(sensor.GyroModel(config, 200.0, np.random.default_rng(11)),
+                           max_block)
+    for i, (r, t, a) in enumerate(zip(rates, temps, accels)):
+        if i == 300:
+            changed = config.with_terms(quantization=False)
+            ref.update_config(changed)
+            stepper.update_config(changed)
+        want = ref.step(r, t, a)
+        got = stepper.step(r, t, a)
+        for name in ('gyro_rad_s', 'true_rate_rad_s', 'bias_rad_s', 'scale_factor',
+                     'saturated'):
+            assert np.array_equal(getattr(got, name), getattr(want, name)), (i, name)
+        assert got.die_temp_c == want.die_temp_c and \
+            got.output_delay_s == want.output_delay_s
+    if max_block > 1:
+        assert stepper.model_calls < len(rates) / 2
+        assert stepper.rewinds > 0
+
+
+def test_block_stepper_adapts_its_block_to_how_often_inputs_change():
+    model = sensor.GyroModel(rich_config(), 200.0, np.random.default_rng(0))
+    stepper = BlockStepper(model, 32)
+    for k in range(200):
+        stepper.step((0.01 * k, 0.0, 0.0), 25.0)
+    assert stepper.block == 1
+    for _ in range(200):
+        stepper.step((1.0, 0.0, 0.0), 25.0)
+    assert stepper.block == 32
+
+
+# --- parameters ------------------------------------------------------------------
+
+def test_shipped_defaults_define_every_node_parameter_and_validate():
+    raw = params.load_params_file(os.path.join(ROOT, 'config', 'gyro_emulator.yaml'))
+    assert sorted(raw) == sorted(params.NODE_SPECS)
+    defaults = params.node_defaults(os.path.join(ROOT, 'config', 'gyro_emulator.yaml'))
+    assert defaults['rate_hz'] == 200.0 and defaults['sensor_config'] == 'paper'
+
+
+def test_defaults_file_errors_name_the_problem(tmp_path):
+    path = tmp_path / 'p.yaml'
+    raw = params.load_params_file(os.path.join(ROOT, 'config', 'gyro_emulator.yaml'))
+    raw['rate_hzz'] = 1.0
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': raw}}))
+    with pytest.raises(ValueError, match='unknown parameter.*rate_hzz'):
+        params.node_defaults(str(path))
+    del raw['rate_hzz'], raw['seed']
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': raw}}))
+    with pytest.raises(ValueError, match='missing parameter.*seed'):
+        params.node_defaults(str(path))
+    path.write_text('gyro: [1, 2')
+    with pytest.raises(ValueError, match='malformed YAML'):
+        params.load_params_file(str(path))
+
+
+@pytest.mark.parametrize('name,value,match', [
+    ('rate_hz', 0.5, r'rate_hz = 0.5 is out of range: allowed \[1, 5000\]'),
+    ('stale_rate_policy', 'freeze', 'choose one of zero, hold'),
+    ('seed', 1.5, 'not an integer'),
+    ('noise_enabled', 1, 'choose true or false'),
+])
+def test_check_value_names_parameter_value_and_range(name, value, match):
+    with pytest.raises(ValueError, match=match):
+        params.check_value(params.NODE_SPECS[name], value)
+
+
+def test_descriptors_carry_ranges_and_read_only():
+    rate = params.descriptor(params.NODE_SPECS['rate_hz'])
+    assert rate.read_only and rate.floating_point_range[0].to_value == 5000.0
+    timeout = params.descriptor(params.NODE_SPECS['command_timeout_s'])
+    assert not timeout.read_only and timeout.description
+    assert all(spec.description for spec in params.NODE_PARAMS)
+
+
+def test_every_sensor_field_has_a_description():
+    names = [f.name for f in fields(sensor_config.SensorConfig)]
+    assert sorted(set(names) - set(params.SENSOR_DESCRIPTIONS)) == []
+
+
+@pytest.mark.parametrize('config', [sensor_config.SensorConfig(), rich_config(),
+                                    rich_config().with_terms(latency=False)],
+                         ids=['default', 'rich', 'rich_no_latency'])
+def test_sensor_parameters_round_trip_to_the_same_config(config):
+    values = params.sensor_param_values(config)
+    assert all(isinstance(v, (bool, int, float, str, list)) for v in values.values())
+    assert len(values['sensor.misalignment']) == 9
+    assert math.isnan(values['sensor.initial_die_temp_c'])
+    assert params.apply_sensor_params(config, values) == config
+
+
+def test_sensor_parameter_errors_name_the_field():
+    config = sensor_config.SensorConfig()
+    with pytest.raises(ValueError, match='SensorConfig.lsb_rad_s'):
+        params.apply_sensor_params(config, {'sensor.lsb_rad_s': [-1.0, 0.0, 0.0]})
+    with pytest.raises(ValueError, match='unknown error term'):
+        params.apply_sensor_params(config, {'sensor.terms.magic': True})
+    changed = params.apply_sensor_params(config, {'sensor.lsb_rad_s': 1e-4,
+                                                  'sensor.terms.quantization': False})
+    assert changed.lsb_rad_s == (1e-4,) * 3 and not changed.terms.quantization
+
+
+def test_without_noise_switches_off_only_noise_terms():
+    quiet = params.without_noise(rich_config())
+    for term in params.NOISE_TERMS:
+        assert not getattr(quiet.terms, term)
+    assert quiet.terms.thermal_lag and quiet.terms.quantization
+
+
+# --- scenario profiles ------------------------------------------------------------
+
+def test_shipped_paper_profile_is_the_papers_grid_and_short():
+    profile = scenario.load_profile(os.path.join(ROOT, 'config',
+                                                 'scenario_paper_validation.yaml'))
+    temps = sorted({s.temperature_c for s in profile.steps})
+    rpm = sorted({round(s.rate_rad_s * 60.0 / (2.0 * math.pi), 9) for s in profile.steps})
+    assert temps[0] == 25.0 and temps[-1] == 85.0
+    assert rpm == [0.0, 10.0, 20.0, 40.0]
+    assert len(profile.steps) == len(temps) * 4
+    assert 20.0 <= profile.duration_s <= 60.0
+    assert all(0.0 < s.settle_s < s.duration_s for s in profile.steps)
+    assert profile.axis == (0.0, 0.0, 1.0)
+
+
+@pytest.mark.parametrize('doc,match', [
+    ({'segments': [{'duration_s': 1.0, 'temperature_c': 20.0}]}, 'exactly one of'),
+    ({'segments': [{'duration_s': -1.0, 'rate_rpm': 1, 'temperature_c': 20.0}]},
+     'duration_s = -1.0 is out of range'),
+    ({'segments': [{'duration_s': 1.0, 'rate_rpm': 1, 'temperature_c': -300.0}]},
+     'temperature_c = -300.0 is out of range'),
+    ({'axis': [0, 0, 0], 'segments': []}, 'zero vector'),
+    ({'grid': {'temperatures_c': [], 'rates_rpm': [1], 'hold_s': 1.0}}, 'non-empty list'),
+    ({'speed': 1}, "unknown key.*speed"),
+    ({}, 'no steps'),
+])
+def test_profile_errors_name_the_key(doc, match):
+    with pytest.raises(ValueError, match=match):
+        scenario.parse_profile(doc)
+
+
+def test_summary_averages_each_step_after_its_settle_time():
+    profile = scenario.parse_profile({'axis': [0, 0, 2], 'segments': [
+        {'duration_s': 1.0, 'rate_deg_s': 10.0, 'temperature_c': 20.0, 'settle_s': 0.5},
+        {'duration_s': 1.0, 'rate_rad_s': 1.0, 'temperature_c': 40.0, 'settle_s': 0.25}]})
+    start = 5 * 10**9
+    imu, temps = [], []
+    for k in range(200):
+        t = start + k * 10**7
+        z = math.radians(99.0) if k < 50 else math.radians(11.0) if k < 100 else \
+            (7.0 if k < 125 else 1.5)
+        imu.append((t, (0.3, 0.0, z)))
+        temps.append((t, 20.0 + 20.0 * (k >= 100)))
+    first, second = scenario.summarize(profile, start, imu, temps)
+    assert first.samples == 50 and first.measured_deg_s == pytest.approx(11.0)
+    assert first.error_deg_s == pytest.approx(1.0) and first.die_temp_c == 20.0
+    assert second.samples == 75
+    assert second.measured_deg_s == pytest.approx(math.degrees(1.5))
+    assert second.commanded_deg_s == pytest.approx(math.degrees(1.0))
+    table = scenario.format_summary([first, second])
+    assert '10 deg/s' in table and '+1.000' in table
+
+
+# --- launch file and main job -----------------------------------------------------
+
+def _stub_launch_modules(monkeypatch):
+    """Stand-ins for launch/launch_ros (not on PyPI) that record their arguments."""
+    made = {}
+
+    def recorder(name):
+        def make(*args, **kwargs):
+            made.setdefault(name, []).append((args, kwargs))
+            return (name, args, kwargs)
+        return make
+    modules = {
+        'launch': {'LaunchDescription': recorder('LaunchDescription')},
+        'launch.actions': {'DeclareLaunchArgument': recorder('DeclareLaunchArgument')},
+        'launch.substitutions': {'LaunchConfiguration': recorder('LaunchConfiguration')},
+        'launch_ros': {}, 'launch_ros.actions': {'Node': recorder('Node')}}
+    for name, attrs in modules.items():
+        module = types.ModuleType(name)
+        module.__dict__.update(attrs)
+        monkeypatch.setitem(sys.modules, name, module)
+    return made
+
+
+def test_launch_file_starts_the_node_executable_with_the_shipped_config(monkeypatch):
+    made = _stub_launch_modules(monkeypatch)
+    monkeypatch.setenv('AMENT_PREFIX_PATH', sys.prefix)
+    import importlib.util
+    spec = importlib.util.spec_from_file_location(
+        'gyro_launch', os.path.join(ROOT, 'launch', 'gyro_emulator.launch.py'))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    module.generate_launch_description()
+    (_, node_kwargs), = made['Node']
+    assert node_kwargs['package'] == 'gyro_emulator' and node_kwargs['executable'] == 'node'
+    declared = {args[0]: kwargs for args, kwargs in made['DeclareLaunchArgument']}
+    assert declared['params_file']['default_value'].endswith(
+        os.path.join('config', 'gyro_emulator.yaml'))
+    assert set(declared) == {'params_file', 'namespace', 'use_sim_time'}
+
+
+def test_main_job_physics_column_matches_the_paper_fig6():
+    from gyro_emulator import main_job, paper
+    temps, rate = paper.fig6_data(viscosity_law='constant')
+    assert main_job.physics_error_deg_s(math.radians(60.0), 25.0) == pytest.approx(
+        0.0, abs=1e-9)
+    assert main_job.physics_error_deg_s(math.radians(60.0), temps[-1]) == pytest.approx(
+        rate[-1] - 60.0, rel=1e-9)
+    assert math.isnan(main_job.physics_error_deg_s(1.0, float('nan')))

@@ -1,0 +1,119 @@
+"""
+``ros2 run gyro_emulator node`` works: colcon build, resolve, run, receive.
+
+The package is built with colcon (from PyPI) into a temporary workspace. The
+executable is then found exactly as ``ros2 run`` finds it: the package prefix
+from the ament index (``ament_index_python.get_package_prefix`` over
+``AMENT_PREFIX_PATH``), then ``<prefix>/lib/gyro_emulator/<executable>``. The
+installed node and scenario run from that install, not from the source tree.
+"""
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+
+from conftest import ros_env
+import pytest
+from test_node import NodeProcess, Probe, write_sensor_yaml
+import yaml
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+PACKAGE_FILES = ('setup.py', 'setup.cfg', 'package.xml', 'resource', 'gyro_emulator',
+                 'config', 'launch')
+pytestmark = pytest.mark.ros
+
+
+@pytest.fixture(scope='module')
+def workspace(tmp_path_factory):
+    """Copy the package into src/ of a fresh workspace and colcon build it."""
+    ws = tmp_path_factory.mktemp('ws')
+    src = ws / 'src' / 'gyro_emulator'
+    src.mkdir(parents=True)
+    for name in PACKAGE_FILES:
+        path = os.path.join(ROOT, name)
+        if os.path.isdir(path):
+            shutil.copytree(path, src / name,
+                            ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))
+        else:
+            shutil.copy(path, src / name)
+    colcon = os.path.join(os.path.dirname(sys.executable), 'colcon')
+    proc = subprocess.run(
+        [colcon, '--log-base', str(ws / 'log'), 'build', '--base-paths', str(ws / 'src'),
+         '--build-base', str(ws / 'build'), '--install-base', str(ws / 'install')],
+        cwd=ws, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    return ws
+
+
+def installed_env(workspace, monkeypatch):
+    """Environment of a shell that sourced the temporary install (and the venv)."""
+    prefix = str(workspace / 'install' / 'gyro_emulator')
+    site = os.path.join(prefix, 'lib', f'python{sys.version_info[0]}.{sys.version_info[1]}',
+                        'site-packages')
+    ament = prefix + os.pathsep + sys.prefix
+    monkeypatch.setenv('AMENT_PREFIX_PATH', ament)
+    env = ros_env()
+    env['AMENT_PREFIX_PATH'] = ament
+    env['PYTHONPATH'] = site
+    return env, site
+
+
+def ros2_run_path(executable):
+    """Resolve ``ros2 run gyro_emulator <executable>`` like ros2run does."""
+    from ament_index_python.packages import get_package_prefix
+    return os.path.join(get_package_prefix('gyro_emulator'), 'lib', 'gyro_emulator',
+                        executable)
+
+
+def test_ros2_run_node_publishes_imu_from_the_colcon_install(workspace, monkeypatch,
+                                                             tmp_path):
+    env, site = installed_env(workspace, monkeypatch)
+    node_exe = ros2_run_path('node')
+    assert node_exe == str(workspace / 'install' / 'gyro_emulator' / 'lib' /
+                           'gyro_emulator' / 'node')
+    assert os.access(node_exe, os.X_OK)
+    assert os.access(ros2_run_path('scenario'), os.X_OK)
+    share = workspace / 'install' / 'gyro_emulator' / 'share' / 'gyro_emulator'
+    for name in ('config/gyro_emulator.yaml', 'config/scenario_paper_validation.yaml',
+                 'launch/gyro_emulator.launch.py', 'package.xml'):
+        assert (share / name).is_file(), name
+    log = tmp_path / 'node.log'
+    sensor_yaml = write_sensor_yaml(str(tmp_path))
+    with open(log, 'w') as handle:
+        proc = subprocess.Popen([node_exe, '--ros-args', '-p', f'sensor_config:={sensor_yaml}',
+                                 '-p', 'frame_id:=installed'],
+                                env=env, cwd=str(tmp_path), stdout=handle,
+                                stderr=subprocess.STDOUT)
+    probe = Probe(env)
+    try:
+        from sensor_msgs.msg import Imu
+        got = probe.listen(Imu, 'imu/data_raw')
+        probe.spin_until(lambda: len(got) >= 10, 30.0, 'Imu from the installed node')
+        assert all(m.header.frame_id == 'installed' for m in got)
+        # The installed scenario executable plays a short profile onto it.
+        profile = tmp_path / 'short.yaml'
+        profile.write_text(yaml.safe_dump({'name': 'short', 'segments': [
+            {'duration_s': 0.6, 'rate_deg_s': 0.0, 'temperature_c': 25.0, 'settle_s': 0.3},
+            {'duration_s': 0.6, 'rate_deg_s': 90.0, 'temperature_c': 25.0,
+             'settle_s': 0.3}]}))
+        scenario = subprocess.run([ros2_run_path('scenario'), str(profile), '--summary'],
+                                  env=env, cwd=str(tmp_path), capture_output=True,
+                                  text=True, timeout=60)
+    finally:
+        probe.close()
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(15)
+    assert scenario.returncode == 0, scenario.stderr
+    rows = [line.split() for line in scenario.stdout.splitlines()
+            if line.strip().startswith(('0 ', '1 '))]
+    assert len(rows) == 2 and rows[1][3:6] == ['90', 'deg/s', '90.000']
+    assert abs(float(rows[1][6]) - 90.0) < 1.0  # measured deg/s at the calibration temp
+    text = log.read_text()
+    assert code == 0 and 'Traceback' not in text, text
+    # It ran the installed copy: its modules come from the workspace install.
+    check = subprocess.run([sys.executable, '-c', 'import gyro_emulator.ros.node as n; '
+                            'print(n.__file__)'], env=env, cwd=str(tmp_path),
+                           capture_output=True, text=True)
+    assert check.stdout.strip().startswith(site)
