@@ -28,6 +28,7 @@ from array import array
 from dataclasses import dataclass, field
 import heapq
 import io
+import json
 import os
 import struct
 import sys
@@ -184,7 +185,6 @@ def type_hash(type_name):
         return ''
     try:
         with open(path, encoding='utf-8') as handle:
-            import json
             hashes = json.load(handle).get('type_hashes', [])
     except (OSError, ValueError):
         return ''
@@ -219,11 +219,11 @@ def qos_profile(reliability='reliable', durability='volatile', history='keep_las
         ``automatic`` or ``manual_by_topic``.
 
     """
-    infinite = {'sec': 2147483647, 'nsec': 4294967295}
+    default = {'sec': 0, 'nsec': 0}      # 0 = unspecified: the rmw default (infinite)
     return {
         'history': history, 'depth': int(depth), 'reliability': reliability,
-        'durability': durability, 'deadline': dict(infinite), 'lifespan': dict(infinite),
-        'liveliness': liveliness, 'liveliness_lease_duration': dict(infinite),
+        'durability': durability, 'deadline': dict(default), 'lifespan': dict(default),
+        'liveliness': liveliness, 'liveliness_lease_duration': dict(default),
         'avoid_ros_namespace_conventions': False,
     }
 

@@ -220,10 +220,13 @@ def _decode_group(layout, rows):
         n = int(head[0, 2])
         offset = 4 + ((12 + n + 7) & ~7)
         names = rows[:, 16:16 + n - 1]
-        unique, inverse = np.unique(names, axis=0, return_inverse=True)
-        decoded_names = np.array(
-            [bytes(u).decode('utf-8', 'replace') for u in unique] or [''], dtype=object)
-        frame_id = decoded_names[inverse.reshape(-1)] if count else np.empty(0, object)
+        if count and np.array_equal(names, np.broadcast_to(names[0], names.shape)):
+            frame_id = np.full(count, bytes(names[0]).decode('utf-8', 'replace'), object)
+        else:
+            unique, inverse = np.unique(names, axis=0, return_inverse=True)
+            decoded_names = np.array(
+                [bytes(u).decode('utf-8', 'replace') for u in unique] or [''], dtype=object)
+            frame_id = decoded_names[inverse.reshape(-1)] if count else np.empty(0, object)
     else:
         stamp_ns = np.zeros(count, dtype=np.int64)
         frame_id = np.full(count, '', dtype=object)

@@ -18,6 +18,7 @@ COMMANDS = (
     ('allan', 'gyro_emulator.commands.allan'),
     ('dynamics', 'gyro_emulator.commands.dynamics'),
     ('bag', 'gyro_emulator.commands.bag'),
+    ('replay', 'gyro_emulator.commands.replay'),
     ('diagnose', 'gyro_emulator.commands.diagnose'),
     ('truth', 'gyro_emulator.commands.truth'),
 )

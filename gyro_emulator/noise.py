@@ -3,9 +3,12 @@ Noise generators of the gyro error model, exactly discretised.
 
 Every generator is a pure function ``(standard normals, coefficients, state)
 -> (samples, state)`` over a block of samples, so a long record can be made in
-blocks of any size with bit-identical results (the batch and the streaming
-APIs of :mod:`gyro_emulator.sensor` rely on that). The standard normals come
-from the caller's injected ``numpy.random.Generator``.
+blocks of any size with bit-identical results. The standard normals come from
+the caller's injected ``numpy.random.Generator``. These block functions are
+the reference form of the recursions that :mod:`gyro_emulator.sensor` runs
+sample by sample in its compiled kernel (test/test_sensor.py checks that both
+give the same samples from the same normals); the kernel takes its
+coefficients from :func:`flicker_plan` and :func:`flicker_initial_state`.
 
 Exact discretisation at the sample period dt (no Euler steps):
 

@@ -64,7 +64,7 @@ def check_range(owner, name, value, low, high, unit='',
     if high is not None:
         bad |= (arr >= high) if high_open else (arr > high)
     if np.any(bad):
-        first = arr[bad].flat[0] if arr.ndim else float(arr)
+        first = float(arr[bad].flat[0]) if arr.ndim else float(arr)
         lo = '-inf' if low is None else repr(low)
         hi = 'inf' if high is None else repr(high)
         bracket = ('(' if low_open or low is None else '[') + lo + ', ' + hi + (
@@ -90,7 +90,7 @@ def check_temperature_c(temp_c, owner='temperature', name='temp_c'):
     low, high = MODEL_TEMP_RANGE_C
     arr = np.asarray(temp_c, dtype=float)
     if np.any(arr <= -ZERO_CELSIUS_K):
-        first = arr[arr <= -ZERO_CELSIUS_K].flat[0]
+        first = float(arr[arr <= -ZERO_CELSIUS_K].flat[0])
         raise ValueError(
             f'{owner}.{name} = {first!r} is below absolute zero; allowed '
             f'[{low}, {high}] C')

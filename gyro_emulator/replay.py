@@ -74,9 +74,10 @@ def _imu_values(gyro_rad_s, sigma_rad_s, accel_m_s2=None):
     layout = cdr.LAYOUTS[IMU]
     values = np.zeros((len(gyro_rad_s), len(layout.fields)))
     values[:, layout.columns('angular_velocity')] = gyro_rad_s
-    cov = values[:, layout.columns('angular_velocity_covariance')]
-    cov[:, [0, 4, 8]] = np.asarray(sigma_rad_s, dtype=float) ** 2
-    values[:, layout.columns('angular_velocity_covariance')] = cov
+    start = layout.columns('angular_velocity_covariance').start
+    sigma_sq = np.asarray(sigma_rad_s, dtype=float) ** 2
+    for i in range(3):
+        values[:, start + 4 * i] = sigma_sq[i]
     values[:, layout.index('orientation_covariance[0]')] = -1.0
     if accel_m_s2 is None:
         values[:, layout.index('linear_acceleration_covariance[0]')] = -1.0
@@ -180,6 +181,11 @@ class EmulatorBagWriter:
                                                       self.frame_id), stamp_ns)])
 
 
+def white_noise_sigma(config, rate_hz):
+    """Return the model's per-sample white-noise sigma at ``rate_hz`` (3,), rad/s."""
+    return GyroModel(config, rate_hz, np.random.default_rng(0)).white_noise_sigma_rad_s
+
+
 def simulation_custom_data(config_name, profile, duration_s, rate_hz, seed, temp_c):
     """Return the rosbag2 ``custom_data`` of a simulated record (how to reproduce it)."""
     return {'generator': 'gyro-emulator simulate', 'sensor_config': str(config_name),
@@ -226,7 +232,7 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
     """
     sigma = np.zeros(3)
     if config is not None and rate_hz is not None:
-        sigma = GyroModel(config, rate_hz, np.random.default_rng(0)).white_noise_sigma_rad_s
+        sigma = white_noise_sigma(config, rate_hz)
     done = 0
     with bag.BagWriter(path, compression=compression, custom_data=custom_data,
                        flush_interval_s=60.0) as writer:
@@ -342,13 +348,24 @@ def hold(source_stamp_ns, source_values, query_ns, tolerance_ns, before=None):
     return out
 
 
-def _median_rate_hz(stamp_ns):
-    dt = np.diff(stamp_ns)
+def estimate_rate_hz(stamp_ns):
+    """
+    Estimate the sample rate of a stamped stream, Hz.
+
+    The mean interval over the stream, leaving out gaps (intervals above 1.5
+    times the median: dropped messages); snapped to a whole number of Hz when
+    within 0.1 % of it (stamp jitter), else rounded to 6 significant digits.
+    """
+    dt = np.diff(np.asarray(stamp_ns, dtype=np.int64))
     dt = dt[dt > 0]
     if dt.size == 0:
         raise ValueError('cannot infer the sample rate: fewer than two distinct stamps '
                          '(pass --rate-hz)')
-    rate = NS_PER_S / float(np.median(dt))
+    dt = dt[dt <= 1.5 * np.median(dt)]
+    rate = NS_PER_S / float(np.mean(dt))
+    whole = round(rate)
+    if whole > 0 and abs(rate - whole) <= 1e-3 * whole:
+        return float(whole)
     return float(f'{rate:.6g}')
 
 
@@ -376,7 +393,7 @@ def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
         sensor_msgs/Imu with the measured output to compare against.
     rate_hz : float, optional
         Model sample rate, Hz (default: the bag's ``custom_data`` rate_hz,
-        else the median rate of the measured or rate stream).
+        else :func:`estimate_rate_hz` of the measured or rate stream).
     temp_c : float, optional
         Ambient temperature when the bag has none, deg C (default 25).
     use_log_time : bool
@@ -391,10 +408,13 @@ def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
     check_choice('replay', 'source', source, SOURCES)
     notes = []
     if source == 'auto':
-        source = 'command' if (rate_topic and reader.topics.get(rate_topic) and
-                               reader.topics[rate_topic].type_name == VECTOR3_STAMPED) or (
-            not rate_topic and _find_topic(reader, None, 'cmd/angular_velocity',
-                                           VECTOR3_STAMPED, 'rate')) else 'imu'
+        if rate_topic:
+            info = reader.topics.get(rate_topic)
+            source = 'command' if info is not None and info.type_name == VECTOR3_STAMPED \
+                else 'imu'
+        else:
+            found = _find_topic(reader, None, 'cmd/angular_velocity', VECTOR3_STAMPED, 'rate')
+            source = 'command' if found else 'imu'
     if temp_c is None:
         temp_c = DEFAULT_TEMP_C
     topics = {}
@@ -453,8 +473,8 @@ def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
     if rate_hz is None:
         basis = measured_stamp if measured_stamp is not None and measured_stamp.size > 1 \
             else rate_stamp
-        rate_hz = _median_rate_hz(basis)
-        notes.append(f'sample rate {rate_hz:g} Hz from the median stamp interval')
+        rate_hz = estimate_rate_hz(basis)
+        notes.append(f'sample rate {rate_hz:g} Hz from the mean stamp interval')
     from gyro_emulator.params import check_range
     rate_hz = check_range('replay', 'rate_hz', rate_hz, 0.0, 1e6, 'Hz')
     period_ns = NS_PER_S / rate_hz
@@ -525,11 +545,6 @@ def emulate(inputs, config, seed):
     """
     if not isinstance(config, SensorConfig):
         config = load_sensor_config(config)
-    low, high = (-60.0, 200.0)
-    temp = inputs.temp_c
-    if np.any((temp < low) | (temp > high)):
-        raise ValueError(f'ambient temperature {float(temp[(temp < low) | (temp > high)][0])!r}'
-                         f' C in the bag is out of range: allowed [{low:g}, {high:g}] C')
     model = GyroModel(config, inputs.rate_hz, np.random.default_rng(int(seed)))
     return model, model.run(inputs.rate_rad_s, inputs.temp_c, inputs.accel_m_s2)
 
@@ -691,7 +706,8 @@ def report_text(comparison, inputs, header=()):
     """Return the comparison as Markdown (residual table in deg/s and deg/h)."""
     lines = ['# Replay report', '']
     lines += [f'- {h}' for h in header]
-    lines += [f'- source: {inputs.source} ({", ".join(f"{k}={v}" for k, v in inputs.topics.items() if v)})',
+    used = ', '.join(f'{k}={v}' for k, v in inputs.topics.items() if v)
+    lines += [f'- source: {inputs.source} ({used})',
               f'- sample rate: {inputs.rate_hz:g} Hz, {comparison.emulated_count} emulated '
               f'samples, {comparison.measured_count} measured, {comparison.matched} matched']
     lines += [f'- {note}' for note in inputs.notes]

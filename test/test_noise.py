@@ -32,7 +32,7 @@ def test_gauss_markov_exact_variance_and_correlation():
 
 
 def test_gauss_markov_drive_sigma_is_accurate_for_long_times():
-    """sigma sqrt(1 - exp(-2 dt/T)) via expm1 matches the series for T >> dt."""
+    """The innovation sigma sqrt(1 - exp(-2 dt/T)) matches the series for T >> dt."""
     dt, t = 1e-3, 1e7
     eps = 2 * dt / t
     series = math.sqrt(eps - eps ** 2 / 2)

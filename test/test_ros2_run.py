@@ -16,7 +16,7 @@ import sys
 
 from conftest import ros_env
 import pytest
-from test_node import NodeProcess, Probe, write_sensor_yaml
+from test_node import Probe
 import yaml
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -80,10 +80,8 @@ def test_ros2_run_node_publishes_imu_from_the_colcon_install(workspace, monkeypa
                  'launch/gyro_emulator.launch.py', 'package.xml'):
         assert (share / name).is_file(), name
     log = tmp_path / 'node.log'
-    sensor_yaml = write_sensor_yaml(str(tmp_path))
-    with open(log, 'w') as handle:
-        proc = subprocess.Popen([node_exe, '--ros-args', '-p', f'sensor_config:={sensor_yaml}',
-                                 '-p', 'frame_id:=installed'],
+    with open(log, 'w') as handle:  # the shipped defaults: the paper preset at 200 Hz
+        proc = subprocess.Popen([node_exe, '--ros-args', '-p', 'frame_id:=installed'],
                                 env=env, cwd=str(tmp_path), stdout=handle,
                                 stderr=subprocess.STDOUT)
     probe = Probe(env)

@@ -301,7 +301,7 @@ def test_presets_load_from_config_dir():
     ({'lsb_rad_s': [1e-3, 'x', 0]}, 'lsb_rad_s'),
     ({'scale_factor_error': [0.1, 0.2]}, r'scale_factor_error .*shape \(2,\)'),
     ({'misalignment': [[0.1, 0, 0], [0, 0, 0], [0, 0, 0]]}, 'diagonal'),
-    ({'terms': {'white_noise': False}}, "unknown term.*white_noise"),
+    ({'terms': {'white_noise': False}}, 'unknown term.*white_noise'),
     ({'terms': {'quantization': 'no'}}, r'ErrorTerms.quantization = .no.'),
     ({'device': 'no_such_device'}, "physics preset 'no_such_device' is unknown"),
     ({'device': {'gas': {'pressure_pa': -5.0}}}, r'Gas.pressure_pa = -5.0'),
@@ -347,3 +347,73 @@ def test_lpf_noise_gain_matches_the_impulse_response():
     sigma = GyroModel(config, FS, np.random.default_rng(0)).white_noise_sigma_rad_s
     assert sigma[0] == pytest.approx(1e-3 * math.sqrt(FS) * math.sqrt(np.sum(h ** 2)),
                                      rel=1e-9)
+
+
+def _child_normals(seed, stream, n):
+    """Return the normals of child ``stream`` of default_rng(seed) via numpy SFC64."""
+    child = np.random.default_rng(seed).bit_generator.seed_seq.spawn(11)[stream]
+    return np.random.Generator(np.random.SFC64(child)).standard_normal(n)
+
+
+def test_white_noise_draws_numpys_sfc64_normals_of_its_own_child_stream():
+    """Kernel ziggurat = numpy's, bit for bit; white sigma = N sqrt(fs) exactly."""
+    density = (1e-4, 2e-4, 3e-4)
+    model = GyroModel(_only('electronics_noise', electronics_noise_rad_s_sqrt_hz=density),
+                      FS, np.random.default_rng(7))
+    n = 50_000
+    out = model.run(np.zeros((n, 3)), 25.0)
+    for i in range(3):      # streams: turn-on, jitter, white x/y/z, ...
+        sigma = density[i] * math.sqrt(FS)
+        assert np.array_equal(out.gyro_rad_s[:, i], _child_normals(7, 2 + i, n) * sigma)
+
+
+def test_flicker_and_random_walk_match_the_noise_module_generators():
+    """The kernel's recursions equal noise.flicker / noise.random_walk on the same normals."""
+    n = 20_000
+    config = _only('bias_instability', bias_instability_rad_s=(1e-4, 2e-4, 5e-5),
+                   bias_instability_band_s=(0.05, 50.0))
+    out = GyroModel(config, FS, np.random.default_rng(3)).run(np.zeros((n, 3)), 25.0)
+    plan = noise.flicker_plan(config.bias_instability_band_s, 1.0 / FS)
+    k = len(plan.phi)
+    z = np.column_stack([_child_normals(3, 5 + i, k + n) for i in range(3)])
+    b = np.array(config.bias_instability_rad_s)
+    state = noise.flicker_initial_state(plan, b, z[:k])
+    ref, _ = noise.flicker(z[k:], plan, b, state)
+    np.testing.assert_allclose(out.bias_rad_s, ref, rtol=1e-12, atol=1e-20)
+    config = _only('rate_random_walk', rate_random_walk_rad_s_sqrt_s=(1e-5, 2e-5, 3e-5))
+    out = GyroModel(config, FS, np.random.default_rng(4)).run(np.zeros((n, 3)), 25.0)
+    z = np.column_stack([_child_normals(4, 8 + i, n) for i in range(3)])
+    step = units.rrw_to_step_sigma(config.rate_random_walk_rad_s_sqrt_s, FS)
+    ref, _ = noise.random_walk(z, step, np.zeros(3))
+    np.testing.assert_allclose(out.bias_rad_s, ref, rtol=1e-12, atol=1e-20)
+
+
+def test_die_temperature_out_of_range_raises_and_leaves_the_model_unchanged():
+    config = replace(FULL, self_heating_c=20.0, thermal_time_constant_s=1.0)
+    rate, temp, accel = _inputs(400)
+    ref = GyroModel(config, FS, np.random.default_rng(5)).run(rate, temp, accel)
+    model = GyroModel(config, FS, np.random.default_rng(5))
+    hot = np.full(400, 199.0)
+    with pytest.raises(ValueError, match=r'die temperature 2\d\d.* allowed \[-60.0, 200.0\]'):
+        model.run(rate, hot, accel)
+    with pytest.raises(ValueError, match='die temperature 219'):
+        model.step(rate[0], hot[0], accel[0])
+    # the failed calls produced no sample, drew no random number, moved no state
+    assert model.sample_index == 0 and model.die_temp_c is None
+    _assert_batches_equal(model.run(rate, temp, accel), ref)
+
+
+def test_input_layout_does_not_matter():
+    rate, temp, accel = _inputs(1000, seed=6)
+    ref = GyroModel(FULL, FS, np.random.default_rng(2)).run(rate, temp, accel)
+    fortran, strided = np.asfortranarray(rate), np.repeat(temp, 2)[::2]
+    frozen = accel.copy()
+    frozen.flags.writeable = False
+    out = GyroModel(FULL, FS, np.random.default_rng(2)).run(fortran, strided, frozen)
+    _assert_batches_equal(out, ref)
+    assert out.gyro_rad_s.flags.c_contiguous
+    # a (3,) specific force is held for every sample
+    held = GyroModel(FULL, FS, np.random.default_rng(2)).run(rate, temp, accel[0])
+    again = GyroModel(FULL, FS, np.random.default_rng(2)).run(
+        rate, temp, np.tile(accel[0], (1000, 1)))
+    _assert_batches_equal(held, again)

@@ -6,12 +6,14 @@ Profiles: ``static`` (zero rate), ``steps`` (rate table about z at 0, 10, 20,
 from 25 to 85 C, the paper's Fig 6 conditions) or a YAML profile file (see
 ``gyro_emulator.profiles``). The CSV columns are time_s, rate_{x,y,z}_rad_s
 (true rate), temp_c (ambient) and gyro_{x,y,z}_rad_s (sensor output).
+An ``--out`` path not ending in .csv/.csv.gz is a rosbag2 MCAP bag directory
+with the node's topics (see ``gyro_emulator.replay``).
 """
 
 import sys
 import time
 
-HELP = 'simulate the sensor over a scripted profile and write CSV'
+HELP = 'simulate the sensor over a scripted profile and write CSV or a rosbag2 bag'
 
 #: Show progress when a run has at least this many samples.
 PROGRESS_MIN_SAMPLES = 200_000
@@ -34,8 +36,9 @@ def add_arguments(parser):
                              '(default: %(default)s)')
     parser.add_argument('--seed', type=int, default=0, metavar='N',
                         help='random seed (default: %(default)s)')
-    parser.add_argument('--out', required=True, metavar='FILE.csv',
-                        help='output CSV (.csv or .csv.gz)')
+    parser.add_argument('--out', required=True, metavar='FILE.csv|DIR',
+                        help='output CSV (.csv or .csv.gz), or else a rosbag2 MCAP bag '
+                             'directory in the emulator topic layout')
 
 
 class Progress:
@@ -58,13 +61,20 @@ class Progress:
             self.next_pct = 10 * (int(pct) // 10 + 1)
 
 
-def _open_writer(path):
-    """Return the record writer for ``path`` (CSV; a bag writer can be added here)."""
+def _open_writer(path, args=None, config=None):
+    """Return the record writer for ``path``: CSV for .csv/.csv.gz, else a bag directory."""
     from gyro_emulator import simulate
 
     if str(path).endswith(('.csv', '.csv.gz')):
         return simulate.write_csv
-    raise ValueError(f'--out {path!r}: expected a .csv or .csv.gz file')
+    import functools
+
+    from gyro_emulator import replay
+    custom = None if args is None else replay.simulation_custom_data(
+        args.config, args.profile, args.duration_s, args.rate_hz, args.seed, args.temp_c)
+    return functools.partial(replay.write_simulation_bag, config=config,
+                             rate_hz=None if args is None else args.rate_hz,
+                             custom_data=custom)
 
 
 def run(args):
@@ -72,8 +82,8 @@ def run(args):
     from gyro_emulator import simulate
     from gyro_emulator.sensor_config import load_sensor_config
 
-    writer = _open_writer(args.out)
     config = load_sensor_config(args.config)
+    writer = _open_writer(args.out, args, config)
     total = simulate.sample_count(args.duration_s, args.rate_hz)
     chunks = simulate.iter_simulation(config, args.profile, args.duration_s, args.rate_hz,
                                       seed=args.seed, temp_c=args.temp_c)

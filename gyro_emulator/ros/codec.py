@@ -99,7 +99,7 @@ def qos_to_profile(qos):
     for key, duration in (('deadline', qos.deadline), ('lifespan', qos.lifespan),
                           ('liveliness_lease_duration', qos.liveliness_lease_duration)):
         sec, nsec = divmod(int(duration.nanoseconds), 1_000_000_000)
-        if 0 < sec < 2**31 - 1:
+        if 0 < duration.nanoseconds and sec < 2**31 - 1:
             profile[key] = {'sec': int(sec), 'nsec': int(nsec)}
     return profile
 

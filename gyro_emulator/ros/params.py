@@ -122,8 +122,8 @@ NODE_PARAMS = (
     ParamSpec('block_samples', 'integer', 'Samples the model computes ahead per call '
               '(exact: rewound when an input changes; 1 = one call per sample)', True,
               1, 1000),
-    ParamSpec('record_dir', 'string', 'Hook for recording (issue 6, gyro_emulator.bag): '
-              'empty = no recording', True),
+    ParamSpec('record_dir', 'string', 'Record inputs, outputs and truth into an MCAP '
+              'bag in this directory (gyro_emulator.ros.self_record); empty = off', True),
 )
 
 NODE_SPECS = {spec.name: spec for spec in NODE_PARAMS}
@@ -438,4 +438,4 @@ def apply_sensor_params(base, values):
 def without_noise(config):
     """Return ``config`` with every :data:`NOISE_TERMS` switch off."""
     present = [t for t in NOISE_TERMS if t in sensor_config.ErrorTerms.names()]
-    return config.with_terms(**{t: False for t in present})
+    return config.with_terms(**dict.fromkeys(present, False))

@@ -11,9 +11,10 @@ stepping would have left it. ``GyroModel`` guarantees that ``run`` and
 ``step`` give identical samples however a record is split into calls, so
 the output equals ``step`` per tick bit for bit, for any input sequence.
 
-K adapts: it halves after a rewind and doubles after a block is used up
-(between 1, plain ``step``, and ``max_block``), so a rate that changes every
-tick costs no more than ``step`` and a held rate costs a few microseconds.
+Blocks pay off only while the input holds: a block starts once the input
+has been unchanged for ``max_block`` ticks, and any change falls back to
+plain ``step`` until it holds again. A rate that changes every few ticks
+therefore costs what ``step`` costs, and a held rate a few microseconds.
 """
 
 import copy
@@ -49,7 +50,6 @@ class BlockStepper:
     def __init__(self, model, max_block=50):
         self.model = model
         self.max_block = max(1, int(max_block))
-        self.block = self.max_block
         self.rewinds = 0
         self.model_calls = 0
         self._batch = None
@@ -57,6 +57,7 @@ class BlockStepper:
         self._key = None
         self._checkpoint = None
         self._last_key = None
+        self._held = 0
         self.sigma_rad_s = np.asarray(model.white_noise_sigma_rad_s, dtype=float)
         self.sigma_version = 0
         self._since_sigma = 0
@@ -85,12 +86,8 @@ class BlockStepper:
                 return batch.sample(index)
             if self._used < len(batch):
                 self._rewind()
-                self.block = max(1, self.block // 2)
-            else:
-                self.block = min(self.max_block, self.block * 2)
             self._batch = None
-        elif key == self._last_key:
-            self.block = min(self.max_block, self.block * 2)
+        self._held = self._held + 1 if key == self._last_key else 0
         self._last_key = key
         if self.block == 1:
             self.model_calls += 1
@@ -100,6 +97,11 @@ class BlockStepper:
                 self._refresh_sigma()
             return sample
         return self._start_block(key)
+
+    @property
+    def block(self):
+        """Return how many samples the next model call computes (1 until the input holds)."""
+        return self.max_block if self._held >= self.max_block else 1
 
     def _start_block(self, key):
         n = self.block
@@ -142,7 +144,6 @@ class BlockStepper:
         """Apply a new SensorConfig from the next tick on, keeping the model's states."""
         self.sync()
         self.model.update_config(config)
-        self._last_key = None
         self._refresh_sigma()
 
     def _refresh_sigma(self):

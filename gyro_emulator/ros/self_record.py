@@ -1,0 +1,127 @@
+"""
+The emulator node recording its own inputs, outputs and truth (``record_dir``).
+
+:class:`SelfRecorder` adds raw (still serialised) subscriptions to the node
+for its command inputs, ``imu/data_raw``, ``imu/temperature``, the
+``~/truth/*`` topics and ``/diagnostics``, and writes every message into a
+rosbag2 MCAP bag (:class:`gyro_emulator.bag.BagWriter`): what any subscriber
+receives, with the node clock as log time. Subscriptions are best effort,
+which matches reliable and best-effort publishers alike.
+
+``record_dir`` names the bag directory; if it exists and is not empty, the bag
+goes into a new ``gyro_emulator_<date>_<time>`` directory inside it. The bag
+is finished when the node is destroyed or the process exits (SIGINT,
+SIGTERM); chunks are flushed every 0.5 s, so after SIGKILL
+``gyro-emulator bag repair`` recovers all but the last half second.
+"""
+
+import atexit
+import datetime
+import functools
+import os
+
+from gyro_emulator import bag
+from gyro_emulator.ros import codec
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+#: (relative topic, type) the node subscribes to or publishes; ``{rate}`` is
+#: the rate input of its ``rate_source``.
+NODE_TOPICS = (
+    ('{rate}', None),
+    ('cmd/temperature', 'sensor_msgs/msg/Temperature'),
+    ('cmd/linear_acceleration', 'geometry_msgs/msg/Vector3Stamped'),
+    ('imu/data_raw', 'sensor_msgs/msg/Imu'),
+    ('imu/temperature', 'sensor_msgs/msg/Temperature'),
+    ('~/truth/rate', 'geometry_msgs/msg/Vector3Stamped'),
+    ('~/truth/bias', 'geometry_msgs/msg/Vector3Stamped'),
+    ('~/truth/scale_factor', 'geometry_msgs/msg/Vector3Stamped'),
+    ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray'),
+)
+RATE_INPUTS = {'angular_velocity': ('cmd/angular_velocity',
+                                    'geometry_msgs/msg/Vector3Stamped'),
+               'odometry': ('cmd/odom', 'nav_msgs/msg/Odometry')}
+
+
+def bag_path(record_dir, now=None):
+    """Return the bag directory for ``record_dir`` (a new subdirectory if it is in use)."""
+    record_dir = os.path.abspath(os.path.expanduser(record_dir))
+    if os.path.isdir(record_dir) and os.listdir(record_dir):
+        stamp = (now or datetime.datetime.now()).strftime('%Y%m%d_%H%M%S')
+        candidate = os.path.join(record_dir, f'gyro_emulator_{stamp}')
+        suffix = 1
+        while os.path.exists(candidate):
+            candidate = os.path.join(record_dir, f'gyro_emulator_{stamp}_{suffix}')
+            suffix += 1
+        return candidate
+    return record_dir
+
+
+class SelfRecorder:
+    """
+    Record a gyro emulator node's inputs, outputs and truth into a bag.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The emulator node (its parameters ``rate_source``, ``sensor_config``,
+        ``seed`` and ``rate_hz`` are stored in the bag's custom_data).
+    record_dir : str
+        Bag directory (see :func:`bag_path`).
+    flush_interval_s : float
+        Longest time a message waits in memory, s.
+
+    """
+
+    def __init__(self, node, record_dir, flush_interval_s=bag.DEFAULT_FLUSH_INTERVAL_S):
+        self.node = node
+        custom = {'generator': 'gyro_emulator node record_dir'}
+        for name in ('sensor_config', 'seed', 'rate_hz', 'rate_source', 'frame_id'):
+            if node.has_parameter(name):
+                custom[name] = str(node.get_parameter(name).value)
+        self.writer = bag.BagWriter(bag_path(record_dir), custom_data=custom,
+                                    flush_interval_s=flush_interval_s)
+        self.path = self.writer.path
+        self.finished = False
+        self.counts = {}
+        rate_source = custom.get('rate_source', 'angular_velocity')
+        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+                         reliability=ReliabilityPolicy.BEST_EFFORT)
+        offered = [codec.qos_to_profile(qos)]
+        self._subscriptions = []
+        for relative, type_name in NODE_TOPICS:
+            if relative == '{rate}':
+                relative, type_name = RATE_INPUTS.get(rate_source,
+                                                      RATE_INPUTS['angular_velocity'])
+            topic = node.resolve_topic_name(relative)
+            cid = self.writer.add_topic(topic, type_name, qos_profiles=offered)
+            self.counts[topic] = 0
+            self._subscriptions.append(node.create_subscription(
+                codec.message_class(type_name), topic,
+                functools.partial(self._on_message, topic, cid), qos, raw=True))
+        self._timer = node.create_timer(0.1, self.writer.flush_if_due)
+        atexit.register(self.finish)
+        destroy = node.destroy_node
+
+        def destroy_node():
+            self.finish()
+            return destroy()
+
+        node.destroy_node = destroy_node
+        node.get_logger().info(f'recording inputs, outputs and truth to {self.path}')
+
+    def _on_message(self, topic, cid, data):
+        if self.finished:
+            return
+        self.writer.write(cid, data, self.node.get_clock().now().nanoseconds)
+        self.counts[topic] += 1
+
+    def finish(self):
+        """Finish the bag (summary, footer, metadata.yaml). Safe to call twice."""
+        if self.finished:
+            return
+        self.finished = True
+        self.writer.finish()
+        try:
+            atexit.unregister(self.finish)
+        except Exception:  # noqa: B902 - interpreter shutting down
+            pass

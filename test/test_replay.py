@@ -1,0 +1,180 @@
+"""Offline replay: simulate --out bags, driving the model from a bag, the report."""
+
+import json
+import os
+import subprocess
+import sys
+
+from conftest import ROOT
+from gyro_emulator import bag, cdr, replay
+import numpy as np
+import pytest
+
+IMU = 'sensor_msgs/msg/Imu'
+TEMPERATURE = 'sensor_msgs/msg/Temperature'
+VECTOR = 'geometry_msgs/msg/Vector3Stamped'
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, '-m', 'gyro_emulator.cli', *args], cwd=ROOT,
+                          capture_output=True, text=True,
+                          env={**os.environ, 'PYTHONPATH': ROOT, 'MPLBACKEND': 'Agg'})
+
+
+@pytest.fixture(scope='module')
+def simulated(tmp_path_factory):
+    """Write a 20 s rate-table record at 100 Hz with ``simulate --out``."""
+    path = str(tmp_path_factory.mktemp('sim') / 'steps')
+    out = _cli('simulate', '--profile', 'steps', '--duration-s', '20', '--rate-hz', '100',
+               '--seed', '3', '--out', path)
+    assert out.returncode == 0, out.stderr
+    return path
+
+
+def test_simulate_out_writes_the_emulator_layout(simulated):
+    from rosbags.rosbag2 import Reader
+    from gyro_emulator import simulate
+    reader = bag.BagReader(simulated)
+    assert reader.custom_data['seed'] == '3' and reader.custom_data['rate_hz'] == '100.0'
+    for topic in (replay.RATE_TOPIC, replay.TEMPERATURE_COMMAND_TOPIC, replay.IMU_TOPIC,
+                  replay.DIE_TEMPERATURE_TOPIC, replay.TRUTH_NAMESPACE + '/rate'):
+        assert reader.topics[topic].message_count == 2000, topic
+    # The bag holds exactly what run_simulation returns for the same arguments.
+    time_s, profile, batch = simulate.run_simulation('paper', 'steps', 20.0, 100.0, seed=3)
+    imu = reader.read_arrays(replay.IMU_TOPIC)
+    np.testing.assert_array_equal(imu.field('angular_velocity'), batch.gyro_rad_s)
+    np.testing.assert_array_equal(imu.log_time_ns, np.round(time_s * 1e9).astype(np.int64))
+    np.testing.assert_array_equal(
+        imu.stamp_ns, imu.log_time_ns + np.round(batch.output_delay_s * 1e9).astype(np.int64))
+    assert imu.field('orientation_covariance[0]')[0] == -1.0
+    assert imu.field('angular_velocity_covariance[0]')[0] > 0.0
+    rate = reader.read_arrays(replay.RATE_TOPIC)
+    np.testing.assert_array_equal(rate.field('vector'), profile.rate_rad_s)
+    with Reader(simulated) as rosbags_reader:
+        assert rosbags_reader.message_count == reader.message_count
+
+
+def test_replay_with_the_recording_seed_reproduces_it_exactly(simulated, tmp_path):
+    out = _cli('replay', simulated, '--out', str(tmp_path / 'same'))
+    assert out.returncode == 0, out.stderr
+    assert 'identical to the measured one' in out.stdout
+    with open(tmp_path / 'same' / 'report.json', encoding='utf-8') as handle:
+        stats = json.load(handle)['stats']
+    assert stats['matched'] == stats['samples'] == 2000
+    assert all(s['max_abs'] == 0.0 for s in stats['residual_rad_s'].values())
+    for name in ('rates.png', 'residual.png', 'allan.png', 'report.md'):
+        assert os.path.getsize(tmp_path / 'same' / name) > 0
+
+
+def test_same_bag_and_seed_give_identical_decoded_output(simulated, tmp_path):
+    outputs = []
+    for run in ('a', 'b'):
+        out = _cli('replay', simulated, '--out', str(tmp_path / run), '--seed', '11',
+                   '--no-plots')
+        assert out.returncode == 0, out.stderr
+        reader = bag.BagReader(str(tmp_path / run / 'emulated'))
+        outputs.append({t: reader.read_arrays(t).decoded.values for t in
+                        (replay.IMU_TOPIC, replay.TRUTH_NAMESPACE + '/bias',
+                         replay.RESIDUAL_TOPIC)})
+    for topic, values in outputs[0].items():
+        np.testing.assert_array_equal(values, outputs[1][topic], err_msg=topic)
+    # Another seed is another noise realisation: the residual is the difference
+    # of two independent white noises, sqrt(2) sigma on a static axis (x).
+    with open(tmp_path / 'a' / 'report.json', encoding='utf-8') as handle:
+        stats = json.load(handle)['stats']
+    sigma = replay.white_noise_sigma(replay.load_sensor_config('paper'), 100.0)[0]
+    ratio = stats['residual_rad_s']['x']['std'] / (np.sqrt(2.0) * sigma)
+    assert 0.85 < ratio < 1.3
+
+
+def test_hold_is_a_zero_order_hold_at_the_stamps():
+    stamps = np.array([0, 100, 200], dtype=np.int64)
+    values = np.array([[1.0], [2.0], [3.0]])
+    query = np.array([-50, 0, 99, 100, 150, 199, 500], dtype=np.int64)
+    np.testing.assert_array_equal(replay.hold(stamps, values, query, 0, before=0.0)[:, 0],
+                                  [0, 1, 1, 2, 2, 2, 3])
+    # within the tolerance a command counts for the sample just before its stamp
+    np.testing.assert_array_equal(replay.hold(stamps, values, query, 1)[:, 0],
+                                  [1, 1, 2, 2, 2, 3, 3])
+
+
+def _robot_bag(path, rate_hz=100.0, seconds=30.0, seed=0):
+    """Write a "real robot" bag: Imu under a namespace, temperature at 1 Hz."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * rate_hz)
+    t0 = 1_700_000_000_000_000_000
+    # a robot's IMU stamps jitter around the nominal period
+    stamps = t0 + np.round((np.arange(n) + rng.uniform(-0.1, 0.1, n)) * 1e9 / rate_hz) \
+        .astype(np.int64)
+    t = np.arange(n) / rate_hz
+    rate = np.column_stack([0.2 * np.sin(t), np.zeros(n), 0.5 * np.sin(0.3 * t)])
+    values = np.zeros((n, 37))
+    values[:, 13:16] = rate
+    values[:, 25:28] = [0.0, 0.0, 9.81]
+    temp_stamps = stamps[::int(rate_hz)]
+    temps = np.column_stack([30.0 + np.arange(len(temp_stamps)) * 0.1,
+                             np.zeros(len(temp_stamps))])
+    with bag.BagWriter(path) as writer:
+        writer.add_topic('/robot/imu', IMU)
+        writer.add_topic('/robot/imu_temp', TEMPERATURE)
+        writer.write_batches([('/robot/imu', cdr.encode(IMU, stamps, values, 'base'), stamps),
+                              ('/robot/imu_temp', cdr.encode(TEMPERATURE, temp_stamps, temps),
+                               temp_stamps)])
+    return stamps, rate, temp_stamps, temps[:, 0]
+
+
+def test_imu_source_takes_the_robot_rate_as_truth(tmp_path):
+    path = str(tmp_path / 'robot')
+    stamps, rate, temp_stamps, temps = _robot_bag(path)
+    reader = bag.BagReader(path)
+    inputs = replay.load_inputs(reader, rate_topic='/robot/imu',
+                                temperature_topic='/robot/imu_temp')
+    assert inputs.source == 'imu' and inputs.rate_hz == 100.0
+    np.testing.assert_array_equal(inputs.stamp_ns, stamps)
+    np.testing.assert_array_equal(inputs.rate_rad_s, rate)
+    np.testing.assert_array_equal(inputs.accel_m_s2[:, 2], np.full(len(stamps), 9.81))
+    # the temperature in force at a sample is the latest one stamped at or before it
+    assert inputs.temp_c[99] == temps[0] and inputs.temp_c[100] == temps[1]
+    assert inputs.temp_c[350] == temps[3] and inputs.temp_c[-1] == temps[-1]
+    out = _cli('replay', path, '--out', str(tmp_path / 'out'), '--source', 'imu',
+               '--rate-topic', '/robot/imu', '--temperature-topic', '/robot/imu_temp')
+    assert out.returncode == 0, out.stderr
+    with open(tmp_path / 'out' / 'report.json', encoding='utf-8') as handle:
+        report = json.load(handle)
+    assert report['stats']['matched'] == len(stamps)
+    assert set(report['adev']) == {'measured', 'emulated'}
+    emulated = bag.BagReader(str(tmp_path / 'out' / 'emulated'))
+    truth = emulated.read_arrays(replay.TRUTH_NAMESPACE + '/rate').field('vector')
+    np.testing.assert_array_equal(truth, rate)
+
+
+def test_command_source_holds_sparse_commands_on_the_sample_grid(tmp_path):
+    path = str(tmp_path / 'sparse')
+    cmd_stamps = np.arange(0, 2_000_000_000, 100_000_000, dtype=np.int64)    # 10 Hz
+    cmd = np.column_stack([np.arange(len(cmd_stamps)) * 0.01,
+                           np.zeros((len(cmd_stamps), 2))])
+    with bag.BagWriter(path) as writer:
+        writer.add_topic(replay.RATE_TOPIC, VECTOR)
+        writer.write_batches([(replay.RATE_TOPIC, cdr.encode(VECTOR, cmd_stamps, cmd),
+                               cmd_stamps)])
+    inputs = replay.load_inputs(bag.BagReader(path), rate_hz=50.0, temp_c=40.0)
+    assert inputs.source == 'command' and len(inputs.stamp_ns) == 96
+    np.testing.assert_array_equal(inputs.stamp_ns, np.arange(96) * 20_000_000)
+    np.testing.assert_array_equal(inputs.rate_rad_s[:, 0], cmd[inputs.stamp_ns // 100_000_000, 0])
+    assert np.all(inputs.temp_c == 40.0) and inputs.measured_rad_s is None
+    _, batch = replay.emulate(inputs, 'paper', seed=1)
+    assert replay.compare(inputs, batch).matched == 0
+
+
+@pytest.mark.parametrize('args,message', [
+    (['--rate-topic', '/nope'], 'is not in bag'),
+    (['--rate-topic', '/robot/imu_temp'], 'has type sensor_msgs/msg/Temperature'),
+    (['--source', 'command'], 'no rate commands'),
+    (['--rate-hz', '-5'], 'out of range'),
+])
+def test_replay_bad_options_are_clean_messages(tmp_path, args, message):
+    path = str(tmp_path / 'robot')
+    _robot_bag(path, seconds=1.0)
+    out = _cli('replay', path, '--out', str(tmp_path / 'out'), *args)
+    assert out.returncode == 2 and message in out.stderr, out.stderr
+    assert 'Traceback' not in out.stderr

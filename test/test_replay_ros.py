@@ -1,0 +1,126 @@
+"""``replay`` republishes a bag with its timing, /clock, rate scaling and looping."""
+
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from conftest import ROOT, ros_env
+from gyro_emulator import bag, cdr
+import numpy as np
+import pytest
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+IMU = 'sensor_msgs/msg/Imu'
+T0_NS = 1_700_000_000_000_000_000
+
+
+def _make_bag(path, count, period_ns):
+    stamps = T0_NS + np.arange(count, dtype=np.int64) * period_ns
+    values = np.zeros((count, 37))
+    values[:, 13] = np.arange(count)
+    with bag.BagWriter(path) as writer:
+        writer.add_topic('/imu/data_raw', IMU, qos_profiles=[bag.qos_profile('reliable')])
+        writer.write_batches([('/imu/data_raw', cdr.encode(IMU, stamps, values, 'imu'),
+                               stamps)])
+    return stamps
+
+
+def _start(args, env, **kwargs):
+    return subprocess.Popen([sys.executable, '-m', *args], env=env, cwd=ROOT, **kwargs)
+
+
+def _stop(proc, sig=signal.SIGINT):
+    if proc.poll() is None:
+        proc.send_signal(sig)
+    try:
+        return proc.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+        raise
+
+
+def _recorded_count(path, topic):
+    mcap = os.path.join(path, os.path.basename(path) + '_0.mcap')
+    if not os.path.exists(mcap):
+        return 0
+    reader = bag.BagReader(path, tolerant=True)
+    return reader.topics[topic].message_count if topic in reader.topics else 0
+
+
+def _wait(predicate, procs, timeout_s=90.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        for proc in procs:
+            assert proc.poll() is None or proc.returncode == 0, proc.args
+        time.sleep(0.2)
+    raise AssertionError('timed out')
+
+
+def test_replay_keeps_timing_scaled_by_rate_and_publishes_clock(tmp_path):
+    env = ros_env()
+    source, target = str(tmp_path / 'source'), str(tmp_path / 'target')
+    stamps = _make_bag(source, 200, 10_000_000)          # 100 Hz for 2 s
+    recorder = _start(['gyro_emulator.ros.recorder', '-o', target, '--topics',
+                       '/imu/data_raw', '/clock'], env, stdout=subprocess.DEVNULL,
+                      stderr=subprocess.DEVNULL)
+    replay = _start(['gyro_emulator.ros.replay', source, '--rate', '2', '--clock', '50',
+                     '--wait-for-subscribers', '60'], env, stdout=subprocess.PIPE, text=True)
+    try:
+        assert replay.wait(timeout=120) == 0
+        assert 'published 200 messages' in replay.stdout.read()
+        _wait(lambda: _recorded_count(target, '/imu/data_raw') >= 200, [recorder])
+    finally:
+        _stop(replay)
+        assert _stop(recorder) == 0
+    reader = bag.BagReader(target)
+    imu = reader.read_arrays('/imu/data_raw')
+    # Reliable QoS: every message, in order, payload untouched.
+    np.testing.assert_array_equal(imu.field('angular_velocity.x'), np.arange(200))
+    np.testing.assert_array_equal(imu.stamp_ns, stamps)
+    # Timing: the 1.99 s bag plays in about 1.99 / 2 s; never faster than scheduled.
+    span_s = (imu.log_time_ns[-1] - imu.log_time_ns[0]) / 1e9
+    assert 0.95 * 0.995 <= span_s < 0.9 * 1.99
+    median_gap_ms = np.median(np.diff(imu.log_time_ns)) / 1e6
+    assert 3.0 < median_gap_ms < 7.0                  # 10 ms / rate 2
+    clock_values = [msg.clock.sec * 10**9 + msg.clock.nanosec
+                    for _, msg in reader.decoded_messages('/clock')]
+    assert len(clock_values) >= 10
+    assert np.all(np.diff(clock_values) >= 0)
+    assert T0_NS <= clock_values[0] and clock_values[-1] <= stamps[-1] + 500_000_000
+
+
+def test_replay_loops_until_interrupted(tmp_path):
+    env = ros_env()
+    source, target = str(tmp_path / 'source'), str(tmp_path / 'target')
+    _make_bag(source, 50, 10_000_000)
+    recorder = _start(['gyro_emulator.ros.recorder', '-o', target, '--topics',
+                       '/imu/data_raw'], env, stdout=subprocess.DEVNULL,
+                      stderr=subprocess.DEVNULL)
+    replay = _start(['gyro_emulator.ros.replay', source, '--rate', '5', '--loop',
+                     '--wait-for-subscribers', '60'], env, stdout=subprocess.PIPE, text=True)
+    try:
+        _wait(lambda: _recorded_count(target, '/imu/data_raw') >= 160, [recorder, replay])
+        assert _stop(replay) == 0
+        published = int(replay.stdout.read().split('published ')[1].split()[0])
+        _wait(lambda: _recorded_count(target, '/imu/data_raw') >= published, [recorder])
+    finally:
+        _stop(replay)
+        assert _stop(recorder) == 0
+    counter = bag.BagReader(target).read_arrays('/imu/data_raw').field('angular_velocity.x')
+    assert counter.size == published >= 160
+    np.testing.assert_array_equal(counter, np.arange(counter.size) % 50)
+
+
+def test_replay_bad_input_is_a_clean_message(tmp_path):
+    for args, text in ((['missing_bag'], 'no bag at'),
+                       ([str(tmp_path), '--rate', '0'], 'out of range')):
+        out = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.replay', *args],
+                             env=ros_env(), cwd=str(tmp_path), capture_output=True, text=True)
+        assert out.returncode == 2 and text in out.stderr
+        assert 'Traceback' not in out.stderr

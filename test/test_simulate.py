@@ -1,0 +1,204 @@
+"""Offline simulation, profiles, CSV I/O and the simulate / allan commands."""
+
+import gzip
+import io
+import json
+import math
+import os
+
+from gyro_emulator import cli, dataio, profiles, simulate, units
+from gyro_emulator.commands.simulate import Progress
+from gyro_emulator.sensor import SensorBatch
+from gyro_emulator.sensor_config import load_sensor_config
+import numpy as np
+import pytest
+
+REAL = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(
+    os.path.abspath(__file__)))), 'shared', 'data', 'real')
+
+
+def test_simulate_cli_writes_the_csv_columns(tmp_path, capsys):
+    out = tmp_path / 'static.csv'
+    rc = cli.main(['simulate', '--profile', 'static', '--duration-s', '5',
+                   '--rate-hz', '100', '--out', str(out), '--seed', '3'])
+    assert rc == 0
+    columns = dataio.read_csv(out)
+    assert tuple(columns) == simulate.CSV_COLUMNS
+    assert len(columns['time_s']) == 500
+    np.testing.assert_allclose(columns['time_s'], np.arange(500) / 100.0, atol=1e-9)
+    assert not np.any(columns['rate_z_rad_s'])
+    assert np.all(columns['temp_c'] == 25.0)
+    assert np.std(columns['gyro_x_rad_s']) > 0.0         # the paper preset's noise
+    assert 'wrote' in capsys.readouterr().out
+
+
+def test_steps_and_temperature_ramp_profiles():
+    steps = profiles.make_profile('steps', 50.0)
+    samples = steps.sample(np.array([5.0, 15.0, 25.0, 35.0, 45.0]))
+    np.testing.assert_allclose(samples.rate_rad_s[:, 2],
+                               units.rpm_to_rad_s([0, 10, 20, 40, 0]))
+    ramp = profiles.make_profile('temp-ramp', 60.0)
+    samples = ramp.sample(np.array([0.0, 30.0, 60.0, 90.0]))
+    np.testing.assert_allclose(samples.temp_c, [25.0, 55.0, 85.0, 85.0])   # holds after
+    np.testing.assert_allclose(samples.rate_rad_s[:, 2], math.radians(60.0))
+    np.testing.assert_allclose(samples.accel_m_s2[0], [0.0, 0.0, 9.80665])
+
+
+def test_yaml_profile(tmp_path):
+    path = tmp_path / 'profile.yaml'
+    path.write_text(
+        'name: ramp-up\n'
+        'segments:\n'
+        '  - {duration_s: 2, rate_deg_s: [0, 0, 0], temp_c: 20}\n'
+        '  - duration_s: 4\n'
+        '    rate_deg_s: [[0, 0, 0], [0, 0, 90]]\n'
+        '    temp_c: [20, 40]\n'
+        '    accel_m_s2: [0, 9.80665, 0]\n'
+        '  - {duration_s: 1, rate_rpm: [10, 0, 0]}\n')
+    prof = profiles.make_profile(str(path), 100.0)
+    assert prof.duration_s == pytest.approx(7.0)
+    s = prof.sample(np.array([1.0, 4.0, 6.5, 50.0]))
+    np.testing.assert_allclose(s.rate_rad_s[:, 2], [0.0, math.radians(45.0), 0.0, 0.0])
+    np.testing.assert_allclose(s.rate_rad_s[2:, 0], units.rpm_to_rad_s(10.0))
+    np.testing.assert_allclose(s.temp_c, [20.0, 30.0, 40.0, 40.0])   # last temp carries
+    np.testing.assert_allclose(s.accel_m_s2[1], [0.0, 9.80665, 0.0])
+
+
+@pytest.mark.parametrize('text,match', [
+    ('segments: []\n', 'non-empty list'),
+    ('segments:\n  - {rate_deg_s: [0, 0, 0]}\n', 'segment 1: duration_s is required'),
+    ('segments:\n  - {duration_s: 1, speed: 3}\n', 'segment 1: unknown key'),
+    ('segments:\n  - {duration_s: 1, temp_c: 500}\n', 'temp_start_c = 500.0 is out of range'),
+    ('segments:\n  - {duration_s: -1}\n', 'duration_s = -1.0 is out of range'),
+    ('segments:\n  - {duration_s: 1, rate_deg_s: [1, 2]}\n', 'rate_deg_s'),
+    ('loop: true\nsegments: []\n', 'unknown key'),
+])
+def test_bad_yaml_profiles(tmp_path, text, match):
+    path = tmp_path / 'bad.yaml'
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        profiles.make_profile(str(path), 10.0)
+
+
+def test_run_simulation_is_reproducible_and_chunk_invariant():
+    config = load_sensor_config('consumer')
+    t, prof, batch = simulate.run_simulation(config, 'steps', 30.0, 200.0, seed=4)
+    assert len(t) == 6000 and prof.rate_rad_s.shape == (6000, 3)
+    chunks = list(simulate.iter_simulation(config, 'steps', 30.0, 200.0, seed=4,
+                                           chunk_samples=777))
+    joined = SensorBatch.concatenate([c.batch for c in chunks])
+    assert np.array_equal(joined.gyro_rad_s, batch.gyro_rad_s)
+    assert np.array_equal(np.concatenate([c.time_s for c in chunks]), t)
+    _, _, other = simulate.run_simulation(config, 'steps', 30.0, 200.0, seed=5)
+    assert not np.array_equal(other.gyro_rad_s, batch.gyro_rad_s)
+
+
+def test_temperature_ramp_shows_the_physics_scale_factor(tmp_path):
+    """Ideal sensor but the physics SF(T): the ramp reproduces the paper's Fig 6 rise."""
+    cfg = tmp_path / 'sf.yaml'
+    terms = ', '.join(f'{n}: false' for n in load_sensor_config().terms.names()
+                      if n != 'scale_factor_temperature')
+    cfg.write_text(f'device: paper\nterms: {{{terms}}}\n')
+    _, prof, batch = simulate.run_simulation(str(cfg), 'temp-ramp', 60.0, 10.0)
+    apparent = np.degrees(batch.gyro_rad_s[-1, 2])
+    assert 61.8 <= apparent <= 62.0                      # paper: 61.8..62.0 deg/s at 85 C
+    assert prof.temp_c[-1] == pytest.approx(85.0, abs=0.2)
+
+
+def test_progress_lines_every_ten_percent():
+    stream = io.StringIO()
+    progress = Progress(stream)
+    total = 1_000_000
+    for done in range(65536, total, 65536):
+        progress(done, total)
+    progress(total, total)
+    lines = stream.getvalue().splitlines()
+    assert 9 <= len(lines) <= 11 and lines[-1].startswith('simulate: 100.0 %')
+    quiet = io.StringIO()
+    Progress(quiet)(10, 100)
+    assert quiet.getvalue() == ''
+
+
+def test_simulate_cli_errors_are_clean(tmp_path, capsys):
+    assert cli.main(['simulate', '--config', 'nope', '--out', str(tmp_path / 'a.csv')]) == 2
+    assert 'neither a preset' in capsys.readouterr().err
+    assert cli.main(['simulate', '--profile', 'wobble', '--out',
+                     str(tmp_path / 'a.csv')]) == 2
+    assert 'built-in profile' in capsys.readouterr().err
+    assert cli.main(['simulate', '--duration-s', '-1', '--out',
+                     str(tmp_path / 'a.csv')]) == 2
+    assert 'duration_s = -1.0 is out of range' in capsys.readouterr().err
+
+
+def test_allan_cli_on_our_own_output(tmp_path):
+    sim = tmp_path / 'paper.csv.gz'
+    assert cli.main(['simulate', '--duration-s', '300', '--rate-hz', '200',
+                     '--out', str(sim)]) == 0
+    out_json, out_png = tmp_path / 'a.json', tmp_path / 'a.png'
+    assert cli.main(['allan', str(sim), '--axis', 'y', '--json', str(out_json),
+                     '--plot', str(out_png)]) == 0
+    info = json.loads(out_json.read_text())
+    for key in ('arw_deg_sqrt_h', 'bias_instability_deg_h', 'rrw_deg_h_sqrt_h', 'taus_s',
+                'adev_rad_s'):
+        assert key in info
+    assert len(info['taus_s']) == len(info['adev_rad_s'])
+    # the paper preset's ARW is the Brownian 0.276 deg/sqrt(h)
+    assert info['arw_deg_sqrt_h'] == pytest.approx(0.2758, rel=0.05)
+    assert out_png.stat().st_size > 10_000
+
+
+@pytest.mark.skipif(not os.path.isdir(REAL), reason='shared real data not present')
+def test_allan_cli_on_measured_mpu6050(tmp_path):
+    path = os.path.join(REAL, 'mpu6050_static', 'mpu6050_static_100hz.csv')
+    out_json = tmp_path / 'mpu.json'
+    assert cli.main(['allan', path, '--axis', 'z', '--json', str(out_json)]) == 0
+    info = json.loads(out_json.read_text())
+    assert info['sample_rate_hz'] == pytest.approx(100.0)
+    # datasheet rate noise density 0.005 deg/s/sqrt(Hz) = 0.3 deg/sqrt(h): same order
+    assert 0.1 < info['arw_deg_sqrt_h'] < 1.0
+
+
+def _write(path, text):
+    if str(path).endswith('.gz'):
+        with gzip.open(path, 'wt') as handle:
+            handle.write(text)
+    else:
+        path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize('text,match', [
+    ('time_s,gyro_x_rad_s\n0,1\n', r'no gyro columns: need gyro_rad_s or gyro_x_rad_s'),
+    ('time_s,gyro_rad_s\n0,1\n0.01,abc\n', r"row 3, column gyro_rad_s: 'abc' is not a number"),
+    ('time_s,gyro_rad_s\n0,1\n0.02,2\n0.01,3\n',
+     r'time_s does not increase at data row 3: 0.01 after 0.02'),
+    ('time_s,gyro_rad_s\n0,1\n0.01,nan\n', r'column gyro_rad_s: nan is not finite'),
+    ('time_s,gyro_rad_s\n0,1,2\n', r'row 2 has 3 values, the header has 2'),
+    ('', 'the file is empty'),
+    ('gyro_rad_s\n1\n', 'missing column.*time_s'),
+])
+def test_csv_errors_name_row_column_and_value(tmp_path, text, match):
+    path = _write(tmp_path / 'bad.csv', text)
+    with pytest.raises(ValueError, match=match):
+        dataio.read_gyro_csv(path)
+
+
+def test_csv_round_trip_gz_and_repeated_times(tmp_path):
+    path = tmp_path / 'x.csv.gz'
+    values = np.random.default_rng(0).standard_normal(1000) * 1e-3
+    dataio.write_csv(path, {'time_s': np.arange(1000) / 50.0, 'gyro_rad_s': values})
+    t, rate, column = dataio.read_gyro_csv(path)
+    assert column == 'gyro_rad_s'
+    np.testing.assert_allclose(rate, values, rtol=1e-9)
+    rep = _write(tmp_path / 'rep.csv', 'time_s,gyro_rad_s\n0,1\n0.02,2\n0.02,3\n0.04,4\n')
+    with pytest.raises(ValueError, match='repeated timestamp'):
+        dataio.read_gyro_csv(rep)
+    t, _, _ = dataio.read_gyro_csv(rep, time_order='nondecreasing')
+    assert len(t) == 4
+
+
+def test_segments_at_gaps():
+    t = np.concatenate([np.arange(100) * 0.02, 100.0 + np.arange(50) * 0.02])
+    rate, bounds = dataio.sample_rate_and_segments(t)
+    assert rate == pytest.approx(50.0)
+    assert bounds == [(0, 100), (100, 150)]
