@@ -16,7 +16,9 @@ recovered is replayed and the loss is reported.
 """
 
 import argparse
+import signal
 import sys
+import threading
 import time
 
 from gyro_emulator import bag
@@ -25,6 +27,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 
 NS_PER_S = 1_000_000_000
 #: Longest single sleep while waiting for a message, s (keeps /clock and signals live).
@@ -97,11 +100,13 @@ class Player:
         Publish ``/clock`` at this rate.
     reliable : bool
         Force reliable publishers.
+    stop : threading.Event, optional
+        Set to stop between two messages (the signal handlers set it).
 
     """
 
     def __init__(self, node, reader, topics=None, remap=None, rate=1.0, clock_hz=None,
-                 reliable=False):
+                 reliable=False, stop=None):
         self.node = node
         self.reader = reader
         self.topics = sorted(reader.topics) if topics is None else list(topics)
@@ -109,6 +114,9 @@ class Player:
         self.clock_period_s = None if clock_hz is None else 1.0 / clock_hz
         self.publishers = {}
         self.published = 0
+        #: Set by SIGINT/SIGTERM; checked between messages, so a signal never
+        #: lands between a publish and its count.
+        self.stop = threading.Event() if stop is None else stop
         remap = remap or {}
         for name in self.topics:
             info = reader.topics.get(name)
@@ -132,7 +140,7 @@ class Player:
     def wait_for_subscribers(self, timeout_s):
         """Wait until every publisher has a subscriber; return True if they all do."""
         deadline = time.monotonic() + timeout_s
-        while rclpy.ok():
+        while rclpy.ok() and not self.stop.is_set():
             missing = [n for n, p in self.publishers.items() if p.get_subscription_count() < 1]
             if not missing:
                 return True
@@ -171,13 +179,15 @@ class Player:
                         next_clock = now + self.clock_period_s
                 if now >= due:
                     break
-                if not rclpy.ok():
+                if self.stop.is_set() or not rclpy.ok():
                     return count
                 wake = due if self.clock_publisher is None else min(due, next_clock)
                 time.sleep(min(MAX_SLEEP_S, max(0.0, wake - now)))
             self.publishers[item.topic].publish(item.data)
             count += 1
             self.published += 1
+            if self.stop.is_set():
+                break
         return count
 
 
@@ -193,14 +203,19 @@ def main(args=None):
         return 2
     for note in reader.problems:
         print(f'replay: warning: incomplete bag, {note}', file=sys.stderr)
-    rclpy.init(args=argv)
+    # Signals only set a flag: the loop stops between messages and the final
+    # count is exact (rclpy's handler would raise in the middle of a step).
+    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
     node = None
     status = 0
     player = None
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
     try:
         node = Node('gyro_replay')
         player = Player(node, reader, opts.topics, remap, opts.rate, opts.clock,
-                        opts.reliable)
+                        opts.reliable, stop)
         if opts.wait_for_subscribers > 0:
             player.wait_for_subscribers(opts.wait_for_subscribers)
         if opts.delay > 0:
@@ -208,11 +223,12 @@ def main(args=None):
         start_ns = reader.start_time_ns + int(round(opts.start_offset * NS_PER_S))
         node.get_logger().info(
             f'replaying {reader.message_count} messages of {opts.bag} at rate {opts.rate}')
-        while rclpy.ok():
+        while rclpy.ok() and not stop.is_set():
             player.play_once(start_ns)
             if not opts.loop:
                 break
-        player.wait_for_acks(2.0)
+        if not stop.is_set():
+            player.wait_for_acks(2.0)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ValueError, OSError) as exc:
