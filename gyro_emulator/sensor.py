@@ -50,6 +50,7 @@ are bit for bit those of ``numpy.random.Generator(numpy.random.SFC64(child))``
 ``Generator`` objects (about 6 us each per call).
 """
 
+import copy
 from dataclasses import dataclass
 import math
 
@@ -413,6 +414,15 @@ class GyroModel:
         _fill_normals(self._state.rng, _R_TURN_ON, self._turn_on_z)
         self._plan = None
         self.update_config(config)
+
+    def copy(self):
+        """
+        Return an independent copy: same configuration, states and streams.
+
+        The copy and the original then produce identical samples for the same
+        inputs. The precomputed plan is immutable, so the copy shares it.
+        """
+        return copy.deepcopy(self, {id(self._plan): self._plan})
 
     # --- configuration ---------------------------------------------------
 

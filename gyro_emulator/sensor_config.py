@@ -37,14 +37,21 @@ def config_dir():
     """
     Return the directory holding the sensor presets.
 
-    ``config/`` of the source tree when running from a checkout, else the
-    installed ``<sys.prefix>/share/gyro_emulator/config``.
+    In order: ``config/`` of the source tree when running from a checkout;
+    ``<prefix>/share/gyro_emulator/config`` of the first ``AMENT_PREFIX_PATH``
+    prefix that has it (a colcon install, as ``ros2 run`` finds it); the
+    pip-installed ``<sys.prefix>/share/gyro_emulator/config``.
     """
     here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    source = os.path.join(here, 'config')
-    if os.path.isfile(os.path.join(source, 'sensor_paper.yaml')):
-        return source
-    return os.path.join(sys.prefix, 'share', 'gyro_emulator', 'config')
+    candidates = [os.path.join(here, 'config')]
+    for prefix in os.environ.get('AMENT_PREFIX_PATH', '').split(os.pathsep):
+        if prefix:
+            candidates.append(os.path.join(prefix, 'share', 'gyro_emulator', 'config'))
+    candidates.append(os.path.join(sys.prefix, 'share', 'gyro_emulator', 'config'))
+    for candidate in candidates:
+        if os.path.isfile(os.path.join(candidate, 'sensor_paper.yaml')):
+            return candidate
+    return candidates[-1]
 
 
 @dataclass(frozen=True)

@@ -252,6 +252,19 @@ def test_update_config_keeps_the_states():
     assert model.white_noise_sigma_rad_s == pytest.approx(np.zeros(3))
 
 
+def test_copy_continues_exactly_like_the_original():
+    rate, temp, accel = _inputs(3000, seed=6)
+    model = GyroModel(FULL, FS, np.random.default_rng(9))
+    model.run(rate[:1000], temp[:1000], accel[:1000])
+    twin = model.copy()
+    ahead = model.run(rate[1000:], temp[1000:], accel[1000:])
+    # independent: advancing the original left the copy where it was
+    assert (twin.sample_index, model.sample_index) == (1000, 3000)
+    again = twin.run(rate[1000:], temp[1000:], accel[1000:])
+    for name in ('gyro_rad_s', 'bias_rad_s', 'die_temp_c', 'output_delay_s'):
+        assert np.array_equal(getattr(ahead, name), getattr(again, name)), name
+
+
 @pytest.mark.parametrize('bad', [math.nan, math.inf])
 def test_non_finite_inputs_are_rejected(bad):
     model = GyroModel(FULL, FS, np.random.default_rng(0))

@@ -1,10 +1,12 @@
 """
 One model sample per tick at block cost, exactly (no ROS imports).
 
-``GyroModel.step`` costs a block kernel call per sample (~0.1-0.2 ms of numpy
-overhead), too much for a 1 kHz Python node. :class:`BlockStepper` calls
-``GyroModel.run`` on K samples of the current (held) input ahead of time and
-hands them out one per tick. When the input changes before the block is used
+``GyroModel.step`` runs the compiled kernel on one sample, but its Python
+argument handling makes it ~15 us a call. At 1 kHz the node then used
+1.33-1.41x the CPU of a bare rclpy Imu publisher, against 1.13-1.26x with
+blocks of 50 (``bench/bench_node.py``, 2026-11-22). :class:`BlockStepper`
+calls ``GyroModel.run`` on K samples of the current (held) input ahead of
+time and hands them out one per tick. When the input changes before the block is used
 up, it restores a copy of the model taken before the block and re-runs only
 the samples already handed out, so the model is exactly where per-sample
 stepping would have left it. ``GyroModel`` guarantees that ``run`` and
@@ -17,21 +19,7 @@ plain ``step`` until it holds again. A rate that changes every few ticks
 therefore costs what ``step`` costs, and a held rate a few microseconds.
 """
 
-import copy
-
 import numpy as np
-
-
-def clone_model(model):
-    """
-    Return an independent copy of a GyroModel (state and generators).
-
-    The precomputed plan is immutable after construction, so the copy shares
-    it; everything else (filter states, generators) is copied.
-    """
-    plan = getattr(model, '_plan', None)
-    memo = {} if plan is None else {id(plan): plan}
-    return copy.deepcopy(model, memo)
 
 
 class BlockStepper:
@@ -105,7 +93,7 @@ class BlockStepper:
 
     def _start_block(self, key):
         n = self.block
-        checkpoint = clone_model(self.model)
+        checkpoint = self.model.copy()
         rates = np.tile(np.asarray(key[0], dtype=float), (n, 1))
         temps = np.full(n, key[1])
         accel = None if key[2] is None else np.tile(np.asarray(key[2], dtype=float), (n, 1))
