@@ -179,11 +179,12 @@ def test_node_record_dir_records_inputs_outputs_and_truth(tmp_path):
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         _wait_for_messages(path, '/imu/data_raw', 200, [node])
-        assert _stop(node, signal.SIGTERM) == 0
+        status = _stop(node, signal.SIGTERM)
     finally:
         if node.poll() is None:
             _stop(node, signal.SIGKILL)
     log = node.stdout.read()
+    assert status == 0, log
     samples = int(log.split('shutting down: ')[1].split(' samples')[0])
     reader = bag.BagReader(path)
     assert reader.custom_data['seed'] == '5'

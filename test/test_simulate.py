@@ -147,6 +147,26 @@ def test_allan_cli_on_our_own_output(tmp_path):
     assert out_png.stat().st_size > 10_000
 
 
+def test_allan_cli_reads_a_bag_like_the_csv_of_the_same_run(tmp_path):
+    """The same seeded run as CSV and as a bag directory gives the same ADEV."""
+    # paper preset: no latency, jitter or clock drift, so the bag's Imu stamps
+    # are the CSV's sample instants
+    common = ['simulate', '--config', 'paper', '--duration-s', '120', '--rate-hz', '100',
+              '--seed', '11']
+    assert cli.main(common + ['--out', str(tmp_path / 'run.csv')]) == 0
+    assert cli.main(common + ['--out', str(tmp_path / 'run_bag')]) == 0
+    docs = []
+    for source in ('run.csv', 'run_bag'):
+        out = tmp_path / (source + '.json')
+        assert cli.main(['allan', str(tmp_path / source), '--axis', 'x',
+                         '--json', str(out)]) == 0
+        docs.append(json.loads(out.read_text()))
+    csv_doc, bag_doc = docs
+    np.testing.assert_allclose(bag_doc['taus_s'], csv_doc['taus_s'], rtol=1e-6)
+    np.testing.assert_allclose(bag_doc['adev_rad_s'], csv_doc['adev_rad_s'], rtol=1e-6)
+    assert bag_doc['arw_deg_sqrt_h'] == pytest.approx(csv_doc['arw_deg_sqrt_h'], rel=1e-6)
+
+
 @pytest.mark.skipif(not os.path.isdir(REAL), reason='shared real data not present')
 def test_allan_cli_on_measured_mpu6050(tmp_path):
     path = os.path.join(REAL, 'mpu6050_static', 'mpu6050_static_100hz.csv')

@@ -13,8 +13,9 @@ Units: N (angle random walk) in deg/sqrt(h), B (bias instability, Allan floor
 0.664 B) in deg/h, K (rate random walk) in deg/h/sqrt(h) (IEEE Std 952).
 """
 
-import json
 import os
+
+from gyro_emulator.commands import write_json
 
 HELP = 'overlapping Allan deviation of a gyro record and its N, B, K fit'
 
@@ -120,10 +121,7 @@ def run(args):
     print(f'  read min ADEV / 0.664     {info["bias_instability_min_deg_h"]:10.4g} deg/h '
           f'at tau = {info["tau_at_min_s"]:.4g} s')
     if args.json:
-        os.makedirs(os.path.dirname(os.path.abspath(args.json)), exist_ok=True)
-        with open(args.json, 'w', encoding='utf-8') as handle:
-            json.dump(info, handle, indent=1)
-        print(f'wrote {args.json}')
+        write_json(args.json, info)
     if args.plot:
         os.makedirs(os.path.dirname(os.path.abspath(args.plot)), exist_ok=True)
         allan.plot_adev(result, fit, args.plot,

@@ -13,8 +13,9 @@ cause is fitted and judged on held-out blocks; the best significant one is
 named, with its parameters and the held-out gain.
 """
 
-import json
 import os
+
+from gyro_emulator.commands import write_json
 
 HELP = 'find what the physics model gets wrong in measured data, name the cause'
 
@@ -86,11 +87,7 @@ def run(args):
     for nt in doc['not_tested']:
         print(f"  {nt['effect']:<26} not tested: {nt['reason']}")
     if args.json:
-        directory = os.path.dirname(os.path.abspath(args.json))
-        os.makedirs(directory, exist_ok=True)
-        with open(args.json, 'w', encoding='utf-8') as handle:
-            json.dump(doc, handle, indent=1)
-        print(f'wrote {args.json}')
+        write_json(args.json, doc)
     if args.report:
         print(f'wrote {report.write_report(result, args.report)}')
     return 0

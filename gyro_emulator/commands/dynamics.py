@@ -14,8 +14,9 @@ Example::
     gyro-emulator dynamics --split-hz 100 --plot out/dynamics
 """
 
-import json
 import os
+
+from gyro_emulator.commands import write_json
 
 HELP = 'exact 2-DOF response, time-domain simulation and rate-channel dynamics'
 
@@ -244,9 +245,5 @@ def run(args):
             draw(path)
             print(f'wrote {path}')
     if args.json:
-        directory = os.path.dirname(os.path.abspath(args.json))
-        os.makedirs(directory, exist_ok=True)
-        with open(args.json, 'w', encoding='utf-8') as handle:
-            json.dump(doc, handle, indent=1)
-        print(f'wrote {args.json}')
+        write_json(args.json, doc)
     return 0

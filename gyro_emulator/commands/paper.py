@@ -6,8 +6,9 @@ Table 1 compares our first-order physics (Eq 5-21) for the paper's device at
 viscosity variants so the effect of the constant-viscosity assumption shows.
 """
 
-import json
 import os
+
+from gyro_emulator.commands import write_json
 
 HELP = "reproduce Patel & McCluskey's Table 1, Fig 5 and Fig 6"
 
@@ -45,9 +46,5 @@ def run(args):
             plot(path)
             print(f'wrote {path}')
     if args.json:
-        directory = os.path.dirname(os.path.abspath(args.json))
-        os.makedirs(directory, exist_ok=True)
-        with open(args.json, 'w', encoding='utf-8') as handle:
-            json.dump(paper.paper_json(), handle, indent=1)
-        print(f'wrote {args.json}')
+        write_json(args.json, paper.paper_json())
     return 0

@@ -12,8 +12,9 @@ contract columns; the hidden effect goes to --answer (or stays hidden).
 40 RPM at 25..85 C).
 """
 
-import json
 import os
+
+from gyro_emulator.commands import write_json
 
 HELP = 'write a simulated measured CSV with one hidden effect'
 
@@ -57,7 +58,5 @@ def run(args):
     print(f'wrote {args.output}: {data.rows} samples, {truth["duration_s"]:.0f} s '
           f'({truth["profile"]} profile, seed {args.seed}); the effect is hidden')
     if args.answer:
-        with open(args.answer, 'w', encoding='utf-8') as handle:
-            json.dump(truth, handle, indent=1, default=float)
-        print(f'wrote {args.answer}')
+        write_json(args.answer, truth)
     return 0

@@ -35,6 +35,7 @@ from gyro_emulator.ros import diagnostics, params
 from gyro_emulator.ros.inputs import (check_acceleration, check_rate, check_temperature,
                                       CommandStream, InputLimits, InputRejected, Throttle)
 from gyro_emulator.ros.rawmsg import RawMessage
+from gyro_emulator.ros.spinning import spin_once
 from gyro_emulator.ros.stepper import BlockStepper
 from nav_msgs.msg import Odometry
 import numpy as np
@@ -528,8 +529,8 @@ def main(args=None):
         # rclpy's SIGINT/SIGTERM handler shuts the context down and wakes the
         # executor. Waiting at most SHUTDOWN_POLL_S re-checks the context even if
         # that wake-up is missed while nothing else is due (a paused /clock).
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=SHUTDOWN_POLL_S)
+        while spin_once(executor, SHUTDOWN_POLL_S):
+            pass
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

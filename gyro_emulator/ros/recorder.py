@@ -30,6 +30,7 @@ import time
 
 from gyro_emulator import bag
 from gyro_emulator.ros import codec
+from gyro_emulator.ros.spinning import spin_once
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -227,8 +228,9 @@ def main(args=None):
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         deadline = None if opts.duration is None else time.monotonic() + opts.duration
-        while rclpy.ok() and (deadline is None or time.monotonic() < deadline):
-            executor.spin_once(timeout_sec=0.1)
+        while (deadline is None or time.monotonic() < deadline) and \
+                spin_once(executor, 0.1):
+            pass
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ValueError, OSError) as exc:

@@ -36,6 +36,7 @@ import sys
 import time
 
 from gyro_emulator import units
+from gyro_emulator.ros.spinning import spin_once
 
 DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
 _RATE_KEYS = {'rate_rad_s': 1.0, 'rate_deg_s': math.pi / 180.0,
@@ -440,15 +441,18 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
                     f'no emulator subscribed to cmd/angular_velocity and cmd/temperature '
                     f'within {wait_s:g} s (is `ros2 run gyro_emulator node` running on '
                     f'ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")}?)')
-            executor.spin_once(timeout_sec=0.05)
+            if not spin_once(executor, 0.05):
+                raise ExternalShutdownException()
         if collect:
             deadline = time.monotonic() + wait_s
             while not player.imu and time.monotonic() < deadline:
-                executor.spin_once(timeout_sec=0.05)
+                if not spin_once(executor, 0.05):
+                    raise ExternalShutdownException()
         player.start()
         shown = None
         while not player.done:
-            executor.spin_once(timeout_sec=0.05)
+            if not spin_once(executor, 0.05):
+                raise ExternalShutdownException()
             index = player.current_step(node.get_clock().now().nanoseconds)
             if progress is not None and index is not None and index != shown:
                 shown = index
