@@ -327,3 +327,21 @@ def from_mapping(cls, mapping, owner=None):
         else:
             kwargs[key] = value
     return cls(**kwargs)
+
+
+def read_yaml(path):
+    """
+    Return the document of the YAML file at ``path`` (safe loader).
+
+    An unreadable file or malformed YAML raises ValueError naming the path
+    and the parser's account of where it failed.
+    """
+    import yaml
+
+    try:
+        with open(path, encoding='utf-8') as handle:
+            return yaml.safe_load(handle)
+    except OSError as exc:
+        raise ValueError(f'{path}: cannot read: {exc}') from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f'{path}: malformed YAML: {exc}') from None

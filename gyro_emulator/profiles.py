@@ -32,7 +32,7 @@ YAML profile::
 from dataclasses import dataclass
 import os
 
-from gyro_emulator.params import MODEL_TEMP_RANGE_C
+from gyro_emulator.params import MODEL_TEMP_RANGE_C, read_yaml
 from gyro_emulator.units import (deg_s_to_rad_s, rpm_to_rad_s,
                                  STANDARD_GRAVITY_M_S2)
 import numpy as np
@@ -231,14 +231,7 @@ def profile_from_mapping(mapping, source='profile'):
 
 def load_profile(path):
     """Load a YAML profile file (see the module docstring)."""
-    import yaml
-
-    try:
-        with open(path, encoding='utf-8') as handle:
-            mapping = yaml.safe_load(handle)
-    except yaml.YAMLError as exc:
-        raise ValueError(f'{path}: malformed YAML: {exc}') from None
-    return profile_from_mapping(mapping, source=str(path))
+    return profile_from_mapping(read_yaml(path), source=str(path))
 
 
 def make_profile(name_or_path, duration_s, temp_c=25.0):

@@ -22,7 +22,7 @@ import os
 import sys
 
 from gyro_emulator import units
-from gyro_emulator.params import check_range, Device, from_mapping
+from gyro_emulator.params import check_range, Device, from_mapping, read_yaml
 from gyro_emulator.presets import DEFAULT_PRESET, physics_preset, PHYSICS_PRESETS
 import numpy as np
 
@@ -465,19 +465,10 @@ def load_sensor_config(name_or_path=None):
         out of range (the message names the key, the value and the range).
 
     """
-    import yaml
-
     name = DEFAULT_SENSOR_PRESET if name_or_path is None else str(name_or_path)
     path = preset_path(name) if name in PRESET_NAMES else name
     if not os.path.isfile(path):
         raise ValueError(
             f'sensor config {name!r} is neither a preset '
             f'({", ".join(PRESET_NAMES)}) nor a readable file')
-    try:
-        with open(path, encoding='utf-8') as handle:
-            mapping = yaml.safe_load(handle)
-    except yaml.YAMLError as exc:
-        raise ValueError(f'{path}: malformed YAML: {exc}') from None
-    except OSError as exc:
-        raise ValueError(f'{path}: cannot read: {exc}') from None
-    return config_from_mapping(mapping, source=path)
+    return config_from_mapping(read_yaml(path), source=path)

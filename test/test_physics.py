@@ -145,3 +145,16 @@ def test_unit_conversions_both_ways(fwd, back, value, expected):
     assert fwd(value) == pytest.approx(expected, rel=1e-15)
     assert back(fwd(value)) == pytest.approx(value, rel=1e-15)
     assert units.rpm_to_deg_s(10.0) == 60.0
+
+
+def test_read_yaml_errors_name_the_path(tmp_path):
+    from gyro_emulator.params import read_yaml
+    good = tmp_path / 'good.yaml'
+    good.write_text('a: 1\nb: [2, 3]\n')
+    assert read_yaml(good) == {'a': 1, 'b': [2, 3]}
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('a: [1, 2\n')
+    with pytest.raises(ValueError, match=r'bad\.yaml: malformed YAML: .*line'):
+        read_yaml(bad)
+    with pytest.raises(ValueError, match=r'missing\.yaml: cannot read'):
+        read_yaml(tmp_path / 'missing.yaml')

@@ -25,7 +25,7 @@ import math
 import os
 
 from gyro_emulator import sensor_config
-from gyro_emulator.params import MODEL_TEMP_RANGE_C
+from gyro_emulator.params import MODEL_TEMP_RANGE_C, read_yaml
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType)
 
@@ -275,15 +275,7 @@ def load_params_file(path, node_name=NODE_NAME):
         ``{'rate_hz': 200.0, 'sensor.lsb_rad_s': [...], ...}``.
 
     """
-    import yaml
-
-    try:
-        with open(path, encoding='utf-8') as handle:
-            doc = yaml.safe_load(handle)
-    except OSError as exc:
-        raise ValueError(f'{path}: cannot read: {exc}') from None
-    except yaml.YAMLError as exc:
-        raise ValueError(f'{path}: malformed YAML: {exc}') from None
+    doc = read_yaml(path)
     if not isinstance(doc, dict):
         raise ValueError(f'{path}: expected "/**: {{ros__parameters: {{...}}}}"')
     params = {}

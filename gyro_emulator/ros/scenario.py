@@ -36,6 +36,7 @@ import sys
 import time
 
 from gyro_emulator import units
+from gyro_emulator.params import read_yaml
 from gyro_emulator.ros.spinning import spin_once
 
 DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
@@ -201,17 +202,8 @@ def default_profile_path():
 
 def load_profile(path=None):
     """Read and parse a profile YAML (default: the paper validation profile)."""
-    import yaml
-
     path = default_profile_path() if path is None else path
-    try:
-        with open(path, encoding='utf-8') as handle:
-            doc = yaml.safe_load(handle)
-    except OSError as exc:
-        raise ValueError(f'{path}: cannot read: {exc}') from None
-    except yaml.YAMLError as exc:
-        raise ValueError(f'{path}: malformed YAML: {exc}') from None
-    return parse_profile(doc, path)
+    return parse_profile(read_yaml(path), path)
 
 
 # --- the summary -----------------------------------------------------------
