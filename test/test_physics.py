@@ -154,7 +154,7 @@ def test_read_yaml_errors_name_the_path(tmp_path):
     assert read_yaml(good) == {'a': 1, 'b': [2, 3]}
     bad = tmp_path / 'bad.yaml'
     bad.write_text('a: [1, 2\n')
-    with pytest.raises(ValueError, match=r'bad\.yaml: malformed YAML: .*line'):
+    with pytest.raises(ValueError, match=r'(?s)bad\.yaml: malformed YAML: .*line 1, column 4'):
         read_yaml(bad)
     with pytest.raises(ValueError, match=r'missing\.yaml: cannot read'):
         read_yaml(tmp_path / 'missing.yaml')
