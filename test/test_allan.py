@@ -119,12 +119,13 @@ def test_self_check_two_hours_at_200_hz():
     Simulate 2 h at 200 Hz with configured N, B, K; the Allan fit recovers them.
 
     N = 0.3 deg/sqrt(h), B = 10 deg/h, K = 100 deg/h/sqrt(h) (white noise
-    crosses the 0.664 B floor near 7 s, rate random walk near 50 s). Over 18
-    seeds (6 x 3 axes) the per-axis estimates scattered by 0.1 % (N), 3.5 % (B)
-    and 13 % (K): a 2 h record holds few independent samples of a random walk
-    at tau > 50 s. N and B are checked per axis (10 %, 25 %); K is checked on
-    the mean of the three axes, three independent 2 h records (25 %, about
-    3 standard deviations), and per axis within 50 %.
+    crosses the 0.664 B floor near 7 s, rate random walk near 50 s). The
+    issue's tolerances (N 10 %, B 25 %, K 25 %) are checked on every axis.
+    Over 18 seeds (6 x 3 axes) the per-axis estimates scattered by 0.1 % (N),
+    3.5 % (B) and 13 % (K): a 2 h record holds few independent samples of a
+    random walk at tau > 50 s, so about 1 axis in 20 misses 25 % on K. This
+    seed's axes give K = 92, 115 and 93; the mean of the three independent
+    records is also held to 25 % (about 3 standard deviations).
     """
     config = _noise_config(0.3, 10.0, 100.0)
     out = GyroModel(config, 200.0, np.random.default_rng(2026)).run(
@@ -136,7 +137,7 @@ def test_self_check_two_hours_at_200_hz():
     for fit in fits:
         assert fit.arw_deg_sqrt_h == pytest.approx(0.3, rel=0.10)
         assert fit.bias_instability_deg_h == pytest.approx(10.0, rel=0.25)
-        assert fit.rrw_deg_h_sqrt_h == pytest.approx(100.0, rel=0.50)
+        assert fit.rrw_deg_h_sqrt_h == pytest.approx(100.0, rel=0.25)
     assert np.mean([f.rrw_deg_h_sqrt_h for f in fits]) == pytest.approx(100.0, rel=0.25)
 
 
