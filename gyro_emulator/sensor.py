@@ -239,7 +239,7 @@ class _Plan:
         sc[_S_INIT_DIE] = math.nan if c.initial_die_temp_c is None else c.initial_die_temp_c
         if t.thermal_lag and c.thermal_time_constant_s > 0.0:
             flags[_F_THERMAL] = 1
-            sc[_S_PHI] = math.exp(-self.dt / c.thermal_time_constant_s)
+            sc[_S_PHI] = float(noise.gauss_markov_phi(c.thermal_time_constant_s, self.dt))
             sc[_S_GAIN] = -math.expm1(-self.dt / c.thermal_time_constant_s)
         # total gain: physics ratio x (1 + scale-factor error)
         self.sf_curves = []
