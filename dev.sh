@@ -78,7 +78,7 @@ case "$cmd" in
     setup) setup ;;
     main)
         setup; activate
-        exec "$VENV/bin/python" -m gyro_emulator.main_job "$@" ;;
+        exec "$VENV/bin/python" -m gyro_emulator.cli.main_job "$@" ;;
     test)
         setup; activate
         # testpaths=test (setup.cfg) applies when no path is given.

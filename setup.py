@@ -30,11 +30,11 @@ setup(
     tests_require=['pytest'],
     entry_points={
         'console_scripts': [
-            'gyro-emulator = gyro_emulator.cli:main',
-            'node = gyro_emulator.ros.node:main',
-            'scenario = gyro_emulator.ros.scenario:main',
-            'recorder = gyro_emulator.ros.recorder:main',
-            'replay = gyro_emulator.ros.replay:main',
+            'gyro-emulator = gyro_emulator.cli.executables:run_cli',
+            'node = gyro_emulator.cli.executables:run_node',
+            'scenario = gyro_emulator.cli.executables:run_scenario',
+            'recorder = gyro_emulator.cli.executables:run_recorder',
+            'replay = gyro_emulator.cli.executables:run_replay',
         ],
     },
 )

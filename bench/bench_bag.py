@@ -10,7 +10,7 @@ finished bag with metadata.yaml):
   written (what a node recording its own output does);
 - ``bytes``  already-serialised payloads are written (the recorder's raw
   subscriptions);
-- ``numpy``  (N, 37) arrays are encoded with ``gyro_emulator.cdr`` and written
+- ``numpy``  (N, 37) arrays are encoded with ``gyro_emulator.recording.cdr`` and written
   (``simulate --out``, replay output).
 
 Read paths: ``numpy`` (``BagReader.read_arrays``: the chosen fast path),
@@ -27,7 +27,7 @@ import sys
 import tempfile
 import time
 
-from gyro_emulator import bag, cdr
+from gyro_emulator.recording import bag, cdr
 import numpy as np
 
 IMU = 'sensor_msgs/msg/Imu'
@@ -112,7 +112,7 @@ def main(argv=None):
             ('rclpy  (serialize_message + write)', best_rate(n, write_rclpy, args.repeat)),
             ('numpy  (cdr.encode arrays + write)', best_rate(n, write_numpy, args.repeat))]
     for name, rate in rows:
-        print(f'  gyro_emulator.bag {name:<36} {rate:>10,.0f}   '
+        print(f'  gyro_emulator.recording.bag {name:<36} {rate:>10,.0f}   '
               f'{rate / rosbags_write:5.2f}x rosbags')
     print(f'  rosbags Writer v9 mcap (same payloads)                {rosbags_write:>10,.0f}')
 
@@ -162,7 +162,7 @@ def main(argv=None):
               rosbags_raw)]
     for name, rate, ref in reads:
         label = 'decoded' if ref is rosbags_read else 'raw'
-        print(f'  gyro_emulator.bag {name:<40} {rate:>10,.0f}   '
+        print(f'  gyro_emulator.recording.bag {name:<40} {rate:>10,.0f}   '
               f'{rate / ref:5.2f}x rosbags {label}')
     print(f'  rosbags Reader + deserialize_cdr (decoded)                 {rosbags_read:>10,.0f}')
     print(f'  rosbags Reader messages (raw)                              {rosbags_raw:>10,.0f}')

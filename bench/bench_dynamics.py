@@ -17,8 +17,8 @@ Usage: python bench/bench_dynamics.py [--sim-s S] [--rk4-s S] [--repeats N]
 import argparse
 import time
 
-from gyro_emulator import dynamics
-from gyro_emulator.presets import PAPER_DEVICE
+from gyro_emulator.physics import dynamics
+from gyro_emulator.physics.presets import PAPER_DEVICE
 from gyro_emulator.units import deg_s_to_rad_s
 import numpy as np
 

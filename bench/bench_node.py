@@ -253,7 +253,7 @@ def main(argv=None):
         bare_publisher(opts.rate_hz)
         return 0
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               ROS_DOMAIN_ID=str(150 + os.getpid() % 80), PYTHONUNBUFFERED='1')
+               ROS_DOMAIN_ID=str(10 + os.getpid() % 90), PYTHONUNBUFFERED='1')
     env['PYTHONPATH'] = ROOT + (os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH')
                                 else '')
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

@@ -13,8 +13,8 @@ import argparse
 from dataclasses import fields, replace
 import time
 
-from gyro_emulator import physics
-from gyro_emulator.presets import PAPER_DEVICE
+from gyro_emulator.physics import first_order
+from gyro_emulator.physics.presets import PAPER_DEVICE
 from gyro_emulator.units import deg_s_to_rad_s
 import numpy as np
 
@@ -52,7 +52,7 @@ def main():
     pop = random_population(args.devices, rng)
     t_build = time.perf_counter() - t0
     t0 = time.perf_counter()
-    resp = physics.first_order_response(pop, rate, 25.0)
+    resp = first_order.first_order_response(pop, rate, 25.0)
     t_vec = time.perf_counter() - t0
     y = resp.sense_amplitude_m
 
@@ -60,8 +60,8 @@ def main():
     t0 = time.perf_counter()
     loop = np.empty(m)
     for i in range(m):
-        loop[i] = float(physics.first_order_response(device_at(pop, i), rate,
-                                                     25.0).sense_amplitude_m)
+        loop[i] = float(first_order.first_order_response(device_at(pop, i), rate,
+                                                         25.0).sense_amplitude_m)
     t_loop = time.perf_counter() - t0
     np.testing.assert_allclose(loop, y[:m], rtol=1e-12)
 

@@ -31,9 +31,11 @@ import time
 os.environ.setdefault('OMP_NUM_THREADS', '1')
 os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
-from gyro_emulator import dynamics, noise, physics, sensor, units  # noqa: E402
-from gyro_emulator.sensor import GyroModel, TemperatureTable  # noqa: E402
-from gyro_emulator.sensor_config import load_sensor_config  # noqa: E402
+from gyro_emulator import units  # noqa: E402
+from gyro_emulator.physics import dynamics, first_order  # noqa: E402
+from gyro_emulator.sensor import model as sensor_model, noise  # noqa: E402
+from gyro_emulator.sensor.config import load_sensor_config  # noqa: E402
+from gyro_emulator.sensor.model import GyroModel, TemperatureTable  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import signal  # noqa: E402
 
@@ -74,7 +76,7 @@ class NaiveGyro:
         self.rng = rng
         dev = c.device[0]
         self.dt = 1.0 / FS
-        self.sf = TemperatureTable(lambda t: physics.scale_factor_ratio(dev, t))
+        self.sf = TemperatureTable(lambda t: first_order.scale_factor_ratio(dev, t))
         self.mech = TemperatureTable(
             lambda t: noise.brownian_arw_rad_s_sqrt_hz(dev, t) ** 2)
         self.phi_t = math.exp(-self.dt / c.thermal_time_constant_s)
@@ -151,8 +153,8 @@ class NaiveGyro:
 STARTUP = """
 import time
 t0 = time.perf_counter()
-from gyro_emulator.sensor import GyroModel
-from gyro_emulator.sensor_config import load_sensor_config
+from gyro_emulator.sensor.config import load_sensor_config
+from gyro_emulator.sensor.model import GyroModel
 import numpy as np
 t1 = time.perf_counter()
 model = GyroModel(load_sensor_config('consumer'), 200.0, np.random.default_rng(0))
@@ -207,7 +209,7 @@ def main():
     draws = 3 * 3 + 1                                   # white, flicker, walk x 3; jitter
     states = model._state.rng.copy()
     buffer = np.empty(args.samples)
-    t_rng = best_of(3, lambda: [sensor._fill_normals(states, k, buffer)
+    t_rng = best_of(3, lambda: [sensor_model._fill_normals(states, k, buffer)
                                 for k in range(1, 1 + draws)])
     with tempfile.TemporaryDirectory() as cache:
         cold = startup_s(cache)

@@ -24,6 +24,8 @@ STANDARD_GRAVITY_M_S2 = 9.80665
 STANDARD_ATMOSPHERE_PA = 101325.0
 
 SECONDS_PER_HOUR = 3600.0
+#: Nanoseconds per second: ROS and MCAP stamps are integer nanoseconds.
+NS_PER_S = 1_000_000_000
 
 
 def celsius_to_kelvin(temp_c):

@@ -25,7 +25,9 @@ def ros_env(**extra):
     """
     env = dict(os.environ)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    env['ROS_DOMAIN_ID'] = str(101 + (os.getpid() * 13 + next(_domains)) % 100)
+    # ROS 2 domain IDs 0-101 are safe on Linux; 13 and 101 are coprime, so
+    # consecutive tests of one run never share a domain.
+    env['ROS_DOMAIN_ID'] = str(1 + (os.getpid() * 13 + next(_domains)) % 101)
     env['PYTHONPATH'] = ROOT + (os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH') else '')
     env['AMENT_PREFIX_PATH'] = sys.prefix + (
         os.pathsep + env['AMENT_PREFIX_PATH'] if env.get('AMENT_PREFIX_PATH') else '')

@@ -4,9 +4,11 @@ from dataclasses import replace
 import math
 
 import allantools
-from gyro_emulator import allan, noise, units
-from gyro_emulator.sensor import GyroModel
-from gyro_emulator.sensor_config import SensorConfig
+from gyro_emulator import units
+from gyro_emulator.analysis import allan
+from gyro_emulator.sensor import noise
+from gyro_emulator.sensor.config import SensorConfig
+from gyro_emulator.sensor.model import GyroModel
 import numpy as np
 import pytest
 

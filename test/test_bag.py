@@ -7,7 +7,7 @@ import sys
 import time
 
 from conftest import ROOT
-from gyro_emulator import bag, cdr
+from gyro_emulator.recording import bag, cdr
 import numpy as np
 import pytest
 import yaml
@@ -322,9 +322,9 @@ def test_cli_bad_input_is_a_clean_message(tmp_path, content):
 
 
 WRITER_SCRIPT = r"""
-import sys, time
-from gyro_emulator import bag, cdr
+from gyro_emulator.recording import bag, cdr
 import numpy as np
+import sys, time
 writer = bag.BagWriter(sys.argv[1], flush_interval_s=0.5)
 writer.add_topic('/imu/data_raw', 'sensor_msgs/msg/Imu')
 i = 0

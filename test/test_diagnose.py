@@ -13,11 +13,10 @@ import os
 import subprocess
 import sys
 
-from gyro_emulator.diagnose import baseline as base
-from gyro_emulator.diagnose import (diagnose, EFFECT_IDS, load_csv, make_truth,
-                                    write_csv)
-from gyro_emulator.diagnose.truth import TRUTH_EFFECTS
-from gyro_emulator.presets import physics_preset
+from gyro_emulator.analysis.diagnose import baseline as base
+from gyro_emulator.analysis.diagnose import diagnose, EFFECT_IDS, load_csv, make_truth, write_csv
+from gyro_emulator.analysis.diagnose.truth import TRUTH_EFFECTS
+from gyro_emulator.physics.presets import physics_preset
 import numpy as np
 import pytest
 
@@ -129,8 +128,8 @@ def test_unexplained_structure_names_its_correlate(effect, seed, correlate):
 def test_sutherland_ratio_inside_the_physics_matches_the_preset():
     phys = base.DevicePhysics(physics_preset('paper'), 25.0, 20.0, 90.0)
     temps = np.array([25.0, 40.0, 85.0])
-    from gyro_emulator import physics
-    expected = physics.scale_factor_ratio(physics_preset('paper_sutherland'), temps)
+    from gyro_emulator.physics import first_order
+    expected = first_order.scale_factor_ratio(physics_preset('paper_sutherland'), temps)
     np.testing.assert_allclose(phys.sutherland_ratio(temps, 110.4), expected,
                                rtol=1e-6)
     np.testing.assert_allclose(phys.pressure_factor(temps, np.ones(3)), 1.0,

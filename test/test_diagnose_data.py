@@ -1,7 +1,7 @@
 """The diagnose CSV contract, bag input and the decimated view."""
 
-from gyro_emulator.diagnose import data as dd
-from gyro_emulator.diagnose.data import load_csv, MeasuredData, Prepared, write_csv
+from gyro_emulator.analysis.diagnose import data as dd
+from gyro_emulator.analysis.diagnose.data import load_csv, MeasuredData, Prepared, write_csv
 import numpy as np
 import pytest
 
@@ -125,7 +125,7 @@ def test_thermal_lag_is_exact_on_a_ramp():
 
 
 def _write_bag(path, rec, with_accel=True):
-    from gyro_emulator import bag, cdr
+    from gyro_emulator.recording import bag, cdr
     stamps = np.round(1_700_000_000e9 + rec.time_s * 1e9).astype(np.int64)
     imu = cdr.layout_of('sensor_msgs/msg/Imu')
     values = np.zeros((rec.rows, len(imu.fields)))
@@ -147,7 +147,7 @@ def _write_bag(path, rec, with_accel=True):
 
 
 def test_bag_input_maps_topics_onto_the_contract(tmp_path):
-    pytest.importorskip('gyro_emulator.bag')
+    pytest.importorskip('gyro_emulator.recording.bag')
     rec = _record(n=600, dt=0.02)
     _write_bag(tmp_path / 'run', rec)
     back = dd.load_bag(str(tmp_path / 'run'))

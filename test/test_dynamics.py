@@ -2,8 +2,8 @@
 
 from dataclasses import replace
 
-from gyro_emulator import dynamics, physics
-from gyro_emulator.presets import PAPER_DEVICE, PAPER_SUTHERLAND_DEVICE
+from gyro_emulator.physics import dynamics, first_order
+from gyro_emulator.physics.presets import PAPER_DEVICE, PAPER_SUTHERLAND_DEVICE
 from gyro_emulator.units import deg_s_to_rad_s
 import numpy as np
 import pytest
@@ -20,7 +20,7 @@ def test_matched_exact_agrees_with_first_order(device):
     rates = deg_s_to_rad_s(np.array([-300.0, -60.0, -1.0, 0.5, 60.0, 300.0]))
     temps = np.array([[-40.0], [25.0], [85.0]])
     exact = dynamics.exact_steady_state(device, rates, temps)
-    first = physics.first_order_response(device, rates, temps)
+    first = first_order.first_order_response(device, rates, temps)
     np.testing.assert_allclose(exact.sense_amplitude_m, first.sense_amplitude_m,
                                rtol=1e-4)
     np.testing.assert_allclose(exact.drive_amplitude_m,
@@ -42,7 +42,7 @@ def test_exact_solves_the_equations_of_motion():
     temp = 60.0
     rate = 7.0  # large, so the back-action is visible in the solve
     ex = dynamics.exact_steady_state(PAPER_DEVICE, rate, temp, splits, drive)
-    p = physics.lumped_parameters(PAPER_DEVICE, temp)
+    p = first_order.lumped_parameters(PAPER_DEVICE, temp)
     m, w = p.mass_kg, 2 * np.pi * drive[:, 0]
     for i, wi in enumerate(w):
         for j, split in enumerate(splits):
@@ -116,7 +116,7 @@ def test_time_domain_steady_state_matches_exact(split, temp, samples):
 
 
 def test_time_domain_off_resonance_drive_matches_exact():
-    drive_hz = float(physics.lumped_parameters(PAPER_DEVICE, 50.0).freq_x_hz) + 60.0
+    drive_hz = float(first_order.lumped_parameters(PAPER_DEVICE, 50.0).freq_x_hz) + 60.0
     settle = dynamics.settle_time_s(PAPER_DEVICE, 50.0)
     res = dynamics.simulate_time_domain(PAPER_DEVICE, settle, -RATE, 50.0, 40.0,
                                         drive_freq_hz=drive_hz)
@@ -128,7 +128,7 @@ def test_time_domain_off_resonance_drive_matches_exact():
                                                       rel=1e-4)
     # Off resonance the drive amplitude drops below Eq 15's X_drive, as a
     # resonator detuned by 60 Hz does: 1 / sqrt(1 + (2 Q_d df / f)^2).
-    first = physics.first_order_response(PAPER_DEVICE, 0.0, 50.0)
+    first = first_order.first_order_response(PAPER_DEVICE, 0.0, 50.0)
     q_d, f_x = float(first.params.q_drive), float(first.params.freq_x_hz)
     assert float(ex.drive_amplitude_m / first.drive_amplitude_m) == pytest.approx(
         1.0 / np.hypot(1.0, 2 * q_d * 60.0 / f_x), rel=0.01)
@@ -143,7 +143,7 @@ def test_time_domain_transient_matches_rk4():
                                           100.0, points_per_cycle=200)
     n = len(res.time_s)
     assert ref.shape == (n + 1, 4)
-    w = 2 * np.pi * float(physics.lumped_parameters(PAPER_DEVICE).freq_x_hz)
+    w = 2 * np.pi * float(first_order.lumped_parameters(PAPER_DEVICE).freq_x_hz)
     scale = np.array([1.0, w, 1.0, w]) * np.max(np.abs(ref[:, [0, 0, 2, 2]]), 0)
     err = np.max(np.abs(ref[:n] - res.state_m), 0) / scale
     assert np.all(err < 1e-5), err
@@ -180,7 +180,7 @@ def test_rate_profile_and_drive_frequency_follow_inputs():
         temp_update_s=0.001)
     np.testing.assert_allclose(res.rate_rad_s, 2.0 * res.time_s)
     assert res.temp_c[0] == 25.0 and res.temp_c[-1] == pytest.approx(79.0, abs=1.0)
-    f_end = physics.lumped_parameters(PAPER_DEVICE, res.temp_c[-1]).freq_x_hz
+    f_end = first_order.lumped_parameters(PAPER_DEVICE, res.temp_c[-1]).freq_x_hz
     assert res.drive_freq_hz[-1] == pytest.approx(float(f_end), rel=1e-12)
     assert np.all(np.diff(res.time_s) > 0)
     assert res.time_s[-1] + res.period_s[-1] / 2 >= 0.01
@@ -195,7 +195,7 @@ def test_agc_holds_amplitude_when_temperature_changes():
     runs = {mode: dynamics.simulate_time_domain(
         PAPER_DEVICE, 0.15, RATE, temp, drive=mode, temp_update_s=0.002)
         for mode in dynamics.DRIVE_MODES}
-    target = float(physics.first_order_response(PAPER_DEVICE, 0.0).drive_amplitude_m)
+    target = float(first_order.first_order_response(PAPER_DEVICE, 0.0).drive_amplitude_m)
     agc, open_loop = runs['agc'], runs['open_loop']
     assert agc.temp_c[-1] == 85.0
     # Open loop: the drive amplitude follows the damping (Eq 15), +2 % here.
@@ -219,7 +219,7 @@ def test_agc_settles_from_rest_to_its_set_point():
     assert res.drive_amplitude_m[0] < 1e-6
     assert res.drive_amplitude_m[-1] == pytest.approx(5e-6, rel=1e-6)
     assert np.max(res.drive_force_n) <= 10 * float(
-        physics.lumped_parameters(PAPER_DEVICE).drive_force_n) * (1 + 1e-12)
+        first_order.lumped_parameters(PAPER_DEVICE).drive_force_n) * (1 + 1e-12)
 
 
 # --- envelope (reduced-order) rate channel -----------------------------------
@@ -245,7 +245,7 @@ def test_envelope_frequency_response_matches_time_domain(split, freq):
 
 
 def test_matched_rate_channel_is_a_first_order_lag():
-    p = physics.lumped_parameters(PAPER_DEVICE)
+    p = first_order.lumped_parameters(PAPER_DEVICE)
     w_y = 2 * np.pi * float(p.freq_y_hz)
     tau = 2 * float(p.q_sense) / w_y
     assert 0.9e-3 < tau < 1.1e-3
@@ -306,8 +306,8 @@ def test_rate_channel_filter_matches_per_sample_steps():
 def test_rate_channel_bandwidth_follows_sense_damping():
     """Thinner gas (1 kPa) lowers C_sense and the bandwidth with it (Eq 9-11)."""
     thin = replace(PAPER_DEVICE, gas=replace(PAPER_DEVICE.gas, pressure_pa=1000.0))
-    ratio = (physics.lumped_parameters(thin).damping_sense_n_s_m
-             / physics.lumped_parameters(PAPER_DEVICE).damping_sense_n_s_m)
+    ratio = (first_order.lumped_parameters(thin).damping_sense_n_s_m
+             / first_order.lumped_parameters(PAPER_DEVICE).damping_sense_n_s_m)
     assert ratio < 0.5
     assert dynamics.rate_channel_bandwidth_hz(thin) / dynamics.rate_channel_bandwidth_hz(
         PAPER_DEVICE) == pytest.approx(float(ratio), rel=1e-3)

@@ -13,30 +13,20 @@ PKG = os.path.join(ROOT, 'gyro_emulator')
 LAYERS = {
     'gyro_emulator': 0,
     'gyro_emulator.units': 0,
-    'gyro_emulator.params': 0,
+    'gyro_emulator.validation': 0,
+    'gyro_emulator.resources': 0,
+    # physics core: device parameters, Eq 5-22, 2-DOF dynamics, the paper
     'gyro_emulator.physics': 1,
-    'gyro_emulator.presets': 1,
-    'gyro_emulator.dynamics': 2,
-    # error model and sensor (issue 4)
-    'gyro_emulator.noise': 3,
-    'gyro_emulator.sensor': 3,
-    'gyro_emulator.sensor_config': 3,
-    'gyro_emulator.profiles': 3,
-    # analysis and recording
-    'gyro_emulator.paper': 4,
-    'gyro_emulator.allan': 4,
-    'gyro_emulator.simulate': 4,
-    'gyro_emulator.dataio': 4,
-    'gyro_emulator.bag': 4,
-    'gyro_emulator.cdr': 4,
-    'gyro_emulator.replay': 4,
-    'gyro_emulator.diagnose': 4,
-    'gyro_emulator.report': 4,
+    # the error model and the GyroModel API
+    'gyro_emulator.sensor': 2,
+    # bags, CDR, CSV, the topic table
+    'gyro_emulator.recording': 3,
+    # offline runs and analysis: simulate, replay, Allan, diagnose
+    'gyro_emulator.analysis': 4,
     # ROS edge: the only modules that import rclpy or message packages
     'gyro_emulator.ros': 5,
+    # the command line and the console-script entry points
     'gyro_emulator.cli': 6,
-    'gyro_emulator.commands': 6,
-    'gyro_emulator.main_job': 6,
 }
 ROS_EDGE = 5
 ROS_MODULE_PREFIXES = ('rclpy', 'launch', 'launch_ros', 'rosidl', 'rcl_interfaces',
@@ -114,6 +104,7 @@ def test_the_core_imports_without_ros():
     """Importing the physics core must not pull rclpy into the process."""
     import subprocess
     import sys
-    code = ('import sys, gyro_emulator.physics, gyro_emulator.paper; '
+    code = ('import sys, gyro_emulator.physics.first_order, gyro_emulator.physics.paper, '
+            'gyro_emulator.sensor.model, gyro_emulator.analysis.diagnose; '
             'sys.exit(1 if "rclpy" in sys.modules else 0)')
     assert subprocess.run([sys.executable, '-c', code], cwd=ROOT).returncode == 0

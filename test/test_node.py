@@ -18,7 +18,9 @@ import types
 from conftest import ros_env
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
-from gyro_emulator import sensor, sensor_config
+from gyro_emulator.physics import first_order
+from gyro_emulator.sensor import config as sensor_config
+from gyro_emulator.sensor import model as sensor_model
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -206,8 +208,8 @@ def test_imu_contents_follow_rep_145(wall):
     fresh(wall)
     wall.probe.spin_until(lambda: len(wall.topics['imu']) >= 100, 10.0, '100 Imu')
     imu = wall.topics['imu']
-    offline = sensor.GyroModel(sensor_config.load_sensor_config(wall.sensor_yaml), 200.0,
-                               np.random.default_rng(0))
+    offline = sensor_model.GyroModel(sensor_config.load_sensor_config(wall.sensor_yaml), 200.0,
+                                     np.random.default_rng(0))
     sigma = offline.white_noise_sigma_rad_s
     for msg in imu:
         assert msg.header.frame_id == 'gyro_test'
@@ -262,12 +264,12 @@ def test_commanded_rate_and_temperature_reach_the_output(wall):
     z = np.array([m.angular_velocity.z for m in wall.topics['imu']])
     sf = np.mean([m.vector.z for m in wall.topics['sf']])
     bias = np.mean([m.vector.z for m in wall.topics['bias']])
-    physics_sf = sensor.physics.scale_factor_ratio(sensor_config.SensorConfig().device[2],
-                                                   70.0)
+    physics_sf = first_order.scale_factor_ratio(sensor_config.SensorConfig().device[2],
+                                                70.0)
     assert sf == pytest.approx(physics_sf, rel=1e-6)
     assert sf > 1.01  # the paper's Fig 6: hotter reads high
-    sigma = sensor.GyroModel(sensor_config.load_sensor_config(wall.sensor_yaml), 200.0,
-                             np.random.default_rng(0)).white_noise_sigma_rad_s[2]
+    sigma = sensor_model.GyroModel(sensor_config.load_sensor_config(wall.sensor_yaml), 200.0,
+                                   np.random.default_rng(0)).white_noise_sigma_rad_s[2]
     # 40 Hz output filter: about 6 samples per independent value.
     assert z.mean() == pytest.approx(1.5 * sf + bias, abs=5 * sigma * math.sqrt(6 / len(z)))
     # Stop commanding: after command_timeout_s the rate is stale and held at zero.
@@ -420,8 +422,8 @@ SCRIPT = [(20, 'rate', (0.0, 0.0, 1.0)), (45, 'temp', 60.0), (60, 'accel', (0.0,
 
 def expected_samples(sensor_yaml, seed, warmup):
     """Step the offline model: ``warmup`` resting samples, then the script per tick."""
-    model = sensor.GyroModel(sensor_config.load_sensor_config(sensor_yaml), 200.0,
-                             np.random.default_rng(seed))
+    model = sensor_model.GyroModel(sensor_config.load_sensor_config(sensor_yaml), 200.0,
+                                   np.random.default_rng(seed))
     rate, temp, accel = (0.0, 0.0, 0.0), 25.0, None
     for _ in range(warmup):
         model.step(rate, temp, accel)
@@ -657,7 +659,7 @@ def test_main_job_plays_a_profile_against_the_node_and_prints_the_summary(tmp_pa
         'node_parameters': {'sensor': {'thermal_time_constant_s': 0.05}}}))
     out = tmp_path / 'out'
     proc = subprocess.run(
-        [sys.executable, '-m', 'gyro_emulator.main_job', '--skip-paper', '--no-record',
+        [sys.executable, '-m', 'gyro_emulator.cli.main_job', '--skip-paper', '--no-record',
          '--profile', str(profile), '--out-dir', str(out), '--sensor-config',
          write_sensor_yaml(str(tmp_path))],
         env=ros_env(), cwd=ROOT, capture_output=True, text=True, timeout=120)

@@ -6,9 +6,10 @@ import os
 import sys
 import types
 
-from gyro_emulator import sensor, sensor_config
 from gyro_emulator.ros import inputs, params, scenario
 from gyro_emulator.ros.stepper import BlockStepper
+from gyro_emulator.sensor import config as sensor_config
+from gyro_emulator.sensor import model as sensor_model
 import numpy as np
 import pytest
 import yaml
@@ -156,8 +157,8 @@ def _inputs_sequence(n, seed):
 def test_block_stepper_equals_per_sample_step_bit_for_bit(max_block):
     config = rich_config()
     rates, temps, accels = _inputs_sequence(1500, seed=3)
-    ref = sensor.GyroModel(config, 200.0, np.random.default_rng(11))
-    stepper = BlockStepper(sensor.GyroModel(config, 200.0, np.random.default_rng(11)),
+    ref = sensor_model.GyroModel(config, 200.0, np.random.default_rng(11))
+    stepper = BlockStepper(sensor_model.GyroModel(config, 200.0, np.random.default_rng(11)),
                            max_block)
     for i, (r, t, a) in enumerate(zip(rates, temps, accels)):
         if i == 700:
@@ -177,7 +178,7 @@ def test_block_stepper_equals_per_sample_step_bit_for_bit(max_block):
 
 
 def test_block_stepper_adapts_its_block_to_how_often_inputs_change():
-    model = sensor.GyroModel(rich_config(), 200.0, np.random.default_rng(0))
+    model = sensor_model.GyroModel(rich_config(), 200.0, np.random.default_rng(0))
     stepper = BlockStepper(model, 32)
     for k in range(200):
         stepper.step((0.01 * k, 0.0, 0.0), 25.0)
@@ -359,7 +360,8 @@ def test_launch_file_starts_the_node_executable_with_the_shipped_config(monkeypa
 
 
 def test_main_job_physics_column_matches_the_paper_fig6():
-    from gyro_emulator import main_job, paper
+    from gyro_emulator.cli import main_job
+    from gyro_emulator.physics import paper
     temps, rate = paper.fig6_data(viscosity_law='constant')
     assert main_job.physics_error_deg_s(math.radians(60.0), 25.0) == pytest.approx(
         0.0, abs=1e-9)

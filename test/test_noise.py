@@ -2,8 +2,9 @@
 
 import math
 
-from gyro_emulator import noise, physics
-from gyro_emulator.presets import PAPER_DEVICE
+from gyro_emulator.physics import first_order
+from gyro_emulator.physics.presets import PAPER_DEVICE
+from gyro_emulator.sensor import noise
 from gyro_emulator.units import BOLTZMANN_J_K, FLICKER_FLOOR_PER_B
 import numpy as np
 import pytest
@@ -139,7 +140,7 @@ def test_brownian_arw_from_table1_numbers():
 def test_brownian_arw_temperature_dependence_follows_the_physics():
     temps = np.array([-40.0, 25.0, 85.0])
     got = noise.brownian_arw_rad_s_sqrt_hz(PAPER_DEVICE, temps)
-    r = physics.first_order_response(PAPER_DEVICE, 1.0, temps)
+    r = first_order.first_order_response(PAPER_DEVICE, 1.0, temps)
     kelvin = temps + 273.15
     expect = np.sqrt(kelvin * r.params.damping_sense_n_s_m) / (
         r.params.mass_kg * r.drive_velocity_m_s)

@@ -2,9 +2,11 @@
 
 from dataclasses import replace
 
-from gyro_emulator import paper, physics, units
-from gyro_emulator.params import Device, Gas, Geometry, Material, MODEL_TEMP_RANGE_C
-from gyro_emulator.presets import PAPER_DEVICE, physics_preset
+from gyro_emulator import units
+from gyro_emulator.physics import first_order, paper
+from gyro_emulator.physics.params import Device, Gas, Geometry, Material
+from gyro_emulator.physics.presets import PAPER_DEVICE, physics_preset
+from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
 import pytest
 
@@ -52,22 +54,22 @@ def test_sutherland_reverses_fig6():
 
 def test_sutherland_viscosity_rises_about_15_percent():
     gas = Gas(viscosity_law='sutherland')
-    ratio = physics.viscosity_pa_s(gas, 85.0) / physics.viscosity_pa_s(gas, 25.0)
+    ratio = first_order.viscosity_pa_s(gas, 85.0) / first_order.viscosity_pa_s(gas, 25.0)
     assert ratio == pytest.approx(1.15, abs=0.02)
-    assert physics.viscosity_pa_s(gas, 25.0) == pytest.approx(1.85e-5, rel=1e-12)
+    assert first_order.viscosity_pa_s(gas, 25.0) == pytest.approx(1.85e-5, rel=1e-12)
 
 
 def test_sealed_cavity_keeps_mean_free_path():
     gas = Gas(cavity='sealed')
-    lam = physics.mean_free_path_m(gas, np.array([-40.0, 25.0, 85.0]))
+    lam = first_order.mean_free_path_m(gas, np.array([-40.0, 25.0, 85.0]))
     np.testing.assert_allclose(lam, lam[1], rtol=1e-12)
-    vented = physics.mean_free_path_m(Gas(), np.array([25.0, 85.0]))
+    vented = first_order.mean_free_path_m(Gas(), np.array([25.0, 85.0]))
     assert vented[1] / vented[0] == pytest.approx(358.15 / 298.15, rel=1e-12)
 
 
 def test_closed_forms_of_the_first_order_solution():
     """V_drive = F_d / C_drive and Y = 2 M^1.5 Omega F_d / (C_d C_s sqrt(k_y))."""
-    r = physics.first_order_response(PAPER_DEVICE, 1.0, 40.0)
+    r = first_order.first_order_response(PAPER_DEVICE, 1.0, 40.0)
     p = r.params
     assert r.drive_velocity_m_s == pytest.approx(p.drive_force_n / p.damping_drive_n_s_m,
                                                  rel=1e-12)
@@ -81,16 +83,16 @@ def test_vectorised_over_devices_rates_and_temperatures():
     dev = replace(PAPER_DEVICE, geometry=replace(PAPER_DEVICE.geometry,
                                                  beam1_width_m=widths))
     temps = np.array([0.0, 25.0, 85.0])
-    batch = physics.first_order_response(dev, 0.5, temps).sense_amplitude_m
+    batch = first_order.first_order_response(dev, 0.5, temps).sense_amplitude_m
     for i in range(3):
         one = replace(PAPER_DEVICE, geometry=replace(PAPER_DEVICE.geometry,
                                                      beam1_width_m=widths[i]))
         assert batch[i] == pytest.approx(
-            physics.first_order_response(one, 0.5, temps[i]).sense_amplitude_m, rel=1e-13)
+            first_order.first_order_response(one, 0.5, temps[i]).sense_amplitude_m, rel=1e-13)
 
 
 def test_rate_sign_and_linearity():
-    r = physics.first_order_response(PAPER_DEVICE, np.array([-1.0, 0.0, 2.0]))
+    r = first_order.first_order_response(PAPER_DEVICE, np.array([-1.0, 0.0, 2.0]))
     assert r.sense_amplitude_m[0] < 0 and r.sense_amplitude_m[1] == 0
     assert r.sense_amplitude_m[2] == pytest.approx(-2 * r.sense_amplitude_m[0])
 
@@ -121,9 +123,9 @@ def test_array_validation_names_the_element():
 
 def test_temperature_validation():
     with pytest.raises(ValueError, match='below absolute zero'):
-        physics.lumped_parameters(PAPER_DEVICE, -300.0)
+        first_order.lumped_parameters(PAPER_DEVICE, -300.0)
     with pytest.raises(ValueError, match=r'allowed \[-60.0, 200.0\] C'):
-        physics.lumped_parameters(PAPER_DEVICE, MODEL_TEMP_RANGE_C[1] + 1)
+        first_order.lumped_parameters(PAPER_DEVICE, MODEL_TEMP_RANGE_C[1] + 1)
     with pytest.raises(ValueError, match='Device.calibration_temp_c'):
         Device(calibration_temp_c=float('nan'))
 
@@ -148,7 +150,7 @@ def test_unit_conversions_both_ways(fwd, back, value, expected):
 
 
 def test_read_yaml_errors_name_the_path(tmp_path):
-    from gyro_emulator.params import read_yaml
+    from gyro_emulator.resources import read_yaml
     good = tmp_path / 'good.yaml'
     good.write_text('a: 1\nb: [2, 3]\n')
     assert read_yaml(good) == {'a': 1, 'b': [2, 3]}

@@ -6,7 +6,8 @@ import subprocess
 import sys
 
 from conftest import ROOT
-from gyro_emulator import bag, cdr, replay
+from gyro_emulator.analysis import replay
+from gyro_emulator.recording import bag, cdr
 import numpy as np
 import pytest
 
@@ -32,8 +33,8 @@ def simulated(tmp_path_factory):
 
 
 def test_simulate_out_writes_the_emulator_layout(simulated):
+    from gyro_emulator.analysis import simulate
     from rosbags.rosbag2 import Reader
-    from gyro_emulator import simulate
     reader = bag.BagReader(simulated)
     assert reader.custom_data['seed'] == '3' and reader.custom_data['rate_hz'] == '100.0'
     for topic in (replay.RATE_TOPIC, replay.TEMPERATURE_COMMAND_TOPIC, replay.IMU_TOPIC,

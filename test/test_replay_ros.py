@@ -7,7 +7,7 @@ import sys
 import time
 
 from conftest import ROOT, ros_env
-from gyro_emulator import bag, cdr
+from gyro_emulator.recording import bag, cdr
 import numpy as np
 import pytest
 

@@ -4,11 +4,14 @@ from dataclasses import fields, replace
 import math
 import os
 
-from gyro_emulator import dynamics, noise, physics, units
-from gyro_emulator.presets import PAPER_DEVICE
-from gyro_emulator.sensor import GyroModel, SensorBatch, TemperatureTable
-from gyro_emulator.sensor_config import (config_dir, config_from_mapping, ErrorTerms,
-                                         load_sensor_config, PRESET_NAMES, SensorConfig)
+from gyro_emulator import units
+from gyro_emulator.physics import dynamics, first_order
+from gyro_emulator.physics.presets import PAPER_DEVICE
+from gyro_emulator.resources import config_dir
+from gyro_emulator.sensor import noise
+from gyro_emulator.sensor.config import (config_from_mapping, ErrorTerms, load_sensor_config,
+                                         PRESET_NAMES, SensorConfig)
+from gyro_emulator.sensor.model import GyroModel, SensorBatch, TemperatureTable
 import numpy as np
 import pytest
 from scipy import signal
@@ -94,15 +97,15 @@ def test_scale_factor_temperature_is_the_physics_ratio():
     rate = np.tile([0.3, -1.0, 2.0], (len(temps), 1))
     out = GyroModel(_only('scale_factor_temperature'), FS,
                     np.random.default_rng(0)).run(rate, temps)
-    ratio = physics.scale_factor_ratio(PAPER_DEVICE, temps)
+    ratio = first_order.scale_factor_ratio(PAPER_DEVICE, temps)
     np.testing.assert_allclose(out.gyro_rad_s, rate * ratio[:, np.newaxis], rtol=1e-10)
     np.testing.assert_allclose(out.scale_factor[:, 2], ratio, rtol=1e-10)
 
 
 def test_temperature_table_accuracy():
-    table = TemperatureTable(lambda t: physics.scale_factor_ratio(PAPER_DEVICE, t))
+    table = TemperatureTable(lambda t: first_order.scale_factor_ratio(PAPER_DEVICE, t))
     temps = np.random.default_rng(0).uniform(-60.0, 200.0, 2000)
-    np.testing.assert_allclose(table(temps), physics.scale_factor_ratio(PAPER_DEVICE, temps),
+    np.testing.assert_allclose(table(temps), first_order.scale_factor_ratio(PAPER_DEVICE, temps),
                                rtol=1e-10)
 
 

@@ -6,10 +6,13 @@ import json
 import math
 import os
 
-from gyro_emulator import cli, dataio, profiles, simulate, units
-from gyro_emulator.commands.simulate import Progress
-from gyro_emulator.sensor import SensorBatch
-from gyro_emulator.sensor_config import load_sensor_config
+from gyro_emulator import cli, units
+from gyro_emulator.analysis import simulate
+from gyro_emulator.cli.simulate import Progress
+from gyro_emulator.recording import csvio
+from gyro_emulator.sensor import profiles
+from gyro_emulator.sensor.config import load_sensor_config
+from gyro_emulator.sensor.model import SensorBatch
 import numpy as np
 import pytest
 
@@ -22,7 +25,7 @@ def test_simulate_cli_writes_the_csv_columns(tmp_path, capsys):
     rc = cli.main(['simulate', '--profile', 'static', '--duration-s', '5',
                    '--rate-hz', '100', '--out', str(out), '--seed', '3'])
     assert rc == 0
-    columns = dataio.read_csv(out)
+    columns = csvio.read_csv(out)
     assert tuple(columns) == simulate.CSV_COLUMNS
     assert len(columns['time_s']) == 500
     np.testing.assert_allclose(columns['time_s'], np.arange(500) / 100.0, atol=1e-9)
@@ -200,25 +203,25 @@ def _write(path, text):
 def test_csv_errors_name_row_column_and_value(tmp_path, text, match):
     path = _write(tmp_path / 'bad.csv', text)
     with pytest.raises(ValueError, match=match):
-        dataio.read_gyro_csv(path)
+        csvio.read_gyro_csv(path)
 
 
 def test_csv_round_trip_gz_and_repeated_times(tmp_path):
     path = tmp_path / 'x.csv.gz'
     values = np.random.default_rng(0).standard_normal(1000) * 1e-3
-    dataio.write_csv(path, {'time_s': np.arange(1000) / 50.0, 'gyro_rad_s': values})
-    t, rate, column = dataio.read_gyro_csv(path)
+    csvio.write_csv(path, {'time_s': np.arange(1000) / 50.0, 'gyro_rad_s': values})
+    t, rate, column = csvio.read_gyro_csv(path)
     assert column == 'gyro_rad_s'
     np.testing.assert_allclose(rate, values, rtol=1e-9)
     rep = _write(tmp_path / 'rep.csv', 'time_s,gyro_rad_s\n0,1\n0.02,2\n0.02,3\n0.04,4\n')
     with pytest.raises(ValueError, match='repeated timestamp'):
-        dataio.read_gyro_csv(rep)
-    t, _, _ = dataio.read_gyro_csv(rep, time_order='nondecreasing')
+        csvio.read_gyro_csv(rep)
+    t, _, _ = csvio.read_gyro_csv(rep, time_order='nondecreasing')
     assert len(t) == 4
 
 
 def test_segments_at_gaps():
     t = np.concatenate([np.arange(100) * 0.02, 100.0 + np.arange(50) * 0.02])
-    rate, bounds = dataio.sample_rate_and_segments(t)
+    rate, bounds = csvio.sample_rate_and_segments(t)
     assert rate == pytest.approx(50.0)
     assert bounds == [(0, 100), (100, 150)]

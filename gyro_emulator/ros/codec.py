@@ -3,7 +3,7 @@ ROS 2 message types, schemas and CDR serialisation for the bag layer.
 
 The schema of a topic is the ``ros2msg`` text rosbag2 stores: the installed
 ``share/<pkg>/msg/<Name>.msg`` with its dependencies concatenated
-(:func:`gyro_emulator.bag.message_definition`, which only reads files so the
+(:func:`gyro_emulator.recording.bag.message_definition`, which only reads files so the
 offline tools can use it without rclpy). Serialisation is rclpy's own
 ``serialize_message``/``deserialize_message`` (the rmw's CDR), so what we
 record is byte-for-byte what a subscriber receives, up to padding bytes that
@@ -12,7 +12,7 @@ rclpy leaves uninitialised.
 
 import importlib
 
-from gyro_emulator import bag
+from gyro_emulator.recording import bag
 from rclpy.serialization import deserialize_message, serialize_message
 
 _CLASSES = {}

@@ -30,13 +30,14 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
-from gyro_emulator import sensor, sensor_config
 from gyro_emulator.ros import diagnostics, params
 from gyro_emulator.ros.inputs import (check_acceleration, check_rate, check_temperature,
                                       CommandStream, InputLimits, InputRejected, Throttle)
 from gyro_emulator.ros.rawmsg import RawMessage
 from gyro_emulator.ros.spinning import spin_once
 from gyro_emulator.ros.stepper import BlockStepper
+from gyro_emulator.sensor import config as sensor_config
+from gyro_emulator.sensor import model as sensor_model
 from nav_msgs.msg import Odometry
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -84,8 +85,8 @@ class GyroEmulatorNode(Node):
         base = sensor_config.load_sensor_config(p['sensor_config'])
         self._declare_sensor_parameters(base)
         self._log_throttle = Throttle(1.0, time.monotonic)
-        model = sensor.GyroModel(self._effective_config(), self.rate_hz,
-                                 np.random.default_rng(p['seed']))
+        model = sensor_model.GyroModel(self._effective_config(), self.rate_hz,
+                                       np.random.default_rng(p['seed']))
         self._stepper = BlockStepper(model, p['block_samples'])
         self._book = diagnostics.DiagnosticsBook()
         self._limits = self._make_limits()
@@ -185,8 +186,8 @@ class GyroEmulatorNode(Node):
                 config = params.apply_sensor_params(self._base_config, sensor_values)
                 # Build the model's plan once to catch rate-dependent limits
                 # (e.g. an output filter at or above Nyquist).
-                sensor.GyroModel(self._effective_config(config, p['noise_enabled']),
-                                 self.rate_hz, np.random.default_rng(0))
+                sensor_model.GyroModel(self._effective_config(config, p['noise_enabled']),
+                                       self.rate_hz, np.random.default_rng(0))
             limits = self._make_limits(p, config)
             if p['temperature_override_enabled']:
                 low, high = limits.temp_range_c

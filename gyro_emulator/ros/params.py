@@ -9,8 +9,8 @@ Two families of parameters:
   holds type, unit, range, description and whether the parameter is
   structural (read-only after start).
 * error-model parameters ``sensor.<field>`` and ``sensor.terms.<term>``: one
-  per :class:`gyro_emulator.sensor_config.SensorConfig` field and
-  :class:`~gyro_emulator.sensor_config.ErrorTerms` switch. Their defaults are
+  per :class:`gyro_emulator.sensor.config.SensorConfig` field and
+  :class:`~gyro_emulator.sensor.config.ErrorTerms` switch. Their defaults are
   the values of the configuration named by ``sensor_config`` (a preset or a
   YAML path), so choosing a preset never fights hard-coded numbers; a params
   file may override any of them. 3x3 matrices are 9 numbers, row-major;
@@ -22,10 +22,10 @@ choices and the message format used everywhere (field, value, allowed range).
 
 from dataclasses import dataclass, fields, replace
 import math
-import os
 
-from gyro_emulator import sensor_config
-from gyro_emulator.params import MODEL_TEMP_RANGE_C, read_yaml
+from gyro_emulator.resources import config_file, read_yaml
+from gyro_emulator.sensor import config as sensor_config
+from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType)
 
@@ -226,25 +226,8 @@ def descriptor(spec):
 
 
 def default_params_path():
-    """
-    Return the path of ``config/gyro_emulator.yaml``.
-
-    The source tree's copy when running from a checkout, else the installed
-    one in the package's share directory (found through the ament index).
-    """
-    here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    source = os.path.join(here, 'config', DEFAULTS_FILE)
-    if os.path.isfile(source):
-        return source
-    from ament_index_python.packages import (get_package_share_directory,
-                                             PackageNotFoundError)
-    try:
-        share = get_package_share_directory('gyro_emulator')
-    except PackageNotFoundError:
-        raise ValueError(
-            f'cannot find {DEFAULTS_FILE}: gyro_emulator is not in the ament index '
-            '(AMENT_PREFIX_PATH) and this is not a source checkout') from None
-    return os.path.join(share, 'config', DEFAULTS_FILE)
+    """Return the path of ``config/gyro_emulator.yaml`` (see ``resources.config_dir``)."""
+    return config_file(DEFAULTS_FILE)
 
 
 def _flatten(mapping, prefix=''):

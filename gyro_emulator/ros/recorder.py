@@ -28,7 +28,7 @@ import signal
 import sys
 import time
 
-from gyro_emulator import bag
+from gyro_emulator.recording import bag
 from gyro_emulator.ros import codec
 from gyro_emulator.ros.spinning import spin_once
 import rclpy
@@ -78,7 +78,7 @@ class TopicRecorder:
     ----------
     node : rclpy.node.Node
         The node that owns the subscriptions and timers.
-    writer : gyro_emulator.bag.BagWriter
+    writer : gyro_emulator.recording.bag.BagWriter
         Destination bag.
     topics : iterable of str
         Fully resolved topic names to record.

@@ -21,7 +21,7 @@ import sys
 import threading
 import time
 
-from gyro_emulator import bag
+from gyro_emulator.recording import bag
 from gyro_emulator.ros import codec
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -88,7 +88,7 @@ class Player:
     ----------
     node : rclpy.node.Node
         Owner of the publishers.
-    reader : gyro_emulator.bag.BagReader
+    reader : gyro_emulator.recording.bag.BagReader
         The bag.
     topics : list of str, optional
         Topics to replay (default all).

@@ -24,7 +24,7 @@ Profile keys (SI unless the name says otherwise)::
     node_parameters: {}          # parameters a runner should give the node
 
 ``node_parameters`` is what makes a compressed profile meaningful (e.g. a
-short die thermal time constant); ``gyro_emulator.main_job`` passes it on.
+short die thermal time constant); ``gyro_emulator.cli.main_job`` passes it on.
 """
 
 import argparse
@@ -36,7 +36,7 @@ import sys
 import time
 
 from gyro_emulator import units
-from gyro_emulator.params import read_yaml
+from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.ros.spinning import spin_once
 
 DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
@@ -190,14 +190,8 @@ def parse_profile(doc, source='profile'):
 
 
 def default_profile_path():
-    """Return the shipped paper-validation profile (source tree or installed share)."""
-    here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    source = os.path.join(here, 'config', DEFAULT_PROFILE)
-    if os.path.isfile(source):
-        return source
-    from ament_index_python.packages import get_package_share_directory
-    return os.path.join(get_package_share_directory('gyro_emulator'), 'config',
-                        DEFAULT_PROFILE)
+    """Return the shipped paper-validation profile (see ``resources.config_dir``)."""
+    return config_file(DEFAULT_PROFILE)
 
 
 def load_profile(path=None):

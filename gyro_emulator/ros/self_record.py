@@ -4,7 +4,7 @@ The emulator node recording its own inputs, outputs and truth (``record_dir``).
 :class:`SelfRecorder` adds raw (still serialised) subscriptions to the node
 for its command inputs, ``imu/data_raw``, ``imu/temperature``, the
 ``~/truth/*`` topics and ``/diagnostics``, and writes every message into a
-rosbag2 MCAP bag (:class:`gyro_emulator.bag.BagWriter`): what any subscriber
+rosbag2 MCAP bag (:class:`gyro_emulator.recording.bag.BagWriter`): what any subscriber
 receives, with the node clock as log time. Subscriptions are best effort,
 which matches reliable and best-effort publishers alike.
 
@@ -20,7 +20,7 @@ import datetime
 import functools
 import os
 
-from gyro_emulator import bag
+from gyro_emulator.recording import bag
 from gyro_emulator.ros import codec
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 

@@ -28,7 +28,7 @@ class BlockStepper:
 
     Parameters
     ----------
-    model : gyro_emulator.sensor.GyroModel
+    model : gyro_emulator.sensor.model.GyroModel
         The model; it advances only through this object from now on.
     max_block : int
         Largest block, samples (1: call ``step`` every tick).

@@ -1,0 +1,529 @@
+"""
+Measured data for ``diagnose``: the CSV contract and its decimated view.
+
+The CSV has a header row. Required columns: ``time_s``, ``rate_cmd_rad_s``
+(the applied true rate, e.g. from a rate table), ``temp_c`` (the temperature
+reading) and ``gyro_rad_s`` (the measured output). Optional:
+``accel_x_m_s2``, ``accel_y_m_s2``, ``accel_z_m_s2`` (all three or none).
+Other columns are ignored.
+
+Fitting runs on bin means (:class:`Frame`): the samples are grouped in
+contiguous bins of equal duration and every regressor is the mean of its
+exact sample-level value over the bin (rate, rate^2, rate^3, the delayed rate
+through a cumulative sum, acceleration). A least-squares fit on such means,
+weighted by the sample count, is unbiased: it drops only the within-bin
+variation of the regressors. Slow quantities (temperature, time, anything
+that depends only on them) are taken at the bin means; a 0.3 s bin changes
+the temperature by < 0.02 K on a 3 K/min ramp.
+"""
+
+from dataclasses import dataclass
+import re
+
+import numpy as np
+
+REQUIRED_COLUMNS = ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s')
+ACCEL_COLUMNS = ('accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')
+
+#: Largest number of bins fits run on (see the module docstring).
+DEFAULT_MAX_BINS = 12000
+#: Window of the centred temperature slope estimate, s.
+TEMP_RATE_WINDOW_S = 30.0
+#: Step of the uniform grid the temperature filters run on, at most, s.
+TEMP_GRID_STEP_S = 0.5
+
+
+@dataclass(frozen=True)
+class MeasuredData:
+    """
+    One measured record in the diagnose contract, SI units.
+
+    Attributes
+    ----------
+    time_s : numpy.ndarray
+        Sample times, s, non-decreasing (a repeated stamp, from a logger's
+        clock resolution, is accepted; time going back is an error).
+    rate_cmd_rad_s : numpy.ndarray
+        Applied (true) rate about the sense axis, rad/s.
+    temp_c : numpy.ndarray
+        Temperature reading, deg C.
+    gyro_rad_s : numpy.ndarray
+        Measured gyro output, rad/s.
+    accel_m_s2 : numpy.ndarray or None
+        Linear acceleration, shape (n, 3), m/s^2; None when not recorded.
+    source : str
+        Where the data came from (file name), for reports.
+
+    """
+
+    time_s: np.ndarray
+    rate_cmd_rad_s: np.ndarray
+    temp_c: np.ndarray
+    gyro_rad_s: np.ndarray
+    accel_m_s2: np.ndarray = None
+    source: str = ''
+
+    def __post_init__(self):
+        """Check shapes, finiteness, the temperature range and monotonic time."""
+        n = len(np.asarray(self.time_s))
+        arrays = {'time_s': self.time_s, 'rate_cmd_rad_s': self.rate_cmd_rad_s,
+                  'temp_c': self.temp_c, 'gyro_rad_s': self.gyro_rad_s}
+        for name, value in arrays.items():
+            arr = np.asarray(value, dtype=float)
+            if arr.ndim != 1 or len(arr) != n:
+                raise ValueError(
+                    f'MeasuredData.{name}: expected {n} values, got shape '
+                    f'{arr.shape}')
+            bad = ~np.isfinite(arr)
+            if np.any(bad):
+                i = int(np.flatnonzero(bad)[0])
+                raise ValueError(
+                    f'MeasuredData.{name} = {float(arr[i])!r} at sample {i} is not a '
+                    'finite number')
+            object.__setattr__(self, name, arr)
+        if n < 20:
+            raise ValueError(
+                f'MeasuredData: {n} samples is too few: allowed >= 20')
+        if self.accel_m_s2 is not None:
+            acc = np.asarray(self.accel_m_s2, dtype=float)
+            if acc.shape != (n, 3) or not np.all(np.isfinite(acc)):
+                raise ValueError(
+                    f'MeasuredData.accel_m_s2: expected {n} x 3 finite values, '
+                    f'got shape {acc.shape}')
+            object.__setattr__(self, 'accel_m_s2', acc)
+        step = np.diff(self.time_s)
+        if np.any(step < 0.0):
+            i = int(np.flatnonzero(step < 0.0)[0])
+            raise ValueError(
+                f'MeasuredData.time_s is not monotonic: sample {i + 1} has '
+                f'time_s = {float(self.time_s[i + 1])!r} after '
+                f'{float(self.time_s[i])!r}')
+        if self.time_s[-1] <= self.time_s[0]:
+            raise ValueError('MeasuredData.time_s spans no time: allowed '
+                             'last > first')
+        temp = self.temp_c
+        if np.any(temp < -60.0) or np.any(temp > 200.0):
+            raise ValueError(
+                f'MeasuredData.temp_c spans {temp.min():.2f}..{temp.max():.2f} '
+                'C: allowed [-60, 200] C (the physics model range)')
+
+    @property
+    def rows(self):
+        """Return the number of samples."""
+        return len(self.time_s)
+
+    @property
+    def has_accel(self):
+        """Return whether acceleration columns are present."""
+        return self.accel_m_s2 is not None
+
+
+def _parse_header(line, path):
+    names = [c.strip().strip('"').lstrip('\ufeff') for c in line.rstrip(
+        '\r\n').split(',')]
+    missing = [c for c in REQUIRED_COLUMNS if c not in names]
+    if missing:
+        raise ValueError(
+            f'{path}: missing required column(s) {", ".join(missing)}; the '
+            f'header has {", ".join(names) or "(nothing)"}; required: '
+            f'{", ".join(REQUIRED_COLUMNS)}')
+    accel = [c for c in ACCEL_COLUMNS if c in names]
+    if accel and len(accel) != 3:
+        raise ValueError(
+            f'{path}: acceleration needs all of {", ".join(ACCEL_COLUMNS)}; '
+            f'found only {", ".join(accel)}')
+    return names, bool(accel)
+
+
+def load_csv(path):
+    """
+    Read a measured CSV in the diagnose contract.
+
+    Parameters
+    ----------
+    path : str
+        CSV file with a header row (see the module docstring).
+
+    Returns
+    -------
+    MeasuredData
+
+    Raises
+    ------
+    ValueError
+        A required column is missing, a value is not numeric or not finite,
+        or time goes back; the message names the column and the row (1-based,
+        header = row 1).
+
+    """
+    with open(path, encoding='utf-8-sig') as handle:
+        header = handle.readline()
+        if not header.strip():
+            raise ValueError(f'{path}: empty file, expected a CSV header with '
+                             f'{", ".join(REQUIRED_COLUMNS)}')
+        names, has_accel = _parse_header(header, path)
+        wanted = list(REQUIRED_COLUMNS) + (list(ACCEL_COLUMNS) if has_accel
+                                           else [])
+        index = [names.index(c) for c in wanted]
+        try:
+            table = np.loadtxt(handle, delimiter=',', usecols=index,
+                               ndmin=2, dtype=float)
+        except ValueError as exc:
+            raise ValueError(_explain_parse_error(path, exc, names, index,
+                                                  wanted)) from None
+    if table.shape[0] == 0:
+        raise ValueError(f'{path}: no data rows after the header')
+    for j, name in enumerate(wanted):
+        bad = ~np.isfinite(table[:, j])
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f'{path}: column {name} row {i + 2} is {float(table[i, j])!r}: '
+                'allowed finite numbers')
+    step = np.diff(table[:, 0])
+    if np.any(step < 0.0):
+        i = int(np.flatnonzero(step < 0.0)[0])
+        raise ValueError(
+            f'{path}: column time_s is not monotonic: row {i + 3} has '
+            f'{float(table[i + 1, 0])!r} after {float(table[i, 0])!r} '
+            '(time must not go back)')
+    return MeasuredData(
+        time_s=table[:, 0], rate_cmd_rad_s=table[:, 1], temp_c=table[:, 2],
+        gyro_rad_s=table[:, 3],
+        accel_m_s2=table[:, 4:7] if has_accel else None, source=str(path))
+
+
+def _explain_parse_error(path, exc, names, index, wanted):
+    """Turn numpy's parse error into one naming the column and the row."""
+    text = str(exc)
+    match = re.search(r'row (\d+), column (\d+)', text)
+    value = re.search(r"string '([^']*)'", text)
+    if match:
+        row = int(match.group(1)) + 2  # numpy counts data rows from 0
+        col = int(match.group(2)) - 1
+        name = wanted[col] if 0 <= col < len(wanted) else '?'
+        shown = repr(value.group(1)) if value else 'a value'
+        return (f'{path}: column {name} row {row} is {shown}: allowed '
+                'numbers only')
+    return f'{path}: cannot parse the CSV ({text}); expected numbers in ' \
+           f'{", ".join(wanted)}'
+
+
+def write_csv(path, data):
+    """Write ``data`` (MeasuredData) in the diagnose contract."""
+    cols = [data.time_s, data.rate_cmd_rad_s, data.temp_c, data.gyro_rad_s]
+    names = list(REQUIRED_COLUMNS)
+    fmt = ['%.6f', '%.9g', '%.5f', '%.9g']
+    if data.has_accel:
+        cols += [data.accel_m_s2[:, k] for k in range(3)]
+        names += list(ACCEL_COLUMNS)
+        fmt += ['%.6g'] * 3
+    np.savetxt(path, np.column_stack(cols), delimiter=',', fmt=fmt,
+               header=','.join(names), comments='')
+
+
+class Frame:
+    """
+    Regressors of a record at one resolution: samples or bin means.
+
+    Both resolutions expose the same attributes, so the models in
+    :mod:`gyro_emulator.analysis.diagnose.effects` are written once: ``time_s``,
+    ``rate`` (mean rate), ``rate2``, ``rate3`` (means of rate^2, rate^3),
+    ``temp_c``, ``accel`` (n x 3 or None), ``gyro``, ``weight`` (samples per
+    row). Slow quantities are computed on the bins and mapped to samples with
+    :meth:`slow`.
+    """
+
+    def __init__(self, prepared, level):
+        self.record = prepared
+        self.bins = prepared
+        self.level = level
+
+    def __len__(self):
+        """Return the rows at this resolution."""
+        return len(self.time_s)
+
+    def slow(self, values_on_bins):
+        """Map a slow quantity computed on the bins to this resolution."""
+        if self.level == 'bins':
+            return values_on_bins
+        return np.asarray(values_on_bins)[self.bins.sample_bin]
+
+    def delayed_rate(self, delay_s):
+        """Return the applied rate delayed by ``delay_s`` (linear interpolation)."""
+        return self.record.delayed_rate(delay_s, self.level)
+
+    def lagged_temp_c(self, tau_s):
+        """Return the temperature through a first-order lag ``tau_s``."""
+        return self.slow(self.record.lagged_temp_on_bins(tau_s))
+
+    def temp_rate_c_s(self):
+        """Return the smoothed temperature slope dT/dt, K/s."""
+        return self.slow(self.record.temp_rate_on_bins)
+
+
+class Prepared:
+    """
+    A record ready for fitting: samples, bins and shared temperature filters.
+
+    Parameters
+    ----------
+    data : MeasuredData
+        The record.
+    max_bins : int
+        Upper bound on the number of bins (see the module docstring).
+
+    """
+
+    def __init__(self, data, max_bins=DEFAULT_MAX_BINS):
+        self.data = data
+        t = data.time_s
+        dt = np.diff(t)
+        self.dt_s = float(np.median(dt[dt > 0.0]))
+        self.duration_s = float(t[-1] - t[0] + self.dt_s)
+        bin_s = max(self.dt_s, self.duration_s / max_bins)
+        # contiguous bins of equal duration; empty bins (gaps) are dropped
+        raw = np.floor((t - t[0]) / bin_s + 1e-9).astype(np.int64)
+        starts = np.flatnonzero(np.r_[True, raw[1:] != raw[:-1]])
+        self.bin_s = bin_s
+        self.starts = starts
+        self.ends = np.r_[starts[1:], len(t)]
+        self.sample_bin = np.repeat(np.arange(len(starts)),
+                                    self.ends - self.starts)
+        counts = (self.ends - self.starts).astype(float)
+        r = data.rate_cmd_rad_s
+
+        def mean(x):
+            return np.add.reduceat(x, starts, axis=0) / (
+                counts if np.ndim(x) == 1 else counts[:, None])
+
+        self._cum_rate = np.r_[0.0, np.cumsum(r)]
+        self.samples = self._frame('samples', t, r, r * r, r ** 3,
+                                   data.temp_c, data.accel_m_s2,
+                                   data.gyro_rad_s, np.ones(len(t)))
+        self.binned = self._frame(
+            'bins', mean(t), mean(r), mean(r * r), mean(r ** 3),
+            mean(data.temp_c),
+            None if data.accel_m_s2 is None else mean(data.accel_m_s2),
+            mean(data.gyro_rad_s), counts)
+        # uniform grid for the temperature filters (exact on that grid)
+        step = min(TEMP_GRID_STEP_S, max(bin_s, self.dt_s))
+        tb = self.binned.time_s
+        self.grid_t = np.arange(tb[0], tb[-1] + step, step)
+        self.grid_temp = np.interp(self.grid_t, self.binned.time_s,
+                                   self.binned.temp_c)
+        self.grid_step_s = step
+        self.temp_rate_on_bins = self._temp_rate()
+        self._lag_cache = {}
+
+    def _frame(self, level, t, r, r2, r3, temp, accel, gyro, weight):
+        f = Frame(self, level)
+        f.time_s, f.rate, f.rate2, f.rate3 = t, r, r2, r3
+        f.temp_c, f.accel, f.gyro, f.weight = temp, accel, gyro, weight
+        return f
+
+    def _temp_rate(self):
+        """Centred difference of the gridded temperature over the window."""
+        half = max(1, int(round(0.5 * TEMP_RATE_WINDOW_S / self.grid_step_s)))
+        g = self.grid_temp
+        if len(g) < 3:
+            return np.zeros(len(self.binned.time_s))
+        idx = np.arange(len(g))
+        lo = np.clip(idx - half, 0, len(g) - 1)
+        hi = np.clip(idx + half, 0, len(g) - 1)
+        slope = (g[hi] - g[lo]) / ((hi - lo) * self.grid_step_s)
+        return np.interp(self.binned.time_s, self.grid_t, slope)
+
+    def lagged_temp_on_bins(self, tau_s):
+        """
+        First-order lag of the temperature, on the bins, deg C.
+
+        tau dT_s/dt = T - T_s, solved exactly on the uniform grid for a
+        temperature linear between grid points:
+        T_s[k] = a T_s[k-1] + (1 - c) T[k] + (c - a) T[k-1], a = exp(-h/tau),
+        c = tau (1 - a) / h; the filter starts in equilibrium.
+        """
+        key = float(tau_s)
+        if key in self._lag_cache:
+            return self._lag_cache[key]
+        from scipy.signal import lfilter, lfilter_zi
+        h = self.grid_step_s
+        a = np.exp(-h / tau_s)
+        c = tau_s * (1.0 - a) / h
+        u = self.grid_temp
+        b_coef, a_coef = [1.0 - c, c - a], [1.0, -a]
+        y, _ = lfilter(b_coef, a_coef, u,
+                       zi=lfilter_zi(b_coef, a_coef) * u[0])
+        out = np.interp(self.binned.time_s, self.grid_t, y)
+        if len(self._lag_cache) > 256:
+            self._lag_cache.clear()
+        self._lag_cache[key] = out
+        return out
+
+    def delayed_rate(self, delay_s, level):
+        """
+        Return the applied rate delayed by ``delay_s``, at a resolution.
+
+        Samples: linear interpolation in time. Bins: the bin mean of the same
+        interpolant, from cumulative sums (exact for uniform sampling).
+        """
+        r = self.data.rate_cmd_rad_s
+        if level == 'samples':
+            t = self.data.time_s
+            return np.interp(t - delay_s, t, r)
+        shift = delay_s / self.dt_s
+        m = int(np.floor(shift))
+        f = shift - m
+        n = len(r)
+        cum = self._cum_rate
+
+        def window_sum(lag):
+            # sum over bin samples of r[i - lag], indices clamped to the record
+            lo = self.starts - lag
+            hi = self.ends - lag
+            total = cum[np.clip(hi, 0, n)] - cum[np.clip(lo, 0, n)]
+            before = np.clip(np.minimum(hi, 0) - lo, 0, None)
+            after = np.clip(hi - np.maximum(lo, n), 0, None)
+            return total + before * r[0] + after * r[-1]
+
+        counts = self.binned.weight
+        return ((1.0 - f) * window_sum(m) + f * window_sum(m + 1)) / counts
+
+
+# --- rosbag2 MCAP input ----------------------------------------------------
+
+#: Default topic mapping of a bag (the emulator's inputs and output).
+DEFAULT_BAG_TOPICS = {'rate': 'cmd/angular_velocity',
+                      'temp': 'cmd/temperature',
+                      'gyro': 'imu/data_raw',
+                      'accel': 'cmd/linear_acceleration'}
+
+_VECTOR_FIELDS = {'geometry_msgs/msg/Vector3Stamped': 'vector.{axis}',
+                  'geometry_msgs/msg/TwistStamped': 'twist.angular.{axis}',
+                  'geometry_msgs/msg/AccelStamped': 'accel.linear.{axis}',
+                  'sensor_msgs/msg/Imu': '{kind}.{axis}',
+                  'geometry_msgs/msg/Vector3': '{axis}',
+                  'std_msgs/msg/Float64': 'data'}
+_SCALAR_FIELDS = {'sensor_msgs/msg/Temperature': 'temperature',
+                  'std_msgs/msg/Float64': 'data'}
+
+
+def _find_topic(reader, name, role):
+    """Resolve a topic name: exact, with a leading '/', or by unique suffix."""
+    topics = reader.topics
+    for cand in (name, '/' + name.lstrip('/')):
+        if cand in topics:
+            return cand
+    tail = [t for t in topics if t.endswith('/' + name.lstrip('/'))]
+    if len(tail) == 1:
+        return tail[0]
+    raise ValueError(
+        f'bag {reader.path}: no topic {name!r} for the {role}; topics: '
+        f'{", ".join(sorted(topics)) or "(none)"}')
+
+
+def _topic_times_s(arrays):
+    stamps = np.asarray(arrays.stamp_ns, dtype=np.int64)
+    use = stamps if stamps.size and np.all(stamps > 0) else arrays.log_time_ns
+    return np.asarray(use, dtype=np.int64)
+
+
+def load_bag(path, rate_topic=None, temp_topic=None, gyro_topic=None,
+             accel_topic=None, axis='z'):
+    """
+    Read a rosbag2 MCAP bag into the diagnose contract.
+
+    The gyro output topic sets the sample times (header stamps, or log
+    times when the stamps are zero); the commanded rate, temperature and
+    acceleration are interpolated linearly onto them. Samples outside the
+    span of any input topic are dropped.
+
+    Parameters
+    ----------
+    path : str
+        Bag directory or .mcap file (read with :mod:`gyro_emulator.recording.bag`).
+    rate_topic, temp_topic, gyro_topic : str, optional
+        Topics of the applied rate (Vector3Stamped, TwistStamped, Imu,
+        Float64), the temperature (Temperature, Float64) and the measured
+        output (Imu ...); defaults :data:`DEFAULT_BAG_TOPICS`.
+    accel_topic : str, optional
+        Acceleration topic; default ``cmd/linear_acceleration`` when the bag
+        has it; ``'none'`` to ignore acceleration.
+    axis : str
+        Sense axis: 'x', 'y' or 'z'.
+
+    Returns
+    -------
+    MeasuredData
+
+    """
+    from gyro_emulator.recording import bag
+    if axis not in ('x', 'y', 'z'):
+        raise ValueError(f'diagnose.axis = {axis!r} is not allowed: choose '
+                         "one of 'x', 'y', 'z'")
+    reader = bag.BagReader(path, tolerant=True)
+    names = {'rate': rate_topic or DEFAULT_BAG_TOPICS['rate'],
+             'temp': temp_topic or DEFAULT_BAG_TOPICS['temp'],
+             'gyro': gyro_topic or DEFAULT_BAG_TOPICS['gyro']}
+    resolved = {role: _find_topic(reader, name, role + ' topic')
+                for role, name in names.items()}
+    if accel_topic != 'none':
+        try:
+            resolved['accel'] = _find_topic(
+                reader, accel_topic or DEFAULT_BAG_TOPICS['accel'],
+                'acceleration topic')
+        except ValueError:
+            if accel_topic:
+                raise
+
+    def read(role, kind):
+        topic = resolved[role]
+        arrays = reader.read_arrays(topic)
+        type_name = reader.topics[topic].type_name
+        table = _SCALAR_FIELDS if role == 'temp' else _VECTOR_FIELDS
+        if type_name not in table:
+            raise ValueError(
+                f'bag topic {topic} has type {type_name}, which cannot give '
+                f'the {role}: allowed {", ".join(sorted(table))}')
+        fmt = table[type_name]
+        axes = [axis] if role in ('rate', 'gyro') else ['x', 'y', 'z']
+        cols = [arrays.field(fmt.format(kind=kind, axis=a)) for a in axes] \
+            if role != 'temp' else [arrays.field(fmt)]
+        if role == 'accel' and fmt == 'data':
+            raise ValueError(f'bag topic {topic}: a Float64 cannot hold a '
+                             '3-axis acceleration')
+        return _topic_times_s(arrays), np.column_stack(cols)
+
+    t_gyro, gyro = read('gyro', 'angular_velocity')
+    if len(t_gyro) < 20:
+        raise ValueError(f'bag {path}: topic {resolved["gyro"]} has '
+                         f'{len(t_gyro)} messages: allowed >= 20')
+    order = np.argsort(t_gyro, kind='stable')
+    t_gyro, gyro = t_gyro[order], gyro[order, 0]
+    keep = np.r_[True, np.diff(t_gyro) > 0]
+    t_gyro, gyro = t_gyro[keep], gyro[keep]
+    t0 = t_gyro[0]
+    t = (t_gyro - t0) * 1e-9
+    inside = np.ones(len(t), bool)
+    series = {}
+    for role, kind in (('rate', 'angular_velocity'), ('temp', ''),
+                       ('accel', 'linear_acceleration')):
+        if role not in resolved:
+            continue
+        ts, values = read(role, kind)
+        o = np.argsort(ts, kind='stable')
+        ts, values = (ts[o] - t0) * 1e-9, values[o]
+        if len(ts) == 0:
+            raise ValueError(f'bag {path}: topic {resolved[role]} is empty')
+        inside &= (t >= ts[0]) & (t <= ts[-1])
+        series[role] = np.column_stack(
+            [np.interp(t, ts, values[:, k]) for k in range(values.shape[1])])
+    if inside.sum() < 20:
+        raise ValueError(f'bag {path}: fewer than 20 output samples lie '
+                         'within the span of the input topics')
+    accel = series['accel'][inside] if 'accel' in series else None
+    return MeasuredData(time_s=t[inside] - t[inside][0],
+                        rate_cmd_rad_s=series['rate'][inside, 0],
+                        temp_c=series['temp'][inside, 0],
+                        gyro_rad_s=gyro[inside], accel_m_s2=accel,
+                        source=str(path))

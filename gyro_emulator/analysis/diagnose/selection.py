@@ -1,0 +1,489 @@
+"""
+Choosing the cause: blocked cross-validation, a paired block test and BIC.
+
+Procedure (:func:`diagnose`):
+
+1. The record is cut into ``folds`` contiguous blocks of equal duration
+   (default 6). For each block, every model is fitted on the other blocks
+   (on bin means, :mod:`.data`) and predicts the held-out block sample by
+   sample. The user-calibrated baseline is recalibrated per fold from the
+   training blocks only (:func:`.baseline.calibrate`).
+2. Held-out RMSE over all samples gives ``gain = 1 - rmse_cause /
+   rmse_baseline``.
+3. A cause is *significant* when, against the recalibrated baseline (same
+   data, b0 and s0 refitted; :data:`.effects.NULL`):
+
+   - its held-out RMSE gain is at least ``min_gain`` (0.5 %);
+   - a one-sided paired t-test over ``8 x folds`` contiguous sub-blocks of
+     the log ratio of held-out squared errors (a block Diebold-Mariano test
+     on a scale-free loss) gives p < ``alpha`` (1e-3);
+   - its BIC on the full record (bin means) is lower by more than 10.
+4. Findings are ranked by held-out RMSE. The best finding is the top
+   significant one, except that a significant finding with fewer parameters
+   is preferred when the paired test cannot tell the two apart
+   (p >= 0.01): parsimony between causes the data do not separate.
+5. Residual structure: the held-out residual of the chosen model, averaged
+   per bin, is compared with its white-noise floor (from sample-to-sample
+   differences); when it exceeds the floor by 2x, the correlate (temperature,
+   dT/dt, rate, rate^2, time, acceleration) whose 10-quantile group means
+   explain most of it is named.
+
+Parameter uncertainties are delete-a-block jackknife standard deviations
+over the cross-validation fits, which stay honest under the slow bias
+wander that makes least-squares formulas over-confident.
+"""
+
+from dataclasses import dataclass
+import math
+
+from gyro_emulator.analysis.diagnose import baseline as base
+from gyro_emulator.analysis.diagnose import effects as fx
+from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, Prepared
+from gyro_emulator.physics.presets import physics_preset
+import numpy as np
+
+DEFAULT_FOLDS = 6
+SUB_BLOCKS_PER_FOLD = 8
+MIN_GAIN = 0.005
+ALPHA = 1e-3
+ALPHA_TIE = 0.01
+DELTA_BIC_MAX = -10.0
+EXCESS_MIN = 2.0
+R2_MIN = 0.2
+MIN_TEMP_SPAN_C = 1.0
+MIN_ACCEL_STD_M_S2 = 0.05
+
+
+@dataclass
+class Fit:
+    """One model fitted on a set of rows."""
+
+    beta: np.ndarray
+    phi: tuple
+    sse: float
+
+
+@dataclass
+class Diagnosis:
+    """Everything ``diagnose`` found: the JSON document and plot data."""
+
+    doc: dict
+    prepared: Prepared = None
+    residual_before: np.ndarray = None
+    residual_after: np.ndarray = None
+    after_label: str = ''
+
+
+def _wls(cols, y, w):
+    """Weighted least squares on scaled normal equations; zero columns -> 0."""
+    x = np.column_stack(cols)
+    xw = x * w[:, None]
+    gram = xw.T @ x
+    rhs = xw.T @ y
+    scale = np.sqrt(np.diag(gram))
+    scale = np.where(scale > 0.0, scale, 1.0)
+    sol, *_ = np.linalg.lstsq(gram / np.outer(scale, scale), rhs / scale,
+                              rcond=1e-11)
+    beta = sol / scale
+    res = y - x @ beta
+    return beta, float(np.sum(w * res * res))
+
+
+def fit_effect(effect, ctx, frame, rows=None):
+    """
+    Fit ``effect`` on the rows of a binned frame by variable projection.
+
+    Parameters
+    ----------
+    effect : gyro_emulator.analysis.diagnose.effects.Effect
+        The model.
+    ctx : gyro_emulator.analysis.diagnose.effects.Context
+        Physics and reference points.
+    frame : gyro_emulator.analysis.diagnose.data.Frame
+        Bin means.
+    rows : numpy.ndarray of bool, optional
+        Training rows; all when None.
+
+    Returns
+    -------
+    Fit
+
+    """
+    from scipy.optimize import minimize, minimize_scalar
+
+    rows = np.ones(len(frame), bool) if rows is None else rows
+    y = frame.gyro[rows]
+    w = frame.weight[rows]
+
+    def solve(phi):
+        cols = [np.broadcast_to(c, (len(frame),))[rows]
+                for c in effect.columns(ctx, frame, phi)]
+        return _wls(cols, y, w)
+
+    grids = effect.grids(ctx)
+    if not grids:
+        beta, sse = solve(())
+        return Fit(beta, (), sse)
+    if len(grids) == 1:
+        g = grids[0]
+        sses = np.array([solve((v,))[1] for v in g])
+        i = int(np.argmin(sses))
+        lo, hi = g[max(i - 1, 0)], g[min(i + 1, len(g) - 1)]
+        best_phi, best_sse = (float(g[i]),), sses[i]
+        if hi > lo:
+            res = minimize_scalar(lambda v: solve((v,))[1], bounds=(lo, hi),
+                                  method='bounded',
+                                  options={'xatol': 1e-4 * (hi - lo)})
+            if res.fun < best_sse:
+                best_phi, best_sse = (float(res.x),), res.fun
+    else:
+        g0, g1 = grids
+        sses = np.array([[solve((a, b))[1] for b in g1] for a in g0])
+        i, j = np.unravel_index(int(np.argmin(sses)), sses.shape)
+        best_phi, best_sse = (float(g0[i]), float(g1[j])), sses[i, j]
+        step = np.array([
+            max(np.diff(g0).min(), 0.5 * (g0[min(i + 1, len(g0) - 1)]
+                                          - g0[max(i - 1, 0)])),
+            max(np.diff(g1).min(), 0.5 * (g1[min(j + 1, len(g1) - 1)]
+                                          - g1[max(j - 1, 0)]))])
+        start = np.array(best_phi)
+        simplex = np.array([start, start + [step[0], 0], start + [0, step[1]]])
+        res = minimize(lambda p: solve(tuple(p))[1], start, method='Nelder-Mead',
+                       options={'initial_simplex': simplex, 'maxfev': 120,
+                                'xatol': 1e-3, 'fatol': 1e-9 * best_sse})
+        if res.fun < best_sse:
+            best_phi, best_sse = tuple(float(v) for v in res.x), res.fun
+    beta, sse = solve(best_phi)
+    return Fit(beta, best_phi, sse)
+
+
+def predict(effect, ctx, frame, fit):
+    """Prediction of a fitted model at every row of ``frame``, rad/s."""
+    cols = effect.columns(ctx, frame, fit.phi)
+    out = np.zeros(len(frame))
+    for c, b in zip(cols, fit.beta):
+        out = out + b * np.asarray(c)
+    return out
+
+
+def _paired_p(sse_ref, sse_new):
+    """
+    One-sided paired test that ``sse_new`` is lower, over sub-blocks.
+
+    A t-test on the per-sub-block log ratios ln(SSE_ref / SSE_new): scale
+    free, so a few sub-blocks with large errors (fast rate changes, hot
+    soaks) do not swamp the others.
+    """
+    from scipy.special import stdtr
+
+    ref = np.asarray(sse_ref, dtype=float)
+    new = np.asarray(sse_new, dtype=float)
+    ok = (ref > 0.0) & (new > 0.0)
+    d = np.log(ref[ok] / new[ok])
+    n = len(d)
+    if n < 3:
+        return 1.0
+    sd = float(np.std(d, ddof=1))
+    mean = float(np.mean(d))
+    if sd <= 0.0:
+        return 0.0 if mean > 0.0 else 1.0
+    return float(stdtr(n - 1, -mean / (sd / math.sqrt(n))))
+
+
+def _bic(sse, weight_sum, n_rows, n_params):
+    return n_rows * math.log(max(sse, 1e-300) / weight_sum) + \
+        n_params * math.log(n_rows)
+
+
+def _excitation(prep):
+    """Which kinds of excitation the record has (for each effect's needs)."""
+    d = prep.data
+    b = prep.binned
+    have = set()
+    if math.sqrt(float(np.mean(d.rate_cmd_rad_s ** 2))) >= \
+            base.MIN_RATE_RMS_RAD_S:
+        have.add('rate')
+    if float(b.temp_c.max() - b.temp_c.min()) >= MIN_TEMP_SPAN_C:
+        have.add('temp')
+    if d.has_accel and float(np.max(np.std(d.accel_m_s2, axis=0))) >= \
+            MIN_ACCEL_STD_M_S2:
+        have.add('accel')
+    return have
+
+
+_NEED_TEXT = {
+    'rate': 'the applied rate is (nearly) zero, so scale-factor effects are '
+            'not observable',
+    'temp': f'the temperature spans less than {MIN_TEMP_SPAN_C} K',
+    'accel': 'no acceleration columns (or no acceleration change) in the '
+             'record',
+}
+
+
+def _group_r2(x, r, w, groups=10):
+    """Share of the weighted variance of r explained by quantile groups of x."""
+    if np.ptp(x) <= 0.0:
+        return 0.0
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, groups + 1)[1:-1]))
+    g = np.searchsorted(edges, x, side='right')
+    sw = np.bincount(g, weights=w)
+    sm = np.bincount(g, weights=w * r)
+    mean_all = np.sum(w * r) / np.sum(w)
+    ok = sw > 0
+    between = np.sum((sm[ok] / sw[ok] - mean_all) ** 2 * sw[ok])
+    total = np.sum(w * (r - mean_all) ** 2)
+    return float(between / total) if total > 0 else 0.0
+
+
+def residual_structure(prep, resid_samples):
+    """
+    Find structure left in held-out residuals and what it follows.
+
+    Parameters
+    ----------
+    prep : gyro_emulator.analysis.diagnose.data.Prepared
+        The record.
+    resid_samples : numpy.ndarray
+        Held-out residual of the chosen model at every sample, rad/s.
+
+    Returns
+    -------
+    dict
+        ``structure_remains``, ``excess_over_noise``, ``strongest_correlate``,
+        ``r2`` (per correlate) and ``noise_rad_s`` (white-noise estimate).
+
+    """
+    b = prep.binned
+    counts = b.weight
+    rb = np.bincount(prep.sample_bin, weights=resid_samples) / counts
+    white_var = 0.5 * float(np.var(np.diff(resid_samples)))
+    floor = float(np.mean(white_var / counts))
+    excess = float(np.mean((rb - np.mean(rb)) ** 2)) / max(floor, 1e-300)
+    correlates = {'temperature': b.temp_c,
+                  'temperature_rate': prep.temp_rate_on_bins,
+                  'rate': b.rate, 'rate_squared': b.rate2, 'time': b.time_s}
+    r2 = {name: _group_r2(x, rb, counts) for name, x in correlates.items()}
+    if b.accel is not None:
+        r2['acceleration'] = max(_group_r2(b.accel[:, k], rb, counts)
+                                 for k in range(3))
+    strongest = max(r2, key=r2.get)
+    remains = excess >= EXCESS_MIN and r2[strongest] >= R2_MIN
+    return {'structure_remains': bool(remains),
+            'excess_over_noise': excess,
+            'strongest_correlate': strongest,
+            'r2': r2,
+            'noise_rad_s': math.sqrt(white_var)}
+
+
+def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
+             max_bins=DEFAULT_MAX_BINS, effects=None):
+    """
+    Diagnose a measured record against the paper's physics.
+
+    Parameters
+    ----------
+    data : gyro_emulator.analysis.diagnose.data.MeasuredData
+        The record.
+    preset : str
+        Physics preset of the baseline device (``presets.physics_preset``).
+    ref_temp_c : float, optional
+        Calibration (reference) temperature, deg C; default the device's.
+    folds : int
+        Contiguous cross-validation blocks (>= 3).
+    max_bins : int
+        Largest number of bins the fits run on.
+    effects : sequence of str, optional
+        Catalogue entries to test (default: all).
+
+    Returns
+    -------
+    Diagnosis
+
+    """
+    if folds < 3 or folds > 50:
+        raise ValueError(f'diagnose.folds = {folds!r} is out of range: '
+                         'allowed [3, 50]')
+    device = physics_preset(preset)
+    tref = device.calibration_temp_c if ref_temp_c is None else float(
+        ref_temp_c)
+    prep = Prepared(data, max_bins=max_bins)
+    b, s = prep.binned, prep.samples
+    phys = base.DevicePhysics(device, tref, float(b.temp_c.min()),
+                              float(b.temp_c.max()))
+    cal_all = base.calibrate(b, phys)
+    ctx = fx.Context(phys=phys, ref_temp_c=tref,
+                     time_span_s=(float(data.time_s[0]), float(data.time_s[-1])),
+                     duration_s=prep.duration_s)
+    catalogue = fx.CATALOGUE if effects is None else tuple(
+        fx.effect(e) for e in effects)
+
+    t0 = float(data.time_s[0])
+    span = prep.duration_s
+    fold_of_bin = np.minimum(((b.time_s - t0) / span * folds).astype(int),
+                             folds - 1)
+    n_sub = folds * SUB_BLOCKS_PER_FOLD
+    sub_of_bin = np.minimum(((b.time_s - t0) / span * n_sub).astype(int),
+                            n_sub - 1)
+    fold_of_sample = fold_of_bin[prep.sample_bin]
+    sub_of_sample = sub_of_bin[prep.sample_bin]
+    used_folds = [k for k in range(folds) if np.any(fold_of_bin == k)]
+    sub_used = np.bincount(sub_of_sample, minlength=n_sub) > 0
+    n = data.rows
+    y = data.gyro_rad_s
+
+    def held_out(pred_for_fold):
+        resid = np.empty(n)
+        for k in used_folds:
+            mask = fold_of_sample == k
+            resid[mask] = y[mask] - pred_for_fold(k)[mask]
+        sse_sub = np.bincount(sub_of_sample, weights=resid * resid,
+                              minlength=n_sub)[sub_used]
+        return resid, sse_sub
+
+    # user-calibrated baseline, recalibrated from each fold's training rows
+    base_resid, base_sub = held_out(lambda k: base.baseline_prediction(
+        s, phys, base.calibrate(b, phys, rows=fold_of_bin != k)))
+    rmse_base = math.sqrt(float(np.sum(base_sub)) / n)
+
+    weight_sum = float(np.sum(b.weight))
+    n_rows = len(b)
+
+    def evaluate(effect):
+        fits = {k: fit_effect(effect, ctx, b, fold_of_bin != k)
+                for k in used_folds}
+        resid, sub = held_out(lambda k: predict(effect, ctx, s, fits[k]))
+        full = fit_effect(effect, ctx, b)
+        return fits, resid, sub, full
+
+    null_fits, null_resid, null_sub, null_full = evaluate(fx.NULL)
+    rmse_null = math.sqrt(float(np.sum(null_sub)) / n)
+    bic_null = _bic(null_full.sse, weight_sum, n_rows, fx.NULL.n_params)
+
+    have = _excitation(prep)
+    findings, not_tested, store = [], [], {}
+    for eff in catalogue:
+        missing = [need for need in eff.needs if need not in have]
+        if missing:
+            not_tested.append({'effect': eff.effect_id,
+                               'reason': _NEED_TEXT[missing[0]]})
+            continue
+        fits, resid, sub, full = evaluate(eff)
+        rmse = math.sqrt(float(np.sum(sub)) / n)
+        values = eff.report(full.beta, full.phi)
+        jack = {name: [eff.report(f.beta, f.phi)[name] for f in fits.values()]
+                for name in values}
+        kf = len(fits)
+        params = {}
+        for p in eff.params:
+            arr = np.asarray(jack[p.name], dtype=float)
+            sigma = math.sqrt((kf - 1) / kf * float(np.sum(
+                (arr - arr.mean()) ** 2))) if kf > 1 else float('nan')
+            params[p.name] = {'value': float(values[p.name]), 'sigma': sigma,
+                              'unit': p.unit, 'meaning': p.meaning}
+        gain_null = 1.0 - rmse / rmse_null
+        p_value = _paired_p(null_sub, sub)
+        d_bic = _bic(full.sse, weight_sum, n_rows, eff.n_params) - bic_null
+        significant = bool(gain_null >= MIN_GAIN and p_value < ALPHA
+                           and d_bic < DELTA_BIC_MAX)
+        findings.append({
+            'effect': eff.effect_id, 'cause': eff.cause, 'parameters': params,
+            'rmse_rad_s': rmse, 'gain': 1.0 - rmse / rmse_base,
+            'gain_over_recalibrated': gain_null, 'p_value': p_value,
+            'delta_bic': d_bic, 'n_params': eff.n_params,
+            'significant': significant})
+        store[eff.effect_id] = (eff, resid, sub, full)
+    findings.sort(key=lambda f: f['rmse_rad_s'])
+
+    best = _choose(findings, store)
+    if best is None:
+        chosen_resid = null_resid
+        after_effect, after_fit = fx.NULL, null_full
+    else:
+        chosen_resid = store[best['effect']][1]
+        after_effect, after_fit = store[best['effect']][0], \
+            store[best['effect']][3]
+    structure = residual_structure(prep, chosen_resid)
+    best_doc = _best_doc(best, rmse_base, structure)
+    structure['message'] = _structure_message(best, structure)
+
+    doc = {
+        'input': {'source': data.source, 'rows': n,
+                  'duration_s': prep.duration_s, 'sample_interval_s': prep.dt_s,
+                  'bins': n_rows, 'bin_s': prep.bin_s,
+                  'temp_range_c': [float(data.temp_c.min()),
+                                   float(data.temp_c.max())],
+                  'rate_rms_rad_s': math.sqrt(float(np.mean(
+                      data.rate_cmd_rad_s ** 2))),
+                  'has_accel': data.has_accel},
+        'device_preset': preset,
+        'calibration': cal_all.as_dict(),
+        'baseline': {'rmse_rad_s': rmse_base,
+                     'model': 'paper first-order physics (preset '
+                              f'{preset!r}), one bias and one scale factor '
+                              'calibrated at the reference temperature'},
+        'recalibrated_baseline': {'rmse_rad_s': rmse_null},
+        'best': best_doc,
+        'findings': findings,
+        'not_tested': not_tested,
+        'residual': structure,
+        'method': {'folds': len(used_folds), 'sub_blocks': int(sub_used.sum()),
+                   'min_gain': MIN_GAIN, 'alpha': ALPHA,
+                   'delta_bic_max': DELTA_BIC_MAX, 'alpha_tie': ALPHA_TIE,
+                   'rmse': 'held-out, every sample, rad/s',
+                   'uncertainty': 'delete-a-block jackknife over the folds, '
+                                  '1 sigma'},
+    }
+    before = b.gyro - base.baseline_prediction(b, phys, cal_all)
+    after = b.gyro - predict(after_effect, ctx, b, after_fit)
+    return Diagnosis(doc=doc, prepared=prep, residual_before=before,
+                     residual_after=after,
+                     after_label=(best['effect'] if best else
+                                  'recalibrated baseline (no cause found)'))
+
+
+def _choose(findings, store):
+    """Top significant finding, preferring fewer parameters when not separable."""
+    sig = [f for f in findings if f['significant']]
+    if not sig:
+        return None
+    top = sig[0]
+    simpler = [f for f in sig[1:] if f['n_params'] < top['n_params']
+               and _paired_p(store[f['effect']][2],
+                             store[top['effect']][2]) >= ALPHA_TIE]
+    if simpler:
+        simpler.sort(key=lambda f: (f['n_params'], f['rmse_rad_s']))
+        return simpler[0]
+    return top
+
+
+def _best_doc(best, rmse_base, structure):
+    if best is None:
+        return {'effect': 'none', 'cause': None, 'parameters': {},
+                'rmse_rad_s': rmse_base, 'gain': 0.0}
+    return {k: best[k] for k in ('effect', 'cause', 'parameters',
+                                 'rmse_rad_s', 'gain')}
+
+
+_CORRELATE_TEXT = {
+    'temperature': 'temperature', 'temperature_rate': 'the rate of change of '
+    'temperature (dT/dt)', 'rate': 'the applied rate',
+    'rate_squared': 'the applied rate squared', 'time': 'time',
+    'acceleration': 'acceleration'}
+
+
+def _structure_message(best, st):
+    what = _CORRELATE_TEXT[st['strongest_correlate']]
+    if best is None and not st['structure_remains']:
+        return ('No cause in the catalogue improves the held-out fit '
+                'significantly, and the residual is at its noise floor: the '
+                'baseline explains the data.')
+    if not st['structure_remains']:
+        return (f"After adding {best['effect']}, the residual is at its noise "
+                'floor (no remaining structure).')
+    lead = ('No cause in the catalogue explains it' if best is None else
+            f"After adding {best['effect']}, structure remains that no cause "
+            'in the catalogue explains')
+    share = st['r2'][st['strongest_correlate']]
+    return (f"{lead}: the held-out residual is {st['excess_over_noise']:.1f}x "
+            f'its white-noise floor; its strongest correlate is {what} '
+            f'(R^2 = {share:.2f}).')

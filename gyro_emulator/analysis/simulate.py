@@ -1,0 +1,174 @@
+"""
+Offline simulation: a scripted profile through the gyro model, in chunks.
+
+:func:`iter_simulation` yields the record chunk by chunk (bounded memory, for
+long runs and for any writer: CSV here, a rosbag2 writer later);
+:func:`run_simulation` returns it whole. Neither writes files.
+:func:`write_csv` writes the CSV layout of :data:`CSV_COLUMNS`.
+
+Sample n is at time_s = n / rate_hz. The model's batch API is used chunk by
+chunk; because it is partition-invariant, the record is identical whatever
+the chunk size.
+"""
+
+from dataclasses import dataclass
+
+from gyro_emulator.recording import csvio
+from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
+from gyro_emulator.sensor.model import GyroModel, SensorBatch
+from gyro_emulator.sensor.profiles import make_profile, Profile, ProfileSamples
+import numpy as np
+
+#: Columns of the simulation CSV, in order.
+CSV_COLUMNS = ('time_s', 'rate_x_rad_s', 'rate_y_rad_s', 'rate_z_rad_s', 'temp_c',
+               'gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s')
+CSV_FORMATS = ('%.9f',) + ('%.10g',) * 7
+
+#: Samples per chunk of :func:`iter_simulation`.
+CHUNK_SAMPLES = 1 << 16
+
+#: Longest simulation accepted, samples (about 2.4 GB of output arrays).
+MAX_SAMPLES = 20_000_000
+
+
+@dataclass(frozen=True)
+class SimulationChunk:
+    """One chunk of a simulation: times, profile inputs and the sensor output."""
+
+    time_s: np.ndarray
+    profile: ProfileSamples
+    batch: SensorBatch
+
+
+def _resolve(config, profile, duration_s, rate_hz, temp_c):
+    if not isinstance(config, SensorConfig):
+        config = load_sensor_config(config)
+    duration_s = float(duration_s)
+    rate_hz = float(rate_hz)
+    if not (np.isfinite(duration_s) and duration_s > 0.0):
+        raise ValueError(f'duration_s = {duration_s!r} is out of range: allowed > 0 s')
+    if not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
+        raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
+    if not isinstance(profile, Profile):
+        profile = make_profile(profile, duration_s, temp_c)
+    n = int(np.floor(duration_s * rate_hz + 1e-9))
+    if n < 1:
+        raise ValueError(f'duration_s = {duration_s!r} at {rate_hz:g} Hz gives no sample')
+    if n > MAX_SAMPLES:
+        raise ValueError(f'duration_s x rate_hz = {n} samples is out of range: allowed '
+                         f'<= {MAX_SAMPLES}')
+    return config, profile, n, rate_hz
+
+
+def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
+                    chunk_samples=CHUNK_SAMPLES):
+    """
+    Simulate chunk by chunk.
+
+    Parameters
+    ----------
+    config : SensorConfig or str
+        Error model, or a preset name / YAML path for :func:`load_sensor_config`.
+    profile : Profile or str
+        Profile, or a built-in name / YAML path for :func:`make_profile`.
+    duration_s : float
+        Length, s; floor(duration_s rate_hz) samples.
+    rate_hz : float
+        Sample rate, Hz.
+    seed : int
+        Seed of the ``numpy.random.default_rng`` given to the model.
+    temp_c : float
+        Ambient temperature of the ``static`` and ``steps`` profiles, deg C.
+    chunk_samples : int
+        Samples per chunk.
+
+    Yields
+    ------
+    SimulationChunk
+
+    """
+    config, profile, n, rate_hz = _resolve(config, profile, duration_s, rate_hz, temp_c)
+    model = GyroModel(config, rate_hz, np.random.default_rng(seed))
+    for start in range(0, n, int(chunk_samples)):
+        idx = np.arange(start, min(n, start + int(chunk_samples)))
+        time_s = idx / rate_hz
+        samples = profile.sample(time_s)
+        batch = model.run(samples.rate_rad_s, samples.temp_c, samples.accel_m_s2)
+        yield SimulationChunk(time_s, samples, batch)
+
+
+def sample_count(duration_s, rate_hz):
+    """Return the number of samples of a simulation: floor(duration_s rate_hz)."""
+    return int(np.floor(float(duration_s) * float(rate_hz) + 1e-9))
+
+
+def run_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
+                   progress=None):
+    """
+    Simulate a whole record (no files written).
+
+    Parameters are those of :func:`iter_simulation`; ``progress(done, total)``
+    is called after each chunk if given.
+
+    Returns
+    -------
+    time_s : numpy.ndarray
+        Sample times, s, shape (N,).
+    profile : ProfileSamples
+        True rates (N, 3), ambient temperatures (N,) and specific force (N, 3).
+    batch : SensorBatch
+        The sensor output.
+
+    """
+    chunks = []
+    total = sample_count(duration_s, rate_hz)
+    done = 0
+    for chunk in iter_simulation(config, profile, duration_s, rate_hz, seed, temp_c):
+        chunks.append(chunk)
+        done += len(chunk.time_s)
+        if progress is not None:
+            progress(done, total)
+    time_s = np.concatenate([c.time_s for c in chunks])
+    prof = ProfileSamples(
+        rate_rad_s=np.concatenate([c.profile.rate_rad_s for c in chunks]),
+        temp_c=np.concatenate([c.profile.temp_c for c in chunks]),
+        accel_m_s2=np.concatenate([c.profile.accel_m_s2 for c in chunks]))
+    return time_s, prof, SensorBatch.concatenate([c.batch for c in chunks])
+
+
+def csv_columns(chunk):
+    """Return the :data:`CSV_COLUMNS` arrays of a chunk, in order."""
+    rate, gyro = chunk.profile.rate_rad_s, chunk.batch.gyro_rad_s
+    return [chunk.time_s, rate[:, 0], rate[:, 1], rate[:, 2], chunk.profile.temp_c,
+            gyro[:, 0], gyro[:, 1], gyro[:, 2]]
+
+
+def write_csv(path, chunks, progress=None, total=None):
+    """
+    Write simulation chunks to a CSV file (``.gz`` compresses).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output file.
+    chunks : iterable of SimulationChunk
+        From :func:`iter_simulation`.
+    progress : callable, optional
+        ``progress(done, total)`` after each chunk.
+    total : int, optional
+        Total samples, passed to ``progress``.
+
+    Returns
+    -------
+    int
+        Rows written.
+
+    """
+    done = 0
+    with csvio.CsvWriter(path, CSV_COLUMNS, CSV_FORMATS) as writer:
+        for chunk in chunks:
+            writer.write(csv_columns(chunk))
+            done += len(chunk.time_s)
+            if progress is not None:
+                progress(done, total)
+    return done

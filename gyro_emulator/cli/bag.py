@@ -1,0 +1,42 @@
+"""
+Inspect and repair rosbag2 MCAP bags.
+
+  gyro-emulator bag info DIR          topics, counts, duration (like ros2 bag info)
+  gyro-emulator bag repair DIR        recover a bag whose recorder was killed
+
+``repair`` scans every .mcap file that lacks its summary or footer, rewrites
+it with all the messages it can recover (the original is kept as
+``<file>.orig`` unless ``--no-backup``) and regenerates ``metadata.yaml``.
+It reports what was recovered and what was discarded.
+"""
+
+HELP = 'inspect (info) or recover (repair) a rosbag2 MCAP bag'
+
+
+def add_arguments(parser):
+    """Register the ``bag`` actions."""
+    sub = parser.add_subparsers(dest='action', metavar='ACTION')
+    sub.required = True
+    info = sub.add_parser('info', help='print topics, types, counts and duration')
+    info.add_argument('bag', metavar='DIR', help='bag directory or .mcap file')
+    repair = sub.add_parser('repair', help='recover a bag after SIGKILL or a crash')
+    repair.add_argument('bag', metavar='DIR', help='bag directory or .mcap file')
+    repair.add_argument('--out', metavar='DIR', default=None,
+                        help='write the repaired bag here instead of in place')
+    repair.add_argument('--no-backup', action='store_true',
+                        help='do not keep the damaged originals as <file>.orig')
+
+
+def run(args):
+    """Print the bag summary or repair the bag."""
+    from gyro_emulator.recording import bag
+
+    if args.action == 'info':
+        reader = bag.BagReader(args.bag, tolerant=True)
+        print(reader.info_text())
+        if reader.problems:
+            print(f'run: gyro-emulator bag repair {args.bag}')
+        return 0
+    report = bag.repair_bag(args.bag, out_dir=args.out, backup=not args.no_backup)
+    print(report.describe())
+    return 0

@@ -1,0 +1,190 @@
+"""
+The README's main job (``./dev.sh main``): the paper's validation test, live.
+
+1. Reproduce the paper (Table 1, Fig 5, Fig 6; skip with ``--skip-paper``).
+2. Start the emulator node (``python -m gyro_emulator.ros.node``) with the
+   profile's ``node_parameters``, and the bag recorder when it is installed,
+   on a private ROS domain restricted to this machine.
+3. Play ``config/scenario_paper_validation.yaml`` (0, 10, 20, 40 RPM at 25
+   to 85 C, time-compressed to 32 s) against the node and print, per step,
+   commanded vs measured rate and the error in deg/s, beside the error the
+   first-order physics predicts at the measured die temperature (Fig 6).
+4. Stop everything with SIGINT. Bounded: the node has 30 s to come up and
+   every child is killed on the way out.
+"""
+
+import argparse
+import importlib.util
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+
+from gyro_emulator import cli
+
+NODE_START_TIMEOUT_S = 30.0
+STOP_TIMEOUT_S = 10.0
+
+
+def build_parser():
+    """Return the main job's argument parser."""
+    parser = argparse.ArgumentParser(
+        prog='./dev.sh main', description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--skip-paper', action='store_true',
+                        help='do not reproduce Table 1 / Fig 5 / Fig 6 first')
+    parser.add_argument('--paper-only', action='store_true',
+                        help='only reproduce the paper (the previous main job)')
+    parser.add_argument('--profile', default=None, metavar='YAML',
+                        help='scenario profile (default: the paper validation test)')
+    parser.add_argument('--seed', type=int, default=0, help='node seed (default: 0)')
+    parser.add_argument('--sensor-config', default=None, metavar='NAME|YAML',
+                        help='sensor preset or YAML for the node (default: the '
+                             "profile's, else paper)")
+    parser.add_argument('--out-dir', default='out/main', metavar='DIR',
+                        help='node log, bag and summary.json (default: %(default)s)')
+    parser.add_argument('--no-record', action='store_true',
+                        help='do not record a bag even when the recorder exists')
+    return parser
+
+
+def _ros_environment():
+    env = dict(os.environ)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env.setdefault('ROS_DOMAIN_ID', str(10 + os.getpid() % 90))
+    env['PYTHONUNBUFFERED'] = '1'
+    return env
+
+
+def _write_params(path, node_parameters, seed, sensor_config=None):
+    import yaml
+
+    values = dict(node_parameters)
+    values['seed'] = seed
+    if sensor_config:
+        values['sensor_config'] = sensor_config
+    with open(path, 'w', encoding='utf-8') as handle:
+        yaml.safe_dump({'/**': {'ros__parameters': values}}, handle, sort_keys=False)
+
+
+def _stop(proc, name):
+    if proc is None or proc.poll() is not None:
+        return
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(STOP_TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        print(f'main: {name} did not stop on SIGINT; killing it', file=sys.stderr)
+        proc.kill()
+        proc.wait()
+
+
+def physics_error_deg_s(rate_rad_s, die_temp_c):
+    """Error the first-order physics predicts for the paper device (Fig 6), deg/s."""
+    from gyro_emulator.physics import first_order, presets
+
+    if not math.isfinite(die_temp_c):
+        return float('nan')
+    apparent = first_order.apparent_rate_rad_s(presets.PAPER_DEVICE, rate_rad_s, die_temp_c)
+    return math.degrees(float(apparent) - rate_rad_s)
+
+
+def format_table(results):
+    """Return the summary table with the physics prediction column."""
+    from gyro_emulator.ros import scenario
+
+    lines = scenario.format_summary(results).split('\n')
+    lines[0] += f' {"physics err":>11}'
+    lines[1] = '-' * len(lines[0])
+    for i, r in enumerate(results):
+        lines[i + 2] += f' {physics_error_deg_s(r.step.rate_rad_s, r.die_temp_c):>+11.3f}'
+    return '\n'.join(lines)
+
+
+def run_scenario(opts):
+    """Start node (+ recorder), play the profile, print and save the summary."""
+    from gyro_emulator.ros import scenario
+
+    profile = scenario.load_profile(opts.profile)
+    os.makedirs(opts.out_dir, exist_ok=True)
+    env = _ros_environment()
+    os.environ.update({k: env[k] for k in ('ROS_AUTOMATIC_DISCOVERY_RANGE',
+                                           'ROS_DOMAIN_ID')})
+    params_path = os.path.join(opts.out_dir, 'node_params.yaml')
+    _write_params(params_path, profile.node_parameters, opts.seed, opts.sensor_config)
+    node_log = os.path.join(opts.out_dir, 'node.log')
+    print(f'\n== scenario {profile.name}: {len(profile.steps)} steps, '
+          f'{profile.duration_s:g} s, against the emulator node '
+          f'(ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, localhost only)', flush=True)
+    node = recorder = None
+    with open(node_log, 'w', encoding='utf-8') as log:
+        try:
+            node = subprocess.Popen(
+                [sys.executable, '-m', 'gyro_emulator.ros.node', '--ros-args',
+                 '--params-file', params_path], env=env, stdout=log,
+                stderr=subprocess.STDOUT)
+            record = not opts.no_record and importlib.util.find_spec(
+                'gyro_emulator.ros.recorder') is not None
+            if record:
+                bag_dir = os.path.join(opts.out_dir, 'bag')
+                recorder = subprocess.Popen(
+                    [sys.executable, '-m', 'gyro_emulator.ros.recorder', '-o', bag_dir,
+                     '--overwrite'], env=env, stdout=log, stderr=subprocess.STDOUT)
+            started = time.monotonic()
+
+            def progress(index, step):
+                print(f'  step {index + 1:>2}/{len(profile.steps)}: {step.label:>8} at '
+                      f'{step.temperature_c:5.1f} C', flush=True)
+
+            player = scenario.play(profile, collect=True, wait_s=NODE_START_TIMEOUT_S,
+                                   progress=progress)
+            elapsed = time.monotonic() - started
+        except RuntimeError as exc:
+            print(f'main: {exc}; node log: {node_log}', file=sys.stderr)
+            return 1
+        finally:
+            _stop(recorder, 'recorder')
+            _stop(node, 'node')
+    results = player.results()
+    print(f'\nCommanded vs measured along {list(profile.axis)} (mean after each '
+          f"step's settle time; physics err = Fig 6 first-order prediction at T_die):")
+    print(format_table(results))
+    worst = max(results, key=lambda r: abs(r.error_deg_s) if math.isfinite(
+        r.error_deg_s) else -1.0)
+    print(f'largest |error|: {worst.error_deg_s:+.3f} deg/s at {worst.step.label}, '
+          f'{worst.step.temperature_c:g} C; {len(player.imu)} Imu samples in '
+          f'{elapsed:.1f} s')
+    doc = scenario.results_json(profile, results)
+    for row, r in zip(doc['steps'], results):
+        row['physics_error_deg_s'] = physics_error_deg_s(r.step.rate_rad_s, r.die_temp_c)
+    summary = os.path.join(opts.out_dir, 'summary.json')
+    with open(summary, 'w', encoding='utf-8') as handle:
+        json.dump(doc, handle, indent=1)
+    print(f'wrote {summary}; node log {node_log}'
+          + (f'; bag {os.path.join(opts.out_dir, "bag")}' if recorder else ''))
+    return 0 if all(r.samples > 0 for r in results) else 1
+
+
+def main(argv=None):
+    """Run the main job; return the exit status."""
+    opts = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    if not opts.skip_paper:
+        print('== paper reproduction', flush=True)
+        status = cli.main(['paper', '--json', 'out/paper/paper.json'])
+        if status or opts.paper_only:
+            return status
+    try:
+        return run_scenario(opts)
+    except (ValueError, OSError) as exc:
+        print(f'main: error: {exc}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print('main: interrupted', file=sys.stderr)
+        return 130
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,116 @@
+"""
+The topic table: every topic the emulator reads or writes, defined once.
+
+Names are relative (resolved in the node's namespace) unless they start with
+``/``; ``~/`` names live under the node's own name, as in ROS 2. Message types
+are ``pkg/msg/Type`` strings, the form rosbag2 metadata uses. QoS is a plain
+description (no rclpy here); :mod:`gyro_emulator.ros` turns it into a
+``QoSProfile``:
+
+* ``sensor_data``: best effort, keep last 5, volatile (rclpy's
+  ``qos_profile_sensor_data``, REP 2003 for sensor drivers);
+* ``reliable``: reliable, keep last 10, volatile (the rclpy default).
+
+The node, scenario, recorder, replay and the offline readers all look topics
+up here, so a name is spelled in one place.
+"""
+
+from dataclasses import dataclass
+from types import MappingProxyType
+
+VECTOR3_STAMPED = 'geometry_msgs/msg/Vector3Stamped'
+IMU = 'sensor_msgs/msg/Imu'
+TEMPERATURE = 'sensor_msgs/msg/Temperature'
+ODOMETRY = 'nav_msgs/msg/Odometry'
+DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+CLOCK = 'rosgraph_msgs/msg/Clock'
+
+#: QoS kinds a topic may have (see the module docstring).
+QOS_KINDS = ('sensor_data', 'reliable')
+
+
+@dataclass(frozen=True)
+class Topic:
+    """
+    One topic of the emulator's interface.
+
+    Attributes
+    ----------
+    name : str
+        ROS name: relative, absolute (``/``) or private (``~/``).
+    type_name : str
+        Message type, ``pkg/msg/Type``.
+    qos : str
+        One of :data:`QOS_KINDS`.
+    direction : str
+        ``in`` (the node subscribes) or ``out`` (the node publishes).
+    description : str
+        What it carries, with units.
+
+    """
+
+    name: str
+    type_name: str
+    qos: str
+    direction: str
+    description: str
+
+    def __post_init__(self):
+        if self.qos not in QOS_KINDS:
+            raise ValueError(f'Topic.qos = {self.qos!r} is not allowed: choose one of '
+                             f'{", ".join(QOS_KINDS)}')
+        if self.direction not in ('in', 'out'):
+            raise ValueError(f'Topic.direction = {self.direction!r} is not allowed: '
+                             "choose 'in' or 'out'")
+
+    @property
+    def bag_name(self):
+        """Return the name as a bag recorded at the root namespace stores it."""
+        return self.name if self.name.startswith('/') else '/' + self.name
+
+
+RATE_CMD = Topic('cmd/angular_velocity', VECTOR3_STAMPED, 'reliable', 'in',
+                 'true body rate, rad/s, sensor frame')
+ODOM_CMD = Topic('cmd/odom', ODOMETRY, 'reliable', 'in',
+                 'twist.twist.angular as the true rate (rate_source: odometry)')
+TEMPERATURE_CMD = Topic('cmd/temperature', TEMPERATURE, 'reliable', 'in',
+                        'ambient temperature, deg C')
+ACCEL_CMD = Topic('cmd/linear_acceleration', VECTOR3_STAMPED, 'reliable', 'in',
+                  'specific force for g-sensitivity, m/s^2')
+IMU_OUT = Topic('imu/data_raw', IMU, 'sensor_data', 'out',
+                'gyro output (REP 145), rad/s')
+DIE_TEMPERATURE_OUT = Topic('imu/temperature', TEMPERATURE, 'sensor_data', 'out',
+                            'die temperature as the part reports it, deg C')
+TRUTH_RATE = Topic('~/truth/rate', VECTOR3_STAMPED, 'sensor_data', 'out',
+                   'true rate per sample, rad/s')
+TRUTH_BIAS = Topic('~/truth/bias', VECTOR3_STAMPED, 'sensor_data', 'out',
+                   'total bias per sample, rad/s')
+TRUTH_SCALE_FACTOR = Topic('~/truth/scale_factor', VECTOR3_STAMPED, 'sensor_data', 'out',
+                           'scale factor per sample, ratio')
+DIAGNOSTICS = Topic('/diagnostics', DIAGNOSTIC_ARRAY, 'reliable', 'out',
+                    'driver status (diagnostic_msgs)')
+
+#: Truth topics by the short name the node publishes them under.
+TRUTH_TOPICS = MappingProxyType({'rate': TRUTH_RATE, 'bias': TRUTH_BIAS,
+                                 'scale_factor': TRUTH_SCALE_FACTOR})
+
+#: Every topic of the node's interface, in the order of the README's table.
+NODE_TOPICS = (RATE_CMD, ODOM_CMD, TEMPERATURE_CMD, ACCEL_CMD, IMU_OUT,
+               DIE_TEMPERATURE_OUT, TRUTH_RATE, TRUTH_BIAS, TRUTH_SCALE_FACTOR, DIAGNOSTICS)
+
+#: What the recorder takes by default: the emulator's inputs and outputs.
+RECORDED_BY_DEFAULT = (RATE_CMD, TEMPERATURE_CMD, ACCEL_CMD, IMU_OUT,
+                       DIE_TEMPERATURE_OUT, DIAGNOSTICS)
+
+#: Rate inputs by ``rate_source`` parameter value.
+RATE_INPUTS = MappingProxyType({'angular_velocity': RATE_CMD, 'odometry': ODOM_CMD})
+
+
+def by_name(name):
+    """Return the :class:`Topic` called ``name`` (with or without a leading ``/``)."""
+    key = name.lstrip('/')
+    for topic in NODE_TOPICS:
+        if topic.name.lstrip('/') == key:
+            return topic
+    raise ValueError(f'topic {name!r} is not in the topic table: known '
+                     f'{", ".join(t.name for t in NODE_TOPICS)}')

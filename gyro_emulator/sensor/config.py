@@ -1,0 +1,454 @@
+"""
+Configuration of the 3-axis gyro error model: a frozen, validated dataclass.
+
+A :class:`SensorConfig` holds one physics device per axis (its scale factor,
+temperature dependence, sense-mode dynamics and Brownian noise come from the
+physics) and the error terms a datasheet specifies on top. Every term can be
+switched off through :class:`ErrorTerms`; with all terms off the model's
+output equals the true rate exactly.
+
+All fields are SI (rad/s, s, deg C, m/s^2). Per-axis fields are length-3
+tuples (x, y, z); a scalar is broadcast to the three axes. YAML files may use
+datasheet units instead through the aliases in :data:`YAML_ALIASES`
+(``bias_instability_deg_h``, ``electronics_arw_deg_sqrt_h``, ...), converted
+by :mod:`gyro_emulator.units`, the one place for unit conversions.
+
+Presets live in ``config/sensor_<name>.yaml`` (:data:`PRESET_NAMES`); their
+YAML comments cite the source of every figure.
+"""
+
+from dataclasses import asdict, dataclass, field, fields, replace
+import os
+
+from gyro_emulator import units
+from gyro_emulator.physics.params import Device, from_mapping
+from gyro_emulator.physics.presets import DEFAULT_PRESET, physics_preset, PHYSICS_PRESETS
+from gyro_emulator.resources import config_dir, read_yaml
+from gyro_emulator.validation import check_range
+import numpy as np
+
+#: Sensor presets shipped in ``config/sensor_<name>.yaml``.
+PRESET_NAMES = ('paper', 'consumer', 'tactical')
+DEFAULT_SENSOR_PRESET = 'paper'
+
+AXES = ('x', 'y', 'z')
+
+
+@dataclass(frozen=True)
+class ErrorTerms:
+    """
+    On/off switch of every term of the error model (all on by default).
+
+    Physics terms: ``scale_factor_temperature`` (Young's modulus, gas damping
+    and pressure, Eq 5-22), ``sense_dynamics`` (sense-mode envelope, unity DC
+    gain), ``mechanical_noise`` (Brownian ARW of the sense mode) and
+    ``thermal_lag`` (die temperature lags ambient). The others are the
+    datasheet terms named by the matching :class:`SensorConfig` fields.
+    """
+
+    scale_factor_temperature: bool = True
+    sense_dynamics: bool = True
+    output_filter: bool = True
+    thermal_lag: bool = True
+    turn_on_bias: bool = True
+    bias_temperature: bool = True
+    mechanical_noise: bool = True
+    electronics_noise: bool = True
+    bias_instability: bool = True
+    rate_random_walk: bool = True
+    scale_factor_error: bool = True
+    nonlinearity: bool = True
+    misalignment: bool = True
+    g_sensitivity: bool = True
+    quantization: bool = True
+    saturation: bool = True
+    latency: bool = True
+    timestamp_jitter: bool = True
+    clock_drift: bool = True
+
+    def __post_init__(self):
+        """Check that every switch is a bool."""
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if not isinstance(value, (bool, np.bool_)):
+                raise ValueError(
+                    f'ErrorTerms.{f.name} = {value!r} is not allowed: '
+                    'choose true or false')
+            object.__setattr__(self, f.name, bool(value))
+
+    @classmethod
+    def none(cls):
+        """Return switches with every term off (the ideal sensor)."""
+        return cls(**dict.fromkeys(cls.names(), False))
+
+    @classmethod
+    def names(cls):
+        """Return the term names in model order."""
+        return tuple(f.name for f in fields(cls))
+
+    def enabled(self):
+        """Return the names of the terms that are on."""
+        return tuple(n for n in self.names() if getattr(self, n))
+
+
+# name: (kind, low, high, unit, low_open, high_open); kind 'axis', 'scalar',
+# 'matrix'. Ranges are sanity limits for MEMS gyros, not design rules.
+_SPEC = {
+    'mode_split_hz': ('axis', 0.0, 5000.0, 'Hz', False, False),
+    'output_filter_hz': ('scalar', 0.0, 1e5, 'Hz (0 = none)', False, False),
+    'output_filter_order': ('scalar', 1, 4, '', False, False),
+    'thermal_time_constant_s': ('scalar', 0.0, 1e5, 's', False, False),
+    'self_heating_c': ('scalar', -20.0, 50.0, 'C', False, False),
+    'turn_on_bias_rad_s': ('axis', -10.0, 10.0, 'rad/s', False, False),
+    'turn_on_bias_sigma_rad_s': ('axis', 0.0, 10.0, 'rad/s', False, False),
+    'bias_temp_coeff_rad_s_k': ('axis', -0.1, 0.1, 'rad/s/K', False, False),
+    'bias_temp_coeff2_rad_s_k2': ('axis', -0.01, 0.01, 'rad/s/K^2', False, False),
+    'electronics_noise_rad_s_sqrt_hz': ('axis', 0.0, 1.0, 'rad/s/sqrt(Hz)', False, False),
+    'bias_instability_rad_s': ('axis', 0.0, 1.0, 'rad/s', False, False),
+    'bias_instability_band_s': ('pair', 1e-3, 1e6, 's', False, False),
+    'bias_instability_per_decade': ('scalar', 0.5, 4.0, 'terms/decade', False, False),
+    'rate_random_walk_rad_s_sqrt_s': ('axis', 0.0, 1.0, 'rad/s/sqrt(s)', False, False),
+    'scale_factor_error': ('axis', -0.5, 0.5, '', False, False),
+    'nonlinearity_s_rad': ('axis', -1.0, 1.0, 's/rad', False, False),
+    'misalignment': ('matrix', -0.2, 0.2, 'rad', False, False),
+    'g_sensitivity_rad_s_m_s2': ('matrix', -0.1, 0.1, 'rad/s per m/s^2', False, False),
+    'lsb_rad_s': ('axis', 0.0, 1.0, 'rad/s (0 = none)', False, False),
+    'range_rad_s': ('axis', 0.0, 1000.0, 'rad/s', True, False),
+    'latency_s': ('scalar', 0.0, 1.0, 's', False, False),
+    'timestamp_jitter_s': ('scalar', 0.0, 0.1, 's', False, False),
+    'clock_drift_ppm': ('scalar', -1e4, 1e4, 'ppm', False, False),
+    'initial_die_temp_c': ('optional', -60.0, 200.0, 'C', False, False),
+}
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """
+    Parameters of the 3-axis gyro error model (SI units; per-axis = (x, y, z)).
+
+    The output of axis i is (see :mod:`gyro_emulator.sensor.model`)::
+
+        x     = (I + misalignment) omega
+        s     = H_sense[ SF_i(T_die) (1 + scale_factor_error_i) (x_i + nonlinearity_i x_i^2) ]
+        bias  = turn_on + c1 dT + c2 dT^2 + G a + flicker(B) + random walk(K)
+        y     = Q( sat( H_filter[ s + bias + white(N_mech(T_die), N_elec) ] ) )
+
+    with dT = T_die - calibration temperature of the axis's device.
+
+    Attributes
+    ----------
+    device : tuple of 3 gyro_emulator.physics.params.Device
+        Physics device of each axis (also accepts one Device or a preset name).
+    terms : ErrorTerms
+        On/off switches.
+    mode_split_hz : tuple
+        Drive/sense frequency split for the sense dynamics, Hz.
+    output_filter_hz, output_filter_order : float, int
+        Digital Butterworth low-pass of the ASIC (0 Hz = none).
+    thermal_time_constant_s, self_heating_c : float
+        Die temperature lag behind ambient and its steady offset.
+    turn_on_bias_rad_s, turn_on_bias_sigma_rad_s : tuple
+        Fixed turn-on bias and the sigma of its run-to-run random part.
+    bias_temp_coeff_rad_s_k, bias_temp_coeff2_rad_s_k2 : tuple
+        Zero-rate bias temperature coefficients (linear, quadratic).
+    electronics_noise_rad_s_sqrt_hz : tuple
+        Electronics white rate noise, two-sided density (= its ARW N).
+    bias_instability_rad_s, bias_instability_band_s, bias_instability_per_decade
+        B (Allan floor 0.664 B), the correlation-time band of the flicker
+        model and its Gauss-Markov terms per decade.
+    rate_random_walk_rad_s_sqrt_s : tuple
+        K, rad/s/sqrt(s).
+    scale_factor_error, nonlinearity_s_rad : tuple
+        Gain error (ratio) and quadratic nonlinearity (per rad/s).
+    misalignment, g_sensitivity_rad_s_m_s2 : 3x3 tuples
+        Cross-axis coupling (zero diagonal) and bias per m/s^2 of specific force.
+    lsb_rad_s, range_rad_s : tuple
+        Quantisation step (0 = none) and full-scale range.
+    latency_s, timestamp_jitter_s, clock_drift_ppm : float
+        Output delay, its Gaussian jitter (sigma) and the sensor clock error.
+    initial_die_temp_c : float or None
+        Die temperature at the first sample (None: in equilibrium with it).
+
+    """
+
+    device: tuple = (PHYSICS_PRESETS[DEFAULT_PRESET],) * 3
+    terms: ErrorTerms = field(default_factory=ErrorTerms)
+    mode_split_hz: tuple = (0.0, 0.0, 0.0)
+    output_filter_hz: float = 0.0
+    output_filter_order: int = 2
+    thermal_time_constant_s: float = 0.0
+    self_heating_c: float = 0.0
+    turn_on_bias_rad_s: tuple = (0.0, 0.0, 0.0)
+    turn_on_bias_sigma_rad_s: tuple = (0.0, 0.0, 0.0)
+    bias_temp_coeff_rad_s_k: tuple = (0.0, 0.0, 0.0)
+    bias_temp_coeff2_rad_s_k2: tuple = (0.0, 0.0, 0.0)
+    electronics_noise_rad_s_sqrt_hz: tuple = (0.0, 0.0, 0.0)
+    bias_instability_rad_s: tuple = (0.0, 0.0, 0.0)
+    bias_instability_band_s: tuple = (0.1, 1000.0)
+    bias_instability_per_decade: float = 1.0
+    rate_random_walk_rad_s_sqrt_s: tuple = (0.0, 0.0, 0.0)
+    scale_factor_error: tuple = (0.0, 0.0, 0.0)
+    nonlinearity_s_rad: tuple = (0.0, 0.0, 0.0)
+    misalignment: tuple = ((0.0,) * 3,) * 3
+    g_sensitivity_rad_s_m_s2: tuple = ((0.0,) * 3,) * 3
+    lsb_rad_s: tuple = (0.0, 0.0, 0.0)
+    range_rad_s: tuple = (34.9066, 34.9066, 34.9066)
+    latency_s: float = 0.0
+    timestamp_jitter_s: float = 0.0
+    clock_drift_ppm: float = 0.0
+    initial_die_temp_c: float = None
+
+    def __post_init__(self):
+        """Normalise per-axis fields to tuples and validate every field."""
+        object.__setattr__(self, 'device', _devices(self.device))
+        if not isinstance(self.terms, ErrorTerms):
+            raise ValueError(
+                f'SensorConfig.terms = {self.terms!r} is not allowed: expected '
+                'an ErrorTerms')
+        for name, spec in _SPEC.items():
+            object.__setattr__(self, name, _checked(name, getattr(self, name), spec))
+        if self.output_filter_order != int(self.output_filter_order):
+            raise ValueError(
+                f'SensorConfig.output_filter_order = {self.output_filter_order!r}'
+                ' is not allowed: choose 1, 2, 3 or 4')
+        object.__setattr__(self, 'output_filter_order', int(self.output_filter_order))
+        band = self.bias_instability_band_s
+        if band[0] > band[1]:
+            raise ValueError(
+                f'SensorConfig.bias_instability_band_s = {band!r} is not allowed:'
+                ' the first (shortest) correlation time must not exceed the second')
+        diag = [self.misalignment[i][i] for i in range(3)]
+        if any(d != 0.0 for d in diag):
+            raise ValueError(
+                f'SensorConfig.misalignment has diagonal {diag!r}: allowed only '
+                '0 (a gain error belongs in scale_factor_error)')
+
+    @classmethod
+    def ideal(cls, device=None):
+        """Return a configuration with every error term off: output = true rate."""
+        kwargs = {} if device is None else {'device': device}
+        return cls(terms=ErrorTerms.none(), **kwargs)
+
+    def with_terms(self, **switches):
+        """Return a copy with some terms switched (``quantization=False``, ...)."""
+        return replace(self, terms=replace(self.terms, **switches))
+
+    def only(self, *names):
+        """Return a copy with only the named terms on."""
+        unknown = sorted(set(names) - set(ErrorTerms.names()))
+        if unknown:
+            raise ValueError(
+                f'unknown error term(s) {", ".join(unknown)}; allowed: '
+                f'{", ".join(ErrorTerms.names())}')
+        return replace(self, terms=ErrorTerms(
+            **{n: n in names for n in ErrorTerms.names()}))
+
+    def axis_array(self, name):
+        """Return a per-axis or matrix field as a float numpy array."""
+        return np.array(getattr(self, name), dtype=float)
+
+
+def _checked(name, value, spec):
+    kind, low, high, unit, low_open, high_open = spec
+    owner = 'SensorConfig'
+    if kind == 'optional':
+        if value is None:
+            return None
+        return check_range(owner, name, value, low, high, unit, low_open, high_open)
+    shape = {'axis': (3,), 'scalar': (), 'pair': (2,), 'matrix': (3, 3)}[kind]
+    if isinstance(value, (bool, str, np.bool_)):
+        raise ValueError(f'{owner}.{name} = {value!r} is not a number')
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list '
+                         'of numbers') from None
+    if kind == 'axis' and arr.ndim == 0:
+        arr = np.full(3, float(arr))
+    if kind == 'matrix' and arr.ndim == 0:
+        arr = np.full((3, 3), float(arr)) * (1.0 - np.eye(3)) \
+            if name == 'misalignment' else np.eye(3) * float(arr)
+    if kind == 'matrix' and arr.shape == (3,) and name != 'misalignment':
+        arr = np.diag(arr)
+    if arr.shape != shape:
+        what = {(3,): 'a number or a list of 3 (x, y, z)', (): 'a number',
+                (2,): 'a list of 2 numbers', (3, 3): 'a 3x3 matrix'}[shape]
+        raise ValueError(f'{owner}.{name} = {value!r} has shape {arr.shape}: '
+                         f'expected {what}')
+    _check_elements(owner, name, arr, low, high, unit, low_open, high_open)
+    if kind == 'scalar':
+        return float(arr)
+    if kind == 'matrix':
+        return tuple(tuple(float(v) for v in row) for row in arr)
+    return tuple(float(v) for v in arr)
+
+
+def _check_elements(owner, name, arr, low, high, unit, low_open, high_open):
+    """check_range per element, so the message shows a plain number and its index."""
+    flat = arr.ravel()
+    for i, value in enumerate(flat):
+        try:
+            check_range(owner, name, float(value), low, high, unit, low_open, high_open)
+        except ValueError as exc:
+            if flat.size == 1:
+                raise
+            where = f'[{i // 3}][{i % 3}]' if arr.ndim == 2 else f'[{i}]'
+            raise ValueError(str(exc).replace(f'{owner}.{name} =',
+                                              f'{owner}.{name}{where} =', 1)) from None
+
+
+def _device_from_spec(spec, owner):
+    if isinstance(spec, Device):
+        return spec
+    if isinstance(spec, str):
+        try:
+            return physics_preset(spec)
+        except ValueError as exc:
+            raise ValueError(f'{owner}: {exc}') from None
+    if isinstance(spec, dict):
+        spec = dict(spec)
+        base = _device_from_spec(spec.pop('preset', DEFAULT_PRESET), owner)
+        merged = asdict(base)
+        for key, value in spec.items():
+            if isinstance(value, dict) and isinstance(merged.get(key), dict):
+                merged[key] = {**merged[key], **value}
+            else:
+                merged[key] = value
+        return from_mapping(Device, merged, owner)
+    raise ValueError(
+        f'{owner} = {spec!r} is not allowed: give a physics preset name '
+        f'({", ".join(sorted(PHYSICS_PRESETS))}), a mapping of device fields '
+        '(optionally with "preset") or a list of three of those')
+
+
+def _devices(spec):
+    owner = 'SensorConfig.device'
+    if isinstance(spec, (list, tuple)):
+        if len(spec) != 3:
+            raise ValueError(f'{owner} has {len(spec)} entries: expected one '
+                             'device or three (x, y, z)')
+        return tuple(_device_from_spec(s, f'{owner}[{i}]') for i, s in enumerate(spec))
+    device = _device_from_spec(spec, owner)
+    return (device, device, device)
+
+
+def _scale(converter):
+    def convert(value):
+        arr = np.array(value, dtype=float)
+        out = converter(arr)
+        return out.tolist() if np.ndim(out) else float(out)
+    return convert
+
+
+def _pct(value):
+    return _scale(lambda v: v * 0.01)(value)
+
+
+#: YAML keys in datasheet units: key -> (SensorConfig field, converter).
+YAML_ALIASES = {
+    'electronics_arw_deg_sqrt_h': (
+        'electronics_noise_rad_s_sqrt_hz', _scale(units.arw_deg_sqrt_h_to_rad_s_sqrt_hz)),
+    'electronics_noise_deg_s_sqrt_hz': (
+        'electronics_noise_rad_s_sqrt_hz', _scale(units.deg_s_sqrt_hz_to_rad_s_sqrt_hz)),
+    'bias_instability_deg_h': ('bias_instability_rad_s', _scale(units.deg_h_to_rad_s)),
+    'rate_random_walk_deg_h_sqrt_h': (
+        'rate_random_walk_rad_s_sqrt_s', _scale(units.rrw_deg_h_sqrt_h_to_rad_s_sqrt_s)),
+    'turn_on_bias_deg_s': ('turn_on_bias_rad_s', _scale(units.deg_s_to_rad_s)),
+    'turn_on_bias_sigma_deg_s': ('turn_on_bias_sigma_rad_s', _scale(units.deg_s_to_rad_s)),
+    'bias_temp_coeff_deg_s_k': ('bias_temp_coeff_rad_s_k', _scale(units.deg_s_to_rad_s)),
+    'bias_temp_coeff2_deg_s_k2': ('bias_temp_coeff2_rad_s_k2', _scale(units.deg_s_to_rad_s)),
+    'scale_factor_error_ppm': ('scale_factor_error', _scale(units.ppm_to_ratio)),
+    'scale_factor_error_pct': ('scale_factor_error', _pct),
+    'misalignment_pct': ('misalignment', _pct),
+    'g_sensitivity_deg_s_g': (
+        'g_sensitivity_rad_s_m_s2', _scale(units.deg_s_per_g_to_rad_s_per_m_s2)),
+    'lsb_deg_s': ('lsb_rad_s', _scale(units.deg_s_to_rad_s)),
+    'range_deg_s': ('range_rad_s', _scale(units.deg_s_to_rad_s)),
+}
+
+
+def config_from_mapping(mapping, source=''):
+    """
+    Build a :class:`SensorConfig` from a mapping (parsed YAML).
+
+    Keys are :class:`SensorConfig` field names or the datasheet-unit aliases
+    of :data:`YAML_ALIASES`; ``terms`` is a mapping of :class:`ErrorTerms`
+    switches. Unknown keys raise ``ValueError`` naming the key.
+    """
+    if mapping is None:
+        mapping = {}
+    if not isinstance(mapping, dict):
+        raise ValueError(f'{source or "SensorConfig"}: expected a mapping of settings, '
+                         f'got {mapping!r}')
+    given, source = source, source or 'SensorConfig'
+    field_names = [f.name for f in fields(SensorConfig)]
+    kwargs = {}
+    for key, value in mapping.items():
+        if key in YAML_ALIASES:
+            target, convert = YAML_ALIASES[key]
+            if target in kwargs:
+                raise ValueError(f'{source}: {key} and another key both set {target}')
+            try:
+                kwargs[target] = convert(value)
+            except (TypeError, ValueError):
+                raise ValueError(f'{source}: {key} = {value!r} is not a number or a '
+                                 'list of numbers') from None
+        elif key == 'terms':
+            if not isinstance(value, dict):
+                raise ValueError(f'{source}: terms = {value!r} must be a mapping of '
+                                 'term: true/false')
+            unknown = sorted(set(value) - set(ErrorTerms.names()))
+            if unknown:
+                raise ValueError(
+                    f'{source}: unknown term(s) {", ".join(map(str, unknown))} in terms;'
+                    f' allowed: {", ".join(ErrorTerms.names())}')
+            kwargs['terms'] = ErrorTerms(**value)
+        elif key in field_names:
+            if key in kwargs:
+                raise ValueError(f'{source}: {key} is set twice (directly and by an '
+                                 'alias)')
+            kwargs[key] = value
+        else:
+            allowed = sorted(set(field_names) | set(YAML_ALIASES))
+            raise ValueError(f'{source}: unknown key {key!r}; allowed: '
+                             f'{", ".join(allowed)}')
+    try:
+        return SensorConfig(**kwargs)
+    except ValueError as exc:
+        if not given:
+            raise
+        raise ValueError(f'{source}: {exc}') from None
+
+
+def preset_path(name):
+    """Return the YAML path of the named sensor preset."""
+    return os.path.join(config_dir(), f'sensor_{name}.yaml')
+
+
+def load_sensor_config(name_or_path=None):
+    """
+    Load a sensor configuration by preset name or YAML path.
+
+    Parameters
+    ----------
+    name_or_path : str or os.PathLike or None
+        ``'paper'`` (default), ``'consumer'``, ``'tactical'`` or a YAML file.
+
+    Returns
+    -------
+    SensorConfig
+
+    Raises
+    ------
+    ValueError
+        Unknown preset, unreadable or malformed YAML, unknown keys or values
+        out of range (the message names the key, the value and the range).
+
+    """
+    name = DEFAULT_SENSOR_PRESET if name_or_path is None else str(name_or_path)
+    path = preset_path(name) if name in PRESET_NAMES else name
+    if not os.path.isfile(path):
+        raise ValueError(
+            f'sensor config {name!r} is neither a preset '
+            f'({", ".join(PRESET_NAMES)}) nor a readable file')
+    return config_from_mapping(read_yaml(path), source=path)

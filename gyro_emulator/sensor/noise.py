@@ -1,0 +1,366 @@
+"""
+Noise generators of the gyro error model, exactly discretised.
+
+Every generator is a pure function ``(standard normals, coefficients, state)
+-> (samples, state)`` over a block of samples, so a long record can be made in
+blocks of any size with bit-identical results. The standard normals come from
+the caller's injected ``numpy.random.Generator``. These block functions are
+the reference form of the recursions that :mod:`gyro_emulator.sensor.model` runs
+sample by sample in its compiled kernel (test/test_sensor.py checks that both
+give the same samples from the same normals); the kernel takes its
+coefficients from :func:`flicker_plan` and :func:`flicker_initial_state`.
+
+Exact discretisation at the sample period dt (no Euler steps):
+
+* white rate noise of two-sided density N: sigma = N / sqrt(dt);
+* first-order Gauss-Markov process of variance q and correlation time T:
+  x[n] = phi x[n-1] + sqrt(q (1 - phi^2)) w[n], phi = exp(-dt / T);
+* rate random walk K: b[n] = b[n-1] + K sqrt(dt) w[n];
+* bias instability (flicker, 1/f): a sum of Gauss-Markov processes with
+  correlation times one decade apart (the standard rational approximation of
+  1/f noise; IEEE Std 952 Annex C, Keshner 1982), generated from ONE normal per
+  sample and axis through an exact single-input representation (see
+  :func:`flicker_plan`).
+
+The mechanical-thermal (Brownian) noise of the sense mode sets the physical
+floor of the angle random walk: :func:`brownian_arw_rad_s_sqrt_hz`.
+"""
+
+from dataclasses import dataclass
+
+from gyro_emulator.physics import first_order
+from gyro_emulator.units import BOLTZMANN_J_K, celsius_to_kelvin, FLICKER_FLOOR_PER_B
+import numpy as np
+from scipy.signal import lfilter
+
+
+def gauss_markov_phi(corr_time_s, dt_s):
+    """Exact AR(1) coefficient phi = exp(-dt / T) of a Gauss-Markov process."""
+    return np.exp(-np.asarray(dt_s, dtype=float) / np.asarray(corr_time_s, dtype=float))
+
+
+def gauss_markov_drive_sigma(sigma, corr_time_s, dt_s):
+    """
+    Exact per-sample innovation sigma of a Gauss-Markov process.
+
+    sigma_d = sigma sqrt(1 - phi^2) with phi = exp(-dt/T), written with expm1
+    so that it stays accurate for T >> dt. ``sigma`` is the steady-state
+    standard deviation (any unit; the result has the same unit).
+    """
+    one_minus_phi2 = -np.expm1(-2.0 * np.asarray(dt_s, dtype=float)
+                               / np.asarray(corr_time_s, dtype=float))
+    return np.asarray(sigma, dtype=float) * np.sqrt(one_minus_phi2)
+
+
+def first_order_filter(u, phi, gain, last):
+    """
+    Run y[n] = phi y[n-1] + gain u[n] over a block, along axis 0.
+
+    The exact discretisation of a first-order lag (or Gauss-Markov process
+    when ``u`` is white) with phi = exp(-dt / T). ``last`` is y[-1] (shape of
+    one sample); the block result does not depend on how a record is split
+    into blocks.
+
+    Parameters
+    ----------
+    u : numpy.ndarray
+        Input block, shape (n, ...).
+    phi : float
+        Pole, 0 <= phi < 1.
+    gain : float
+        Input gain.
+    last : numpy.ndarray or float
+        Previous output y[-1], shape ``u.shape[1:]``.
+
+    Returns
+    -------
+    y : numpy.ndarray
+        Output block, same shape as ``u``.
+    last : numpy.ndarray
+        y[n-1] of the block, to pass to the next call.
+
+    """
+    u = np.asarray(u, dtype=float)
+    zi = (phi * np.asarray(last, dtype=float))[np.newaxis, ...]
+    y, _ = lfilter([gain], [1.0, -phi], u, axis=0, zi=zi)
+    return y, y[-1].copy()
+
+
+def random_walk(z, step_sigma, last):
+    """
+    Random walk b[n] = b[n-1] + step_sigma w[n] over a block (axis 0).
+
+    ``step_sigma`` = K sqrt(dt) is the exact increment sigma of a Wiener
+    process of intensity K (rad/s/sqrt(s) for a rate random walk). The sum
+    runs sequentially, so splitting a record into blocks changes nothing.
+
+    Parameters
+    ----------
+    z : numpy.ndarray
+        Standard normals, shape (n, ...).
+    step_sigma : float or numpy.ndarray
+        Increment sigma, broadcast against ``z[0]``.
+    last : numpy.ndarray
+        b[-1], shape ``z.shape[1:]``.
+
+    Returns
+    -------
+    b : numpy.ndarray
+        The walk over the block.
+    last : numpy.ndarray
+        The final value.
+
+    """
+    inc = np.asarray(z, dtype=float) * step_sigma
+    inc[0] += last
+    np.cumsum(inc, axis=0, out=inc)
+    return inc, inc[-1].copy()
+
+
+def gauss_markov_avar(variance, corr_time_s, tau_s):
+    """
+    Allan variance of a first-order Gauss-Markov rate process.
+
+    sigma^2(tau) = q (T/tau)^2 (2 tau/T - 3 + 4 e^(-tau/T) - e^(-2 tau/T))
+    for steady-state variance q and correlation time T (IEEE Std 952 Annex C).
+    """
+    q = np.asarray(variance, dtype=float)
+    t = np.asarray(corr_time_s, dtype=float)
+    x = np.asarray(tau_s, dtype=float) / t
+    # Series for small x avoids cancellation: (2x - 3 + 4e^-x - e^-2x)/x^2
+    # = x/3 - x^2/4 + 7 x^3/60 - ...
+    small = x < 1e-3
+    xs = np.where(small, 1.0, x)
+    exact = (2.0 * xs - 3.0 + 4.0 * np.exp(-xs) - np.exp(-2.0 * xs)) / xs ** 2
+    series = x / 3.0 - x ** 2 / 4.0 + 7.0 * x ** 3 / 60.0
+    return q * np.where(small, series, exact)
+
+
+@dataclass(frozen=True)
+class FlickerPlan:
+    """
+    Coefficients of the bias-instability (flicker) generator for B = 1 rad/s.
+
+    ``corr_times_s`` are the K Gauss-Markov correlation times, ``phi`` their
+    exact poles exp(-dt/T_k), ``variances`` their steady-state variances,
+    ``gains`` the single-input gains c_k and ``stationary_factor`` a K x K
+    matrix L with L L^T the stationary state covariance (all for B = 1).
+    """
+
+    dt_s: float
+    corr_times_s: np.ndarray
+    phi: np.ndarray
+    variances: np.ndarray
+    gains: np.ndarray
+    stationary_factor: np.ndarray
+
+
+def flicker_corr_times_s(band_s, per_decade=1.0):
+    """
+    Correlation times of the Gauss-Markov sum, log-spaced across ``band_s``.
+
+    T_k = T_min r^k with r = 10^(1/per_decade), K = round(log_r(T_max/T_min)) + 1.
+    One per decade keeps the Allan floor within a few percent of flat.
+    """
+    t_min, t_max = float(band_s[0]), float(band_s[1])
+    ratio = 10.0 ** (1.0 / float(per_decade))
+    count = int(round(np.log(t_max / t_min) / np.log(ratio))) + 1
+    return t_min * ratio ** np.arange(count)
+
+
+def flicker_unit_variance(corr_times_s):
+    """
+    Steady-state variance of each Gauss-Markov term for B = 1.
+
+    Equal variances q on log-spaced T_k give a 1/f spectrum. q is set so the
+    theoretical Allan deviation, averaged in log over the flat part
+    [2 T_min, T_max / 2] (the centre for one or two terms), equals the flicker
+    floor sqrt(2 ln 2 / pi) B = 0.664 B (IEEE Std 952 Annex C).
+    """
+    t = np.asarray(corr_times_s, dtype=float)
+    lo, hi = 2.0 * t[0], 0.5 * t[-1]
+    if hi <= lo:
+        taus = np.array([1.89 * np.sqrt(t[0] * t[-1])])
+    else:
+        taus = np.logspace(np.log10(lo), np.log10(hi), 41)
+    unit = sum(gauss_markov_avar(1.0, tk, taus) for tk in t)
+    mean_log = np.exp(np.mean(np.log(unit)))
+    return np.full(t.shape, FLICKER_FLOOR_PER_B ** 2 / mean_log)
+
+
+def _single_input_gains(phi, variances, one_minus_phiphi):
+    """
+    Solve c_k (G c)_k = q_k with G_kj = 1 / (1 - phi_k phi_j) (Newton).
+
+    With these gains, x_k[n] = phi_k x_k[n-1] + c_k w[n] driven by ONE white
+    sequence w has sum_k x_k with autocovariance sum_k q_k phi_k^|m| at every
+    lag m: the same Gaussian law as the sampled sum of independent
+    Gauss-Markov processes.
+    """
+    g = 1.0 / one_minus_phiphi
+    q = np.asarray(variances, dtype=float)
+    scale = np.sqrt(q * np.diag(one_minus_phiphi))
+    u = np.full(q.shape, 0.5)
+
+    def residual(v):
+        c = v * scale
+        return c * (g @ c) / q - 1.0
+
+    for _ in range(200):
+        f = residual(u)
+        if np.max(np.abs(f)) < 1e-14:
+            break
+        c = u * scale
+        jac = (np.diag(g @ c) + c[:, np.newaxis] * g) * scale[np.newaxis, :] \
+            / q[:, np.newaxis]
+        step = np.linalg.solve(jac, -f)
+        lam = 1.0
+        while lam > 1e-6 and np.max(np.abs(residual(u + lam * step))) >= np.max(
+                np.abs(f)):
+            lam *= 0.5
+        u = u + lam * step
+    if np.max(np.abs(residual(u))) > 1e-10:
+        raise RuntimeError('flicker gains did not converge')
+    return u * scale
+
+
+def flicker_plan(band_s, dt_s, per_decade=1.0):
+    """
+    Build the exact single-input flicker generator for B = 1 rad/s.
+
+    The bias instability is the sum of K Gauss-Markov processes with
+    correlation times across ``band_s`` (:func:`flicker_corr_times_s`) and
+    equal variances (:func:`flicker_unit_variance`). Its exact sampled law is
+    reproduced by K first-order recursions x_k[n] = phi_k x_k[n-1] + c_k w[n]
+    that share one standard normal w[n] per sample (gains from
+    :func:`_single_input_gains`): one random number per sample and axis
+    instead of K.
+
+    Parameters
+    ----------
+    band_s : sequence of float
+        (T_min, T_max) correlation-time band, s.
+    dt_s : float
+        Sample period, s.
+    per_decade : float
+        Gauss-Markov terms per decade of correlation time.
+
+    Returns
+    -------
+    FlickerPlan
+
+    """
+    t = flicker_corr_times_s(band_s, per_decade)
+    q = flicker_unit_variance(t)
+    rates = 1.0 / t
+    one_minus_phiphi = -np.expm1(-dt_s * (rates[:, np.newaxis] + rates[np.newaxis, :]))
+    c = _single_input_gains(np.exp(-dt_s * rates), q, one_minus_phiphi)
+    cov = c[:, np.newaxis] * c[np.newaxis, :] / one_minus_phiphi
+    vals, vecs = np.linalg.eigh(cov)
+    factor = vecs * np.sqrt(np.clip(vals, 0.0, None))[np.newaxis, :]
+    return FlickerPlan(dt_s=float(dt_s), corr_times_s=t, phi=np.exp(-dt_s * rates),
+                       variances=q, gains=c, stationary_factor=factor)
+
+
+def flicker_initial_state(plan, bias_instability_rad_s, z):
+    """
+    Draw the K flicker states from their stationary distribution.
+
+    Parameters
+    ----------
+    plan : FlickerPlan
+        The generator.
+    bias_instability_rad_s : numpy.ndarray
+        B per axis, rad/s, shape (axes,).
+    z : numpy.ndarray
+        Standard normals, shape (K, axes).
+
+    Returns
+    -------
+    numpy.ndarray
+        States x_k, shape (K, axes), rad/s.
+
+    """
+    return (plan.stationary_factor @ z) * np.asarray(bias_instability_rad_s, dtype=float)
+
+
+def flicker(z, plan, bias_instability_rad_s, states):
+    """
+    Bias instability over a block: sum_k x_k, x_k[n] = phi_k x_k[n-1] + c_k B w[n].
+
+    Parameters
+    ----------
+    z : numpy.ndarray
+        Standard normals w, shape (n, axes).
+    plan : FlickerPlan
+        The generator.
+    bias_instability_rad_s : numpy.ndarray
+        B per axis, rad/s.
+    states : numpy.ndarray
+        x_k[-1], shape (K, axes).
+
+    Returns
+    -------
+    b : numpy.ndarray
+        Flicker bias, shape (n, axes), rad/s.
+    states : numpy.ndarray
+        The new states.
+
+    """
+    u = np.asarray(z, dtype=float) * np.asarray(bias_instability_rad_s, dtype=float)
+    out = None
+    new = np.empty_like(states)
+    for k in range(len(plan.phi)):
+        xk, new[k] = first_order_filter(u, plan.phi[k], plan.gains[k], states[k])
+        out = xk if out is None else out + xk
+    return out, new
+
+
+def flicker_autocovariance(plan, lag_samples):
+    """Autocovariance sum_k q_k phi_k^|m| of the flicker process for B = 1, (rad/s)^2."""
+    m = np.abs(np.asarray(lag_samples, dtype=float))[..., np.newaxis]
+    return np.sum(plan.variances * plan.phi ** m, axis=-1)
+
+
+def flicker_avar(plan, bias_instability_rad_s, tau_s):
+    """Theoretical Allan variance of the flicker generator, (rad/s)^2."""
+    b2 = np.asarray(bias_instability_rad_s, dtype=float) ** 2
+    return b2 * sum(gauss_markov_avar(q, t, tau_s)
+                    for q, t in zip(plan.variances, plan.corr_times_s))
+
+
+def brownian_arw_rad_s_sqrt_hz(device, temp_c=25.0):
+    """
+    Angle random walk N from the mechanical-thermal noise of the sense mode.
+
+    The sense damping C_sense carries a Brownian force of ONE-sided density
+    sqrt(4 k_B T C_sense) N/sqrt(Hz) (Nyquist). The Coriolis force per unit
+    rate is F_c / Omega = 2 M V_drive (Eq 17). Both act on the same sense mode
+    at the drive frequency, so the mode's response cancels. Synchronous
+    demodulation keeps the in-phase part of the force noise, whose baseband
+    one-sided PSD is twice the force PSD: 8 k_B T C. Referred to rate, the
+    one-sided PSD is 8 k_B T C / (2 M V_drive)^2, i.e. a TWO-sided density
+
+        N = sqrt(4 k_B T C_sense) / (2 M V_drive)   rad/s/sqrt(Hz),
+
+    which is the IEEE Std 952 angle random walk coefficient (Allan deviation
+    N / sqrt(tau)). First-order (matched-mode) physics, Eq 5-17.
+
+    Parameters
+    ----------
+    device : gyro_emulator.physics.params.Device
+        The device.
+    temp_c : float or array_like
+        Die temperature, deg C.
+
+    Returns
+    -------
+    numpy.ndarray
+        N, rad/s/sqrt(Hz).
+
+    """
+    r = first_order.first_order_response(device, 1.0, temp_c)
+    p = r.params
+    force = np.sqrt(4.0 * BOLTZMANN_J_K * celsius_to_kelvin(temp_c)
+                    * p.damping_sense_n_s_m)
+    return force / (2.0 * p.mass_kg * r.drive_velocity_m_s)

@@ -1,0 +1,85 @@
+"""
+Validation of parameters and inputs: one-line errors naming field, value and range.
+
+Every check raises ``ValueError`` with a message such as::
+
+    Geometry.thickness_m = -2e-06 is out of range: allowed (0, 0.0001] m
+"""
+
+from gyro_emulator.units import ZERO_CELSIUS_K
+import numpy as np
+
+#: Die temperatures the physics model is meant for, deg C. Eq 22 (linear E(T))
+#: and the gas model are trusted over this span; outside it the node clamps.
+MODEL_TEMP_RANGE_C = (-60.0, 200.0)
+
+
+def check_range(owner, name, value, low, high, unit='',
+                low_open=True, high_open=False):
+    """
+    Raise ValueError unless every element of ``value`` lies in the range.
+
+    Parameters
+    ----------
+    owner : str
+        Class or function name used in the message.
+    name : str
+        Field name used in the message.
+    value : float or array_like
+        Value(s) to check; NaN and inf always fail.
+    low, high : float
+        Bounds; ``None`` for unbounded.
+    unit : str
+        Unit shown in the message.
+    low_open, high_open : bool
+        Whether the bound itself is excluded.
+
+    Returns
+    -------
+    numpy.ndarray or float
+        The value, unchanged (a float for scalars).
+
+    """
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(
+            f'{owner}.{name} = {value!r} is not a number') from None
+    bad = ~np.isfinite(arr)
+    if low is not None:
+        bad |= (arr <= low) if low_open else (arr < low)
+    if high is not None:
+        bad |= (arr >= high) if high_open else (arr > high)
+    if np.any(bad):
+        first = float(arr[bad].flat[0]) if arr.ndim else float(arr)
+        lo = '-inf' if low is None else repr(low)
+        hi = 'inf' if high is None else repr(high)
+        bracket = ('(' if low_open or low is None else '[') + lo + ', ' + hi + (
+            ')' if high_open or high is None else ']')
+        where = '' if arr.ndim == 0 else f' (element {int(np.flatnonzero(bad)[0])})'
+        raise ValueError(
+            f'{owner}.{name} = {first!r}{where} is out of range: allowed '
+            f'{bracket}{" " + unit if unit else ""}')
+    return float(arr) if arr.ndim == 0 else arr
+
+
+def check_choice(owner, name, value, choices):
+    """Raise ValueError unless ``value`` is one of ``choices``."""
+    if value not in choices:
+        raise ValueError(
+            f'{owner}.{name} = {value!r} is not allowed: choose one of '
+            f'{", ".join(repr(c) for c in choices)}')
+    return value
+
+
+def check_temperature_c(temp_c, owner='temperature', name='temp_c'):
+    """Validate a die temperature against :data:`MODEL_TEMP_RANGE_C`."""
+    low, high = MODEL_TEMP_RANGE_C
+    arr = np.asarray(temp_c, dtype=float)
+    if np.any(arr <= -ZERO_CELSIUS_K):
+        first = float(arr[arr <= -ZERO_CELSIUS_K].flat[0])
+        raise ValueError(
+            f'{owner}.{name} = {first!r} is below absolute zero; allowed '
+            f'[{low}, {high}] C')
+    return check_range(owner, name, temp_c, low, high, 'C',
+                       low_open=False, high_open=False)
