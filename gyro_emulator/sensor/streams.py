@@ -1,0 +1,139 @@
+"""
+Standard normals of the error model: one numpy ``Generator`` per noise stream.
+
+Every noise term and axis draws from its own stream, so switching one term
+on or off leaves the others' numbers unchanged. Stream ``k`` is::
+
+    children = rng.bit_generator.seed_seq.spawn(STREAM_COUNT)
+    numpy.random.Generator(numpy.random.SFC64(children[k])).standard_normal
+
+for the injected generator ``rng`` (a generator without a SeedSequence seeds
+one from four of its own draws first). The streams, in order: turn-on bias,
+timestamp jitter, then white noise, flicker and rate random walk for the
+axes x, y, z.
+
+:class:`NormalStreams` draws each stream in blocks of :data:`BLOCK` with
+``Generator.standard_normal(out=...)`` into a buffer row that the compiled
+kernel reads in order. numpy's normal stream does not depend on how the
+draws are split into calls, so the k-th normal of a stream is the same
+whatever the block boundaries, the record split or the call pattern
+(``run`` over a record or ``step`` sample by sample).
+"""
+
+import numpy as np
+
+#: Streams (rows of :attr:`NormalStreams.buffer`): turn-on, jitter, then white,
+#: flicker and rate random walk for axes x, y, z.
+TURN_ON, JITTER, WHITE, FLICKER, RRW = 0, 1, 2, 5, 8
+STREAM_COUNT = 11
+
+#: Normals drawn per refill of a stream; also the most samples one kernel
+#: call may consume (the model splits longer records into calls of BLOCK).
+BLOCK = 4096
+
+
+def spawn_generators(rng, count=STREAM_COUNT):
+    """
+    Return ``count`` independent child generators of ``rng`` (SFC64).
+
+    The children are spawned from ``rng``'s SeedSequence (as
+    ``Generator.spawn`` does, which advances the parent's spawn counter);
+    a generator without one seeds a SeedSequence from its own draws.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The injected parent generator.
+    count : int
+        Number of streams.
+
+    Returns
+    -------
+    list of numpy.random.Generator
+
+    """
+    try:
+        children = rng.bit_generator.seed_seq.spawn(count)
+    except (AttributeError, TypeError, ValueError, NotImplementedError):
+        children = np.random.SeedSequence(
+            rng.integers(0, 2 ** 63, size=4).tolist()).spawn(count)
+    return [np.random.Generator(np.random.SFC64(child)) for child in children]
+
+
+def _clone(generator):
+    """Return an independent generator in the same state (faster than deepcopy)."""
+    bits = generator.bit_generator
+    twin = type(bits)(bits.seed_seq)
+    twin.state = bits.state
+    return np.random.Generator(twin)
+
+
+class NormalStreams:
+    """
+    Buffered standard normals of the :data:`STREAM_COUNT` streams.
+
+    ``buffer[k, pos[k]:]`` holds the next unread normals of stream ``k``, in
+    stream order. The kernel reads ``buffer[k, pos[k] + m]`` for the m-th
+    sample of a call and advances ``pos``; :meth:`reserve` refills the rows
+    beforehand and :meth:`draw` takes normals on the Python side.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        The injected generator the streams are spawned from.
+
+    """
+
+    def __init__(self, rng):
+        self.generators = spawn_generators(rng)
+        self.buffer = np.empty((STREAM_COUNT, BLOCK))
+        self.pos = np.full(STREAM_COUNT, BLOCK, dtype=np.int64)    # all rows empty
+        # Unread normals common to every stream of the last reserve(), less what
+        # it reserved: an O(1) answer for the next reserve of the same streams
+        # (the kernel consumes exactly one normal per sample of each).
+        self._headroom_streams, self._headroom = None, 0
+
+    def reserve(self, streams, count):
+        """Make at least ``count`` (<= BLOCK) unread normals ready in each of ``streams``."""
+        if streams is self._headroom_streams and self._headroom >= count:
+            self._headroom -= count
+            return
+        pos = self.pos
+        for k in streams:
+            if BLOCK - pos[k] < count:
+                self._refill(k)
+        unread = min((BLOCK - int(pos[k]) for k in streams), default=BLOCK)
+        self._headroom_streams, self._headroom = streams, unread - count
+
+    def draw(self, stream, count):
+        """Return the next ``count`` normals of ``stream`` (consumed)."""
+        self._headroom_streams = None
+        out = np.empty(count)
+        done = 0
+        while done < count:
+            if self.pos[stream] == BLOCK:
+                self._refill(stream)
+            start = self.pos[stream]
+            take = min(count - done, BLOCK - start)
+            out[done:done + take] = self.buffer[stream, start:start + take]
+            self.pos[stream] = start + take
+            done += take
+        return out
+
+    def _refill(self, stream):
+        """Move the unread normals of ``stream`` to the front; draw the rest of the row."""
+        row = self.buffer[stream]
+        unread = BLOCK - self.pos[stream]
+        row[:unread] = row[BLOCK - unread:]
+        self.generators[stream].standard_normal(out=row[unread:])
+        self.pos[stream] = 0
+
+    def __deepcopy__(self, memo):
+        """Return an independent copy that continues every stream identically."""
+        twin = NormalStreams.__new__(NormalStreams)
+        twin.generators = [_clone(g) for g in self.generators]
+        twin.buffer = self.buffer.copy()
+        twin.pos = self.pos.copy()
+        twin._headroom_streams, twin._headroom = None, 0
+        memo[id(self)] = twin
+        return twin
