@@ -1,9 +1,10 @@
 """
-The compiled per-sample kernel of :class:`gyro_emulator.sensor.model.GyroModel`.
+The compiled kernel of :class:`gyro_emulator.sensor.model.GyroModel`.
 
-One pass per sample through every term (see :mod:`gyro_emulator.sensor.model`
-for the equations), on three parameter structs (numba-supported namedtuples
-of arrays):
+Every term (see :mod:`gyro_emulator.sensor.model` for the equations), term
+by term over a block of samples, with each sample's arithmetic in the order
+of a per-sample pass (so the result does not depend on the block size), on
+three parameter structs (numba-supported namedtuples of arrays):
 
 * :class:`Coefficients` -- read-only, precomputed by
   :class:`gyro_emulator.sensor.plan.Plan`: switches (``flags``), scalars and
@@ -137,148 +138,190 @@ def _samples(rate, accel, coef, state, normals, pos, out, start, stop):
     """
     Every term of samples ``start:stop``, whose die temperatures are in ``out.die``.
 
-    The arrays are taken out of the structs once, before the loop: a struct
-    field read inside the loop would cost a reference-count update per sample.
+    Term by term over the block (each loop is simple enough for the compiler
+    to vectorise, and the recursions run their three axes side by side),
+    with the arithmetic of each sample in the same order as a per-sample
+    pass, so the result does not depend on the block size. ``out.gyro``
+    holds the signal as it goes through the chain; ``out.bias`` the bias.
     """
     on, at = _switches(coef.flags), _offsets(pos, start)
-    sc, ax, ints = coef.scalars, coef.axis, state.ints
-    sf_tab, sf_index = coef.sf_tab, coef.sf_index
-    mech_tab, mech_index = coef.mech_tab, coef.mech_index
-    dyn_b, dyn_a, dyn_zi, dyn_z = coef.dyn_b, coef.dyn_a, coef.dyn_zi, state.dyn_z
-    lpf_b, lpf_a, lpf_zi, lpf_z = coef.lpf_b, coef.lpf_a, coef.lpf_zi, state.lpf_z
-    mis, g, fl_phi, fl_gains = (coef.misalignment, coef.g_sensitivity, coef.flicker_phi,
-                                coef.flicker_gains)
-    fl, rrw, die = state.flicker, state.rrw, out.die
-    true, gain, bias, gyro, sat, delay = (out.true, out.gain, out.bias, out.gyro, out.sat,
-                                          out.delay)
-    use_table = on[F_SF] or on[F_MECH]
-    low_c, steps, sqrt_fs = sc[S_LOW_C], sc[S_STEPS], sc[S_SQRT_FS]
-    last_cell = sf_tab.shape[2] - 2 if on[F_SF] else mech_tab.shape[2] - 2
-    use_g = on[F_GSENS] and accel.shape[0] > 0
-    held = accel.shape[0] == 1
-    index = ints[I_INDEX] - start
-    x = np.empty(3)
-    sigma = ax[A_WHITE_SIGMA].copy()
-    u, cell = 0.0, 0
+    ax, ints = coef.axis, state.ints
+    x, bias = out.gyro, out.bias
+    cell, u = _table_cells(out.die, start, stop, on[F_SF] or on[F_MECH], coef)
+    _sensed(rate, start, stop, on, ax, coef.misalignment, coef.sf_tab, coef.sf_index,
+            cell, u, x, out.true, out.gain)
+    if on[F_DYN]:
+        _filter(coef.dyn_b, coef.dyn_a, coef.dyn_zi, state.dyn_z, ints, I_DYN_READY, x,
+                start, stop)
+    _static_bias(out.die, accel, start, stop, on, ax, coef.g_sensitivity, bias)
+    if on[F_FLICKER]:
+        _flicker(normals, at, start, stop, ax, coef.flicker_phi,
+                 coef.flicker_gains, state.flicker, bias)
+    if on[F_RRW]:
+        _walk(normals, at, start, stop, ax, state.rrw, bias)
+    _add_bias_and_noise(normals, at, start, stop, on, ax, coef,
+                        cell, u, bias, x)
+    if on[F_LPF]:
+        _filter(coef.lpf_b, coef.lpf_a, coef.lpf_zi, state.lpf_z, ints, I_LPF_READY, x,
+                start, stop)
+    _output_stage(x, start, stop, on, ax, out.sat)
+    _delays(normals, at, start, stop, ints[I_INDEX], coef.scalars, on, out.delay)
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _table_cells(die, start, stop, used, coef):
+    """Grid cell and fraction of each die temperature in the temperature tables."""
+    n = stop - start
+    cell = np.zeros(n, dtype=np.int64)
+    u = np.zeros(n)
+    if not used:
+        return cell, u
+    sc = coef.scalars
+    low_c, steps = sc[S_LOW_C], sc[S_STEPS]
+    last_cell = (coef.sf_tab.shape[2] if coef.flags[F_SF] else coef.mech_tab.shape[2]) - 2
+    for m in range(n):
+        v = (die[start + m] - low_c) * steps
+        c = min(max(int(v), 0), last_cell)
+        cell[m] = c
+        u[m] = v - c
+    return cell, u
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _sensed(rate, start, stop, on, ax, mis, sf_tab, sf_index, cell, u, x, true, gain):
+    """Sensed signal x: misalignment, nonlinearity, total gain (Eq 18 with errors)."""
     for j in range(start, stop):
-        d = die[j]
-        if use_table:               # one grid cell for every temperature curve
-            u = (d - low_c) * steps
-            cell = min(max(int(u), 0), last_cell)
-            u -= cell
-        _sensed(rate, j, on, ax, mis, sf_tab, sf_index, cell, u, x, true, gain)
-        if on[F_DYN]:
-            _filter(dyn_b, dyn_a, dyn_zi, dyn_z, ints, I_DYN_READY, x)
-        if on[F_MECH]:              # white-noise sigma at this die temperature: N(T) sqrt(fs)
-            _white_sigma(mech_tab, mech_index, cell, u, ax, sqrt_fs, sigma)
-        ja = 0 if held else j
-        _bias(d, accel, ja, use_g, on, ax, g, normals, at, j, fl_phi, fl_gains, fl, rrw, x,
-              bias)
-        if on[F_WHITE]:
-            for i in range(3):
-                x[i] += normals[WHITE + i, at[WHITE + i] + j] * sigma[i]
-        if on[F_LPF]:
-            _filter(lpf_b, lpf_a, lpf_zi, lpf_z, ints, I_LPF_READY, x)
-        _output_stage(x, j, on, ax, gyro, sat)
-        delay[j] = _delay(normals, at, j, index + j, sc, on)
+        for i in range(3):
+            true[j, i] = rate[j, i]
+    for i in range(3):
+        sf1, nl, t = ax[A_SF1, i], ax[A_NONLIN, i], sf_index[i]
+        m0, m1, m2 = mis[i, 0], mis[i, 1], mis[i, 2]
+        for j in range(start, stop):
+            xi = rate[j, i]
+            if on[F_MIS]:
+                xi = xi + (rate[j, 0] * m0 + rate[j, 1] * m1 + rate[j, 2] * m2)
+            if on[F_NONLIN]:
+                xi = xi + nl * xi * xi
+            gi = sf1
+            if on[F_SF]:
+                c = cell[j - start]
+                gi = (sf_tab[t, 0, c] + u[j - start] * sf_tab[t, 1, c]) * gi
+            gain[j, i] = gi
+            x[j, i] = xi * gi
 
 
-@numba.njit(cache=True, error_model='numpy', inline='always')
-def _tdf2(b, a, z, i, x):
-    """One sample of transposed direct form II (scipy.signal.lfilter), row i of b, a, z."""
-    m = b.shape[1]
-    y = z[i, 0] + b[i, 0] * x
-    for k in range(m - 2):
-        z[i, k] = z[i, k + 1] + b[i, k + 1] * x - a[i, k + 1] * y
-    z[i, m - 2] = b[i, m - 1] * x - a[i, m - 1] * y
-    return y
+@numba.njit(cache=True, error_model='numpy')
+def _filter(b, a, zi0, z, ints, ready, x, start, stop):
+    """
+    Filter each axis of x[start:stop] by b[i], a[i] (transposed direct form II).
 
-
-@numba.njit(cache=True, error_model='numpy', inline='always')
-def _filter(b, a, zi0, z, ints, ready, x):
-    """Filter axis i of x by b[i], a[i] (TDF-II state z), started in steady state zi0 x."""
+    The scipy.signal.lfilter recursion on state z; a filter not yet started
+    starts in steady state for its first input, z = zi0 x.
+    """
+    order = b.shape[1] - 1
     if ints[ready] == 0:
         for i in range(3):
-            for k in range(z.shape[1]):
-                z[i, k] = zi0[i, k] * x[i]
+            for k in range(order):
+                z[i, k] = zi0[i, k] * x[start, i]
         ints[ready] = 1
+    for j in range(start, stop):
+        for i in range(3):
+            xi = x[j, i]
+            y = z[i, 0] + b[i, 0] * xi
+            for k in range(order - 1):
+                z[i, k] = z[i, k + 1] + b[i, k + 1] * xi - a[i, k + 1] * y
+            z[i, order - 1] = b[i, order] * xi - a[i, order] * y
+            x[j, i] = y
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _static_bias(die, accel, start, stop, on, ax, g, bias):
+    """Bias b = turn-on + temperature polynomial + g-sensitivity, per sample and axis."""
+    use_g = on[F_GSENS] and accel.shape[0] > 0
+    held = accel.shape[0] == 1
     for i in range(3):
-        x[i] = _tdf2(b, a, z, i, x[i])
+        b0, cal, c1, c2 = ax[A_TURN_ON, i], ax[A_CAL, i], ax[A_C1, i], ax[A_C2, i]
+        g0, g1, g2 = g[i, 0], g[i, 1], g[i, 2]
+        for j in range(start, stop):
+            b = b0
+            if on[F_BIAS_T]:
+                dtemp = die[j] - cal
+                b += (c1 + c2 * dtemp) * dtemp
+            if use_g:
+                ja = 0 if held else j
+                b += (accel[ja, 0] * g0 + accel[ja, 1] * g1 + accel[ja, 2] * g2)
+            bias[j, i] = b
 
 
-@numba.njit(cache=True, error_model='numpy', inline='always')
-def _sensed(rate, j, on, ax, mis, sf_tab, sf_index, cell, u, x, true, gain):
-    """Sensed signal x: misalignment, nonlinearity, total gain (Eq 18 with errors)."""
-    r0, r1, r2 = rate[j, 0], rate[j, 1], rate[j, 2]
-    true[j, 0], true[j, 1], true[j, 2] = r0, r1, r2
-    for i in range(3):
-        xi = rate[j, i]
-        if on[F_MIS]:
-            xi = xi + (r0 * mis[i, 0] + r1 * mis[i, 1] + r2 * mis[i, 2])
-        if on[F_NONLIN]:
-            xi = xi + ax[A_NONLIN, i] * xi * xi
-        gi = ax[A_SF1, i]
-        if on[F_SF]:
-            t = sf_index[i]
-            gi = (sf_tab[t, 0, cell] + u * sf_tab[t, 1, cell]) * gi
-        gain[j, i] = gi
-        x[i] = xi * gi
-
-
-@numba.njit(cache=True, error_model='numpy', inline='always')
-def _white_sigma(mech_tab, mech_index, cell, u, ax, sqrt_fs, sigma):
-    """Per-sample white sigma sqrt(N_mech(T)^2 + N_elec^2) sqrt(fs) of each axis."""
-    for i in range(3):
-        t = mech_index[i]
-        sigma[i] = math.sqrt(mech_tab[t, 0, cell] + u * mech_tab[t, 1, cell]
-                             + ax[A_ELEC_SQ, i]) * sqrt_fs
-
-
-@numba.njit(cache=True, error_model='numpy', inline='always')
-def _bias(d, accel, ja, use_g, on, ax, g, normals, at, j, phi, gains, fl, rrw, x, bias):
-    """Add the bias (turn-on, temperature, g, flicker, random walk) to x and record it."""
-    for i in range(3):
-        b = ax[A_TURN_ON, i]
-        if on[F_BIAS_T]:
-            dtemp = d - ax[A_CAL, i]
-            b += (ax[A_C1, i] + ax[A_C2, i] * dtemp) * dtemp
-        if use_g:
-            b += (accel[ja, 0] * g[i, 0] + accel[ja, 1] * g[i, 1] + accel[ja, 2] * g[i, 2])
-        if on[F_FLICKER]:
+@numba.njit(cache=True, error_model='numpy')
+def _flicker(normals, at, start, stop, ax, phi, gains, fl, bias):
+    """Add the bias instability: sections x_k = phi_k x_k + c_k B w, summed in k order."""
+    sections = phi.shape[0]
+    for j in range(start, stop):
+        for i in range(3):
             w = normals[FLICKER + i, at[FLICKER + i] + j] * ax[A_FLICKER_B, i]
-            for k in range(phi.shape[0]):
+            b = bias[j, i]
+            for k in range(sections):
                 xk = phi[k] * fl[i, k] + gains[k] * w
                 fl[i, k] = xk
                 b += xk
-        if on[F_RRW]:
-            rrw[i] += normals[RRW + i, at[RRW + i] + j] * ax[A_RRW_STEP, i]
-            b += rrw[i]
-        bias[j, i] = b
-        x[i] += b
+            bias[j, i] = b
 
 
-@numba.njit(cache=True, error_model='numpy', inline='always')
-def _output_stage(x, j, on, ax, gyro, sat):
-    """Range flag, LSB rounding and clip to whole LSBs."""
+@numba.njit(cache=True, error_model='numpy')
+def _walk(normals, at, start, stop, ax, rrw, bias):
+    """Add the rate random walk r[n] = r[n-1] + K sqrt(dt) w[n]."""
+    for i in range(3):
+        r, step = rrw[i], ax[A_RRW_STEP, i]
+        for j in range(start, stop):
+            r += normals[RRW + i, at[RRW + i] + j] * step
+            bias[j, i] += r
+        rrw[i] = r
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _add_bias_and_noise(normals, at, start, stop, on, ax, coef, cell, u, bias, x):
+    """Add the bias and the white noise of sigma N(T_die) sqrt(fs) to x."""
+    mech_tab, mech_index = coef.mech_tab, coef.mech_index
+    sqrt_fs = coef.scalars[S_SQRT_FS]
+    for i in range(3):
+        sigma, elec_sq, t = ax[A_WHITE_SIGMA, i], ax[A_ELEC_SQ, i], mech_index[i]
+        for j in range(start, stop):
+            y = x[j, i] + bias[j, i]
+            if on[F_WHITE]:
+                if on[F_MECH]:
+                    c = cell[j - start]
+                    sigma = math.sqrt(mech_tab[t, 0, c] + u[j - start] * mech_tab[t, 1, c]
+                                      + elec_sq) * sqrt_fs
+                y += normals[WHITE + i, at[WHITE + i] + j] * sigma
+            x[j, i] = y
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _output_stage(x, start, stop, on, ax, sat):
+    """Range flag, LSB rounding and clip to whole LSBs, in place on x."""
     use_sat, use_q = on[F_SAT], on[F_QUANT]
     for i in range(3):
-        y = x[i]
-        sat[j, i] = use_sat and abs(y) > ax[A_RANGE, i]
-        lsb = ax[A_LSB, i]
-        if use_q and lsb > 0.0:
-            y = np.rint(y / lsb) * lsb
-        if use_sat:
-            limit = ax[A_SAT_LIMIT, i]
-            y = max(min(y, limit), -limit)
-        gyro[j, i] = y
+        lsb, full, limit = ax[A_LSB, i], ax[A_RANGE, i], ax[A_SAT_LIMIT, i]
+        quantise = use_q and lsb > 0.0
+        for j in range(start, stop):
+            y = x[j, i]
+            sat[j, i] = use_sat and abs(y) > full
+            if quantise:
+                y = np.rint(y / lsb) * lsb
+            if use_sat:
+                y = max(min(y, limit), -limit)
+            x[j, i] = y
 
 
-@numba.njit(cache=True, error_model='numpy', inline='always')
-def _delay(normals, at, j, index, sc, on):
-    """Latency + timestamp jitter (clipped at 0) + clock drift of sample ``index``, s."""
-    dl = sc[S_LATENCY]
-    if on[F_JITTER]:
-        dl = max(dl + sc[S_JITTER] * normals[JITTER, at[JITTER] + j], 0.0)
-    if on[F_DRIFT]:
-        dl += index * sc[S_DT] * sc[S_DRIFT]
-    return dl
+@numba.njit(cache=True, error_model='numpy')
+def _delays(normals, at, start, stop, index, sc, on, delay):
+    """Latency + timestamp jitter (clipped at 0) + clock drift of each sample, s."""
+    latency, jitter = sc[S_LATENCY], sc[S_JITTER]
+    for j in range(start, stop):
+        dl = latency
+        if on[F_JITTER]:
+            dl = max(dl + jitter * normals[JITTER, at[JITTER] + j], 0.0)
+        if on[F_DRIFT]:
+            dl += (index + j - start) * sc[S_DT] * sc[S_DRIFT]
+        delay[j] = dl
