@@ -16,8 +16,12 @@ finished bag with metadata.yaml):
 Read paths: ``numpy`` (``BagReader.read_arrays``: the chosen fast path),
 ``bytes`` (``BagReader.messages``), ``rclpy`` (bytes + ``deserialize_message``)
 and ``mcap_ros2`` (``decoded_messages``, mcap-ros2-support's dynamic decoder).
-The reference is rosbags 0.11 (Writer version 9 / Reader + deserialize_cdr)
-on the same payloads and the same file. Best of ``--repeat`` runs.
+The references are rosbags 0.11 (Writer version 9 / Reader + deserialize_cdr)
+on the same payloads and the same file, and for writing also the ``mcap``
+library's own ``mcap.writer.Writer`` (one MCAP file, zstd chunks of the same
+size, no ``metadata.yaml`` and no flushing per chunk): the measure of what
+our hand-written crash-safe writer (``McapFileWriter``) costs or saves. Best
+of ``--repeat`` runs.
 """
 
 import argparse
@@ -51,6 +55,7 @@ def main(argv=None):
     parser.add_argument('--messages', type=int, default=200_000)
     parser.add_argument('--repeat', type=int, default=2)
     args = parser.parse_args(argv)
+    from mcap.writer import CompressionType, Writer as McapWriter
     from rclpy.serialization import deserialize_message, serialize_message
     from rosbags.rosbag2 import Reader, StoragePlugin, Writer
     from rosbags.typesys import get_typestore, Stores
@@ -104,6 +109,19 @@ def main(argv=None):
             for data, t in zip(payloads, stamp_list):
                 write(conn, t, data)
 
+    def write_mcap_library():
+        with open(fresh('mcap') + '.mcap', 'wb') as stream:
+            writer = McapWriter(stream, chunk_size=bag.DEFAULT_CHUNK_SIZE,
+                                compression=CompressionType.ZSTD)
+            writer.start(profile='ros2', library='mcap')
+            schema = writer.register_schema(IMU, 'ros2msg',
+                                            bag.message_definition(IMU).encode())
+            channel = writer.register_channel(TOPIC, 'cdr', schema)
+            add = writer.add_message
+            for seq, (data, t) in enumerate(zip(payloads, stamp_list)):
+                add(channel, log_time=t, data=data, publish_time=t, sequence=seq)
+            writer.finish()
+
     print(f'{n} sensor_msgs/Imu messages ({len(payloads[0])} bytes each), best of '
           f'{args.repeat}; Python {sys.version.split()[0]}')
     print('\nWRITE (messages/s)')
@@ -115,6 +133,9 @@ def main(argv=None):
         print(f'  gyro_emulator.recording.bag {name:<36} {rate:>10,.0f}   '
               f'{rate / rosbags_write:5.2f}x rosbags')
     print(f'  rosbags Writer v9 mcap (same payloads)                {rosbags_write:>10,.0f}')
+    mcap_write = best_rate(n, write_mcap_library, args.repeat)
+    print(f'  mcap.writer.Writer (same payloads, one file)          {mcap_write:>10,.0f}   '
+          f'bytes path / mcap Writer: {rows[0][1] / mcap_write:.2f}x')
 
     path = os.path.join(work, 'read')
     write_bytes(path)

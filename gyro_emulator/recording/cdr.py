@@ -22,11 +22,11 @@ the caller can fall back to a generic decoder.
 
 from dataclasses import dataclass
 
+from gyro_emulator.units import NS_PER_S
 import numpy as np
 
 #: Encapsulation header of little-endian plain CDR (what rclpy produces).
 CDR_LE_HEADER = b'\x00\x01\x00\x00'
-NS_PER_S = 1_000_000_000
 
 
 def _xyz(prefix):

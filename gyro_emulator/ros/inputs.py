@@ -7,7 +7,7 @@ check here before it can reach the sensor model. A bad command is either
 temperature outside the model's range, when the policy is ``clamp``); each
 outcome is counted by reason so the node can report it in ``/diagnostics``.
 
-Rules (documented in docs/sections/5-node.md):
+Rules (documented in docs/node.md, "Bad input, stale commands, diagnostics"):
 
 * rate: every element finite and ``|omega_i| <= max_abs_rate_rad_s``, else
   rejected (``non_finite_rate`` / ``rate_too_large``). Rates above the

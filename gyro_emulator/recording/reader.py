@@ -1,0 +1,450 @@
+"""Reading bags: messages in time order and decoded numpy columns."""
+
+from dataclasses import dataclass
+import heapq
+import os
+import struct
+from typing import NamedTuple
+
+from gyro_emulator.recording import cdr
+from gyro_emulator.recording.mcap_writer import RECORD_HEAD
+from gyro_emulator.recording.metadata import FileInfo, METADATA_FILE, topic_from, TopicInfo
+from gyro_emulator.recording.scan import scan_mcap, ScanReport
+from mcap.data_stream import ReadDataStream
+from mcap.reader import make_reader
+from mcap.records import Channel, Chunk, Message, Metadata, Schema
+import numpy as np
+import yaml
+
+
+class BagMessage(NamedTuple):
+    """
+    One message read from a bag.
+
+    Attributes
+    ----------
+    topic : str
+        Topic name.
+    type_name : str
+        ``package/msg/Name``.
+    log_time_ns : int
+        Receive time, ns.
+    publish_time_ns : int
+        Send time, ns.
+    data : bytes
+        The CDR-serialised message.
+    sequence : int
+        Publisher sequence number (0 if unknown).
+
+    """
+
+    topic: str
+    type_name: str
+    log_time_ns: int
+    publish_time_ns: int
+    data: bytes
+    sequence: int = 0
+
+
+@dataclass(frozen=True)
+class TopicArrays:
+    """
+    A fixed-layout topic decoded into numpy columns (see :mod:`gyro_emulator.recording.cdr`).
+
+    Attributes
+    ----------
+    topic : str
+        Topic name.
+    log_time_ns : numpy.ndarray of int64
+        Receive times, ns.
+    decoded : gyro_emulator.recording.cdr.Decoded
+        Header stamps, frame ids and float64 fields.
+
+    """
+
+    topic: str
+    log_time_ns: np.ndarray
+    decoded: cdr.Decoded
+
+    @property
+    def stamp_ns(self):
+        """Return the header stamps, ns."""
+        return self.decoded.stamp_ns
+
+    def field(self, name):
+        """Return a float64 column or block, e.g. ``angular_velocity``."""
+        return self.decoded.field(name)
+
+
+def resolve_files(path):
+    """Return (bag_dir, [mcap files], metadata dict or None)."""
+    path = os.path.abspath(path)
+    if os.path.isfile(path):
+        if path.endswith(METADATA_FILE):
+            path = os.path.dirname(path)
+        else:
+            return os.path.dirname(path), [path], None
+    if not os.path.isdir(path):
+        raise FileNotFoundError(f'no bag at {path} (expected a bag directory or .mcap file)')
+    meta = None
+    meta_path = os.path.join(path, METADATA_FILE)
+    if os.path.isfile(meta_path):
+        try:
+            with open(meta_path, encoding='utf-8') as handle:
+                loaded = yaml.safe_load(handle)
+            meta = loaded['rosbag2_bagfile_information']
+        except (yaml.YAMLError, KeyError, TypeError) as exc:
+            raise ValueError(f'{meta_path} is not rosbag2 metadata: {exc}') from None
+    files = []
+    if meta is not None and meta.get('relative_file_paths'):
+        for rel in meta['relative_file_paths']:
+            full = os.path.join(path, rel)
+            if not os.path.isfile(full):
+                raise FileNotFoundError(f'{meta_path} lists {rel}, which is missing')
+            files.append(full)
+    else:
+        files = sorted(os.path.join(path, n) for n in os.listdir(path) if n.endswith('.mcap'))
+    if not files:
+        raise FileNotFoundError(f'no .mcap file in bag directory {path}')
+    return path, files, meta
+
+
+def index_file(path, tolerant):
+    """Return the FileInfo of one MCAP file, scanning it when it has no summary."""
+    problem = None
+    try:
+        with open(path, 'rb') as handle:
+            reader = make_reader(handle)
+            summary = reader.get_summary()
+            if summary is not None and summary.statistics is not None:
+                stats = summary.statistics
+                topics = {}
+                for cid, channel in summary.channels.items():
+                    topics[channel.topic] = topic_from(
+                        channel, summary.schemas.get(channel.schema_id),
+                        stats.channel_message_counts.get(cid, 0))
+                custom = {}
+                for meta in reader.iter_metadata():
+                    if meta.name == 'gyro_emulator':
+                        custom = dict(meta.metadata)
+                return FileInfo(path, topics, stats.message_count,
+                                stats.message_start_time, stats.message_end_time,
+                                custom_data=custom, summary=summary)
+    except Exception as exc:  # noqa: B902 - any failure here means: scan instead
+        problem = f'{type(exc).__name__}: {exc}'
+    report = ScanReport(path)
+    schemas, channels, counts, custom = {}, {}, {}, {}
+    start, end = None, 0
+    for record in scan_mcap(path, report):
+        if isinstance(record, Message):
+            counts[record.channel_id] = counts.get(record.channel_id, 0) + 1
+            start = record.log_time if start is None else min(start, record.log_time)
+            end = max(end, record.log_time)
+        elif isinstance(record, Schema):
+            schemas[record.id] = record
+        elif isinstance(record, Channel):
+            channels[record.id] = record
+        elif isinstance(record, Metadata) and record.name == 'gyro_emulator':
+            custom = dict(record.metadata)
+    if not report.complete and not tolerant:
+        raise ValueError(
+            f'{path} is an incomplete MCAP file ({report.problem or problem}); the '
+            'recorder was probably killed. Recover it with: gyro-emulator bag repair '
+            f'{os.path.dirname(path)}')
+    topics = {c.topic: topic_from(c, schemas.get(c.schema_id), counts.get(cid, 0))
+              for cid, c in channels.items()}
+    return FileInfo(path, topics, sum(counts.values()), start or 0, max(end, start or 0),
+                    complete=report.complete, custom_data=custom, scan=report)
+
+
+def _decompressor(compression):
+    if compression == 'zstd':
+        import zstandard
+        dctx = zstandard.ZstdDecompressor()
+        return lambda data, size: dctx.decompress(data, max_output_size=size)
+    if compression == 'lz4':
+        import lz4.frame
+        return lambda data, size: lz4.frame.decompress(data)
+    if compression == '':
+        return lambda data, size: data
+    raise ValueError(f'unsupported chunk compression {compression!r}')
+
+
+def _chunks_in_order(summary):
+    """Return the chunk indexes sorted by start time if they do not overlap, else None."""
+    chunks = sorted(summary.chunk_indexes, key=lambda c: (c.message_start_time,
+                                                          c.chunk_start_offset))
+    for before, after in zip(chunks, chunks[1:]):
+        if after.message_start_time < before.message_end_time:
+            return None
+    return chunks
+
+
+def _iter_chunk_messages(handle, summary, chunks, channel_ids, start_ns, end_ns):
+    """
+    Yield (log_time, channel_id, publish_time, sequence, data) from indexed chunks.
+
+    The fast path for complete files whose chunks do not overlap in time:
+    each wanted chunk is read and decompressed once and its message records
+    are unpacked with ``struct``; a chunk whose messages are out of order is
+    sorted by log time (stable).
+    """
+    decompressors = {}
+    unpack_head = RECORD_HEAD.unpack_from
+    unpack_msg = struct.Struct('<HIQQ').unpack_from
+    for index in chunks:
+        if start_ns is not None and index.message_end_time < start_ns:
+            continue
+        if end_ns is not None and index.message_start_time >= end_ns:
+            continue
+        if channel_ids is not None and index.message_index_offsets and not (
+                channel_ids & index.message_index_offsets.keys()):
+            continue
+        handle.seek(index.chunk_start_offset + 9)
+        record = Chunk.read(ReadDataStream(handle))
+        decompress = decompressors.get(record.compression)
+        if decompress is None:
+            decompress = decompressors[record.compression] = _decompressor(record.compression)
+        buf = decompress(record.data, record.uncompressed_size)
+        out = []
+        pos, end = 0, len(buf)
+        while pos < end:
+            opcode, length = unpack_head(buf, pos)
+            if opcode == 5:
+                cid, seq, log_time, pub_time = unpack_msg(buf, pos + 9)
+                if ((channel_ids is None or cid in channel_ids)
+                        and (start_ns is None or log_time >= start_ns)
+                        and (end_ns is None or log_time < end_ns)):
+                    out.append((log_time, cid, pub_time, seq, buf[pos + 31:pos + 9 + length]))
+            pos += 9 + length
+        if any(a[0] > b[0] for a, b in zip(out, out[1:])):
+            out.sort(key=lambda item: item[0])
+        yield from out
+
+
+class BagReader:
+    """
+    Read a rosbag2 MCAP bag directory (or a single .mcap file).
+
+    Parameters
+    ----------
+    path : str
+        Bag directory (with or without ``metadata.yaml``) or ``.mcap`` file.
+    tolerant : bool
+        Read files without summary/footer or with a truncated tail (what a
+        SIGKILL leaves) by scanning them; :attr:`problems` then says what was
+        recovered. Without it such a file raises ``ValueError`` naming
+        ``gyro-emulator bag repair``.
+
+    Attributes
+    ----------
+    topics : dict of str to TopicInfo
+        The topics, with message counts.
+    message_count, start_time_ns, end_time_ns : int
+        Totals over all files (times of the first and last message, ns).
+    problems : list of str
+        Recovery notes of incomplete files ([] for a complete bag).
+
+    """
+
+    def __init__(self, path, tolerant=False):
+        self.path, self.files, self.metadata = resolve_files(path)
+        self.tolerant = tolerant
+        self._infos = [index_file(f, tolerant) for f in self.files]
+        self.topics = {}
+        for info in self._infos:
+            for name, topic in info.topics.items():
+                if name in self.topics:
+                    self.topics[name].message_count += topic.message_count
+                else:
+                    self.topics[name] = TopicInfo(**{**topic.__dict__})
+        counted = [i for i in self._infos if i.message_count]
+        self.message_count = sum(i.message_count for i in self._infos)
+        self.start_time_ns = min((i.start_time_ns for i in counted), default=0)
+        self.end_time_ns = max((i.end_time_ns for i in counted), default=0)
+        self.custom_data = {}
+        if self.metadata and self.metadata.get('custom_data'):
+            self.custom_data = dict(self.metadata['custom_data'])
+        for info in self._infos:
+            for key, value in info.custom_data.items():
+                self.custom_data.setdefault(key, value)
+        self.problems = [i.scan.describe() for i in self._infos if not i.complete]
+
+    @property
+    def complete(self):
+        """Return True when every file has its summary and footer."""
+        return all(i.complete for i in self._infos)
+
+    @property
+    def duration_ns(self):
+        """Return the time between the first and the last message, ns."""
+        return self.end_time_ns - self.start_time_ns
+
+    def _check_topics(self, topics):
+        if topics is None:
+            return None
+        topics = [topics] if isinstance(topics, str) else list(topics)
+        unknown = [t for t in topics if t not in self.topics]
+        if unknown:
+            raise ValueError(
+                f'topic {", ".join(unknown)} is not in bag {self.path}: topics are '
+                f'{", ".join(sorted(self.topics)) or "(none)"}')
+        return topics
+
+    def _file_messages(self, info, topics, start_ns, end_ns):
+        chunks = None
+        if info.summary is not None and info.summary.chunk_indexes:
+            chunks = _chunks_in_order(info.summary)
+        if chunks is not None:
+            summary = info.summary
+            ids = None if topics is None else {
+                cid for cid, c in summary.channels.items() if c.topic in topics}
+            names = {cid: (c.topic, summary.schemas[c.schema_id].name
+                           if c.schema_id in summary.schemas else '')
+                     for cid, c in summary.channels.items()}
+            with open(info.path, 'rb') as handle:
+                for log_time, cid, pub, seq, data in _iter_chunk_messages(
+                        handle, summary, chunks, ids, start_ns, end_ns):
+                    topic, type_name = names[cid]
+                    yield BagMessage(topic, type_name, log_time, pub, data, seq)
+            return
+        if info.complete and info.scan is None:
+            with open(info.path, 'rb') as handle:
+                reader = make_reader(handle)
+                for schema, channel, msg in reader.iter_messages(
+                        topics=topics, starting_at=start_ns, ending_before=end_ns,
+                        log_time_order=True):
+                    yield BagMessage(channel.topic, schema.name if schema else '',
+                                     msg.log_time, msg.publish_time, msg.data, msg.sequence)
+            return
+        schemas, channels = {}, {}
+        wanted = None if topics is None else set(topics)
+        for record in scan_mcap(info.path):
+            if isinstance(record, Message):
+                channel = channels.get(record.channel_id)
+                if channel is None:
+                    continue
+                if wanted is not None and channel.topic not in wanted:
+                    continue
+                if start_ns is not None and record.log_time < start_ns:
+                    continue
+                if end_ns is not None and record.log_time >= end_ns:
+                    continue
+                schema = schemas.get(channel.schema_id)
+                yield BagMessage(channel.topic, schema.name if schema else '',
+                                 record.log_time, record.publish_time, record.data,
+                                 record.sequence)
+            elif isinstance(record, Schema):
+                schemas[record.id] = record
+            elif isinstance(record, Channel):
+                channels[record.id] = record
+
+    def messages(self, topics=None, start_ns=None, end_ns=None):
+        """
+        Yield :class:`BagMessage` in log-time order (file order for scanned files).
+
+        Parameters
+        ----------
+        topics : str or iterable of str, optional
+            Only these topics (ValueError for a topic not in the bag).
+        start_ns, end_ns : int, optional
+            Only messages with ``start_ns <= log_time_ns < end_ns``.
+
+        """
+        topics = self._check_topics(topics)
+        streams = [self._file_messages(i, topics, start_ns, end_ns) for i in self._infos]
+        if len(streams) == 1:
+            yield from streams[0]
+        else:
+            yield from heapq.merge(*streams, key=lambda m: m.log_time_ns)
+
+    def decoded_messages(self, topics=None, start_ns=None, end_ns=None):
+        """
+        Yield ``(BagMessage, message)`` with the message decoded from its schema.
+
+        Complete files are read with ``mcap.reader.make_reader(...,
+        decoder_factories=[mcap_ros2.decoder.DecoderFactory()])``; scanned
+        files use the same factory. Decoded messages are mcap-ros2-support's
+        dynamic objects (attribute access like rclpy messages).
+        """
+        from mcap_ros2.decoder import DecoderFactory
+        topics = self._check_topics(topics)
+        factory = DecoderFactory()
+        for info in self._infos:
+            if info.complete and info.scan is None:
+                with open(info.path, 'rb') as handle:
+                    reader = make_reader(handle, decoder_factories=[factory])
+                    for schema, channel, msg, decoded in reader.iter_decoded_messages(
+                            topics=topics, starting_at=start_ns, ending_before=end_ns):
+                        yield BagMessage(channel.topic, schema.name if schema else '',
+                                         msg.log_time, msg.publish_time, msg.data,
+                                         msg.sequence), decoded
+                continue
+            decoders, schemas = {}, {}
+            for item in self._file_messages(info, topics, start_ns, end_ns):
+                decoder = decoders.get(item.type_name)
+                if decoder is None:
+                    topic = self.topics[item.topic]
+                    schemas[item.type_name] = Schema(
+                        id=len(schemas) + 1, name=item.type_name, encoding='ros2msg',
+                        data=topic.schema_text.encode('utf-8'))
+                    decoder = decoders[item.type_name] = factory.decoder_for(
+                        'cdr', schemas[item.type_name])
+                yield item, decoder(item.data)
+
+    def read_arrays(self, topic, start_ns=None, end_ns=None):
+        """
+        Decode a fixed-layout topic (Imu, Temperature, Vector3Stamped, ...) into columns.
+
+        This is the fast path: the payloads are decoded together with numpy
+        (:func:`gyro_emulator.recording.cdr.decode`), not message by message.
+
+        Returns
+        -------
+        TopicArrays
+
+        """
+        self._check_topics(topic)
+        type_name = self.topics[topic].type_name
+        cdr.layout_of(type_name)
+        times, payloads = [], []
+        fast = [i for i in self._infos if i.summary is not None and i.summary.chunk_indexes
+                and _chunks_in_order(i.summary) is not None]
+        if len(self._infos) == 1 and fast:
+            summary = fast[0].summary
+            ids = {cid for cid, c in summary.channels.items() if c.topic == topic}
+            with open(fast[0].path, 'rb') as handle:
+                for item in _iter_chunk_messages(handle, summary, _chunks_in_order(summary),
+                                                 ids, start_ns, end_ns):
+                    times.append(item[0])
+                    payloads.append(item[4])
+        else:
+            for item in self.messages(topic, start_ns, end_ns):
+                times.append(item.log_time_ns)
+                payloads.append(item.data)
+        return TopicArrays(topic, np.asarray(times, dtype=np.int64),
+                           cdr.decode(type_name, payloads))
+
+    def info_text(self):
+        """Return a ``ros2 bag info``-like summary."""
+        lines = [f'Bag:              {self.path}',
+                 f'Files:            {", ".join(os.path.basename(f) for f in self.files)}',
+                 f'Storage:          mcap (rosbag2 metadata version '
+                 f'{self.metadata.get("version") if self.metadata else "missing"})',
+                 f'Duration:         {self.duration_ns / 1e9:.3f} s',
+                 f'Start:            {self.start_time_ns} ns',
+                 f'Messages:         {self.message_count}']
+        if self.custom_data:
+            lines.append('Custom data:      ' + ', '.join(
+                f'{k}={v}' for k, v in sorted(self.custom_data.items())))
+        lines.append('Topics:')
+        width = max((len(t) for t in self.topics), default=0)
+        for name in sorted(self.topics):
+            t = self.topics[name]
+            lines.append(f'  {name:<{width}}  {t.type_name:<34} {t.message_count:>9} msgs')
+        for note in self.problems:
+            lines.append(f'Incomplete:       {note}')
+        if self.metadata is None:
+            lines.append('Note:             metadata.yaml is missing '
+                         '(gyro-emulator bag repair writes it)')
+        return '\n'.join(lines)
