@@ -22,7 +22,7 @@ for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ[_var] = '1'
 
 from gyro_emulator.analysis.diagnose import (diagnose, EFFECT_IDS, load_csv,  # noqa: E402
-                                             make_truth, write_csv)
+                                             make_truth, write_measured_csv)
 from gyro_emulator.analysis.diagnose.report import write_report  # noqa: E402
 
 BUDGET_S = 30.0
@@ -40,7 +40,7 @@ def main():
     record, truth = make_truth(args.effect, args.seed, sample_rate_hz=100.0,
                                max_duration_s=args.hours * 3600.0)
     path = os.path.join(args.out, 'measured.csv')
-    write_csv(path, record)
+    write_measured_csv(path, record)
 
     t0 = time.perf_counter()
     data = load_csv(path)

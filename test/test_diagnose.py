@@ -14,7 +14,8 @@ import subprocess
 import sys
 
 from gyro_emulator.analysis.diagnose import baseline as base
-from gyro_emulator.analysis.diagnose import diagnose, EFFECT_IDS, load_csv, make_truth, write_csv
+from gyro_emulator.analysis.diagnose import (diagnose, EFFECT_IDS, load_csv, make_truth,
+                                             write_measured_csv)
 from gyro_emulator.analysis.diagnose.truth import TRUTH_EFFECTS
 from gyro_emulator.physics.presets import physics_preset
 import numpy as np
@@ -44,7 +45,7 @@ PRIMARY = {
 
 def _through_csv(tmp_path, record):
     path = tmp_path / 'measured.csv'
-    write_csv(path, record)
+    write_measured_csv(path, record)
     return load_csv(path)
 
 
@@ -56,7 +57,7 @@ def test_every_catalogue_entry_has_a_truth_and_a_check():
 def test_truth_csv_holds_only_the_contract(tmp_path):
     record, truth = make_truth('random', 5, sample_rate_hz=2.0, levels=3)
     path = tmp_path / 'm.csv'
-    write_csv(path, record)
+    write_measured_csv(path, record)
     header = path.read_text().splitlines()[0].split(',')
     assert header == ['time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s',
                       'accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2']

@@ -1,7 +1,8 @@
 """The diagnose CSV contract, bag input and the decimated view."""
 
 from gyro_emulator.analysis.diagnose import data as dd
-from gyro_emulator.analysis.diagnose.data import load_csv, MeasuredData, Prepared, write_csv
+from gyro_emulator.analysis.diagnose.data import (load_csv, MeasuredData, Prepared,
+                                                  write_measured_csv)
 import numpy as np
 import pytest
 
@@ -19,7 +20,7 @@ def test_csv_round_trip_with_and_without_accel(tmp_path):
     for accel in (True, False):
         rec = _record(accel=accel)
         path = tmp_path / f'r{accel}.csv'
-        write_csv(path, rec)
+        write_measured_csv(path, rec)
         back = load_csv(path)
         assert back.rows == rec.rows and back.has_accel == accel
         np.testing.assert_allclose(back.gyro_rad_s, rec.gyro_rad_s, rtol=1e-8)
@@ -57,7 +58,7 @@ def test_non_numeric_value_names_column_and_row(tmp_path):
     lines = list(GOOD)
     lines[4] = '0.4,0,hot,0.001'
     path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
-    with pytest.raises(ValueError, match=r"column temp_c row 6 is 'hot'"):
+    with pytest.raises(ValueError, match=r"row 6, column temp_c: 'hot' is not a number"):
         load_csv(path)
 
 
@@ -65,7 +66,7 @@ def test_nan_value_names_column_and_row(tmp_path):
     lines = list(GOOD)
     lines[7] = '0.7,0,25,nan'
     path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
-    with pytest.raises(ValueError, match='column gyro_rad_s row 9 is nan'):
+    with pytest.raises(ValueError, match='data row 8, column gyro_rad_s: nan is not finite'):
         load_csv(path)
 
 
@@ -73,7 +74,7 @@ def test_time_going_back_is_an_error_but_a_repeated_stamp_is_not(tmp_path):
     lines = list(GOOD)
     lines[10] = '0.85,0,25,0.001'
     path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
-    with pytest.raises(ValueError, match='time_s is not monotonic: row 12'):
+    with pytest.raises(ValueError, match='time_s does not increase at data row 11: 0.85'):
         load_csv(path)
     lines = list(GOOD)
     lines[10] = '0.9,0,25,0.001'

@@ -8,6 +8,7 @@ import sys
 from conftest import ROOT
 from gyro_emulator.analysis import replay
 from gyro_emulator.recording import bag, cdr
+from gyro_emulator.sensor.config import load_sensor_config
 import numpy as np
 import pytest
 
@@ -83,7 +84,7 @@ def test_same_bag_and_seed_give_identical_decoded_output(simulated, tmp_path):
     # of two independent white noises, sqrt(2) sigma on a static axis (x).
     with open(tmp_path / 'a' / 'report.json', encoding='utf-8') as handle:
         stats = json.load(handle)['stats']
-    sigma = replay.white_noise_sigma(replay.load_sensor_config('paper'), 100.0)[0]
+    sigma = replay.white_noise_sigma(load_sensor_config('paper'), 100.0)[0]
     ratio = stats['residual_rad_s']['x']['std'] / (np.sqrt(2.0) * sigma)
     assert 0.85 < ratio < 1.3
 
@@ -168,7 +169,7 @@ def test_command_source_holds_sparse_commands_on_the_sample_grid(tmp_path):
 
 
 @pytest.mark.parametrize('args,message', [
-    (['--rate-topic', '/nope'], 'is not in bag'),
+    (['--rate-topic', '/nope'], "no topic '/nope'"),
     (['--rate-topic', '/robot/imu_temp'], 'has type sensor_msgs/msg/Temperature'),
     (['--source', 'command'], 'no rate commands'),
     (['--rate-hz', '-5'], 'out of range'),

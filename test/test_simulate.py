@@ -198,7 +198,7 @@ def _write(path, text):
     ('time_s,gyro_rad_s\n0,1\n0.01,nan\n', r'column gyro_rad_s: nan is not finite'),
     ('time_s,gyro_rad_s\n0,1,2\n', r'row 2 has 3 values, the header has 2'),
     ('', 'the file is empty'),
-    ('gyro_rad_s\n1\n', 'missing column.*time_s'),
+    ('gyro_rad_s\n1\n', 'missing required column.*time_s'),
 ])
 def test_csv_errors_name_row_column_and_value(tmp_path, text, match):
     path = _write(tmp_path / 'bad.csv', text)

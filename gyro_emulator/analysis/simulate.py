@@ -4,7 +4,7 @@ Offline simulation: a scripted profile through the gyro model, in chunks.
 :func:`iter_simulation` yields the record chunk by chunk (bounded memory, for
 long runs and for any writer: CSV here, a rosbag2 writer later);
 :func:`run_simulation` returns it whole. Neither writes files.
-:func:`write_csv` writes the CSV layout of :data:`CSV_COLUMNS`.
+:func:`write_simulation_csv` writes the CSV layout of :data:`CSV_COLUMNS`.
 
 Sample n is at time_s = n / rate_hz. The model's batch API is used chunk by
 chunk; because it is partition-invariant, the record is identical whatever
@@ -143,7 +143,7 @@ def csv_columns(chunk):
             gyro[:, 0], gyro[:, 1], gyro[:, 2]]
 
 
-def write_csv(path, chunks, progress=None, total=None):
+def write_simulation_csv(path, chunks, progress=None, total=None):
     """
     Write simulation chunks to a CSV file (``.gz`` compresses).
 

@@ -16,6 +16,7 @@ named, with its parameters and the held-out gain.
 import os
 
 from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator.recording import topics
 
 HELP = 'find what the physics model gets wrong in measured data, name the cause'
 
@@ -38,11 +39,11 @@ def add_arguments(parser):
     parser.add_argument('--effects', default=None, metavar='LIST',
                         help='comma-separated catalogue entries to test (default: all)')
     bag = parser.add_argument_group('bag input (topic mapping)')
-    bag.add_argument('--rate-topic', default='cmd/angular_velocity',
+    bag.add_argument('--rate-topic', default=topics.RATE_CMD.name,
                      help='applied rate topic (default: %(default)s)')
-    bag.add_argument('--temp-topic', default='cmd/temperature',
+    bag.add_argument('--temp-topic', default=topics.TEMPERATURE_CMD.name,
                      help='temperature topic (default: %(default)s)')
-    bag.add_argument('--gyro-topic', default='imu/data_raw',
+    bag.add_argument('--gyro-topic', default=topics.IMU_OUT.name,
                      help='measured output topic (default: %(default)s)')
     bag.add_argument('--accel-topic', default=None,
                      help='acceleration topic (default: cmd/linear_acceleration if '

@@ -66,7 +66,7 @@ def _open_writer(path, args=None, config=None):
     from gyro_emulator.analysis import simulate
 
     if str(path).endswith(('.csv', '.csv.gz')):
-        return simulate.write_csv
+        return simulate.write_simulation_csv
     import functools
 
     from gyro_emulator.analysis import replay

@@ -40,7 +40,7 @@ def add_arguments(parser):
 
 def run(args):
     """Simulate and write the CSV (and the answer if asked)."""
-    from gyro_emulator.analysis.diagnose import make_truth, write_csv
+    from gyro_emulator.analysis.diagnose import make_truth, write_measured_csv
     from gyro_emulator.validation import check_range
 
     check_range('truth', 'rate', args.rate, 1.0, 2000.0, 'Hz')
@@ -54,7 +54,7 @@ def run(args):
                              sample_rate_hz=args.rate, params=params)
     directory = os.path.dirname(os.path.abspath(args.output))
     os.makedirs(directory, exist_ok=True)
-    write_csv(args.output, data)
+    write_measured_csv(args.output, data)
     print(f'wrote {args.output}: {data.rows} samples, {truth["duration_s"]:.0f} s '
           f'({truth["profile"]} profile, seed {args.seed}); the effect is hidden')
     if args.answer:

@@ -49,8 +49,8 @@ def _header(path):
     raise ValueError(f'{path}: the file is empty (no header row)')
 
 
-def _find_bad_cell(path, names, skip):
-    """Slow scan for the first cell that is not a number; return a message."""
+def _find_bad_cell(path, names, skip, wanted=None):
+    """Slow scan for the first cell (of the ``wanted`` columns) that is not a number."""
     with _open_text(path, 'r') as handle:
         for lineno, line in enumerate(handle, start=1):
             if lineno <= skip:
@@ -63,6 +63,8 @@ def _find_bad_cell(path, names, skip):
                 return (f'{path}: row {lineno} has {len(cells)} values, the header has '
                         f'{len(names)} ({", ".join(names)})')
             for name, cell in zip(names, cells):
+                if wanted is not None and name not in wanted:
+                    continue
                 try:
                     float(cell)
                 except ValueError:
@@ -71,7 +73,7 @@ def _find_bad_cell(path, names, skip):
     return f'{path}: could not parse the data rows'
 
 
-def read_csv(path, required=(), time_order='increasing'):
+def read_csv(path, required=(), time_order='increasing', only=None):
     """
     Read a numeric CSV file into a dict of column name -> float array.
 
@@ -84,6 +86,9 @@ def read_csv(path, required=(), time_order='increasing'):
     time_order : str
         ``'increasing'`` (default): ``time_s`` must strictly increase;
         ``'nondecreasing'``: repeated timestamps are accepted.
+    only : sequence of str, optional
+        Read only these columns (those present); the others may hold
+        anything, even text. Default: every column, all numeric.
 
     Returns
     -------
@@ -104,19 +109,21 @@ def read_csv(path, required=(), time_order='increasing'):
     names, skip = _header(path)
     missing = [c for c in required if c not in names]
     if missing:
-        raise ValueError(f'{path}: missing column(s) {", ".join(missing)}; the file '
+        raise ValueError(f'{path}: missing required column(s) {", ".join(missing)}; the file '
                          f'has {", ".join(names)}')
+    wanted = names if only is None else [n for n in names if n in only]
+    index = [names.index(n) for n in wanted]
     try:
         with _open_text(path, 'r') as handle:
             data = np.loadtxt(handle, delimiter=',', skiprows=skip, comments='#',
-                              ndmin=2, dtype=float)
+                              ndmin=2, dtype=float, usecols=None if only is None else index)
     except ValueError:
-        raise ValueError(_find_bad_cell(path, names, skip)) from None
+        raise ValueError(_find_bad_cell(path, names, skip, wanted)) from None
     if data.size == 0:
         raise ValueError(f'{path}: no data rows after the header')
-    if data.shape[1] != len(names):
-        raise ValueError(_find_bad_cell(path, names, skip))
-    columns = {name: data[:, i].copy() for i, name in enumerate(names)}
+    if data.shape[1] != len(wanted):
+        raise ValueError(_find_bad_cell(path, names, skip, wanted))
+    columns = {name: data[:, i].copy() for i, name in enumerate(wanted)}
     for name, values in columns.items():
         bad = ~np.isfinite(values)
         if np.any(bad):

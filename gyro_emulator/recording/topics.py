@@ -85,6 +85,17 @@ TRUTH_RATE, TRUTH_BIAS, TRUTH_SCALE_FACTOR = (
     Topic(f'~/truth/{what}', VECTOR3_STAMPED, 'sensor_data', 'out', f'true {what} per sample')
     for what in ('rate', 'bias', 'scale_factor'))
 
+#: The node's default name; its private (``~/``) topics live under ``/<name>/``.
+NODE_NAME = 'gyro_emulator'
+#: Where the truth topics of a node with the default name are, in a bag.
+TRUTH_NAMESPACE = f'/{NODE_NAME}/truth'
+
+#: What ``replay`` adds to its output bag (offline; not topics of the node).
+REPLAY_MEASURED, REPLAY_RESIDUAL = (Topic(*row) for row in (
+    ('/replay/measured', VECTOR3_STAMPED, 'reliable', 'out', 'measured gyro output, rad/s'),
+    ('/replay/residual', VECTOR3_STAMPED, 'reliable', 'out', 'measured - emulated, rad/s'),
+))
+
 #: Truth topics by the short name the node publishes them under.
 TRUTH_TOPICS = MappingProxyType({'rate': TRUTH_RATE, 'bias': TRUTH_BIAS,
                                  'scale_factor': TRUTH_SCALE_FACTOR})

@@ -23,13 +23,14 @@ choices and the message format used everywhere (field, value, allowed range).
 from dataclasses import dataclass, fields, replace
 import math
 
+from gyro_emulator.recording import topics
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType)
 
-NODE_NAME = 'gyro_emulator'
+NODE_NAME = topics.NODE_NAME
 DEFAULTS_FILE = 'gyro_emulator.yaml'
 SENSOR_PREFIX = 'sensor.'
 TERMS_PREFIX = 'sensor.terms.'

@@ -8,10 +8,10 @@ held-out data (:mod:`.selection`). :mod:`.truth` makes simulated records with
 one hidden effect to prove it; :mod:`.report` writes the Markdown report.
 """
 
-from gyro_emulator.analysis.diagnose.data import load_csv, MeasuredData, write_csv
+from gyro_emulator.analysis.diagnose.data import load_csv, MeasuredData, write_measured_csv
 from gyro_emulator.analysis.diagnose.effects import CATALOGUE, EFFECT_IDS
 from gyro_emulator.analysis.diagnose.selection import diagnose, Diagnosis
 from gyro_emulator.analysis.diagnose.truth import make_truth, TRUTH_EFFECTS
 
 __all__ = ['CATALOGUE', 'diagnose', 'Diagnosis', 'EFFECT_IDS', 'load_csv',
-           'make_truth', 'MeasuredData', 'TRUTH_EFFECTS', 'write_csv']
+           'make_truth', 'MeasuredData', 'TRUTH_EFFECTS', 'write_measured_csv']

@@ -18,8 +18,8 @@ the temperature by < 0.02 K on a 3 K/min ramp.
 """
 
 from dataclasses import dataclass
-import re
 
+from gyro_emulator.recording import csvio, records, topics
 import numpy as np
 
 REQUIRED_COLUMNS = ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s')
@@ -118,23 +118,6 @@ class MeasuredData:
         return self.accel_m_s2 is not None
 
 
-def _parse_header(line, path):
-    names = [c.strip().strip('"').lstrip('\ufeff') for c in line.rstrip(
-        '\r\n').split(',')]
-    missing = [c for c in REQUIRED_COLUMNS if c not in names]
-    if missing:
-        raise ValueError(
-            f'{path}: missing required column(s) {", ".join(missing)}; the '
-            f'header has {", ".join(names) or "(nothing)"}; required: '
-            f'{", ".join(REQUIRED_COLUMNS)}')
-    accel = [c for c in ACCEL_COLUMNS if c in names]
-    if accel and len(accel) != 3:
-        raise ValueError(
-            f'{path}: acceleration needs all of {", ".join(ACCEL_COLUMNS)}; '
-            f'found only {", ".join(accel)}')
-    return names, bool(accel)
-
-
 def load_csv(path):
     """
     Read a measured CSV in the diagnose contract.
@@ -142,7 +125,8 @@ def load_csv(path):
     Parameters
     ----------
     path : str
-        CSV file with a header row (see the module docstring).
+        CSV file (``.gz`` for gzip) with a header row (see the module
+        docstring), read by :func:`gyro_emulator.recording.csvio.read_csv`.
 
     Returns
     -------
@@ -152,74 +136,32 @@ def load_csv(path):
     ------
     ValueError
         A required column is missing, a value is not numeric or not finite,
-        or time goes back; the message names the column and the row (1-based,
-        header = row 1).
+        or time goes back; the message names the column and the row.
 
     """
-    with open(path, encoding='utf-8-sig') as handle:
-        header = handle.readline()
-        if not header.strip():
-            raise ValueError(f'{path}: empty file, expected a CSV header with '
-                             f'{", ".join(REQUIRED_COLUMNS)}')
-        names, has_accel = _parse_header(header, path)
-        wanted = list(REQUIRED_COLUMNS) + (list(ACCEL_COLUMNS) if has_accel
-                                           else [])
-        index = [names.index(c) for c in wanted]
-        try:
-            table = np.loadtxt(handle, delimiter=',', usecols=index,
-                               ndmin=2, dtype=float)
-        except ValueError as exc:
-            raise ValueError(_explain_parse_error(path, exc, names, index,
-                                                  wanted)) from None
-    if table.shape[0] == 0:
-        raise ValueError(f'{path}: no data rows after the header')
-    for j, name in enumerate(wanted):
-        bad = ~np.isfinite(table[:, j])
-        if np.any(bad):
-            i = int(np.flatnonzero(bad)[0])
-            raise ValueError(
-                f'{path}: column {name} row {i + 2} is {float(table[i, j])!r}: '
-                'allowed finite numbers')
-    step = np.diff(table[:, 0])
-    if np.any(step < 0.0):
-        i = int(np.flatnonzero(step < 0.0)[0])
+    columns = csvio.read_csv(path, required=REQUIRED_COLUMNS, time_order='nondecreasing',
+                             only=REQUIRED_COLUMNS + ACCEL_COLUMNS)
+    accel = [c for c in ACCEL_COLUMNS if c in columns]
+    if accel and len(accel) != 3:
         raise ValueError(
-            f'{path}: column time_s is not monotonic: row {i + 3} has '
-            f'{float(table[i + 1, 0])!r} after {float(table[i, 0])!r} '
-            '(time must not go back)')
+            f'{path}: acceleration needs all of {", ".join(ACCEL_COLUMNS)}; '
+            f'found only {", ".join(accel)}')
     return MeasuredData(
-        time_s=table[:, 0], rate_cmd_rad_s=table[:, 1], temp_c=table[:, 2],
-        gyro_rad_s=table[:, 3],
-        accel_m_s2=table[:, 4:7] if has_accel else None, source=str(path))
+        time_s=columns['time_s'], rate_cmd_rad_s=columns['rate_cmd_rad_s'],
+        temp_c=columns['temp_c'], gyro_rad_s=columns['gyro_rad_s'],
+        accel_m_s2=np.column_stack([columns[c] for c in ACCEL_COLUMNS]) if accel else None,
+        source=str(path))
 
 
-def _explain_parse_error(path, exc, names, index, wanted):
-    """Turn numpy's parse error into one naming the column and the row."""
-    text = str(exc)
-    match = re.search(r'row (\d+), column (\d+)', text)
-    value = re.search(r"string '([^']*)'", text)
-    if match:
-        row = int(match.group(1)) + 2  # numpy counts data rows from 0
-        col = int(match.group(2)) - 1
-        name = wanted[col] if 0 <= col < len(wanted) else '?'
-        shown = repr(value.group(1)) if value else 'a value'
-        return (f'{path}: column {name} row {row} is {shown}: allowed '
-                'numbers only')
-    return f'{path}: cannot parse the CSV ({text}); expected numbers in ' \
-           f'{", ".join(wanted)}'
-
-
-def write_csv(path, data):
-    """Write ``data`` (MeasuredData) in the diagnose contract."""
-    cols = [data.time_s, data.rate_cmd_rad_s, data.temp_c, data.gyro_rad_s]
-    names = list(REQUIRED_COLUMNS)
+def write_measured_csv(path, data):
+    """Write ``data`` (MeasuredData) in the diagnose contract (csvio.write_csv)."""
+    columns = dict(zip(REQUIRED_COLUMNS, (data.time_s, data.rate_cmd_rad_s, data.temp_c,
+                                          data.gyro_rad_s)))
     fmt = ['%.6f', '%.9g', '%.5f', '%.9g']
     if data.has_accel:
-        cols += [data.accel_m_s2[:, k] for k in range(3)]
-        names += list(ACCEL_COLUMNS)
+        columns.update(zip(ACCEL_COLUMNS, data.accel_m_s2.T))
         fmt += ['%.6g'] * 3
-    np.savetxt(path, np.column_stack(cols), delimiter=',', fmt=fmt,
-               header=','.join(names), comments='')
+    csvio.write_csv(path, columns, fmt)
 
 
 class Frame:
@@ -393,10 +335,10 @@ class Prepared:
 # --- rosbag2 MCAP input ----------------------------------------------------
 
 #: Default topic mapping of a bag (the emulator's inputs and output).
-DEFAULT_BAG_TOPICS = {'rate': 'cmd/angular_velocity',
-                      'temp': 'cmd/temperature',
-                      'gyro': 'imu/data_raw',
-                      'accel': 'cmd/linear_acceleration'}
+DEFAULT_BAG_TOPICS = {'rate': topics.RATE_CMD.name,
+                      'temp': topics.TEMPERATURE_CMD.name,
+                      'gyro': topics.IMU_OUT.name,
+                      'accel': topics.ACCEL_CMD.name}
 
 _VECTOR_FIELDS = {'geometry_msgs/msg/Vector3Stamped': 'vector.{axis}',
                   'geometry_msgs/msg/TwistStamped': 'twist.angular.{axis}',
@@ -406,26 +348,6 @@ _VECTOR_FIELDS = {'geometry_msgs/msg/Vector3Stamped': 'vector.{axis}',
                   'std_msgs/msg/Float64': 'data'}
 _SCALAR_FIELDS = {'sensor_msgs/msg/Temperature': 'temperature',
                   'std_msgs/msg/Float64': 'data'}
-
-
-def _find_topic(reader, name, role):
-    """Resolve a topic name: exact, with a leading '/', or by unique suffix."""
-    topics = reader.topics
-    for cand in (name, '/' + name.lstrip('/')):
-        if cand in topics:
-            return cand
-    tail = [t for t in topics if t.endswith('/' + name.lstrip('/'))]
-    if len(tail) == 1:
-        return tail[0]
-    raise ValueError(
-        f'bag {reader.path}: no topic {name!r} for the {role}; topics: '
-        f'{", ".join(sorted(topics)) or "(none)"}')
-
-
-def _topic_times_s(arrays):
-    stamps = np.asarray(arrays.stamp_ns, dtype=np.int64)
-    use = stamps if stamps.size and np.all(stamps > 0) else arrays.log_time_ns
-    return np.asarray(use, dtype=np.int64)
 
 
 def load_bag(path, rate_topic=None, temp_topic=None, gyro_topic=None,
@@ -465,16 +387,13 @@ def load_bag(path, rate_topic=None, temp_topic=None, gyro_topic=None,
     names = {'rate': rate_topic or DEFAULT_BAG_TOPICS['rate'],
              'temp': temp_topic or DEFAULT_BAG_TOPICS['temp'],
              'gyro': gyro_topic or DEFAULT_BAG_TOPICS['gyro']}
-    resolved = {role: _find_topic(reader, name, role + ' topic')
+    resolved = {role: records.find_topic(reader, role + ' topic', name)
                 for role, name in names.items()}
     if accel_topic != 'none':
-        try:
-            resolved['accel'] = _find_topic(
-                reader, accel_topic or DEFAULT_BAG_TOPICS['accel'],
-                'acceleration topic')
-        except ValueError:
-            if accel_topic:
-                raise
+        found = records.find_topic(reader, 'acceleration topic', accel_topic,
+                                   DEFAULT_BAG_TOPICS['accel'])
+        if found is not None:
+            resolved['accel'] = found
 
     def read(role, kind):
         topic = resolved[role]
@@ -492,7 +411,8 @@ def load_bag(path, rate_topic=None, temp_topic=None, gyro_topic=None,
         if role == 'accel' and fmt == 'data':
             raise ValueError(f'bag topic {topic}: a Float64 cannot hold a '
                              '3-axis acceleration')
-        return _topic_times_s(arrays), np.column_stack(cols)
+        times, order = records.stream_times_ns(arrays)
+        return times, np.column_stack(cols)[order]
 
     t_gyro, gyro = read('gyro', 'angular_velocity')
     if len(t_gyro) < 20:

@@ -1,0 +1,329 @@
+"""
+Offline replay: what drives the model, read from a bag, and the emulated output.
+
+Offline replay (:func:`load_inputs`, :func:`emulate`, :func:`compare`) drives
+the error model from a bag:
+
+- ``command`` source: the commanded rate, temperature and specific force of
+  our own bags. A command takes effect at the first sample at or after its
+  header stamp (within half a sample: zero-order hold, as the node applies
+  commands at their stamps). When the rate commands are themselves a regular
+  stream at the sample rate, their stamps are the sample times.
+- ``imu`` source: the ``angular_velocity`` of a real robot's sensor_msgs/Imu
+  is taken as the true rate, one emulated sample per recorded message.
+
+The emulated output is compared with the measured one (the bag's
+``imu/data_raw``, or the real IMU itself): residual statistics per axis and
+the overlapping Allan deviation (NIST SP 1065 Eq 14) of both. The same bag,
+configuration and seed give the identical emulated output.
+"""
+
+from dataclasses import dataclass, field
+
+from gyro_emulator.analysis.emulator_bag import DEFAULT_FRAME_ID, IMU, TEMPERATURE, VECTOR3_STAMPED
+from gyro_emulator.recording import records, topics
+from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
+from gyro_emulator.sensor.model import GyroModel
+from gyro_emulator.units import NS_PER_S
+from gyro_emulator.validation import check_choice, check_range
+import numpy as np
+
+SOURCES = ('auto', 'command', 'imu')
+
+
+DEFAULT_TEMP_C = 25.0
+
+
+@dataclass(frozen=True)
+class ReplayInputs:
+    """
+    What the model is driven with, and what it is compared against.
+
+    Attributes
+    ----------
+    source : str
+        ``command`` or ``imu``.
+    stamp_ns : numpy.ndarray of int64, shape (N,)
+        Sample times, ns.
+    rate_rad_s : numpy.ndarray, shape (N, 3)
+        True rate at each sample, rad/s.
+    temp_c : numpy.ndarray, shape (N,)
+        Ambient temperature at each sample, deg C.
+    accel_m_s2 : numpy.ndarray, shape (N, 3), or None
+        Specific force at each sample, m/s^2.
+    rate_hz : float
+        Model sample rate, Hz.
+    measured_stamp_ns : numpy.ndarray of int64 or None
+        Stamps of the measured gyro output.
+    measured_rad_s : numpy.ndarray, shape (M, 3), or None
+        Measured gyro output, rad/s.
+    topics : dict
+        The bag topics used for each role.
+    frame_id : str
+        Frame of the measured sensor (or of the commands).
+    notes : list of str
+        How the inputs were derived (sample-rate origin, defaults used).
+
+    """
+
+    source: str
+    stamp_ns: np.ndarray
+    rate_rad_s: np.ndarray
+    temp_c: np.ndarray
+    accel_m_s2: np.ndarray
+    rate_hz: float
+    measured_stamp_ns: np.ndarray = None
+    measured_rad_s: np.ndarray = None
+    topics: dict = field(default_factory=dict)
+    frame_id: str = DEFAULT_FRAME_ID
+    notes: list = field(default_factory=list)
+
+
+def hold(source_stamp_ns, source_values, query_ns, tolerance_ns, before=None):
+    """
+    Zero-order hold: the latest source value stamped at or before each query.
+
+    Parameters
+    ----------
+    source_stamp_ns : numpy.ndarray of int64, sorted
+        Stamps of the source values, ns.
+    source_values : numpy.ndarray, shape (M, ...)
+        Source values.
+    query_ns : numpy.ndarray of int64
+        Times to evaluate, ns.
+    tolerance_ns : int
+        A value stamped up to this much after a query already counts for it
+        (half a sample absorbs rounding of the stamps).
+    before : array_like, optional
+        Value before the first source stamp (default: the first value).
+
+    """
+    idx = np.searchsorted(source_stamp_ns, query_ns + tolerance_ns, side='right') - 1
+    out = source_values[np.clip(idx, 0, len(source_values) - 1)].copy()
+    if before is not None and np.any(idx < 0):
+        out[idx < 0] = before
+    return out
+
+
+def estimate_rate_hz(stamp_ns):
+    """
+    Estimate the sample rate of a stamped stream, Hz.
+
+    The mean interval over the stream, leaving out gaps (intervals above 1.5
+    times the median: dropped messages); snapped to a whole number of Hz when
+    within 0.1 % of it (stamp jitter), else rounded to 6 significant digits.
+    """
+    dt = np.diff(np.asarray(stamp_ns, dtype=np.int64))
+    dt = dt[dt > 0]
+    if dt.size == 0:
+        raise ValueError('cannot infer the sample rate: fewer than two distinct stamps '
+                         '(pass --rate-hz)')
+    dt = dt[dt <= 1.5 * np.median(dt)]
+    rate = NS_PER_S / float(np.mean(dt))
+    whole = round(rate)
+    if whole > 0 and abs(rate - whole) <= 1e-3 * whole:
+        return float(whole)
+    return float(f'{rate:.6g}')
+
+
+def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
+                accel_topic=None, measured_topic=None, rate_hz=None, temp_c=None,
+                use_log_time=False):
+    """
+    Read what drives the model from a bag.
+
+    Parameters
+    ----------
+    reader : gyro_emulator.recording.bag.BagReader
+        The bag.
+    source : str
+        ``command`` (``cmd/angular_velocity`` of our bags), ``imu`` (a
+        sensor_msgs/Imu's angular velocity as truth) or ``auto`` (command if
+        the bag has rate commands, else imu).
+    rate_topic : str, optional
+        Rate topic: Vector3Stamped (command) or Imu (imu source).
+    temperature_topic : str, optional
+        sensor_msgs/Temperature with the ambient temperature.
+    accel_topic : str, optional
+        Vector3Stamped with the specific force (command source).
+    measured_topic : str, optional
+        sensor_msgs/Imu with the measured output to compare against.
+    rate_hz : float, optional
+        Model sample rate, Hz (default: the bag's ``custom_data`` rate_hz,
+        else :func:`estimate_rate_hz` of the measured or rate stream).
+    temp_c : float, optional
+        Ambient temperature when the bag has none, deg C (default 25).
+    use_log_time : bool
+        Use log (receive) times instead of header stamps.
+
+    Returns
+    -------
+    ReplayInputs
+
+    """
+    check_choice('replay', 'source', source, SOURCES)
+    notes = []
+    source = _resolve_source(reader, source, rate_topic)
+    temp_c = DEFAULT_TEMP_C if temp_c is None else temp_c
+    roles = _role_topics(reader, source, rate_topic, temperature_topic, accel_topic,
+                         measured_topic, notes)
+    rate_arrays = reader.read_arrays(roles['rate'])
+    if rate_arrays.log_time_ns.size < 2:
+        raise ValueError(f'{roles["rate"]} has {rate_arrays.log_time_ns.size} message(s): '
+                         'need at least 2')
+    rate_stamp, order = records.stream_times_ns(rate_arrays, use_log_time)
+    rate_field = 'vector' if source == 'command' else 'angular_velocity'
+    rate_values = rate_arrays.field(rate_field)[order]
+    frame_id = str(rate_arrays.decoded.frame_id[0]) or DEFAULT_FRAME_ID
+    measured_stamp = measured = None
+    if roles['measured'] is not None:
+        m = rate_arrays if roles['measured'] == roles['rate'] else \
+            reader.read_arrays(roles['measured'])
+        measured_stamp, m_order = records.stream_times_ns(m, use_log_time)
+        measured = m.field('angular_velocity')[m_order]
+        frame_id = str(m.decoded.frame_id[0]) or frame_id
+    rate_hz = _sample_rate_hz(reader, rate_hz, measured_stamp, rate_stamp, notes)
+    period_ns = NS_PER_S / rate_hz
+    if source == 'imu':
+        stamp, rate, accel = _imu_truth(rate_arrays, order, rate_stamp, rate_values, notes)
+    else:
+        stamp, rate = _command_grid(rate_stamp, rate_values, rate_hz, notes)
+        accel = _held(reader, roles['accel'], 'vector', stamp, period_ns, np.zeros(3),
+                      use_log_time)
+    temp = _held(reader, roles['temperature'], 'temperature', stamp, period_ns, temp_c,
+                 use_log_time)
+    if temp is None:
+        temp = np.full(len(stamp), float(temp_c))
+        notes.append(f'no temperature topic: ambient held at {temp_c:g} C')
+    return ReplayInputs(source=source, stamp_ns=np.asarray(stamp, dtype=np.int64),
+                        rate_rad_s=np.ascontiguousarray(rate, dtype=float),
+                        temp_c=np.ascontiguousarray(temp, dtype=float),
+                        accel_m_s2=None if accel is None else np.ascontiguousarray(accel),
+                        rate_hz=rate_hz, measured_stamp_ns=measured_stamp,
+                        measured_rad_s=measured, topics=roles, frame_id=frame_id,
+                        notes=notes)
+
+
+def _resolve_source(reader, source, rate_topic):
+    """Turn ``auto`` into ``command`` (the bag has rate commands) or ``imu``."""
+    if source != 'auto':
+        return source
+    if rate_topic:
+        info = reader.topics.get(rate_topic)
+        return 'command' if info is not None and info.type_name == VECTOR3_STAMPED else 'imu'
+    found = records.find_topic(reader, 'rate', default=topics.RATE_CMD.name,
+                               types=(VECTOR3_STAMPED,))
+    return 'command' if found else 'imu'
+
+
+def _role_topics(reader, source, rate_topic, temperature_topic, accel_topic, measured_topic,
+                 notes):
+    """Return the bag topic of each role: rate, measured, accel, temperature."""
+    find = records.find_topic
+    roles = {}
+    if source == 'command':
+        roles['rate'] = find(reader, 'rate', rate_topic, topics.RATE_CMD.name,
+                             (VECTOR3_STAMPED,))
+        roles['measured'] = find(reader, 'measured', measured_topic, topics.IMU_OUT.name,
+                                 (IMU,))
+        roles['accel'] = find(reader, 'acceleration', accel_topic, topics.ACCEL_CMD.name,
+                              (VECTOR3_STAMPED,))
+        default_temp = topics.TEMPERATURE_CMD.name
+        if roles['rate'] is None:
+            raise ValueError(f'no rate commands in bag {reader.path}: expected a '
+                             'geometry_msgs/Vector3Stamped topic named */cmd/angular_velocity '
+                             '(or pass --rate-topic)')
+    else:
+        roles['rate'] = find(reader, 'imu', rate_topic or measured_topic, types=(IMU,))
+        if roles['rate'] is None:
+            roles['rate'] = _only_imu_topic(reader, notes)
+        roles['measured'] = roles['rate']
+        default_temp = None
+    roles['temperature'] = find(reader, 'temperature', temperature_topic, default_temp,
+                                (TEMPERATURE,))
+    return roles
+
+
+def _only_imu_topic(reader, notes):
+    """Return the first Imu topic with messages (noted when there are several)."""
+    imus = sorted(n for n, t in reader.topics.items() if t.type_name == IMU and t.message_count)
+    if not imus:
+        raise ValueError(
+            f'bag {reader.path} has neither cmd/angular_velocity '
+            '(geometry_msgs/Vector3Stamped) nor a sensor_msgs/Imu topic to replay; '
+            f'topics: {", ".join(sorted(reader.topics)) or "(none)"}')
+    if len(imus) > 1:
+        notes.append(f'several Imu topics; using {imus[0]} (choose with --rate-topic)')
+    return imus[0]
+
+
+def _sample_rate_hz(reader, rate_hz, measured_stamp, rate_stamp, notes):
+    """Return the model rate: given, else the bag's custom_data, else from the stamps."""
+    if rate_hz is None and 'rate_hz' in reader.custom_data:
+        rate_hz = float(reader.custom_data['rate_hz'])
+        notes.append(f'sample rate {rate_hz:g} Hz from the bag custom_data')
+    if rate_hz is None:
+        basis = measured_stamp if measured_stamp is not None and measured_stamp.size > 1 \
+            else rate_stamp
+        rate_hz = estimate_rate_hz(basis)
+        notes.append(f'sample rate {rate_hz:g} Hz from the mean stamp interval')
+    return check_range('replay', 'rate_hz', rate_hz, 0.0, 1e6, 'Hz')
+
+
+def _imu_truth(rate_arrays, order, rate_stamp, rate_values, notes):
+    """Imu source: its stamps and rates, and its specific force when it has one."""
+    accel = None
+    cov0 = rate_arrays.field('linear_acceleration_covariance[0]')[order]
+    if np.all(cov0 != -1.0):
+        accel = rate_arrays.field('linear_acceleration')[order]
+        notes.append('specific force from the Imu linear_acceleration')
+    return rate_stamp, rate_values, accel
+
+
+def _command_grid(rate_stamp, rate_values, rate_hz, notes):
+    """Sample times and rates: the commands themselves, or held on a regular grid."""
+    period_ns = NS_PER_S / rate_hz
+    diffs = np.diff(rate_stamp)
+    if diffs.size and np.all(np.abs(diffs - period_ns) <= 0.01 * period_ns):
+        notes.append('one sample per rate command (a regular stream at the sample rate)')
+        return rate_stamp, rate_values
+    count = int(np.floor((rate_stamp[-1] - rate_stamp[0]) / period_ns + 1e-9)) + 1
+    stamp = rate_stamp[0] + np.round(np.arange(count) * period_ns).astype(np.int64)
+    notes.append(f'rate commands held (zero-order) on a {rate_hz:g} Hz grid')
+    return stamp, hold(rate_stamp, rate_values, stamp, int(period_ns // 2))
+
+
+def _held(reader, topic, name, stamp, period_ns, before, use_log_time):
+    """Field ``name`` of ``topic`` held (zero-order) at ``stamp``; None without a topic."""
+    if topic is None:
+        return None
+    arrays = reader.read_arrays(topic)
+    times, order = records.stream_times_ns(arrays, use_log_time)
+    return hold(times, arrays.field(name)[order], stamp, int(period_ns // 2), before=before)
+
+
+def emulate(inputs, config, seed):
+    """
+    Run the error model over the replay inputs.
+
+    Parameters
+    ----------
+    inputs : ReplayInputs
+        From :func:`load_inputs`.
+    config : SensorConfig or str
+        Error model (or a preset name / YAML path).
+    seed : int
+        Seed of ``numpy.random.default_rng`` given to the model.
+
+    Returns
+    -------
+    model : GyroModel
+        The model after the run.
+    batch : gyro_emulator.sensor.model.SensorBatch
+        One output per input sample.
+
+    """
+    if not isinstance(config, SensorConfig):
+        config = load_sensor_config(config)
+    model = GyroModel(config, inputs.rate_hz, np.random.default_rng(int(seed)))
+    return model, model.run(inputs.rate_rad_s, inputs.temp_c, inputs.accel_m_s2)
