@@ -307,58 +307,20 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     tref = device.calibration_temp_c if ref_temp_c is None else float(
         ref_temp_c)
     prep = Prepared(data, max_bins=max_bins)
-    b, s = prep.binned, prep.samples
+    b = prep.binned
     phys = base.DevicePhysics(device, tref, float(b.temp_c.min()),
                               float(b.temp_c.max()))
-    cal_all = base.calibrate(b, phys)
     ctx = fx.Context(phys=phys, ref_temp_c=tref,
                      time_span_s=(float(data.time_s[0]), float(data.time_s[-1])),
                      duration_s=prep.duration_s)
     catalogue = fx.CATALOGUE if effects is None else tuple(
         fx.effect(e) for e in effects)
-
-    t0 = float(data.time_s[0])
-    span = prep.duration_s
-    fold_of_bin = np.minimum(((b.time_s - t0) / span * folds).astype(int),
-                             folds - 1)
-    n_sub = folds * SUB_BLOCKS_PER_FOLD
-    sub_of_bin = np.minimum(((b.time_s - t0) / span * n_sub).astype(int),
-                            n_sub - 1)
-    fold_of_sample = fold_of_bin[prep.sample_bin]
-    sub_of_sample = sub_of_bin[prep.sample_bin]
-    used_folds = [k for k in range(folds) if np.any(fold_of_bin == k)]
-    sub_used = np.bincount(sub_of_sample, minlength=n_sub) > 0
-    n = data.rows
-    y = data.gyro_rad_s
-
-    def held_out(pred_for_fold):
-        resid = np.empty(n)
-        for k in used_folds:
-            mask = fold_of_sample == k
-            resid[mask] = y[mask] - pred_for_fold(k)[mask]
-        sse_sub = np.bincount(sub_of_sample, weights=resid * resid,
-                              minlength=n_sub)[sub_used]
-        return resid, sse_sub
-
+    cv = _CrossValidation(data, prep, folds, ctx)
     # user-calibrated baseline, recalibrated from each fold's training rows
-    base_resid, base_sub = held_out(lambda k: base.baseline_prediction(
-        s, phys, base.calibrate(b, phys, rows=fold_of_bin != k)))
-    rmse_base = math.sqrt(float(np.sum(base_sub)) / n)
-
-    weight_sum = float(np.sum(b.weight))
-    n_rows = len(b)
-
-    def evaluate(effect):
-        fits = {k: fit_effect(effect, ctx, b, fold_of_bin != k)
-                for k in used_folds}
-        resid, sub = held_out(lambda k: predict(effect, ctx, s, fits[k]))
-        full = fit_effect(effect, ctx, b)
-        return fits, resid, sub, full
-
-    null_fits, null_resid, null_sub, null_full = evaluate(fx.NULL)
-    rmse_null = math.sqrt(float(np.sum(null_sub)) / n)
-    bic_null = _bic(null_full.sse, weight_sum, n_rows, fx.NULL.n_params)
-
+    _, base_sub = cv.held_out(lambda k: base.baseline_prediction(
+        prep.samples, phys, base.calibrate(b, phys, rows=cv.fold_of_bin != k)))
+    rmse_base = math.sqrt(float(np.sum(base_sub)) / data.rows)
+    null = cv.evaluate(fx.NULL)
     have = _excitation(prep)
     findings, not_tested, store = [], [], {}
     for eff in catalogue:
@@ -367,49 +329,124 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
             not_tested.append({'effect': eff.effect_id,
                                'reason': _NEED_TEXT[missing[0]]})
             continue
-        fits, resid, sub, full = evaluate(eff)
-        rmse = math.sqrt(float(np.sum(sub)) / n)
-        values = eff.report(full.beta, full.phi)
-        jack = {name: [eff.report(f.beta, f.phi)[name] for f in fits.values()]
-                for name in values}
-        kf = len(fits)
-        params = {}
-        for p in eff.params:
-            arr = np.asarray(jack[p.name], dtype=float)
-            sigma = math.sqrt((kf - 1) / kf * float(np.sum(
-                (arr - arr.mean()) ** 2))) if kf > 1 else float('nan')
-            params[p.name] = {'value': float(values[p.name]), 'sigma': sigma,
-                              'unit': p.unit, 'meaning': p.meaning}
-        gain_null = 1.0 - rmse / rmse_null
-        p_value = _paired_p(null_sub, sub)
-        d_bic = _bic(full.sse, weight_sum, n_rows, eff.n_params) - bic_null
-        significant = bool(gain_null >= MIN_GAIN and p_value < ALPHA
-                           and d_bic < DELTA_BIC_MAX)
-        findings.append({
-            'effect': eff.effect_id, 'cause': eff.cause, 'parameters': params,
-            'rmse_rad_s': rmse, 'gain': 1.0 - rmse / rmse_base,
-            'gain_over_recalibrated': gain_null, 'p_value': p_value,
-            'delta_bic': d_bic, 'n_params': eff.n_params,
-            'significant': significant})
-        store[eff.effect_id] = (eff, resid, sub, full)
+        result = cv.evaluate(eff)
+        findings.append(_finding(eff, result, null, cv, rmse_base))
+        store[eff.effect_id] = (eff, result.resid, result.sub, result.full)
     findings.sort(key=lambda f: f['rmse_rad_s'])
-
     best = _choose(findings, store)
     if best is None:
-        chosen_resid = null_resid
-        after_effect, after_fit = fx.NULL, null_full
+        chosen_resid, after_effect, after_fit = null.resid, fx.NULL, null.full
     else:
-        chosen_resid = store[best['effect']][1]
-        after_effect, after_fit = store[best['effect']][0], \
-            store[best['effect']][3]
+        after_effect, chosen_resid, _, after_fit = store[best['effect']]
     structure = residual_structure(prep, chosen_resid)
     best_doc = _best_doc(best, rmse_base, structure)
     structure['message'] = _structure_message(best, structure)
+    cal_all = base.calibrate(b, phys)
+    doc = _document(data, prep, preset, cal_all, cv, rmse_base, null, best_doc, findings,
+                    not_tested, structure)
+    before = b.gyro - base.baseline_prediction(b, phys, cal_all)
+    after = b.gyro - predict(after_effect, ctx, b, after_fit)
+    return Diagnosis(doc=doc, prepared=prep, residual_before=before,
+                     residual_after=after,
+                     after_label=(best['effect'] if best else
+                                  'recalibrated baseline (no cause found)'))
 
-    doc = {
-        'input': {'source': data.source, 'rows': n,
+
+@dataclass
+class _Evaluated:
+    """One effect under cross-validation: per-fold fits, held-out residuals, full fit."""
+
+    fits: dict
+    resid: np.ndarray
+    sub: np.ndarray
+    full: object
+    rmse: float
+
+
+class _CrossValidation:
+    """
+    Contiguous folds for held-out errors, sub-blocks for the paired test.
+
+    The record is cut into ``folds`` blocks of equal duration; a fit on all
+    other blocks predicts each block. Every fold is cut again into
+    ``SUB_BLOCKS_PER_FOLD`` sub-blocks, whose squared-error sums pair two
+    models in :func:`_paired_p`.
+    """
+
+    def __init__(self, data, prep, folds, ctx):
+        b = prep.binned
+        t0 = float(data.time_s[0])
+        span = prep.duration_s
+        self.fold_of_bin = np.minimum(((b.time_s - t0) / span * folds).astype(int),
+                                      folds - 1)
+        self.n_sub = folds * SUB_BLOCKS_PER_FOLD
+        sub_of_bin = np.minimum(((b.time_s - t0) / span * self.n_sub).astype(int),
+                                self.n_sub - 1)
+        self.fold_of_sample = self.fold_of_bin[prep.sample_bin]
+        self.sub_of_sample = sub_of_bin[prep.sample_bin]
+        self.used_folds = [k for k in range(folds) if np.any(self.fold_of_bin == k)]
+        self.sub_used = np.bincount(self.sub_of_sample, minlength=self.n_sub) > 0
+        self.y = data.gyro_rad_s
+        self.prep, self.ctx = prep, ctx
+        self.weight_sum = float(np.sum(b.weight))
+        self.n_rows = len(b)
+
+    def held_out(self, pred_for_fold):
+        """Return the held-out residual of every sample and the SSE per sub-block."""
+        resid = np.empty(len(self.y))
+        for k in self.used_folds:
+            mask = self.fold_of_sample == k
+            resid[mask] = self.y[mask] - pred_for_fold(k)[mask]
+        sse_sub = np.bincount(self.sub_of_sample, weights=resid * resid,
+                              minlength=self.n_sub)[self.sub_used]
+        return resid, sse_sub
+
+    def evaluate(self, effect):
+        """Fit ``effect`` per fold and on everything; return an :class:`_Evaluated`."""
+        b, s = self.prep.binned, self.prep.samples
+        fits = {k: fit_effect(effect, self.ctx, b, self.fold_of_bin != k)
+                for k in self.used_folds}
+        resid, sub = self.held_out(lambda k: predict(effect, self.ctx, s, fits[k]))
+        full = fit_effect(effect, self.ctx, b)
+        return _Evaluated(fits, resid, sub, full, math.sqrt(float(np.sum(sub)) / len(self.y)))
+
+    def bic(self, full, n_params):
+        """BIC of a full fit (see :func:`_bic`)."""
+        return _bic(full.sse, self.weight_sum, self.n_rows, n_params)
+
+
+def _finding(eff, result, null, cv, rmse_base):
+    """One catalogue entry's result: parameters with jackknife sigma, gains, tests."""
+    values = eff.report(result.full.beta, result.full.phi)
+    jack = {name: [eff.report(f.beta, f.phi)[name] for f in result.fits.values()]
+            for name in values}
+    kf = len(result.fits)
+    params = {}
+    for p in eff.params:
+        arr = np.asarray(jack[p.name], dtype=float)
+        sigma = math.sqrt((kf - 1) / kf * float(np.sum(
+            (arr - arr.mean()) ** 2))) if kf > 1 else float('nan')
+        params[p.name] = {'value': float(values[p.name]), 'sigma': sigma,
+                          'unit': p.unit, 'meaning': p.meaning}
+    gain_null = 1.0 - result.rmse / null.rmse
+    p_value = _paired_p(null.sub, result.sub)
+    d_bic = cv.bic(result.full, eff.n_params) - cv.bic(null.full, fx.NULL.n_params)
+    significant = bool(gain_null >= MIN_GAIN and p_value < ALPHA
+                       and d_bic < DELTA_BIC_MAX)
+    return {'effect': eff.effect_id, 'cause': eff.cause, 'parameters': params,
+            'rmse_rad_s': result.rmse, 'gain': 1.0 - result.rmse / rmse_base,
+            'gain_over_recalibrated': gain_null, 'p_value': p_value,
+            'delta_bic': d_bic, 'n_params': eff.n_params,
+            'significant': significant}
+
+
+def _document(data, prep, preset, cal_all, cv, rmse_base, null, best_doc, findings,
+              not_tested, structure):
+    """Return the JSON document of a diagnosis."""
+    return {
+        'input': {'source': data.source, 'rows': data.rows,
                   'duration_s': prep.duration_s, 'sample_interval_s': prep.dt_s,
-                  'bins': n_rows, 'bin_s': prep.bin_s,
+                  'bins': cv.n_rows, 'bin_s': prep.bin_s,
                   'temp_range_c': [float(data.temp_c.min()),
                                    float(data.temp_c.max())],
                   'rate_rms_rad_s': math.sqrt(float(np.mean(
@@ -421,24 +458,18 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
                      'model': 'paper first-order physics (preset '
                               f'{preset!r}), one bias and one scale factor '
                               'calibrated at the reference temperature'},
-        'recalibrated_baseline': {'rmse_rad_s': rmse_null},
+        'recalibrated_baseline': {'rmse_rad_s': null.rmse},
         'best': best_doc,
         'findings': findings,
         'not_tested': not_tested,
         'residual': structure,
-        'method': {'folds': len(used_folds), 'sub_blocks': int(sub_used.sum()),
+        'method': {'folds': len(cv.used_folds), 'sub_blocks': int(cv.sub_used.sum()),
                    'min_gain': MIN_GAIN, 'alpha': ALPHA,
                    'delta_bic_max': DELTA_BIC_MAX, 'alpha_tie': ALPHA_TIE,
                    'rmse': 'held-out, every sample, rad/s',
                    'uncertainty': 'delete-a-block jackknife over the folds, '
                                   '1 sigma'},
     }
-    before = b.gyro - base.baseline_prediction(b, phys, cal_all)
-    after = b.gyro - predict(after_effect, ctx, b, after_fit)
-    return Diagnosis(doc=doc, prepared=prep, residual_before=before,
-                     residual_after=after,
-                     after_label=(best['effect'] if best else
-                                  'recalibrated baseline (no cause found)'))
 
 
 def _choose(findings, store):
