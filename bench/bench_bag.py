@@ -1,7 +1,8 @@
 """
 Bag write/read throughput for sensor_msgs/Imu, beside rosbags on the same data.
 
-Usage: ./dev.sh shell, then ``python bench/bench_bag.py [--messages N]``.
+Usage: ./dev.sh shell, then ``python bench/bench_bag.py [--messages N]``
+(``--messages 20000 --repeat 1`` for a quick run).
 
 Write paths (messages/s, including everything from the input shown to a
 finished bag with metadata.yaml):
@@ -17,14 +18,22 @@ Read paths: ``numpy`` (``BagReader.read_arrays``: the chosen fast path),
 ``bytes`` (``BagReader.messages``), ``rclpy`` (bytes + ``deserialize_message``)
 and ``mcap_ros2`` (``decoded_messages``, mcap-ros2-support's dynamic decoder).
 The references are rosbags 0.11 (Writer version 9 / Reader + deserialize_cdr)
-on the same payloads and the same file, and for writing also the ``mcap``
-library's own ``mcap.writer.Writer`` (one MCAP file, zstd chunks of the same
-size, no ``metadata.yaml`` and no flushing per chunk): the measure of what
-our hand-written crash-safe writer (``McapFileWriter``) costs or saves. Best
-of ``--repeat`` runs.
+on the same payloads and the same file.
+
+The MCAP file table sets our hand-written crash-safe writer
+(``McapFileWriter``) beside the ``mcap`` library's own ``mcap.writer.Writer``
+on one file each: the same payloads, schema, channel, zstd chunks of
+``DEFAULT_CHUNK_SIZE`` bytes and the library's default indexes and summary.
+Ours also flushes every closed chunk to the operating system (crash safety);
+the library's zstd level is its default (not settable), ours is 1.
+
+Every row gives messages per wall second and per CPU second of this process
+(``time.process_time``), from the fastest of ``--repeat`` runs.
 """
 
 import argparse
+from dataclasses import dataclass
+from functools import lru_cache
 import os
 import shutil
 import sys
@@ -36,121 +45,167 @@ import numpy as np
 
 IMU = 'sensor_msgs/msg/Imu'
 TOPIC = '/imu/data_raw'
+FRAME_ID = 'imu_link'
 
 
-def best_rate(count, func, repeat):
-    """Return the best messages/s of ``repeat`` calls of ``func``."""
-    best = float('inf')
+@dataclass(frozen=True)
+class Inputs:
+    """The messages every path writes: times, field values and CDR payloads."""
+
+    stamps_ns: np.ndarray
+    values: np.ndarray
+    payloads: list
+    stamp_list: list
+
+    @property
+    def count(self):
+        """Return the number of messages."""
+        return len(self.payloads)
+
+
+def make_inputs(count):
+    """Return ``count`` Imu messages 5 ms apart with seeded random fields."""
+    stamps_ns = 1_700_000_000_000_000_000 + np.arange(count, dtype=np.int64) * 5_000_000
+    values = np.random.default_rng(0).normal(size=(count, len(cdr.LAYOUTS[IMU].fields)))
+    payloads = cdr.encode(IMU, stamps_ns, values, FRAME_ID)
+    return Inputs(stamps_ns, values, payloads, stamps_ns.tolist())
+
+
+def best_rates(count, func, repeat):
+    """Return (messages per wall s, per CPU s) of the fastest of ``repeat`` calls."""
+    best_wall_s, best_cpu_s = float('inf'), float('inf')
     for _ in range(repeat):
-        start = time.perf_counter()
+        wall_s, cpu_s = time.perf_counter(), time.process_time()
         func()
-        best = min(best, time.perf_counter() - start)
-    return count / best
+        wall_s, cpu_s = time.perf_counter() - wall_s, time.process_time() - cpu_s
+        if wall_s < best_wall_s:
+            best_wall_s, best_cpu_s = wall_s, cpu_s
+    return count / best_wall_s, count / max(best_cpu_s, 1e-9)
 
 
-def main(argv=None):
-    """Run the benchmark and print the table."""
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--messages', type=int, default=200_000)
-    parser.add_argument('--repeat', type=int, default=2)
-    args = parser.parse_args(argv)
-    from mcap.writer import CompressionType, Writer as McapWriter
-    from rclpy.serialization import deserialize_message, serialize_message
-    from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+def print_row(label, rates, note=''):
+    """Print one table row: label, messages per wall s and per CPU s, a note."""
+    print(f'  {label:<58} {rates[0]:>10,.0f} {rates[1]:>10,.0f}   {note}'.rstrip())
+
+
+@lru_cache(maxsize=1)
+def typestore():
+    """Return rosbags' ROS 2 Jazzy type store, built once and outside the timings."""
     from rosbags.typesys import get_typestore, Stores
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+# -- write paths -------------------------------------------------------------------------
+def write_bytes(path, inputs):
+    """Write the ready payloads to a bag (the recorder's raw path)."""
+    with bag.BagWriter(path) as writer:
+        cid = writer.add_topic(TOPIC, IMU)
+        write = writer.write
+        for data, t in zip(inputs.payloads, inputs.stamp_list):
+            write(cid, data, t)
+
+
+def write_rclpy(path, inputs):
+    """Update, serialise with rclpy and write one Imu message per sample."""
+    from rclpy.serialization import serialize_message
     from sensor_msgs.msg import Imu
+    msg = Imu()
+    msg.header.frame_id = FRAME_ID
+    av = msg.angular_velocity
+    gyro = inputs.values[:, cdr.LAYOUTS[IMU].columns('angular_velocity')].tolist()
+    with bag.BagWriter(path) as writer:
+        cid = writer.add_topic(TOPIC, IMU)
+        write = writer.write
+        for t, (x, y, z) in zip(inputs.stamp_list, gyro):
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t, 1_000_000_000)
+            av.x, av.y, av.z = x, y, z
+            write(cid, serialize_message(msg), t)
 
-    n = args.messages
-    rng = np.random.default_rng(0)
-    stamps = 1_700_000_000_000_000_000 + np.arange(n, dtype=np.int64) * 5_000_000
-    values = rng.normal(size=(n, 37))
-    payloads = cdr.encode(IMU, stamps, values, 'imu_link')
-    stamp_list = stamps.tolist()
-    work = tempfile.mkdtemp(prefix='bench_bag_')
-    counter = [0]
 
-    def fresh(name):
-        counter[0] += 1
-        return os.path.join(work, f'{name}{counter[0]}')
+def write_numpy(path, inputs):
+    """Encode the arrays with ``cdr.encode`` and write them as one batch."""
+    with bag.BagWriter(path) as writer:
+        writer.add_topic(TOPIC, IMU)
+        payloads = cdr.encode(IMU, inputs.stamps_ns, inputs.values, FRAME_ID)
+        writer.write_batches([(TOPIC, payloads, inputs.stamps_ns)])
 
-    def write_bytes(path=None):
-        with bag.BagWriter(path or fresh('bytes')) as writer:
-            cid = writer.add_topic(TOPIC, IMU)
-            write = writer.write
-            for data, t in zip(payloads, stamp_list):
-                write(cid, data, t)
 
-    def write_rclpy():
-        msg = Imu()
-        msg.header.frame_id = 'imu_link'
-        av = msg.angular_velocity
-        gyro = values[:, 13:16].tolist()
-        with bag.BagWriter(fresh('rclpy')) as writer:
-            cid = writer.add_topic(TOPIC, IMU)
-            write = writer.write
-            for t, (x, y, z) in zip(stamp_list, gyro):
-                msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(t, 1_000_000_000)
-                av.x, av.y, av.z = x, y, z
-                write(cid, serialize_message(msg), t)
+def write_rosbags(path, inputs):
+    """Write the ready payloads with rosbags' Writer (version 9, MCAP)."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    with Writer(path, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conn = writer.add_connection(TOPIC, IMU, typestore=typestore())
+        write = writer.write
+        for data, t in zip(inputs.payloads, inputs.stamp_list):
+            write(conn, t, data)
 
-    def write_numpy():
-        with bag.BagWriter(fresh('numpy')) as writer:
-            writer.add_topic(TOPIC, IMU)
-            writer.write_batches([(TOPIC, cdr.encode(IMU, stamps, values, 'imu_link'),
-                                   stamps)])
 
-    typestore = get_typestore(Stores.ROS2_JAZZY)
+def write_mcap_file_writer(path, inputs):
+    """Write the ready payloads to one MCAP file with our ``McapFileWriter``."""
+    writer = bag.McapFileWriter(path + '.mcap', compression='zstd',
+                                chunk_size=bag.DEFAULT_CHUNK_SIZE)
+    schema_id = writer.add_schema(IMU, bag.message_definition(IMU))
+    cid = writer.add_channel(TOPIC, schema_id)
+    write = writer.write
+    for seq, (data, t) in enumerate(zip(inputs.payloads, inputs.stamp_list)):
+        write(cid, data, t, t, seq)
+    writer.finish()
 
-    def write_rosbags():
-        with Writer(fresh('rosbags'), version=9, storage_plugin=StoragePlugin.MCAP) as writer:
-            conn = writer.add_connection(TOPIC, IMU, typestore=typestore)
-            write = writer.write
-            for data, t in zip(payloads, stamp_list):
-                write(conn, t, data)
 
-    def write_mcap_library():
-        with open(fresh('mcap') + '.mcap', 'wb') as stream:
-            writer = McapWriter(stream, chunk_size=bag.DEFAULT_CHUNK_SIZE,
-                                compression=CompressionType.ZSTD)
-            writer.start(profile='ros2', library='mcap')
-            schema = writer.register_schema(IMU, 'ros2msg',
-                                            bag.message_definition(IMU).encode())
-            channel = writer.register_channel(TOPIC, 'cdr', schema)
-            add = writer.add_message
-            for seq, (data, t) in enumerate(zip(payloads, stamp_list)):
-                add(channel, log_time=t, data=data, publish_time=t, sequence=seq)
-            writer.finish()
+def write_mcap_library(path, inputs):
+    """Write the ready payloads to one MCAP file with ``mcap.writer.Writer``."""
+    from mcap.writer import CompressionType, Writer
+    with open(path + '.mcap', 'wb') as stream:
+        writer = Writer(stream, chunk_size=bag.DEFAULT_CHUNK_SIZE,
+                        compression=CompressionType.ZSTD)
+        writer.start(profile='ros2', library='mcap')
+        schema_id = writer.register_schema(IMU, 'ros2msg',
+                                           bag.message_definition(IMU).encode())
+        cid = writer.register_channel(TOPIC, 'cdr', schema_id)
+        add = writer.add_message
+        for seq, (data, t) in enumerate(zip(inputs.payloads, inputs.stamp_list)):
+            add(cid, log_time=t, data=data, publish_time=t, sequence=seq)
+        writer.finish()
 
-    print(f'{n} sensor_msgs/Imu messages ({len(payloads[0])} bytes each), best of '
-          f'{args.repeat}; Python {sys.version.split()[0]}')
-    print('\nWRITE (messages/s)')
-    rosbags_write = best_rate(n, write_rosbags, args.repeat)
-    rows = [('bytes  (recorder: raw payloads)', best_rate(n, write_bytes, args.repeat)),
-            ('rclpy  (serialize_message + write)', best_rate(n, write_rclpy, args.repeat)),
-            ('numpy  (cdr.encode arrays + write)', best_rate(n, write_numpy, args.repeat))]
-    for name, rate in rows:
-        print(f'  gyro_emulator.recording.bag {name:<36} {rate:>10,.0f}   '
-              f'{rate / rosbags_write:5.2f}x rosbags')
-    print(f'  rosbags Writer v9 mcap (same payloads)                {rosbags_write:>10,.0f}')
-    mcap_write = best_rate(n, write_mcap_library, args.repeat)
-    print(f'  mcap.writer.Writer (same payloads, one file)          {mcap_write:>10,.0f}   '
-          f'bytes path / mcap Writer: {rows[0][1] / mcap_write:.2f}x')
 
-    path = os.path.join(work, 'read')
-    write_bytes(path)
-    size = os.path.getsize(os.path.join(path, 'read_0.mcap'))
+def bench_writes(inputs, work, repeat):
+    """Print the bag write table and the MCAP file writer table."""
+    paths = iter(os.path.join(work, f'w{i}') for i in range(1_000_000))
+
+    def rates(func):
+        return best_rates(inputs.count, lambda: func(next(paths), inputs), repeat)
+
+    print(f'\nWRITE a bag {"messages/s":>53} {"msg/CPU-s":>10}')
+    rosbags = rates(write_rosbags)
+    for label, func in (('bytes  (recorder: raw payloads)', write_bytes),
+                        ('rclpy  (serialize_message + write)', write_rclpy),
+                        ('numpy  (cdr.encode arrays + write)', write_numpy)):
+        ours = rates(func)
+        print_row(f'bag.BagWriter {label}', ours, f'{ours[0] / rosbags[0]:5.2f}x rosbags')
+    print_row('rosbags Writer v9 mcap (same payloads)', rosbags)
+    print(f'\nWRITE one MCAP file, zstd chunks of {bag.DEFAULT_CHUNK_SIZE} bytes, same payloads')
+    library = rates(write_mcap_library)
+    ours = rates(write_mcap_file_writer)
+    print_row('bag.McapFileWriter (ours, crash-safe)', ours,
+              f'{ours[0] / library[0]:5.2f}x wall, {ours[1] / library[1]:5.2f}x CPU of mcap')
+    print_row('mcap.writer.Writer (the mcap library)', library)
+
+
+# -- read paths --------------------------------------------------------------------------
+def read_functions(path, count):
+    """Return {name: function} reading the bag at ``path`` of ``count`` Imu messages."""
+    from rclpy.serialization import deserialize_message
+    from rosbags.rosbag2 import Reader
+    from sensor_msgs.msg import Imu
     reader = bag.BagReader(path)
+    deserialize = typestore().deserialize_cdr
 
     def read_numpy():
         arrays = reader.read_arrays(TOPIC)
-        assert arrays.decoded.values.shape == (n, 37)
+        assert arrays.decoded.values.shape == (count, len(cdr.LAYOUTS[IMU].fields))
 
     def read_bytes():
-        count = 0
-        for _ in reader.messages(TOPIC):
-            count += 1
-        assert count == n
+        assert sum(1 for _ in reader.messages(TOPIC)) == count
 
     def read_rclpy():
         for item in reader.messages(TOPIC):
@@ -160,36 +215,61 @@ def main(argv=None):
         for _ in reader.decoded_messages(TOPIC):
             pass
 
-    def read_rosbags():
-        with Reader(path) as rb:
-            deserialize = typestore.deserialize_cdr
-            for conn, _, raw in rb.messages():
-                deserialize(raw, conn.msgtype)
+    def read_rosbags(decode):
+        with Reader(path) as rosbag:
+            for conn, _, raw in rosbag.messages():
+                if decode:
+                    deserialize(raw, conn.msgtype)
 
-    def read_rosbags_raw():
-        with Reader(path) as rb:
-            for _ in rb.messages():
-                pass
+    return {'numpy': read_numpy, 'bytes': read_bytes, 'rclpy': read_rclpy,
+            'mcap_ros2': read_mcap_ros2, 'rosbags': lambda: read_rosbags(True),
+            'rosbags_raw': lambda: read_rosbags(False)}
 
-    print(f'\nREAD (messages/s) of one {size / 1e6:.1f} MB file (zstd chunks)')
-    rosbags_read = best_rate(n, read_rosbags, args.repeat)
-    rosbags_raw = best_rate(n, read_rosbags_raw, args.repeat)
-    reads = [('numpy  (read_arrays: decoded columns)', best_rate(n, read_numpy, args.repeat),
-              rosbags_read),
-             ('rclpy  (messages + deserialize_message)', best_rate(n, read_rclpy, args.repeat),
-              rosbags_read),
-             ('mcap_ros2 (decoded_messages)', best_rate(n, read_mcap_ros2, 1), rosbags_read),
-             ('bytes  (messages, no decoding)', best_rate(n, read_bytes, args.repeat),
-              rosbags_raw)]
-    for name, rate, ref in reads:
-        label = 'decoded' if ref is rosbags_read else 'raw'
-        print(f'  gyro_emulator.recording.bag {name:<40} {rate:>10,.0f}   '
-              f'{rate / ref:5.2f}x rosbags {label}')
-    print(f'  rosbags Reader + deserialize_cdr (decoded)                 {rosbags_read:>10,.0f}')
-    print(f'  rosbags Reader messages (raw)                              {rosbags_raw:>10,.0f}')
+
+def bench_reads(inputs, work, repeat):
+    """Write one bag of the payloads and print the read table."""
+    path = os.path.join(work, 'read')
+    write_bytes(path, inputs)
+    size = os.path.getsize(os.path.join(path, 'read_0.mcap'))
+    reads = read_functions(path, inputs.count)
+
+    def rates(name, times=repeat):
+        return best_rates(inputs.count, reads[name], times)
+
+    print(f'\nREAD one {size / 1e6:.1f} MB file (zstd chunks) {"messages/s":>26} '
+          f'{"msg/CPU-s":>10}')
+    decoded, raw = rates('rosbags'), rates('rosbags_raw')
+    for label, name, ref, times in (
+            ('numpy  (read_arrays: decoded columns)', 'numpy', decoded, repeat),
+            ('rclpy  (messages + deserialize_message)', 'rclpy', decoded, repeat),
+            ('mcap_ros2 (decoded_messages)', 'mcap_ros2', decoded, 1),
+            ('bytes  (messages, no decoding)', 'bytes', raw, repeat)):
+        ours = rates(name, times)
+        kind = 'decoded' if ref is decoded else 'raw'
+        print_row(f'bag.BagReader {label}', ours, f'{ours[0] / ref[0]:5.2f}x rosbags {kind}')
+    print_row('rosbags Reader + deserialize_cdr (decoded)', decoded)
+    print_row('rosbags Reader messages (raw)', raw)
+
+
+def main(argv=None):
+    """Run the benchmark and print the tables."""
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--messages', type=int, default=200_000)
+    parser.add_argument('--repeat', type=int, default=2)
+    args = parser.parse_args(argv)
+    inputs = make_inputs(args.messages)
+    typestore()
+    print(f'{inputs.count} sensor_msgs/Imu messages ({len(inputs.payloads[0])} bytes each), '
+          f'best of {args.repeat}; Python {sys.version.split()[0]}')
+    work = tempfile.mkdtemp(prefix='bench_bag_')
+    try:
+        bench_writes(inputs, work, args.repeat)
+        bench_reads(inputs, work, args.repeat)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
     print('\ntargets: write >= 80,000/s, read >= 100,000/s (numpy read path, rclpy write '
           'path)')
-    shutil.rmtree(work, ignore_errors=True)
     return 0
 
 

@@ -13,7 +13,7 @@ rclpy leaves uninitialised.
 import importlib
 
 from gyro_emulator.recording import bag
-from rclpy.serialization import deserialize_message, serialize_message
+from rclpy.serialization import deserialize_message
 
 _CLASSES = {}
 
@@ -62,11 +62,6 @@ def type_name_of(message):
 def schema_text(type_name):
     """Return the ros2msg schema of ``type_name`` as rosbag2 stores it."""
     return bag.message_definition(type_name)
-
-
-def serialize(message):
-    """Return the CDR bytes of a message (rclpy ``serialize_message``)."""
-    return serialize_message(message)
 
 
 def deserialize(data, type_name):

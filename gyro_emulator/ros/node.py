@@ -30,6 +30,7 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
+from gyro_emulator.recording import topics
 from gyro_emulator.ros import diagnostics, params
 from gyro_emulator.ros.inputs import (check_acceleration, check_rate, check_temperature,
                                       CommandStream, InputLimits, InputRejected, Throttle)
@@ -53,10 +54,8 @@ from sensor_msgs.msg import Imu, Temperature
 
 _NS = 1_000_000_000
 ZERO3 = (0.0, 0.0, 0.0)
-#: Messages each command topic keeps until the next sample takes them.
+#: Messages each command subscription keeps until the executor serves them.
 INPUT_DEPTH = 100
-#: Most messages taken from one command topic per sample.
-INPUT_PER_SAMPLE = 10
 #: Longest wait of the executor between checks for shutdown, s.
 SHUTDOWN_POLL_S = 0.25
 
@@ -225,16 +224,16 @@ class GyroEmulatorNode(Node):
         qos_options = QoSOverridingOptions.with_default_policies
         quiet = PublisherEventCallbacks(use_default_callbacks=False)
         self._imu_pub = self.create_publisher(
-            Imu, 'imu/data_raw', qos_profile_sensor_data,
+            Imu, topics.IMU_OUT.name, qos_profile_sensor_data,
             qos_overriding_options=qos_options())
         self._temp_pub = self.create_publisher(
-            Temperature, 'imu/temperature', qos_profile_sensor_data,
+            Temperature, topics.DIE_TEMPERATURE_OUT.name, qos_profile_sensor_data,
             qos_overriding_options=qos_options(), event_callbacks=quiet)
         self._truth_pubs = [
-            self.create_publisher(Vector3Stamped, f'~/truth/{name}', qos_profile_sensor_data,
+            self.create_publisher(Vector3Stamped, topic.name, qos_profile_sensor_data,
                                   qos_overriding_options=qos_options(), event_callbacks=quiet)
-            for name in ('rate', 'bias', 'scale_factor')]
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10,
+            for topic in topics.TRUTH_TOPICS.values()]
+        self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name, 10,
                                                event_callbacks=quiet)
         imu = Imu()
         imu.header.frame_id = self.frame_id
@@ -261,45 +260,27 @@ class GyroEmulatorNode(Node):
 
     def _make_inputs(self):
         """
-        Create the command subscriptions, which the sample loop polls.
+        Subscribe to the commands on the node itself (its executor serves them).
 
-        rclpy's executor costs about 20 us per entity on every wake-up and
-        about 0.5 ms of CPU per message it wakes for. Polled once per sample
-        instead, the commands cost a few microseconds per tick and nothing
-        per message, and a command is taken exactly at the sample it can
-        first apply to (also under a paused /clock). The subscriptions belong
-        to a helper node ``<name>_input`` (same namespace and remaps) that no
-        executor spins. Each topic keeps the last ``INPUT_DEPTH`` messages;
-        at most ``INPUT_PER_SAMPLE`` are taken per topic per sample, so a
-        flood costs bounded time and the middleware drops its excess.
+        A command goes into its stamped queue (:class:`CommandStream`) when it
+        arrives and takes effect at the first sample at or after its stamp,
+        so the order in which the executor serves the timer and the
+        subscriptions does not change the output. Each subscription keeps the
+        last ``INPUT_DEPTH`` messages.
         """
-        name = f'{self.get_name()}_input'
-        self._input_node = rclpy.create_node(
-            name, context=self.context, cli_args=['--ros-args', '-r', f'__node:={name}'],
-            start_parameter_services=False)
-        node = self._input_node
         qos = QoSProfile(history=qos_profile_sensor_data.history, depth=INPUT_DEPTH,
                          reliability=qos_profile_sensor_data.reliability,
                          durability=qos_profile_sensor_data.durability)
         options = QoSOverridingOptions.with_default_policies
-        topics = [(Vector3Stamped, 'cmd/angular_velocity', self._on_rate),
-                  (Temperature, 'cmd/temperature', self._on_temperature),
-                  (Vector3Stamped, 'cmd/linear_acceleration', self._on_accel)]
+        inputs = [(Vector3Stamped, topics.RATE_CMD.name, self._on_rate),
+                  (Temperature, topics.TEMPERATURE_CMD.name, self._on_temperature),
+                  (Vector3Stamped, topics.ACCEL_CMD.name, self._on_accel)]
         if self._p['rate_source'] == 'odometry':
-            topics[0] = (Odometry, 'cmd/odom', self._on_odometry)
-        self._inputs_polled = [
-            (node.create_subscription(msg_type, topic, handler, qos,
-                                      qos_overriding_options=options()), handler)
-            for msg_type, topic, handler in topics]
-
-    def _poll_inputs(self):
-        for sub, handler in self._inputs_polled:
-            with sub.handle:
-                for _ in range(INPUT_PER_SAMPLE):
-                    taken = sub.handle.take_message(sub.msg_type, sub.raw)
-                    if taken is None:
-                        break
-                    handler(taken[0])
+            inputs[0] = (Odometry, topics.ODOM_CMD.name, self._on_odometry)
+        self._input_subscriptions = [
+            self.create_subscription(msg_type, topic, handler, qos,
+                                     qos_overriding_options=options())
+            for msg_type, topic, handler in inputs]
 
     def _start_diagnostics(self):
         """Publish /diagnostics from a thread on the steady clock (also when paused)."""
@@ -322,17 +303,15 @@ class GyroEmulatorNode(Node):
                 return
 
     def destroy_node(self):
-        """Stop the diagnostics thread and destroy the helper node and this one."""
+        """Stop the diagnostics thread, finish the self-recording and destroy the node."""
         stop = getattr(self, '_diag_stop', None)
         if stop is not None:
             stop.set()
             self._diag_thread.join(5.0)
             self._diag_stop = None
-        helper = getattr(self, '_input_node', None)
-        if helper is not None:
-            self._inputs_polled = []
-            helper.destroy_node()
-            self._input_node = None
+        recorder = getattr(self, '_self_recorder', None)
+        if recorder is not None:
+            recorder.finish()
         return super().destroy_node()
 
     def _now_ns(self):
@@ -346,7 +325,7 @@ class GyroEmulatorNode(Node):
             self.get_logger().warning(f'input rejected ({exc.reason}): {exc}{more}')
 
     def _offer(self, stream, value, stamp_ns):
-        dropped = stream.offer(value, stamp_ns, self._now_tick_ns,
+        dropped = stream.offer(value, stamp_ns, self._now_ns(),
                                int(self._limits.max_stamp_lead_s * _NS))
         if dropped:
             self._reject(InputRejected(dropped, f'{stream.name}: more than '
@@ -424,8 +403,6 @@ class GyroEmulatorNode(Node):
                 stream.reset_clock()
             self.get_logger().warning('clock jumped back: command stamps forgotten')
         self._last_tick_ns = now_ns
-        self._now_tick_ns = now_ns
-        self._poll_inputs()
         rate, temp, accel = self._inputs(now_ns)
         self._ambient_c = temp
         try:

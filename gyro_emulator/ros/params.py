@@ -20,6 +20,7 @@ Descriptors carry ranges for rclpy to enforce; :func:`check_value` adds the
 choices and the message format used everywhere (field, value, allowed range).
 """
 
+import array
 from dataclasses import dataclass, fields, replace
 import math
 
@@ -29,6 +30,7 @@ from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType)
+from rclpy.parameter import parameter_dict_from_yaml_file, parameter_value_to_python
 
 NODE_NAME = topics.NODE_NAME
 DEFAULTS_FILE = 'gyro_emulator.yaml'
@@ -231,20 +233,14 @@ def default_params_path():
     return config_file(DEFAULTS_FILE)
 
 
-def _flatten(mapping, prefix=''):
-    out = {}
-    for key, value in mapping.items():
-        name = f'{prefix}{key}'
-        if isinstance(value, dict):
-            out.update(_flatten(value, name + '.'))
-        else:
-            out[name] = value
-    return out
-
-
 def load_params_file(path, node_name=NODE_NAME):
     """
     Read a ``--params-file`` style YAML and return its parameters, flattened.
+
+    The file is parsed by rclpy's own reader
+    (``rclpy.parameter.parameter_dict_from_yaml_file``): the ``/**``
+    wildcard section first, then the node's own section. YAML syntax errors
+    are reported with their line and column first (:func:`read_yaml`).
 
     Parameters
     ----------
@@ -262,19 +258,27 @@ def load_params_file(path, node_name=NODE_NAME):
     doc = read_yaml(path)
     if not isinstance(doc, dict):
         raise ValueError(f'{path}: expected "/**: {{ros__parameters: {{...}}}}"')
-    params = {}
-    for key in ('/**', node_name, '/' + node_name):
-        section = doc.get(key)
-        if section is None:
-            continue
+    sections = [key for key in ('/**', node_name, '/' + node_name) if key in doc]
+    if not sections:
+        raise ValueError(f'{path}: no "/**" or "{node_name}" section with '
+                         'ros__parameters')
+    for key in sections:
+        section = doc[key]
         if not isinstance(section, dict) or not isinstance(
                 section.get('ros__parameters'), dict):
             raise ValueError(f'{path}: section {key!r} has no ros__parameters mapping')
-        params.update(_flatten(section['ros__parameters']))
-    if not params:
-        raise ValueError(f'{path}: no "/**" or "{node_name}" section with '
-                         'ros__parameters')
-    return params
+    try:
+        messages = parameter_dict_from_yaml_file(path, use_wildcard=True,
+                                                 target_nodes=sections)
+    except (RuntimeError, TypeError, ValueError) as exc:
+        raise ValueError(f'{path}: not a ROS 2 parameter file: {exc}') from None
+    return {name: _python_value(msg.value) for name, msg in messages.items()}
+
+
+def _python_value(value):
+    """Return a ParameterValue message as a plain Python value (arrays as lists)."""
+    out = parameter_value_to_python(value)
+    return list(out) if isinstance(out, (tuple, array.array)) else out
 
 
 def node_defaults(path=None):

@@ -23,13 +23,13 @@ import time
 
 from gyro_emulator.recording import bag
 from gyro_emulator.ros import codec
+from gyro_emulator.units import NS_PER_S
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-NS_PER_S = 1_000_000_000
 #: Longest single sleep while waiting for a message, s (keeps /clock and signals live).
 MAX_SLEEP_S = 0.05
 

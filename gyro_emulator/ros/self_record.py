@@ -9,9 +9,10 @@ receives, with the node clock as log time. Subscriptions are best effort,
 which matches reliable and best-effort publishers alike.
 
 ``record_dir`` names the bag directory; if it exists and is not empty, the bag
-goes into a new ``gyro_emulator_<date>_<time>`` directory inside it. The bag
-is finished when the node is destroyed or the process exits (SIGINT,
-SIGTERM); chunks are flushed every 0.5 s, so after SIGKILL
+goes into a new ``gyro_emulator_<date>_<time>`` directory inside it. The node owns
+the recorder: the bag is finished when the node is destroyed
+(``destroy_node`` calls :meth:`SelfRecorder.finish`) or the process exits
+(SIGINT, SIGTERM); chunks are flushed every 0.5 s, so after SIGKILL
 ``gyro-emulator bag repair`` recovers all but the last half second.
 """
 
@@ -20,26 +21,9 @@ import datetime
 import functools
 import os
 
-from gyro_emulator.recording import bag
+from gyro_emulator.recording import bag, topics
 from gyro_emulator.ros import codec
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-
-#: (relative topic, type) the node subscribes to or publishes; ``{rate}`` is
-#: the rate input of its ``rate_source``.
-NODE_TOPICS = (
-    ('{rate}', None),
-    ('cmd/temperature', 'sensor_msgs/msg/Temperature'),
-    ('cmd/linear_acceleration', 'geometry_msgs/msg/Vector3Stamped'),
-    ('imu/data_raw', 'sensor_msgs/msg/Imu'),
-    ('imu/temperature', 'sensor_msgs/msg/Temperature'),
-    ('~/truth/rate', 'geometry_msgs/msg/Vector3Stamped'),
-    ('~/truth/bias', 'geometry_msgs/msg/Vector3Stamped'),
-    ('~/truth/scale_factor', 'geometry_msgs/msg/Vector3Stamped'),
-    ('/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray'),
-)
-RATE_INPUTS = {'angular_velocity': ('cmd/angular_velocity',
-                                    'geometry_msgs/msg/Vector3Stamped'),
-               'odometry': ('cmd/odom', 'nav_msgs/msg/Odometry')}
 
 
 def bag_path(record_dir, now=None):
@@ -88,11 +72,12 @@ class SelfRecorder:
                          reliability=ReliabilityPolicy.BEST_EFFORT)
         offered = [codec.qos_to_profile(qos)]
         self._subscriptions = []
-        for relative, type_name in NODE_TOPICS:
-            if relative == '{rate}':
-                relative, type_name = RATE_INPUTS.get(rate_source,
-                                                      RATE_INPUTS['angular_velocity'])
-            topic = node.resolve_topic_name(relative)
+        rate_input = topics.RATE_INPUTS.get(rate_source, topics.RATE_CMD)
+        recorded = [rate_input] + [t for t in topics.NODE_TOPICS
+                                   if t not in topics.RATE_INPUTS.values()]
+        for entry in recorded:
+            type_name = entry.type_name
+            topic = node.resolve_topic_name(entry.name)
             cid = self.writer.add_topic(topic, type_name, qos_profiles=offered)
             self.counts[topic] = 0
             self._subscriptions.append(node.create_subscription(
@@ -100,13 +85,6 @@ class SelfRecorder:
                 functools.partial(self._on_message, topic, cid), qos, raw=True))
         self._timer = node.create_timer(0.1, self.writer.flush_if_due)
         atexit.register(self.finish)
-        destroy = node.destroy_node
-
-        def destroy_node():
-            self.finish()
-            return destroy()
-
-        node.destroy_node = destroy_node
         node.get_logger().info(f'recording inputs, outputs and truth to {self.path}')
 
     def _on_message(self, topic, cid, data):
