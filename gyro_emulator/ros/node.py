@@ -43,7 +43,7 @@ from nav_msgs.msg import Odometry
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
-from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -272,6 +272,9 @@ class GyroEmulatorNode(Node):
                          reliability=qos_profile_sensor_data.reliability,
                          durability=qos_profile_sensor_data.durability)
         options = QoSOverridingOptions.with_default_policies
+        # As for the publishers: default QoS event handlers would join every
+        # executor wake-up (three waitables per subscription).
+        quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
         inputs = [(Vector3Stamped, topics.RATE_CMD.name, self._on_rate),
                   (Temperature, topics.TEMPERATURE_CMD.name, self._on_temperature),
                   (Vector3Stamped, topics.ACCEL_CMD.name, self._on_accel)]
@@ -279,7 +282,7 @@ class GyroEmulatorNode(Node):
             inputs[0] = (Odometry, topics.ODOM_CMD.name, self._on_odometry)
         self._input_subscriptions = [
             self.create_subscription(msg_type, topic, handler, qos,
-                                     qos_overriding_options=options())
+                                     qos_overriding_options=options(), event_callbacks=quiet)
             for msg_type, topic, handler in inputs]
 
     def _start_diagnostics(self):
