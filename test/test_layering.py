@@ -108,3 +108,44 @@ def test_the_core_imports_without_ros():
             'gyro_emulator.sensor.model, gyro_emulator.analysis.diagnose; '
             'sys.exit(1 if "rclpy" in sys.modules else 0)')
     assert subprocess.run([sys.executable, '-c', code], cwd=ROOT).returncode == 0
+
+
+#: Size limits of the house (issue 11): small rooms are easier to read and test.
+MAX_FUNCTION_LINES = 100
+MAX_MODULE_LINES = 700
+
+
+@pytest.mark.parametrize('module,path', ALL, ids=[m for m, _ in ALL])
+def test_module_and_function_sizes(module, path):
+    source = open(path, encoding='utf-8').read()
+    lines = source.count('\n')
+    assert lines <= MAX_MODULE_LINES, (
+        f'{module} has {lines} lines: split it (at most {MAX_MODULE_LINES})')
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            length = node.end_lineno - node.lineno + 1
+            assert length <= MAX_FUNCTION_LINES, (
+                f'{module}.{node.name} (line {node.lineno}) has {length} lines: '
+                f'split it (at most {MAX_FUNCTION_LINES})')
+
+
+def test_the_size_check_can_fail(tmp_path):
+    """The size check reads real definitions: a long function is caught."""
+    body = '\n'.join(f'    x{i} = {i}' for i in range(MAX_FUNCTION_LINES + 1))
+    path = tmp_path / 'long.py'
+    path.write_text(f'def long():\n{body}\n', encoding='utf-8')
+    with pytest.raises(AssertionError, match='long'):
+        test_module_and_function_sizes('long', str(path))
+
+
+@pytest.mark.parametrize('line,message', [
+    ('from gyro_emulator.ros import node', 'imports must run from higher layers'),
+    ('import rclpy', 'only the ROS edge'),
+    ('from sensor_msgs.msg import Imu', 'only the ROS edge'),
+])
+def test_the_layer_check_can_fail(tmp_path, line, message):
+    """An upward import, or a ROS import below the edge, in a physics module is caught."""
+    path = tmp_path / 'fake.py'
+    path.write_text(f'{line}\n', encoding='utf-8')
+    with pytest.raises(AssertionError, match=message):
+        test_module_respects_layers('gyro_emulator.physics.fake', str(path))
