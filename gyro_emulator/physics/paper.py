@@ -8,6 +8,7 @@ of a part calibrated at 25 C, at a true 60 deg/s, from 25 to 85 C.
 
 from dataclasses import replace
 
+from gyro_emulator import plotting
 from gyro_emulator.physics import first_order
 from gyro_emulator.physics.presets import PAPER_DEVICE
 from gyro_emulator.units import deg_s_to_rad_s, rad_s_to_deg_s, rpm_to_rad_s
@@ -135,30 +136,21 @@ def paper_json(device=PAPER_DEVICE):
 
 def plot_fig5(path, device=PAPER_DEVICE):
     """Write Fig 5 (capacitance change against rate) as a PNG at ``path``."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = plotting.pyplot()
 
     rpm, dc = fig5_data(device)
     fig, ax = plt.subplots(figsize=(6.4, 4.2))
     ax.plot(rpm, dc, lw=2, label='gyro_emulator (first order, 25 C)')
     ax.plot([-50, 50], [-3.7e-17, 3.7e-17], 'k--', lw=1,
             label='paper Fig 5 end points (about +-3.7e-17 F)')
-    ax.set_xlabel('angular velocity (RPM)')
-    ax.set_ylabel('capacitance change (F)')
-    ax.set_title('Fig 5: capacitance change vs angular velocity')
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc='upper left')
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    plotting.label(ax, 'angular velocity (RPM)', 'capacitance change (F)',
+                   'Fig 5: capacitance change vs angular velocity', 'upper left')
+    plotting.save(fig, path)
 
 
 def plot_fig6(path, device=PAPER_DEVICE):
     """Write Fig 6 with viscosity variants overlaid as a PNG at ``path``."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
+    plt = plotting.pyplot()
 
     variants = fig6_variants(device)
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -172,10 +164,5 @@ def plot_fig6(path, device=PAPER_DEVICE):
     ax.set_title('Fig 6 as in the paper (constant viscosity)')
     ax2.set_title('what the constant-viscosity assumption hides')
     for a in (ax, ax2):
-        a.set_xlabel('temperature (C)')
-        a.set_ylabel('apparent rate at a true 60 deg/s (deg/s)')
-        a.grid(True, alpha=0.3)
-        a.legend(loc='best', fontsize=8)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+        plotting.label(a, 'temperature (C)', 'apparent rate at a true 60 deg/s (deg/s)')
+    plotting.save(fig, path)

@@ -35,7 +35,7 @@ from gyro_emulator.ros import diagnostics, params
 from gyro_emulator.ros.inputs import (check_acceleration, check_rate, check_temperature,
                                       CommandStream, InputLimits, InputRejected, Throttle)
 from gyro_emulator.ros.rawmsg import RawMessage
-from gyro_emulator.ros.spinning import spin_once
+from gyro_emulator.ros.spinning import close, spin_once
 from gyro_emulator.ros.stepper import BlockStepper
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
@@ -522,8 +522,7 @@ def main(args=None):
             else:
                 # The signal handler already shut the context down: no rosout.
                 print(f'[gyro_emulator] {line}', file=sys.stderr)
-            node.destroy_node()
-        rclpy.try_shutdown()
+        close(node)
     return 0
 
 

@@ -30,7 +30,7 @@ import time
 
 from gyro_emulator.recording import bag
 from gyro_emulator.ros import codec
-from gyro_emulator.ros.spinning import spin_once
+from gyro_emulator.ros.spinning import close, spin_once
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -246,9 +246,7 @@ def main(args=None):
                 if recorder is not None else ''
             print(f'recorder: wrote {writer.message_count} messages to {writer.path}'
                   f'{" (" + counts + ")" if counts else ""}', flush=True)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        close(node)
     return status
 
 

@@ -23,6 +23,7 @@ import time
 
 from gyro_emulator.recording import bag
 from gyro_emulator.ros import codec
+from gyro_emulator.ros.spinning import close
 from gyro_emulator.units import NS_PER_S
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -237,9 +238,7 @@ def main(args=None):
     finally:
         if player is not None:
             print(f'replay: published {player.published} messages', flush=True)
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        close(node)
     return status
 
 

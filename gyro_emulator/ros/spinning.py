@@ -1,4 +1,6 @@
-"""Spinning that survives the asynchronous shutdown of SIGINT/SIGTERM."""
+"""Spinning that survives the asynchronous shutdown of SIGINT/SIGTERM, and closing down."""
+
+import rclpy
 
 
 def spin_once(executor, timeout_sec):
@@ -30,3 +32,10 @@ def spin_once(executor, timeout_sec):
             raise
         return False
     return context.ok()
+
+
+def close(node):
+    """Destroy ``node`` (if any) and shut rclpy down, however the run ended."""
+    if node is not None:
+        node.destroy_node()
+    rclpy.try_shutdown()
