@@ -654,7 +654,7 @@ def test_presets_stamp_their_latency_and_signals_shut_down_cleanly(tmp_path, sig
 def test_main_job_plays_a_profile_against_the_node_and_prints_the_summary(tmp_path):
     profile = tmp_path / 'short.yaml'
     profile.write_text(yaml.safe_dump({
-        'name': 'short', 'grid': {'temperatures_c': [25.0, 85.0], 'rates_rpm': [0.0, 40.0],
+        'name': 'short', 'grid': {'temps_c': [25.0, 85.0], 'rates_rpm': [0.0, 40.0],
                                   'hold_s': 0.6, 'settle_s': 0.3},
         'node_parameters': {'sensor': {'thermal_time_constant_s': 0.05}}}))
     out = tmp_path / 'out'

@@ -10,6 +10,7 @@ from gyro_emulator.ros import inputs, params, scenario
 from gyro_emulator.ros.stepper import BlockStepper
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
+from gyro_emulator.sensor import profiles
 import numpy as np
 import pytest
 import yaml
@@ -269,8 +270,8 @@ def test_without_noise_switches_off_only_noise_terms():
 # --- scenario profiles ------------------------------------------------------------
 
 def test_shipped_paper_profile_is_the_papers_grid_and_short():
-    profile = scenario.load_profile(os.path.join(ROOT, 'config',
-                                                 'scenario_paper_validation.yaml'))
+    profile = scenario.load_scenario(os.path.join(ROOT, 'config',
+                                                  'scenario_paper_validation.yaml'))
     temps = sorted({s.temperature_c for s in profile.steps})
     rpm = sorted({round(s.rate_rad_s * 60.0 / (2.0 * math.pi), 9) for s in profile.steps})
     assert temps[0] == 25.0 and temps[-1] == 85.0
@@ -282,13 +283,13 @@ def test_shipped_paper_profile_is_the_papers_grid_and_short():
 
 
 @pytest.mark.parametrize('doc,match', [
-    ({'segments': [{'duration_s': 1.0, 'temperature_c': 20.0}]}, 'exactly one of'),
-    ({'segments': [{'duration_s': -1.0, 'rate_rpm': 1, 'temperature_c': 20.0}]},
+    ({'segments': [{'duration_s': 1.0, 'temp_c': 20.0}]}, 'exactly one of'),
+    ({'segments': [{'duration_s': -1.0, 'rate_rpm': 1, 'temp_c': 20.0}]},
      'duration_s = -1.0 is out of range'),
-    ({'segments': [{'duration_s': 1.0, 'rate_rpm': 1, 'temperature_c': -300.0}]},
-     'temperature_c = -300.0 is out of range'),
+    ({'segments': [{'duration_s': 1.0, 'rate_rpm': 1, 'temp_c': -300.0}]},
+     'temp_start_c = -300.0 is out of range'),
     ({'axis': [0, 0, 0], 'segments': []}, 'zero vector'),
-    ({'grid': {'temperatures_c': [], 'rates_rpm': [1], 'hold_s': 1.0}}, 'non-empty list'),
+    ({'grid': {'temps_c': [], 'rates_rpm': [1], 'hold_s': 1.0}}, 'non-empty list'),
     ({'speed': 1}, 'unknown key.*speed'),
     ({}, 'no steps'),
 ])
@@ -297,10 +298,37 @@ def test_profile_errors_name_the_key(doc, match):
         scenario.parse_profile(doc)
 
 
+def test_scenario_and_simulate_profiles_share_one_segment_schema():
+    """The same segment mapping means the same rate, temperature and settle time."""
+    seg = {'duration_s': 2.0, 'rate_rpm': 10.0, 'temp_c': 40.0, 'settle_s': 0.5}
+    step = scenario.parse_profile({'axis': [0, 1, 0], 'segments': [seg]}).steps[0]
+    segment = profiles.profile_from_mapping({'axis': [0, 1, 0], 'segments': [seg]}).segments[0]
+    assert segment.rate_start_rad_s == pytest.approx((0.0, step.rate_rad_s, 0.0))
+    assert step.rate_rad_s == pytest.approx(10.0 * 2.0 * math.pi / 60.0)
+    assert (step.temperature_c, step.settle_s) == (segment.temp_start_c, segment.settle_s)
+
+
+def test_old_temperature_spelling_is_read_with_a_deprecation_warning():
+    old = {'segments': [{'duration_s': 1.0, 'rate_rpm': 1, 'temperature_c': 30.0}]}
+    with pytest.warns(DeprecationWarning, match='temperature_c is deprecated, write temp_c'):
+        step = scenario.parse_profile(old).steps[0]
+    assert step.temperature_c == 30.0
+    with pytest.warns(DeprecationWarning, match='temperatures_c is deprecated'):
+        grid = scenario.parse_profile({'grid': {'temperatures_c': [20.0], 'rates_rpm': [0],
+                                                'hold_s': 1.0}})
+    assert grid.steps[0].temperature_c == 20.0
+
+
+def test_a_scenario_step_refuses_a_ramp():
+    with pytest.raises(ValueError, match='holds its rate and temp_c'):
+        scenario.parse_profile({'segments': [
+            {'duration_s': 1.0, 'rate_rpm': 1, 'temp_c': [20.0, 30.0]}]})
+
+
 def test_summary_averages_each_step_after_its_settle_time():
     profile = scenario.parse_profile({'axis': [0, 0, 2], 'segments': [
-        {'duration_s': 1.0, 'rate_deg_s': 10.0, 'temperature_c': 20.0, 'settle_s': 0.5},
-        {'duration_s': 1.0, 'rate_rad_s': 1.0, 'temperature_c': 40.0, 'settle_s': 0.25}]})
+        {'duration_s': 1.0, 'rate_deg_s': 10.0, 'temp_c': 20.0, 'settle_s': 0.5},
+        {'duration_s': 1.0, 'rate_rad_s': 1.0, 'temp_c': 40.0, 'settle_s': 0.25}]})
     start = 5 * 10**9
     imu, temps = [], []
     for k in range(200):

@@ -108,7 +108,7 @@ def run_scenario(opts):
     """Start node (+ recorder), play the profile, print and save the summary."""
     from gyro_emulator.ros import scenario
 
-    profile = scenario.load_profile(opts.profile)
+    profile = scenario.load_scenario(opts.profile)
     os.makedirs(opts.out_dir, exist_ok=True)
     env = _ros_environment()
     os.environ.update({k: env[k] for k in ('ROS_AUTOMATIC_DISCOVERY_RANGE',

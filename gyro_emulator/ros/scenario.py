@@ -1,7 +1,9 @@
 """
 ``ros2 run gyro_emulator scenario [PROFILE]``: play a rate/temperature profile.
 
-A profile is a YAML file of constant-input steps. It publishes the step's
+A scenario is a YAML file of constant-input steps, written in the one
+segment schema of :mod:`gyro_emulator.sensor.profiles` (a number as a rate
+is along ``axis``). It publishes the step's
 true rate on ``cmd/angular_velocity`` (geometry_msgs/Vector3Stamped, rad/s
 along ``axis``) and its ambient temperature on ``cmd/temperature``
 (sensor_msgs/Temperature) at ``publish_rate_hz``, so a lost message is
@@ -15,12 +17,12 @@ Profile keys (SI unless the name says otherwise)::
     axis: [0.0, 0.0, 1.0]        # rate direction in the sensor frame
     publish_rate_hz: 50.0
     grid:                        # every rate at every temperature ...
-      temperatures_c: [25.0, 45.0, 65.0, 85.0]
+      temps_c: [25.0, 45.0, 65.0, 85.0]
       rates_rpm: [0.0, 10.0, 20.0, 40.0]   # or rates_deg_s / rates_rad_s
       hold_s: 2.0                # duration of each step
       settle_s: 0.8              # start of each step left out of the summary
     segments:                    # ... and/or explicit steps, played after
-      - {duration_s: 2.0, rate_deg_s: 60.0, temperature_c: 25.0, settle_s: 0.5}
+      - {duration_s: 2.0, rate_deg_s: 60.0, temp_c: 25.0, settle_s: 0.5}
     node_parameters: {}          # parameters a runner should give the node
 
 ``node_parameters`` is what makes a compressed profile meaningful (e.g. a
@@ -34,10 +36,11 @@ import os
 import signal
 import sys
 import time
+import warnings
 
-from gyro_emulator import units
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.ros.spinning import spin_once
+from gyro_emulator.sensor import profiles
 
 DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
 _RATE_KEYS = {'rate_rad_s': 1.0, 'rate_deg_s': math.pi / 180.0,
@@ -47,7 +50,7 @@ _RATE_KEYS = {'rate_rad_s': 1.0, 'rate_deg_s': math.pi / 180.0,
 @dataclass(frozen=True)
 class Step:
     """
-    One constant-input step of a profile.
+    One constant-input step of a scenario: a constant :class:`Segment` along the axis.
 
     Attributes
     ----------
@@ -69,6 +72,16 @@ class Step:
     temperature_c: float
     settle_s: float = 0.0
     label: str = ''
+
+    @classmethod
+    def from_segment(cls, where, segment, axis, label):
+        """Return the step of a segment that holds its rate and temperature."""
+        if segment.rate_start_rad_s != segment.rate_end_rad_s or \
+                segment.temp_start_c != segment.temp_end_c:
+            raise ValueError(f'{where}: a scenario step holds its rate and temp_c: give '
+                             'numbers, not [start, end] ramps')
+        return cls(segment.duration_s, sum(a * r for a, r in zip(axis, segment.rate_start_rad_s)),
+                   segment.temp_start_c, segment.settle_s, label)
 
 
 @dataclass(frozen=True)
@@ -108,35 +121,37 @@ def _rate(where, mapping, plural=False):
     return found[0], names[found[0]]
 
 
-def _step(where, raw):
+def _step(where, raw, axis):
+    """Parse one step with the shared segment schema (``sensor.profiles.parse_segment``)."""
     if not isinstance(raw, dict):
         raise ValueError(f'{where} = {raw!r} must be a mapping')
-    allowed = {'duration_s', 'temperature_c', 'settle_s'} | set(_RATE_KEYS)
-    unknown = sorted(set(raw) - allowed)
-    if unknown:
-        raise ValueError(f'{where}: unknown key(s) {", ".join(unknown)}; allowed: '
-                         f'{", ".join(sorted(allowed))}')
     key = _rate(where, raw)[0]
     value = _number(where, key, raw[key])
-    duration = _number(where, 'duration_s', raw.get('duration_s'), 0.0, 86400.0, True)
-    settle = _number(where, 'settle_s', raw.get('settle_s', 0.0), 0.0, duration)
-    temp = _number(where, 'temperature_c', raw.get('temperature_c'),
-                   -units.ZERO_CELSIUS_K, 1000.0, True)
+    if 'temp_c' not in raw and 'temperature_c' not in raw:
+        raise ValueError(f'{where}.temp_c = None is not a finite number')
+    if 'duration_s' in raw:
+        _number(where, 'duration_s', raw['duration_s'], 0.0, 86400.0, True)
+    segment = profiles.parse_segment(where, raw, axis)
     unit = {'rate_rad_s': 'rad/s', 'rate_deg_s': 'deg/s', 'rate_rpm': 'RPM'}[key]
-    return Step(duration, value * _RATE_KEYS[key], temp, settle, f'{value:g} {unit}')
+    return Step.from_segment(where, segment, axis, f'{value:g} {unit}')
 
 
-def _grid(where, raw):
+def _grid(where, raw, axis):
     if not isinstance(raw, dict):
         raise ValueError(f'{where} = {raw!r} must be a mapping')
     plural, key = _rate(where, raw, plural=True)
-    allowed = {'temperatures_c', 'hold_s', 'settle_s', plural}
+    raw = dict(raw)
+    if 'temperatures_c' in raw and 'temps_c' not in raw:
+        warnings.warn(f'{where}: temperatures_c is deprecated, write temps_c',
+                      DeprecationWarning, stacklevel=3)
+        raw['temps_c'] = raw.pop('temperatures_c')
+    allowed = {'temps_c', 'hold_s', 'settle_s', plural}
     unknown = sorted(set(raw) - allowed)
     if unknown:
         raise ValueError(f'{where}: unknown key(s) {", ".join(unknown)}; allowed: '
                          f'{", ".join(sorted(allowed))}')
-    temps, rates = raw.get('temperatures_c'), raw[plural]
-    for name, values in (('temperatures_c', temps), (plural, rates)):
+    temps, rates = raw.get('temps_c'), raw[plural]
+    for name, values in (('temps_c', temps), (plural, rates)):
         if not isinstance(values, list) or not values:
             raise ValueError(f'{where}.{name} = {values!r} must be a non-empty list')
     hold = raw.get('hold_s')
@@ -144,8 +159,8 @@ def _grid(where, raw):
     for temp in temps:
         for rate in rates:
             steps.append(_step(f'{where}[T={temp}, {plural}={rate}]', {
-                'duration_s': hold, key: rate, 'temperature_c': temp,
-                'settle_s': raw.get('settle_s', 0.0)}))
+                'duration_s': hold, key: rate, 'temp_c': temp,
+                'settle_s': raw.get('settle_s', 0.0)}, axis))
     return steps
 
 
@@ -163,29 +178,23 @@ def parse_profile(doc, source='profile'):
     if unknown:
         raise ValueError(f'{source}: unknown key(s) {", ".join(unknown)}; allowed: '
                          f'{", ".join(sorted(allowed))}')
-    axis = doc.get('axis', [0.0, 0.0, 1.0])
-    if not isinstance(axis, list) or len(axis) != 3:
-        raise ValueError(f'{source}.axis = {axis!r} must be a list of 3 numbers')
-    axis = [_number(source, f'axis[{i}]', v) for i, v in enumerate(axis)]
-    norm = math.sqrt(sum(v * v for v in axis))
-    if norm == 0.0:
-        raise ValueError(f'{source}.axis = {axis!r} is the zero vector')
+    axis = profiles.unit_axis(source, doc.get('axis', list(profiles.DEFAULT_AXIS)))
     rate_hz = _number(source, 'publish_rate_hz', doc.get('publish_rate_hz', 50.0),
                       0.0, 1000.0, True)
     steps = []
     if 'grid' in doc:
-        steps += _grid(f'{source}.grid', doc['grid'])
+        steps += _grid(f'{source}.grid', doc['grid'], axis)
     segments = doc.get('segments', [])
     if not isinstance(segments, list):
         raise ValueError(f'{source}.segments = {segments!r} must be a list')
-    steps += [_step(f'{source}.segments[{i}]', s) for i, s in enumerate(segments)]
+    steps += [_step(f'{source}.segments[{i}]', s, axis) for i, s in enumerate(segments)]
     if not steps:
         raise ValueError(f'{source}: no steps (give grid and/or segments)')
     node_parameters = doc.get('node_parameters') or {}
     if not isinstance(node_parameters, dict):
         raise ValueError(f'{source}.node_parameters = {node_parameters!r} must be a mapping')
     return Profile(str(doc.get('name', os.path.basename(str(source)))),
-                   tuple(v / norm for v in axis), rate_hz, tuple(steps),
+                   axis, rate_hz, tuple(steps),
                    dict(node_parameters))
 
 
@@ -194,8 +203,8 @@ def default_profile_path():
     return config_file(DEFAULT_PROFILE)
 
 
-def load_profile(path=None):
-    """Read and parse a profile YAML (default: the paper validation profile)."""
+def load_scenario(path=None):
+    """Read and parse a scenario YAML (default: the paper validation scenario)."""
     path = default_profile_path() if path is None else path
     return parse_profile(read_yaml(path), path)
 
@@ -480,7 +489,7 @@ def main(args=None):
     opts = build_parser().parse_args(remove_ros_args(['scenario'] + argv)[1:])
     signal.signal(signal.SIGTERM, _interrupt)
     try:
-        profile = load_profile(opts.profile)
+        profile = load_scenario(opts.profile)
         print(f'scenario {profile.name}: {len(profile.steps)} steps, '
               f'{profile.duration_s:g} s', flush=True)
 

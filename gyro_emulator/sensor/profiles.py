@@ -16,9 +16,11 @@ Built-in profiles:
 * ``temp-ramp``: a constant 60 deg/s about z while the ambient temperature
   ramps linearly from 25 to 85 C (the conditions of the paper's Fig 6).
 
-YAML profile::
+YAML profile (the one segment schema: ``simulate`` profiles and the ROS
+``scenario`` share it, :func:`parse_segment`)::
 
     name: my-profile                     # optional
+    axis: [0, 0, 1]                      # optional: direction of scalar rates
     accel_m_s2: [0.0, 0.0, 9.80665]      # optional default specific force
     segments:
       - duration_s: 10
@@ -27,10 +29,17 @@ YAML profile::
       - duration_s: 60
         rate_deg_s: [[0, 0, 0], [0, 0, 90]]   # [start, end]: a ramp
         temp_c: [25, 40]                      # [start, end]: a ramp
+      - duration_s: 5
+        rate_rpm: 40                     # a number: constant, along ``axis``
+        settle_s: 1                      # left out of a summary (scenario)
+
+``temperature_c`` is the old spelling of ``temp_c``: still read, with a
+deprecation warning.
 """
 
 from dataclasses import dataclass
 import os
+import warnings
 
 from gyro_emulator.resources import read_yaml
 from gyro_emulator.units import (deg_s_to_rad_s, rpm_to_rad_s,
@@ -62,6 +71,8 @@ class Segment:
         Ambient temperature at the start and the end, deg C.
     accel_m_s2 : tuple
         Specific force (x, y, z), m/s^2.
+    settle_s : float
+        Start of the segment a summary leaves out (transients), s.
 
     """
 
@@ -71,6 +82,7 @@ class Segment:
     temp_start_c: float
     temp_end_c: float
     accel_m_s2: tuple = LEVEL_ACCEL_M_S2
+    settle_s: float = 0.0
 
     def __post_init__(self):
         """Validate the duration, temperatures and vectors."""
@@ -89,6 +101,9 @@ class Segment:
                 raise ValueError(f'Segment.{name} = {getattr(self, name)!r} is not '
                                  'allowed: expected 3 finite numbers (x, y, z)')
             object.__setattr__(self, name, tuple(float(v) for v in arr))
+        if not (np.isfinite(self.settle_s) and 0.0 <= self.settle_s <= self.duration_s):
+            raise ValueError(f'Segment.settle_s = {self.settle_s!r} is out of range: allowed '
+                             f'[0, {self.duration_s:g}] s (the duration)')
 
 
 @dataclass(frozen=True)
@@ -166,9 +181,13 @@ def temperature_ramp(duration_s, start_c=25.0, end_c=85.0, rate_deg_s=60.0):
 
 
 _SEGMENT_KEYS = ('duration_s', 'rate_rad_s', 'rate_deg_s', 'rate_rpm', 'temp_c',
-                 'accel_m_s2')
+                 'accel_m_s2', 'settle_s')
 _RATE_UNITS = {'rate_rad_s': lambda v: v, 'rate_deg_s': deg_s_to_rad_s,
                'rate_rpm': rpm_to_rad_s}
+#: Old spellings still read, with a one-line deprecation warning.
+_ALIASES = {'temperature_c': 'temp_c'}
+#: Rate direction of scalar rates when a profile gives no ``axis``: z (REP 103).
+DEFAULT_AXIS = (0.0, 0.0, 1.0)
 
 
 def _start_end(where, key, value, shape):
@@ -182,6 +201,62 @@ def _start_end(where, key, value, shape):
                      f'[start, end] of {want}')
 
 
+def _rate_start_end(where, key, value, axis):
+    """Rates of a segment: a number along ``axis``, a 3-vector, or [start, end] 3-vectors."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        along = np.asarray(axis) * float(value)
+        return along, along
+    return _start_end(where, key, value, (3,))
+
+
+def _canonical(where, seg):
+    """Return the segment mapping with old spellings renamed (warned once each)."""
+    out = dict(seg)
+    for old, new in _ALIASES.items():
+        if old in out:
+            if new in out:
+                raise ValueError(f'{where}: give {new} only ({old} is its old spelling)')
+            warnings.warn(f'{where}: {old} is deprecated, write {new}', DeprecationWarning,
+                          stacklevel=3)
+            out[new] = out.pop(old)
+    return out
+
+
+def parse_segment(where, seg, axis=DEFAULT_AXIS, last_temp_c=25.0,
+                  default_accel_m_s2=LEVEL_ACCEL_M_S2):
+    """
+    Build one :class:`Segment` from its mapping (the keys of the module docstring).
+
+    A rate given as a number (or [start, end] of numbers) is along ``axis``;
+    a missing ``temp_c`` holds ``last_temp_c``. Unknown keys and bad values
+    raise ``ValueError`` naming ``where`` and the key.
+    """
+    if not isinstance(seg, dict):
+        raise ValueError(f'{where} must be a mapping, got {seg!r}')
+    seg = _canonical(where, seg)
+    unknown = sorted(set(seg) - set(_SEGMENT_KEYS))
+    if unknown:
+        raise ValueError(f'{where}: unknown key(s) {", ".join(map(str, unknown))}; '
+                         f'allowed: {", ".join(_SEGMENT_KEYS)}')
+    if 'duration_s' not in seg:
+        raise ValueError(f'{where}: duration_s is required')
+    rate_keys = [k for k in _RATE_UNITS if k in seg]
+    if len(rate_keys) > 1:
+        raise ValueError(f'{where}: give only one of {", ".join(rate_keys)}')
+    r0 = r1 = np.zeros(3)
+    if rate_keys:
+        key = rate_keys[0]
+        r0, r1 = _rate_start_end(where, key, seg[key], axis)
+        r0, r1 = _RATE_UNITS[key](r0), _RATE_UNITS[key](r1)
+    t0, t1 = _start_end(where, 'temp_c', seg.get('temp_c', last_temp_c), ())
+    acc, _ = _start_end(where, 'accel_m_s2', seg.get('accel_m_s2', default_accel_m_s2), (3,))
+    try:
+        return Segment(float(seg['duration_s']), tuple(r0), tuple(r1), float(t0), float(t1),
+                       tuple(acc), float(seg.get('settle_s', 0.0)))
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f'{where}: {exc}') from None
+
+
 def profile_from_mapping(mapping, source='profile'):
     """
     Build a :class:`Profile` from a parsed YAML mapping (module docstring).
@@ -190,44 +265,34 @@ def profile_from_mapping(mapping, source='profile'):
     """
     if not isinstance(mapping, dict):
         raise ValueError(f'{source}: expected a mapping with "segments", got {mapping!r}')
-    unknown = sorted(set(mapping) - {'name', 'segments', 'accel_m_s2'})
+    unknown = sorted(set(mapping) - {'name', 'segments', 'accel_m_s2', 'axis'})
     if unknown:
         raise ValueError(f'{source}: unknown key(s) {", ".join(map(str, unknown))}; '
-                         'allowed: name, segments, accel_m_s2')
+                         'allowed: name, segments, accel_m_s2, axis')
     default_acc = mapping.get('accel_m_s2', LEVEL_ACCEL_M_S2)
+    axis = unit_axis(source, mapping.get('axis', DEFAULT_AXIS))
     raw = mapping.get('segments')
     if not isinstance(raw, list) or not raw:
         raise ValueError(f'{source}: segments must be a non-empty list')
     segments = []
     last_temp = 25.0
     for i, seg in enumerate(raw):
-        where = f'{source}: segment {i + 1}'
-        if not isinstance(seg, dict):
-            raise ValueError(f'{where} must be a mapping, got {seg!r}')
-        unknown = sorted(set(seg) - set(_SEGMENT_KEYS))
-        if unknown:
-            raise ValueError(f'{where}: unknown key(s) {", ".join(map(str, unknown))}; '
-                             f'allowed: {", ".join(_SEGMENT_KEYS)}')
-        if 'duration_s' not in seg:
-            raise ValueError(f'{where}: duration_s is required')
-        rate_keys = [k for k in _RATE_UNITS if k in seg]
-        if len(rate_keys) > 1:
-            raise ValueError(f'{where}: give only one of {", ".join(rate_keys)}')
-        r0 = r1 = np.zeros(3)
-        if rate_keys:
-            key = rate_keys[0]
-            r0, r1 = _start_end(where, key, seg[key], (3,))
-            r0, r1 = _RATE_UNITS[key](r0), _RATE_UNITS[key](r1)
-        t0, t1 = _start_end(where, 'temp_c', seg.get('temp_c', last_temp), ())
-        last_temp = float(t1)
-        acc, _ = _start_end(where, 'accel_m_s2', seg.get('accel_m_s2', default_acc), (3,))
-        try:
-            duration = float(seg['duration_s'])
-            segments.append(Segment(duration, tuple(r0), tuple(r1), float(t0), float(t1),
-                                    tuple(acc)))
-        except (TypeError, ValueError) as exc:
-            raise ValueError(f'{where}: {exc}') from None
+        segment = parse_segment(f'{source}: segment {i + 1}', seg, axis, last_temp,
+                                default_acc)
+        last_temp = segment.temp_end_c
+        segments.append(segment)
     return Profile(str(mapping.get('name', source)), tuple(segments))
+
+
+def unit_axis(source, axis):
+    """Return ``axis`` (3 numbers, not all zero) scaled to unit length."""
+    arr = np.asarray(axis, dtype=float) if isinstance(axis, (list, tuple)) else None
+    if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
+        raise ValueError(f'{source}.axis = {axis!r} must be a list of 3 numbers')
+    norm = float(np.linalg.norm(arr))
+    if norm == 0.0:
+        raise ValueError(f'{source}.axis = {axis!r} is the zero vector')
+    return tuple(float(v) / norm for v in arr)
 
 
 def load_profile(path):
