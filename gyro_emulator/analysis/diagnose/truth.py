@@ -1,15 +1,22 @@
 """
 Truth generator: simulated measured records with one hidden effect.
 
-A record is the baseline physics (the paper's first-order model of a preset,
-:func:`gyro_emulator.physics.first_order.scale_factor_ratio`) with a random bias and
-scale-factor error, plus ONE effect of the catalogue (or none) with a random
-magnitude, driven by a seeded random lab-like profile, plus noise:
+A record is the output of the one sensor simulator,
+:class:`gyro_emulator.sensor.model.GyroModel`, configured as a part with the
+baseline physics (the paper's first-order model of a preset: SF(T) from
+:func:`gyro_emulator.physics.first_order.scale_factor_ratio`), a random bias
+and scale-factor error, plus ONE effect of the catalogue (or none) with a
+random magnitude, driven by a seeded random lab-like profile, plus noise:
 
 - white rate noise of density N (angle random walk), sigma = N / sqrt(dt);
 - a bias random walk of density K (rate random walk), increments K sqrt(dt)
-  (IEEE Std 952 terms; exact discretisation);
+  (IEEE Std 952 terms; exact discretisation, GyroModel's streams);
 - a temperature reading with 0.02 C white noise.
+
+Effects the error model has (bias temperature coefficients, die thermal lag,
+g-sensitivity) are its terms; the others act on the rate the part senses
+(delay, cubic nonlinearity, a drifting mode split, a leaking cavity) or, for
+the temperature-rate bias, add to its output.
 
 The profile (:func:`lab_profile`) resembles real lab work: temperature soaks
 (the first one at 25 C for calibration) joined by heating and cooling ramps,
@@ -29,6 +36,8 @@ from gyro_emulator.analysis.diagnose.data import MeasuredData
 from gyro_emulator.analysis.diagnose.effects import EFFECT_IDS, HOUR_S
 from gyro_emulator.physics import first_order
 from gyro_emulator.physics.presets import physics_preset
+from gyro_emulator.sensor.config import ErrorTerms, SensorConfig
+from gyro_emulator.sensor.model import GyroModel
 from gyro_emulator.units import (deg_s_to_rad_s, rpm_to_rad_s,
                                  STANDARD_GRAVITY_M_S2)
 from gyro_emulator.validation import check_range
@@ -262,25 +271,83 @@ def draw_effect_parameters(effect, rng, profile):
                      f'of {", ".join(TRUTH_EFFECTS)}')
 
 
-def _lag(u, dt, tau):
-    """First-order lag, exact for u linear between samples, from equilibrium."""
-    from scipy.signal import lfilter, lfilter_zi
-    a = np.exp(-dt / tau)
-    c = tau * (1.0 - a) / dt
-    b_coef, a_coef = [1.0 - c, c - a], [1.0, -a]
-    y, _ = lfilter(b_coef, a_coef, u, zi=lfilter_zi(b_coef, a_coef) * u[0])
-    return y
+def _sensor_config(device, effect, params, drawn):
+    """
+    Return the error model of the simulated part, for :class:`GyroModel`.
+
+    The part's own terms: turn-on bias, scale-factor error, SF(T) from the
+    physics of ``device``, white rate noise N and rate random walk K, and the
+    hidden effect where the error model has it (bias temperature
+    coefficients, die thermal lag, g-sensitivity). Everything else is off.
+    """
+    on = {'scale_factor_temperature', 'turn_on_bias', 'scale_factor_error',
+          'electronics_noise', 'rate_random_walk'}
+    extra = {}
+    if effect == 'bias_temperature':
+        on.add('bias_temperature')
+        extra = {'bias_temp_coeff_rad_s_k': (0.0, 0.0, params['bias_temp_coeff_rad_s_k']),
+                 'bias_temp_coeff2_rad_s_k2':
+                 (0.0, 0.0, params['bias_temp_coeff2_rad_s_k2'])}
+    elif effect == 'thermal_lag':
+        on.add('thermal_lag')
+        extra = {'thermal_time_constant_s': params['thermal_time_constant_s']}
+    elif effect == 'g_sensitivity':
+        on.add('g_sensitivity')
+        row = tuple(params[f'g_sensitivity_{a}_rad_s_per_m_s2'] for a in 'xyz')
+        extra = {'g_sensitivity_rad_s_m_s2': ((0.0,) * 3, (0.0,) * 3, row)}
+    terms = ErrorTerms(**{name: name in on for name in ErrorTerms.names()})
+    return SensorConfig(
+        device=device, terms=terms, range_rad_s=(1000.0,) * 3,
+        turn_on_bias_rad_s=(0.0, 0.0, float(deg_s_to_rad_s(drawn['bias_deg_s']))),
+        scale_factor_error=(0.0, 0.0, drawn['scale_factor'] - 1.0),
+        electronics_noise_rad_s_sqrt_hz=(
+            0.0, 0.0, float(deg_s_to_rad_s(drawn['arw_deg_sqrt_s']))),
+        rate_random_walk_rad_s_sqrt_s=(
+            0.0, 0.0, float(deg_s_to_rad_s(drawn['rrw_deg_s_sqrt_s']))), **extra)
 
 
-def _on_grid(fn, temp_c):
-    """Evaluate a smooth function of temperature on a grid, interpolate."""
-    grid = np.linspace(temp_c.min() - 1.0, temp_c.max() + 1.0, 2001)
-    return np.interp(temp_c, grid, fn(grid))
+def _rate_into_the_part(profile, effect, params, device):
+    """
+    Return the rate the error model sees: the true rate with the effects it lacks.
+
+    Delay, cubic nonlinearity, and the scale-factor changes of a drifting
+    mode split (Eq 4 off resonance) or a leaking cavity pressure (Eq 5-12
+    at the new pressure) act on the sensed rate before the part's own gain.
+    """
+    t, rate, temp = profile.time_s, profile.rate_rad_s, profile.temp_c
+    tref = device.calibration_temp_c
+    rate_in = rate
+    if effect == 'time_delay':
+        rate_in = np.interp(t - params['delay_s'], t, rate, left=rate[0])
+    if effect == 'scale_factor_nonlinearity':
+        rate_in = rate_in * (1.0 + params['nonlinearity_quadratic_s_rad'] * rate_in
+                             + params['nonlinearity_cubic_s2_rad2'] * rate_in ** 2)
+    if effect == 'mode_split_drift':
+        p = first_order.lumped_parameters(device, temp)
+        split = params['mode_split_at_ref_hz'] + params[
+            'mode_split_temp_coeff_hz_k'] * (temp - tref)
+        rate_in = rate_in / np.sqrt(1.0 + (2.0 * p.q_sense * split / p.freq_y_hz) ** 2)
+    if effect == 'pressure_drift':
+        coarse = np.arange(0, len(t), max(1, int(round(1.0 / float(t[1] - t[0])))))
+        pr = 1.0 + params['pressure_rate_per_h'] * t[coarse] / HOUR_S
+        sf_p = first_order.sense_scale_factor_m_per_rad_s(
+            device.with_gas(pressure_pa=device.gas.pressure_pa * pr),
+            temp[coarse]) / first_order.sense_scale_factor_m_per_rad_s(
+            device, temp[coarse])
+        rate_in = rate_in * np.interp(t, t[coarse], sf_p)
+    return rate_in
 
 
 def simulate(profile, effect, params, rng, preset='paper', noise=None):
     """
     Simulate the measured output for a profile with one hidden effect.
+
+    The sensor is :class:`gyro_emulator.sensor.model.GyroModel` (the one
+    simulator) on the z axis, configured by :func:`_sensor_config`, driven
+    by the true rate with the effects it lacks applied
+    (:func:`_rate_into_the_part`); a temperature-rate bias is added to its
+    output. The viscosity effect changes the physics of the device itself
+    (a Sutherland gas law).
 
     Parameters
     ----------
@@ -291,7 +358,8 @@ def simulate(profile, effect, params, rng, preset='paper', noise=None):
     params : dict
         Its parameters (see :func:`draw_effect_parameters`).
     rng : numpy.random.Generator
-        Source of randomness (noise, calibration errors).
+        Source of randomness (noise, calibration errors); the sensor's noise
+        streams are spawned from it.
     preset : str
         Physics preset of the simulated device.
     noise : dict, optional
@@ -308,7 +376,6 @@ def simulate(profile, effect, params, rng, preset='paper', noise=None):
     t, rate, temp = profile.time_s, profile.rate_rad_s, profile.temp_c
     n = len(t)
     dt = float(t[1] - t[0])
-    tref = device.calibration_temp_c
     drawn = {
         # white noise density, deg/s/sqrt(Hz) (= deg/sqrt(s))
         'arw_deg_sqrt_s': rng.uniform(0.006, 0.015),
@@ -318,55 +385,17 @@ def simulate(profile, effect, params, rng, preset='paper', noise=None):
         'scale_factor': rng.uniform(0.98, 1.02),
     }
     drawn.update(noise or {})
-    struct_temp = temp
-    rate_in = rate
-    if effect == 'thermal_lag':
-        struct_temp = _lag(temp, dt, params['thermal_time_constant_s'])
-    if effect == 'time_delay':
-        rate_in = np.interp(t - params['delay_s'], t, rate, left=rate[0])
+    part = device
     if effect == 'viscosity_temperature':
-        dev = device.with_gas(viscosity_law='sutherland',
-                              sutherland_constant_k=params[
-                                  'sutherland_constant_k'])
-    else:
-        dev = device
-    ratio = _on_grid(lambda g: first_order.scale_factor_ratio(dev, g, tref),
-                     struct_temp)
-    if effect == 'mode_split_drift':
-        p = first_order.lumped_parameters(device, struct_temp)
-        split = params['mode_split_at_ref_hz'] + params[
-            'mode_split_temp_coeff_hz_k'] * (struct_temp - tref)
-        ratio = ratio / np.sqrt(1.0 + (2.0 * p.q_sense * split
-                                       / p.freq_y_hz) ** 2)
-    if effect == 'pressure_drift':
-        coarse = np.arange(0, n, max(1, int(round(1.0 / dt))))
-        pr = 1.0 + params['pressure_rate_per_h'] * t[coarse] / HOUR_S
-        sf_p = first_order.sense_scale_factor_m_per_rad_s(
-            device.with_gas(pressure_pa=device.gas.pressure_pa * pr),
-            temp[coarse]) / first_order.sense_scale_factor_m_per_rad_s(
-            device, temp[coarse])
-        ratio = ratio * np.interp(t, t[coarse], sf_p)
-    shaped = rate_in
-    if effect == 'scale_factor_nonlinearity':
-        shaped = rate_in * (1.0 + params['nonlinearity_quadratic_s_rad'] * rate_in
-                            + params['nonlinearity_cubic_s2_rad2'] * rate_in ** 2)
-    out = deg_s_to_rad_s(drawn['bias_deg_s']) + drawn['scale_factor'] * ratio * \
-        shaped
+        part = device.with_gas(viscosity_law='sutherland',
+                               sutherland_constant_k=params['sutherland_constant_k'])
+    model = GyroModel(_sensor_config(part, effect, params, drawn), 1.0 / dt, rng)
+    rate_in = np.zeros((n, 3))
+    rate_in[:, 2] = _rate_into_the_part(profile, effect, params, device)
     accel = profile.accel_m_s2
-    if effect == 'bias_temperature':
-        d = temp - tref
-        out = out + params['bias_temp_coeff_rad_s_k'] * d + params[
-            'bias_temp_coeff2_rad_s_k2'] * d * d
-    if effect == 'g_sensitivity':
-        out = out + sum(params[f'g_sensitivity_{a}_rad_s_per_m_s2'] * accel[:, k]
-                        for k, a in enumerate('xyz'))
+    out = model.run(rate_in, temp, accel).gyro_rad_s[:, 2]
     if effect == 'temperature_rate_bias':
-        out = out + params['bias_per_temp_rate_rad_s_per_k_s'] * np.gradient(
-            temp, t)
-    white = deg_s_to_rad_s(drawn['arw_deg_sqrt_s']) / np.sqrt(dt)
-    walk = np.cumsum(rng.normal(0.0, deg_s_to_rad_s(drawn['rrw_deg_s_sqrt_s'])
-                                * np.sqrt(dt), n))
-    out = out + rng.normal(0.0, white, n) + walk
+        out = out + params['bias_per_temp_rate_rad_s_per_k_s'] * np.gradient(temp, t)
     data = MeasuredData(
         time_s=t, rate_cmd_rad_s=rate,
         temp_c=temp + rng.normal(0.0, TEMP_READING_NOISE_C, n),
