@@ -13,6 +13,7 @@ rclpy leaves uninitialised.
 import importlib
 
 from gyro_emulator.recording import bag
+from gyro_emulator.units import NS_PER_S
 from rclpy.serialization import deserialize_message
 
 _CLASSES = {}
@@ -93,7 +94,7 @@ def qos_to_profile(qos):
         liveliness=enum_name(qos.liveliness, 'automatic'))
     for key, duration in (('deadline', qos.deadline), ('lifespan', qos.lifespan),
                           ('liveliness_lease_duration', qos.liveliness_lease_duration)):
-        sec, nsec = divmod(int(duration.nanoseconds), 1_000_000_000)
+        sec, nsec = divmod(int(duration.nanoseconds), NS_PER_S)
         if 0 < duration.nanoseconds and sec < 2**31 - 1:
             profile[key] = {'sec': int(sec), 'nsec': int(nsec)}
     return profile

@@ -39,6 +39,7 @@ from gyro_emulator.ros.spinning import close, spin_once
 from gyro_emulator.ros.stepper import BlockStepper
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
+from gyro_emulator.units import NS_PER_S
 from nav_msgs.msg import Odometry
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -52,7 +53,6 @@ from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from sensor_msgs.msg import Imu, Temperature
 
-_NS = 1_000_000_000
 ZERO3 = (0.0, 0.0, 0.0)
 #: Messages each command subscription keeps until the executor serves them.
 INPUT_DEPTH = 100
@@ -61,7 +61,7 @@ SHUTDOWN_POLL_S = 0.25
 
 
 def _stamp_ns(header):
-    return header.stamp.sec * _NS + header.stamp.nanosec
+    return header.stamp.sec * NS_PER_S + header.stamp.nanosec
 
 
 class GyroEmulatorNode(Node):
@@ -329,7 +329,7 @@ class GyroEmulatorNode(Node):
 
     def _offer(self, stream, value, stamp_ns):
         dropped = stream.offer(value, stamp_ns, self._now_ns(),
-                               int(self._limits.max_stamp_lead_s * _NS))
+                               int(self._limits.max_stamp_lead_s * NS_PER_S))
         if dropped:
             self._reject(InputRejected(dropped, f'{stream.name}: more than '
                                        f'{stream.capacity} commands wait for their '
@@ -419,7 +419,7 @@ class GyroEmulatorNode(Node):
         if self._stepper.sigma_version != self._sigma_version:
             self._refresh_covariance()
         imu = self._imu
-        delay_ns = int(round(s.output_delay_s * _NS)) if s.output_delay_s else 0
+        delay_ns = int(round(s.output_delay_s * NS_PER_S)) if s.output_delay_s else 0
         imu.set_stamp_ns('stamp', now_ns + delay_ns)
         imu.put('rate', *s.gyro_rad_s.tolist())
         if self._p['pass_through_linear_acceleration'] and accel is not None:

@@ -18,13 +18,13 @@ patched buffers with ``serialize_message`` of the equivalent messages.
 
 import struct
 
+from gyro_emulator.units import NS_PER_S
 from rclpy.serialization import serialize_message
 
 _TIME = struct.Struct('<iI')
 _DOUBLE = struct.Struct('<d')
 #: Sentinel stamp: seconds and nanoseconds unlikely to occur in a template.
 _SENTINEL_SEC, _SENTINEL_NSEC = 0x5A17C0DE, 0x2B0D1E5F
-_NS = 1_000_000_000
 
 
 def _sentinel(index):
@@ -138,7 +138,7 @@ class RawMessage:
 
     def set_stamp_ns(self, name, stamp_ns):
         """Write a time slot from integer nanoseconds."""
-        self.put(name, stamp_ns // _NS, stamp_ns % _NS)
+        self.put(name, stamp_ns // NS_PER_S, stamp_ns % NS_PER_S)
 
     def payload(self):
         """Return what to publish: the serialized bytes, or the message (fallback)."""

@@ -28,7 +28,7 @@ import signal
 import sys
 import time
 
-from gyro_emulator.recording import bag
+from gyro_emulator.recording import bag, topics
 from gyro_emulator.ros import codec
 from gyro_emulator.ros.spinning import close, spin_once
 import rclpy
@@ -37,8 +37,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 #: The emulator's inputs and outputs, relative to the recorder's namespace.
-DEFAULT_TOPICS = ('cmd/angular_velocity', 'cmd/temperature', 'cmd/linear_acceleration',
-                  'imu/data_raw', 'imu/temperature', '/diagnostics')
+DEFAULT_TOPICS = tuple(t.name for t in topics.RECORDED_BY_DEFAULT)
 #: Name of the emulator node whose ``~/truth`` topics are recorded by default.
 DEFAULT_EMULATOR_NODE = 'gyro_emulator'
 #: How often the graph is searched for new topics, s.

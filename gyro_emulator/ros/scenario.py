@@ -38,9 +38,11 @@ import sys
 import time
 import warnings
 
+from gyro_emulator.recording import topics
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.ros.spinning import spin_once
 from gyro_emulator.sensor import profiles
+from gyro_emulator.units import NS_PER_S
 
 DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
 _RATE_KEYS = {'rate_rad_s': 1.0, 'rate_deg_s': math.pi / 180.0,
@@ -319,15 +321,15 @@ class ScenarioPlayer:
         self.node = node
         self.profile = profile
         self.loop = loop
-        self.rate_pub = node.create_publisher(Vector3Stamped, 'cmd/angular_velocity', 10)
-        self.temp_pub = node.create_publisher(Temperature, 'cmd/temperature', 10)
+        self.rate_pub = node.create_publisher(Vector3Stamped, topics.RATE_CMD.name, 10)
+        self.temp_pub = node.create_publisher(Temperature, topics.TEMPERATURE_CMD.name, 10)
         self._rate_msg = Vector3Stamped()
         self._temp_msg = Temperature()
         self.imu, self.temps = [], []
         if collect:
-            node.create_subscription(Imu, 'imu/data_raw', self._on_imu,
+            node.create_subscription(Imu, topics.IMU_OUT.name, self._on_imu,
                                      qos_profile_sensor_data)
-            node.create_subscription(Temperature, 'imu/temperature', self._on_temp,
+            node.create_subscription(Temperature, topics.DIE_TEMPERATURE_OUT.name, self._on_temp,
                                      qos_profile_sensor_data)
         self.start_ns = None
         self.done = False
@@ -341,11 +343,11 @@ class ScenarioPlayer:
     def _on_imu(self, msg):
         v = msg.angular_velocity
         s = msg.header.stamp
-        self.imu.append((s.sec * 1_000_000_000 + s.nanosec, (v.x, v.y, v.z)))
+        self.imu.append((s.sec * NS_PER_S + s.nanosec, (v.x, v.y, v.z)))
 
     def _on_temp(self, msg):
         s = msg.header.stamp
-        self.temps.append((s.sec * 1_000_000_000 + s.nanosec, msg.temperature))
+        self.temps.append((s.sec * NS_PER_S + s.nanosec, msg.temperature))
 
     def connected(self):
         """Return True once the emulator subscribes to both command topics."""
