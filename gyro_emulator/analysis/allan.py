@@ -24,8 +24,10 @@ of the variances, each weighted by its estimation uncertainty
 """
 
 from dataclasses import dataclass
+import os
 
 from gyro_emulator import units
+from gyro_emulator.recording import bag, csvio, records, topics
 import numpy as np
 from scipy import optimize, stats
 
@@ -400,3 +402,68 @@ def plot_adev(result, fit, path, title=''):
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def _read_bag(path, axis, topic):
+    """Return (time_s from 0, rate, column label) of one Imu axis of a bag."""
+    reader = bag.BagReader(path, tolerant=True)
+    imu = [name for name, info in reader.topics.items() if info.type_name == topics.IMU]
+    if topic is None:
+        if len(imu) != 1:
+            raise ValueError(f'{path}: {len(imu)} sensor_msgs/Imu topics '
+                             f'({", ".join(imu) or "none"}): choose one with --topic')
+        topic = imu[0]
+    topic = records.find_topic(reader, 'gyro', topic, types=(topics.IMU,))
+    arrays = reader.read_arrays(topic)
+    times_ns, order = records.stream_times_ns(arrays)
+    index = 'xyz'.index(axis or 'x')
+    time_s = (times_ns - times_ns[0]) * 1e-9
+    return time_s, arrays.field('angular_velocity')[order, index], \
+        f'{topic} angular_velocity.{axis or "x"}'
+
+
+def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_factor=3.0):
+    """
+    Analyse one record (CSV or bag) as ``gyro-emulator allan`` does.
+
+    Segments split at gaps longer than ``gap_factor`` sample periods; the
+    overlapping ADEV over all of them (:func:`overlapping_adev`), the N/B/K
+    fit (:func:`fit_noise_terms`) and the classic read-offs. Returns
+    ``(JSON-ready dict, AllanResult, NoiseFit)``.
+    """
+    if os.path.isdir(path) or str(path).endswith('.mcap'):
+        time_s, rate, column = _read_bag(path, axis, topic)
+        csvio.check_increasing(time_s, f'{path}: header stamps', strict=False)
+    else:
+        time_s, rate, column = csvio.read_gyro_csv(path, axis, time_order='nondecreasing')
+    rate_hz, bounds = csvio.sample_rate_and_segments(time_s, gap_factor)
+    segments = [rate[a:b] for a, b in bounds if b - a >= 3]
+    if not segments:
+        raise ValueError(f'{path}: no segment has 3 or more samples')
+    longest = max(len(s) for s in segments)
+    taus = tau_multiples(longest, 10, max_tau_fraction) / rate_hz
+    result = overlapping_adev(segments, rate_hz, taus=taus)
+    fit = fit_noise_terms(result)
+    classic = classic_readings(result)
+    return {
+        'file': str(path), 'column': column, 'sample_rate_hz': rate_hz,
+        'n_samples': result.n_samples, 'segments': len(segments),
+        'repeated_timestamps': int(np.sum(np.diff(time_s) == 0.0)),
+        'duration_s': float(time_s[-1] - time_s[0]),
+        'arw_deg_sqrt_h': fit.arw_deg_sqrt_h,
+        'bias_instability_deg_h': fit.bias_instability_deg_h,
+        'rrw_deg_h_sqrt_h': fit.rrw_deg_h_sqrt_h,
+        'arw_rad_s_sqrt_hz': fit.arw_rad_s_sqrt_hz,
+        'bias_instability_rad_s': fit.bias_instability_rad_s,
+        'rrw_rad_s_sqrt_s': fit.rrw_rad_s_sqrt_s,
+        'arw_at_1s_deg_sqrt_h': float(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(
+            classic['arw_at_1s'])),
+        'bias_instability_min_deg_h': float(units.rad_s_to_deg_h(
+            classic['bias_instability_min'])),
+        'tau_at_min_s': classic['tau_min_s'],
+        'taus_s': result.taus_s.tolist(), 'adev_rad_s': result.adev.tolist(),
+        'adev_lo_rad_s': result.adev_lo.tolist(), 'adev_hi_rad_s': result.adev_hi.tolist(),
+        'edf': result.edf.tolist(), 'ci': result.ci,
+        'units': {'arw': 'deg/sqrt(h)', 'bias_instability': 'deg/h (Allan floor 0.664 B)',
+                  'rrw': 'deg/h/sqrt(h)', 'adev': 'rad/s'},
+    }, result, fit

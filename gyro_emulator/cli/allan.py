@@ -39,79 +39,12 @@ def add_arguments(parser):
                              '(default: %(default)s)')
 
 
-def _read_bag(path, axis, topic):
-    from gyro_emulator.recording import bag
-
-    reader = bag.BagReader(path, tolerant=True)
-    imu = [name for name, info in reader.topics.items()
-           if info.type_name == 'sensor_msgs/msg/Imu']
-    if topic is None:
-        if len(imu) != 1:
-            raise ValueError(f'{path}: {len(imu)} sensor_msgs/Imu topics '
-                             f'({", ".join(imu) or "none"}): choose one with --topic')
-        topic = imu[0]
-    elif topic not in imu:
-        raise ValueError(f'{path}: topic {topic!r} is not a sensor_msgs/Imu topic; '
-                         f'Imu topics: {", ".join(imu) or "none"}')
-    arrays = reader.read_arrays(topic)
-    index = 'xyz'.index(axis or 'x')
-    time_s = arrays.stamp_ns * 1e-9
-    return time_s - time_s[0], arrays.field('angular_velocity')[:, index], \
-        f'{topic} angular_velocity.{axis or "x"}'
-
-
-def analyse(path, axis=None, topic=None, max_tau_fraction=0.25, gap_factor=3.0):
-    """Return the JSON-ready analysis of one record (see the module docstring)."""
-    import numpy as np
-
-    from gyro_emulator import units
-    from gyro_emulator.analysis import allan
-    from gyro_emulator.recording import csvio
-
-    if os.path.isdir(path) or str(path).endswith('.mcap'):
-        time_s, rate, column = _read_bag(path, axis, topic)
-        csvio.check_increasing(time_s, f'{path}: header stamps', strict=False)
-    else:
-        time_s, rate, column = csvio.read_gyro_csv(path, axis, time_order='nondecreasing')
-    rate_hz, bounds = csvio.sample_rate_and_segments(time_s, gap_factor)
-    segments = [rate[a:b] for a, b in bounds if b - a >= 3]
-    if not segments:
-        raise ValueError(f'{path}: no segment has 3 or more samples')
-    longest = max(len(s) for s in segments)
-    taus = allan.tau_multiples(longest, 10, max_tau_fraction) / rate_hz
-    result = allan.overlapping_adev(segments, rate_hz, taus=taus)
-    fit = allan.fit_noise_terms(result)
-    classic = allan.classic_readings(result)
-    return {
-        'file': str(path), 'column': column, 'sample_rate_hz': rate_hz,
-        'n_samples': result.n_samples, 'segments': len(segments),
-        'repeated_timestamps': int(np.sum(np.diff(time_s) == 0.0)),
-        'duration_s': float(time_s[-1] - time_s[0]),
-        'arw_deg_sqrt_h': fit.arw_deg_sqrt_h,
-        'bias_instability_deg_h': fit.bias_instability_deg_h,
-        'rrw_deg_h_sqrt_h': fit.rrw_deg_h_sqrt_h,
-        'arw_rad_s_sqrt_hz': fit.arw_rad_s_sqrt_hz,
-        'bias_instability_rad_s': fit.bias_instability_rad_s,
-        'rrw_rad_s_sqrt_s': fit.rrw_rad_s_sqrt_s,
-        'arw_at_1s_deg_sqrt_h': float(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(
-            classic['arw_at_1s'])),
-        'bias_instability_min_deg_h': float(units.rad_s_to_deg_h(
-            classic['bias_instability_min'])),
-        'tau_at_min_s': classic['tau_min_s'],
-        'taus_s': result.taus_s.tolist(), 'adev_rad_s': result.adev.tolist(),
-        'adev_lo_rad_s': result.adev_lo.tolist(), 'adev_hi_rad_s': result.adev_hi.tolist(),
-        'edf': result.edf.tolist(), 'ci': result.ci,
-        'units': {'arw': 'deg/sqrt(h)', 'bias_instability': 'deg/h (Allan floor 0.664 B)',
-                  'rrw': 'deg/h/sqrt(h)', 'adev': 'rad/s'},
-    }, result, fit
-
-
 def run(args):
     """Analyse the record, print the summary, write JSON and plot if asked."""
     from gyro_emulator.analysis import allan
 
-    info, result, fit = analyse(args.file, args.axis, args.topic,
-                                args.max_tau_fraction, args.gap_factor)
+    info, result, fit = allan.analyse_record(args.file, args.axis, args.topic,
+                                             args.max_tau_fraction, args.gap_factor)
     print(f'{info["file"]} [{info["column"]}]: {info["n_samples"]} samples at '
           f'{info["sample_rate_hz"]:.4g} Hz, {info["duration_s"]:.1f} s, '
           f'{info["segments"]} segment(s), {info["repeated_timestamps"]} repeated '
