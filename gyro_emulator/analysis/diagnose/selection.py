@@ -91,23 +91,13 @@ def _wls(cols, y, w):
 
 def fit_effect(effect, ctx, frame, rows=None):
     """
-    Fit ``effect`` on the rows of a binned frame by variable projection.
+    Fit ``effect`` (an :class:`~.effects.Effect`) on a binned frame; return a :class:`Fit`.
 
-    Parameters
-    ----------
-    effect : gyro_emulator.analysis.diagnose.effects.Effect
-        The model.
-    ctx : gyro_emulator.analysis.diagnose.effects.Context
-        Physics and reference points.
-    frame : gyro_emulator.analysis.diagnose.data.Frame
-        Bin means.
-    rows : numpy.ndarray of bool, optional
-        Training rows; all when None.
-
-    Returns
-    -------
-    Fit
-
+    Variable projection: the linear coefficients are solved in closed form
+    (weighted least squares, :func:`_wls`) for each value of the nonlinear
+    ones, which a grid search and a bounded refinement choose. ``ctx`` holds
+    the physics and reference points, ``frame`` the bin means and ``rows``
+    the training rows (all when None).
     """
     from scipy.optimize import minimize, minimize_scalar
 
