@@ -128,6 +128,22 @@ _RANGES = {
     'optional': {'initial_die_temp_c': (-60.0, 200.0, 'C')},
 }
 _OPEN_LOW = frozenset({'range_rad_s'})
+def field_ranges():
+    """
+    Return the documented range of every numeric :class:`SensorConfig` field.
+
+    ``{name: (kind, low, high, unit, low_open)}``; ``kind`` is ``axis``,
+    ``scalar``, ``matrix``, ``pair`` or ``optional`` (see ``_RANGES``). A
+    value inside the range gives a working model or a one-line ValueError
+    naming the field (e.g. a filter cut-off at or above Nyquist), nothing else.
+    """
+    return {name: (kind, low, high, unit, name in _OPEN_LOW)
+            for kind, ranges in _RANGES.items() for name, (low, high, unit) in ranges.items()}
+
+
+#: Smallest non-zero quantisation step, rad/s (0.2 mdeg/h: far below any real
+#: part's LSB, and range / LSB stays an exact count in float64).
+MIN_LSB_RAD_S = 1e-9
 
 
 @dataclass(frozen=True)
@@ -218,6 +234,10 @@ class SensorConfig:
             for name, limits in ranges.items():
                 object.__setattr__(self, name, _checked(name, getattr(self, name), kind,
                                                         limits))
+        for i, lsb in enumerate(self.lsb_rad_s):
+            if 0.0 < lsb < MIN_LSB_RAD_S:
+                raise ValueError(f'SensorConfig.lsb_rad_s[{i}] = {lsb!r} is out of range: '
+                                 f'allowed 0 (no quantisation) or [{MIN_LSB_RAD_S:g}, 1] rad/s')
         if self.output_filter_order != int(self.output_filter_order):
             raise ValueError(
                 f'SensorConfig.output_filter_order = {self.output_filter_order!r}'
