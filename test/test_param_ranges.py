@@ -21,7 +21,7 @@ FS_HZ = 1000.0
 
 
 def _value(kind, x):
-    """A field value of ``kind`` with every element ``x`` (off-diagonal for misalignment)."""
+    """Return a value of ``kind`` with every element ``x`` (off-diagonal in a matrix)."""
     if kind == 'pair':
         return (x, x)
     if kind == 'matrix':

@@ -405,7 +405,7 @@ def plot_adev(result, fit, path, title=''):
 
 
 def _read_bag(path, axis, topic):
-    """Return (time_s from 0, rate, column label) of one Imu axis of a bag."""
+    """Return (time_s from 0, rate, column label, recovery notes) of one Imu axis of a bag."""
     reader = bag.BagReader(path, tolerant=True)
     imu = [name for name, info in reader.topics.items() if info.type_name == topics.IMU]
     if topic is None:
@@ -419,7 +419,7 @@ def _read_bag(path, axis, topic):
     index = 'xyz'.index(axis or 'x')
     time_s = (times_ns - times_ns[0]) * 1e-9
     return time_s, arrays.field('angular_velocity')[order, index], \
-        f'{topic} angular_velocity.{axis or "x"}'
+        f'{topic} angular_velocity.{axis or "x"}', list(reader.problems)
 
 
 def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_factor=3.0):
@@ -432,10 +432,11 @@ def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_facto
     ``(JSON-ready dict, AllanResult, NoiseFit)``.
     """
     if os.path.isdir(path) or str(path).endswith('.mcap'):
-        time_s, rate, column = _read_bag(path, axis, topic)
+        time_s, rate, column, recovery = _read_bag(path, axis, topic)
         csvio.check_increasing(time_s, f'{path}: header stamps', strict=False)
     else:
         time_s, rate, column = csvio.read_gyro_csv(path, axis, time_order='nondecreasing')
+        recovery = []
     rate_hz, bounds = csvio.sample_rate_and_segments(time_s, gap_factor)
     segments = [rate[a:b] for a, b in bounds if b - a >= 3]
     if not segments:
@@ -447,6 +448,7 @@ def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_facto
     classic = classic_readings(result)
     return {
         'file': str(path), 'column': column, 'sample_rate_hz': rate_hz,
+        'recovery': recovery,
         'n_samples': result.n_samples, 'segments': len(segments),
         'repeated_timestamps': int(np.sum(np.diff(time_s) == 0.0)),
         'duration_s': float(time_s[-1] - time_s[0]),

@@ -14,6 +14,7 @@ Units: N (angle random walk) in deg/sqrt(h), B (bias instability, Allan floor
 """
 
 import os
+import sys
 
 from gyro_emulator.cli.jsonout import write_json
 
@@ -45,6 +46,8 @@ def run(args):
 
     info, result, fit = allan.analyse_record(args.file, args.axis, args.topic,
                                              args.max_tau_fraction, args.gap_factor)
+    for note in info['recovery']:
+        print(f'gyro-emulator allan: warning: {note}', file=sys.stderr)
     print(f'{info["file"]} [{info["column"]}]: {info["n_samples"]} samples at '
           f'{info["sample_rate_hz"]:.4g} Hz, {info["duration_s"]:.1f} s, '
           f'{info["segments"]} segment(s), {info["repeated_timestamps"]} repeated '

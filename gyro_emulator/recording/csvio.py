@@ -7,12 +7,14 @@ column names carry their units (``time_s``, ``gyro_x_rad_s``, ``temp_c``).
 
 Errors name the file, the column, the row (1-based line number in the file)
 and the offending value: a missing column, a value that is not a number, a
-non-finite value, or a ``time_s`` column that does not increase.
+non-finite value, or a ``time_s`` column that does not increase. A truncated
+or corrupt ``.gz`` file is one line too, never a traceback.
 """
 
 import gzip
 import io
 import os
+import zlib
 
 import numpy as np
 
@@ -106,6 +108,15 @@ def read_csv(path, required=(), time_order='increasing', only=None):
 
     """
     path = os.fspath(path)
+    try:
+        return _read_columns(path, required, time_order, only)
+    except (EOFError, zlib.error, gzip.BadGzipFile, UnicodeDecodeError) as exc:
+        raise ValueError(f'{path}: cannot read the file: it is truncated or corrupt '
+                         f'({type(exc).__name__}: {exc})') from None
+
+
+def _read_columns(path, required, time_order, only):
+    """Read the columns (see :func:`read_csv`); decompression errors pass through."""
     names, skip = _header(path)
     missing = [c for c in required if c not in names]
     if missing:

@@ -5,6 +5,7 @@ import heapq
 import os
 import struct
 from typing import NamedTuple
+import zlib
 
 from gyro_emulator.recording import cdr
 from gyro_emulator.recording.mcap_writer import RECORD_HEAD
@@ -180,18 +181,19 @@ def _chunks_in_order(summary):
     return chunks
 
 
-def _iter_chunk_messages(handle, summary, chunks, channel_ids, start_ns, end_ns):
+def _iter_chunk_messages(handle, summary, chunks, channel_ids, start_ns, end_ns,
+                         on_corrupt=None):
     """
     Yield (log_time, channel_id, publish_time, sequence, data) from indexed chunks.
 
     The fast path for complete files whose chunks do not overlap in time:
-    each wanted chunk is read and decompressed once and its message records
-    are unpacked with ``struct``; a chunk whose messages are out of order is
-    sorted by log time (stable).
+    each wanted chunk is read and decompressed once, its CRC checked (when
+    the writer stored one), and its message records unpacked with
+    ``struct``; a chunk whose messages are out of order is sorted by log time
+    (stable). A chunk that cannot be read is passed to ``on_corrupt(index,
+    reason)`` and skipped (``on_corrupt`` may raise instead).
     """
     decompressors = {}
-    unpack_head = RECORD_HEAD.unpack_from
-    unpack_msg = struct.Struct('<HIQQ').unpack_from
     for index in chunks:
         if start_ns is not None and index.message_end_time < start_ns:
             continue
@@ -200,26 +202,73 @@ def _iter_chunk_messages(handle, summary, chunks, channel_ids, start_ns, end_ns)
         if channel_ids is not None and index.message_index_offsets and not (
                 channel_ids & index.message_index_offsets.keys()):
             continue
-        handle.seek(index.chunk_start_offset + 9)
-        record = Chunk.read(ReadDataStream(handle))
-        decompress = decompressors.get(record.compression)
-        if decompress is None:
-            decompress = decompressors[record.compression] = _decompressor(record.compression)
-        buf = decompress(record.data, record.uncompressed_size)
-        out = []
-        pos, end = 0, len(buf)
-        while pos < end:
-            opcode, length = unpack_head(buf, pos)
-            if opcode == 5:
-                cid, seq, log_time, pub_time = unpack_msg(buf, pos + 9)
-                if ((channel_ids is None or cid in channel_ids)
-                        and (start_ns is None or log_time >= start_ns)
-                        and (end_ns is None or log_time < end_ns)):
-                    out.append((log_time, cid, pub_time, seq, buf[pos + 31:pos + 9 + length]))
-            pos += 9 + length
-        if any(a[0] > b[0] for a, b in zip(out, out[1:])):
-            out.sort(key=lambda item: item[0])
+        try:
+            out = _chunk_messages(handle, index, decompressors, channel_ids, start_ns, end_ns)
+        except _CHUNK_ERRORS as exc:
+            if on_corrupt is None:
+                raise ValueError(f'corrupt chunk at byte {index.chunk_start_offset}: '
+                                 f'{type(exc).__name__}: {exc}') from None
+            on_corrupt(index, f'{type(exc).__name__}: {exc}')
+            continue
         yield from out
+
+
+#: What a damaged chunk raises on its way through the decoders.
+_CHUNK_ERRORS = (ValueError, KeyError, IndexError, EOFError, struct.error, OSError,
+                 RuntimeError, MemoryError, OverflowError)
+
+
+def _chunk_messages(handle, index, decompressors, channel_ids, start_ns, end_ns):
+    """Return the wanted messages of one chunk, in log-time order; raise if it is damaged."""
+    unpack_head = RECORD_HEAD.unpack_from
+    unpack_msg = _MESSAGE_FIELDS.unpack_from
+    handle.seek(index.chunk_start_offset + 9)
+    record = Chunk.read(ReadDataStream(handle))
+    decompress = decompressors.get(record.compression)
+    if decompress is None:
+        decompress = decompressors[record.compression] = _decompressor(record.compression)
+    try:
+        buf = decompress(record.data, record.uncompressed_size)
+    except Exception as exc:  # noqa: B902 - zstd/lz4 raise their own error types
+        raise ValueError(f'decompression failed ({type(exc).__name__}: {exc})') from None
+    if len(buf) != record.uncompressed_size:
+        raise ValueError(f'{len(buf)} bytes decompressed, {record.uncompressed_size} expected')
+    if record.uncompressed_crc and zlib.crc32(buf) != record.uncompressed_crc:
+        raise ValueError('CRC mismatch')
+    out = []
+    pos, end = 0, len(buf)
+    while pos < end:
+        opcode, length = unpack_head(buf, pos)
+        if pos + 9 + length > end:
+            raise ValueError(f'a record at chunk byte {pos} runs past the chunk end')
+        if opcode == 5:
+            cid, seq, log_time, pub_time = unpack_msg(buf, pos + 9)
+            if ((channel_ids is None or cid in channel_ids)
+                    and (start_ns is None or log_time >= start_ns)
+                    and (end_ns is None or log_time < end_ns)):
+                out.append((log_time, cid, pub_time, seq, buf[pos + 31:pos + 9 + length]))
+        pos += 9 + length
+    if any(a[0] > b[0] for a, b in zip(out, out[1:])):
+        out.sort(key=lambda item: item[0])
+    return out
+
+
+_MESSAGE_FIELDS = struct.Struct('<HIQQ')
+
+
+def _library_messages(path, topics, start_ns, end_ns):
+    """Yield the messages of a complete file through the mcap library (strict)."""
+    with open(path, 'rb') as handle:
+        reader = make_reader(handle)
+        try:
+            for schema, channel, msg in reader.iter_messages(
+                    topics=topics, starting_at=start_ns, ending_before=end_ns,
+                    log_time_order=True):
+                yield BagMessage(channel.topic, schema.name if schema else '',
+                                 msg.log_time, msg.publish_time, msg.data, msg.sequence)
+        except Exception as exc:  # noqa: B902 - the library raises many error types
+            raise ValueError(f'{path}: unreadable data ({type(exc).__name__}: {exc}); '
+                             'read it tolerantly or run gyro-emulator bag repair') from None
 
 
 class BagReader:
@@ -232,9 +281,10 @@ class BagReader:
         Bag directory (with or without ``metadata.yaml``) or ``.mcap`` file.
     tolerant : bool
         Read files without summary/footer or with a truncated tail (what a
-        SIGKILL leaves) by scanning them; :attr:`problems` then says what was
-        recovered. Without it such a file raises ``ValueError`` naming
-        ``gyro-emulator bag repair``.
+        SIGKILL leaves) by scanning them, and skip chunks that fail their CRC
+        or cannot be decompressed; :attr:`problems` and
+        :attr:`corrupt_chunks` then say what was recovered and what was lost.
+        Without it (strict) such a file raises a one-line ``ValueError``.
 
     Attributes
     ----------
@@ -243,7 +293,11 @@ class BagReader:
     message_count, start_time_ns, end_time_ns : int
         Totals over all files (times of the first and last message, ns).
     problems : list of str
-        Recovery notes of incomplete files ([] for a complete bag).
+        Recovery notes of incomplete files and of skipped chunks ([] for a
+        sound bag).
+    corrupt_chunks : list of dict
+        Chunks skipped while reading: ``file``, ``offset`` (byte),
+        ``start_ns``/``end_ns`` (the log-time range lost) and ``reason``.
 
     """
 
@@ -269,6 +323,26 @@ class BagReader:
             for key, value in info.custom_data.items():
                 self.custom_data.setdefault(key, value)
         self.problems = [i.scan.describe() for i in self._infos if not i.complete]
+        self.corrupt_chunks = []
+
+    def _corrupt_handler(self, path):
+        """Return the ``on_corrupt`` callback of one file: record and skip, or raise."""
+        def on_corrupt(index, reason):
+            lost = {'file': os.path.basename(path), 'offset': int(index.chunk_start_offset),
+                    'start_ns': int(index.message_start_time),
+                    'end_ns': int(index.message_end_time), 'reason': reason}
+            span = (f'{(lost["start_ns"] - self.start_time_ns) / 1e9:.3f}..'
+                    f'{(lost["end_ns"] - self.start_time_ns) / 1e9:.3f} s')
+            if not self.tolerant:
+                raise ValueError(f'{path}: corrupt chunk at byte {lost["offset"]} '
+                                 f'(messages of {span} after the start): {reason}')
+            if all(c['offset'] != lost['offset'] or c['file'] != lost['file']
+                   for c in self.corrupt_chunks):
+                self.corrupt_chunks.append(lost)
+                self.problems.append(f'{lost["file"]}: corrupt chunk at byte '
+                                     f'{lost["offset"]} skipped, messages of {span} '
+                                     f'after the start lost ({reason})')
+        return on_corrupt
 
     @property
     def complete(self):
@@ -304,22 +378,18 @@ class BagReader:
                      for cid, c in summary.channels.items()}
             with open(info.path, 'rb') as handle:
                 for log_time, cid, pub, seq, data in _iter_chunk_messages(
-                        handle, summary, chunks, ids, start_ns, end_ns):
+                        handle, summary, chunks, ids, start_ns, end_ns,
+                        self._corrupt_handler(info.path)):
                     topic, type_name = names[cid]
                     yield BagMessage(topic, type_name, log_time, pub, data, seq)
             return
-        if info.complete and info.scan is None:
-            with open(info.path, 'rb') as handle:
-                reader = make_reader(handle)
-                for schema, channel, msg in reader.iter_messages(
-                        topics=topics, starting_at=start_ns, ending_before=end_ns,
-                        log_time_order=True):
-                    yield BagMessage(channel.topic, schema.name if schema else '',
-                                     msg.log_time, msg.publish_time, msg.data, msg.sequence)
+        if info.complete and info.scan is None and not self.tolerant:
+            yield from _library_messages(info.path, topics, start_ns, end_ns)
             return
         schemas, channels = {}, {}
         wanted = None if topics is None else set(topics)
-        for record in scan_mcap(info.path):
+        report = ScanReport(info.path)
+        for record in scan_mcap(info.path, report):
             if isinstance(record, Message):
                 channel = channels.get(record.channel_id)
                 if channel is None:
@@ -338,6 +408,11 @@ class BagReader:
                 schemas[record.id] = record
             elif isinstance(record, Channel):
                 channels[record.id] = record
+        if report.bad_chunks:
+            note = (f'{os.path.basename(info.path)}: skipped {report.bad_chunks} corrupt '
+                    f'chunk(s) ({report.problem})')
+            if note not in self.problems:
+                self.problems.append(note)
 
     def messages(self, topics=None, start_ns=None, end_ns=None):
         """
@@ -415,7 +490,8 @@ class BagReader:
             ids = {cid for cid, c in summary.channels.items() if c.topic == topic}
             with open(fast[0].path, 'rb') as handle:
                 for item in _iter_chunk_messages(handle, summary, _chunks_in_order(summary),
-                                                 ids, start_ns, end_ns):
+                                                 ids, start_ns, end_ns,
+                                                 self._corrupt_handler(fast[0].path)):
                     times.append(item[0])
                     payloads.append(item[4])
         else:

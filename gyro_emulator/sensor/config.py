@@ -128,6 +128,8 @@ _RANGES = {
     'optional': {'initial_die_temp_c': (-60.0, 200.0, 'C')},
 }
 _OPEN_LOW = frozenset({'range_rad_s'})
+
+
 def field_ranges():
     """
     Return the documented range of every numeric :class:`SensorConfig` field.
