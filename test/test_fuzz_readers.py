@@ -154,3 +154,25 @@ def test_allan_on_a_bag_with_a_corrupt_chunk_warns_and_runs(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert 'warning:' in proc.stderr and 'corrupt chunk' in proc.stderr, proc.stderr
     assert 'Traceback' not in proc.stderr
+
+
+@pytest.mark.parametrize('rel', ['../outside_0.mcap', '/etc/passwd', 'sub/../../x.mcap'])
+def test_metadata_paths_leaving_the_bag_are_refused(tmp_path, rel):
+    import yaml
+    path = str(tmp_path / 'bag')
+    _small_bag(path)
+    meta_path = os.path.join(path, 'metadata.yaml')
+    meta = yaml.safe_load(open(meta_path))
+    meta['rosbag2_bagfile_information']['relative_file_paths'] = [rel]
+    yaml.safe_dump(meta, open(meta_path, 'w'))
+    with pytest.raises(ValueError, match='outside the bag directory'):
+        bag.BagReader(path)
+
+
+@pytest.mark.parametrize('type_name', ['os/msg/System', 'subprocess/Popen',
+                                       'sensor_msgs/msg/../Imu', 'builtins/msg/Exec',
+                                       'rclpy/msg/Node'])
+def test_untrusted_type_names_never_reach_an_arbitrary_import(type_name):
+    from gyro_emulator.ros import codec
+    with pytest.raises(ValueError, match='not understood|no .msg definition|not installed'):
+        codec.message_class(type_name)

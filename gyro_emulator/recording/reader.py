@@ -99,7 +99,11 @@ def resolve_files(path):
     files = []
     if meta is not None and meta.get('relative_file_paths'):
         for rel in meta['relative_file_paths']:
-            full = os.path.join(path, rel)
+            full = os.path.realpath(os.path.join(path, str(rel)))
+            if os.path.isabs(str(rel)) or os.path.commonpath(
+                    [full, os.path.realpath(path)]) != os.path.realpath(path):
+                raise ValueError(f'{meta_path} lists {rel!r}, which is outside the bag '
+                                 'directory: allowed file names inside it only')
             if not os.path.isfile(full):
                 raise FileNotFoundError(f'{meta_path} lists {rel}, which is missing')
             files.append(full)

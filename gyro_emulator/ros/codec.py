@@ -11,12 +11,16 @@ rclpy leaves uninitialised.
 """
 
 import importlib
+import re
 
 from gyro_emulator.recording import bag
 from gyro_emulator.units import NS_PER_S
 from rclpy.serialization import deserialize_message
+from rclpy.type_support import check_is_valid_msg_type, NoTypeSupportImportedException
 
 _CLASSES = {}
+#: A ROS 2 message type name: package (lower case, digits, _), 'msg', CamelCase name.
+_TYPE_NAME = re.compile(r'[a-z][a-z0-9_]*/msg/[A-Z][A-Za-z0-9]*')
 
 
 def message_class(type_name):
@@ -37,16 +41,21 @@ def message_class(type_name):
     cls = _CLASSES.get(type_name)
     if cls is not None:
         return cls
-    parts = type_name.split('/')
+    parts = type_name.split('/') if isinstance(type_name, str) else []
     if len(parts) == 2:
         parts = [parts[0], 'msg', parts[1]]
-    if len(parts) != 3 or not all(parts):
-        raise ValueError(f'message type {type_name!r} is not understood: '
-                         'expected package/msg/Name')
+    full = '/'.join(parts)
+    if not _TYPE_NAME.fullmatch(full):
+        raise ValueError(f'message type {type_name!r} is not understood: expected '
+                         'package/msg/Name (lower_case package, CamelCase name)')
+    # Type strings may come from untrusted bags: import only interfaces that
+    # are installed as .msg files, and only if what is imported is a message.
+    bag.message_definition(full)
     try:
-        module = importlib.import_module(f'{parts[0]}.{parts[1]}')
+        module = importlib.import_module(f'{parts[0]}.msg')
         cls = getattr(module, parts[2])
-    except (ImportError, AttributeError):
+        check_is_valid_msg_type(cls)
+    except (ImportError, AttributeError, TypeError, NoTypeSupportImportedException):
         raise ValueError(f'message type {type_name!r} is not installed') from None
     _CLASSES[type_name] = cls
     return cls
