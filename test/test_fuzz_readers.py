@@ -176,3 +176,18 @@ def test_untrusted_type_names_never_reach_an_arbitrary_import(type_name):
     from gyro_emulator.ros import codec
     with pytest.raises(ValueError, match='not understood|no .msg definition|not installed'):
         codec.message_class(type_name)
+
+
+def test_bag_info_and_repair_report_a_corrupt_chunk_of_a_complete_bag(tmp_path):
+    path = str(tmp_path / 'bag')
+    start, end, _ = _corrupt_middle_chunk(_small_bag(path))
+    reader = bag.BagReader(path, tolerant=True)
+    corrupt, lost = reader.verify()
+    assert len(corrupt) == 1 and (corrupt[0]['start_ns'], corrupt[0]['end_ns']) == (start, end)
+    assert 0 < lost < reader.message_count
+    report = bag.repair_bag(path)
+    assert report.lost_messages == lost and len(report.corrupt) == 1
+    assert 'corrupt chunk' in report.describe()
+    repaired = bag.BagReader(path)
+    assert repaired.message_count == reader.message_count - lost
+    assert repaired.verify() == ([], 0)

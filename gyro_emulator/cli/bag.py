@@ -34,7 +34,13 @@ def run(args):
     if args.action == 'info':
         reader = bag.BagReader(args.bag, tolerant=True)
         print(reader.info_text())
-        if reader.problems:
+        corrupt, lost = reader.verify()
+        for chunk in corrupt:
+            print(f'Corrupt chunk:    {chunk["file"]} byte {chunk["offset"]}, log time '
+                  f'{chunk["start_ns"]}..{chunk["end_ns"]} ns ({chunk["reason"]})')
+        if corrupt:
+            print(f'Messages lost:    {lost} of {reader.message_count}')
+        if reader.problems or corrupt:
             print(f'run: gyro-emulator bag repair {args.bag}')
         return 0
     report = bag.repair_bag(args.bag, out_dir=args.out, backup=not args.no_backup)

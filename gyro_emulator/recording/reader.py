@@ -329,7 +329,28 @@ class BagReader:
         self.problems = [i.scan.describe() for i in self._infos if not i.complete]
         self.corrupt_chunks = []
 
-    def _corrupt_handler(self, path):
+    def verify(self):
+        """
+        Read every chunk of every file once, checking CRCs; return what is lost.
+
+        Returns ``(corrupt_chunks, messages_lost)``: the chunks that cannot
+        be read (as :attr:`corrupt_chunks`, with their log-time ranges) and
+        the number of messages the summaries count but no chunk delivers.
+        Files without a summary are scanned; their losses are in
+        :attr:`problems`.
+        """
+        read = 0
+        for info in self._infos:
+            if info.summary is None or not info.summary.chunk_indexes:
+                read += sum(1 for _ in self._file_messages(info, None, None, None))
+                continue
+            with open(info.path, 'rb') as handle:
+                read += sum(1 for _ in _iter_chunk_messages(
+                    handle, info.summary, list(info.summary.chunk_indexes), None, None, None,
+                    self._corrupt_handler(info.path, collect=True)))
+        return list(self.corrupt_chunks), max(0, self.message_count - read)
+
+    def _corrupt_handler(self, path, collect=False):
         """Return the ``on_corrupt`` callback of one file: record and skip, or raise."""
         def on_corrupt(index, reason):
             lost = {'file': os.path.basename(path), 'offset': int(index.chunk_start_offset),
@@ -337,7 +358,7 @@ class BagReader:
                     'end_ns': int(index.message_end_time), 'reason': reason}
             span = (f'{(lost["start_ns"] - self.start_time_ns) / 1e9:.3f}..'
                     f'{(lost["end_ns"] - self.start_time_ns) / 1e9:.3f} s')
-            if not self.tolerant:
+            if not (self.tolerant or collect):
                 raise ValueError(f'{path}: corrupt chunk at byte {lost["offset"]} '
                                  f'(messages of {span} after the start): {reason}')
             if all(c['offset'] != lost['offset'] or c['file'] != lost['file']

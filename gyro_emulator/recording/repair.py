@@ -11,7 +11,7 @@ import os
 from gyro_emulator.recording.mcap_writer import McapFileWriter
 from gyro_emulator.recording.metadata import (file_info_from_writer, METADATA_FILE, metadata_yaml,
                                               write_text_atomic)
-from gyro_emulator.recording.reader import index_file, resolve_files
+from gyro_emulator.recording.reader import BagReader, index_file, resolve_files
 from gyro_emulator.recording.scan import scan_mcap, ScanReport
 from mcap.records import Channel, Message, Metadata, Schema
 
@@ -35,6 +35,12 @@ class RepairReport:
         Messages per topic in the repaired bag.
     start_time_ns, end_time_ns : int
         Span of the recovered messages, ns.
+    corrupt : list of dict
+        Chunks of otherwise complete files that failed their CRC or could not
+        be decompressed (``BagReader.corrupt_chunks`` entries: file, byte
+        offset, log-time range, reason); those files are rewritten without them.
+    lost_messages : int
+        Messages of those chunks, lost.
 
     """
 
@@ -45,6 +51,8 @@ class RepairReport:
     topics: dict = field(default_factory=dict)
     start_time_ns: int = 0
     end_time_ns: int = 0
+    corrupt: list = field(default_factory=list)
+    lost_messages: int = 0
 
     @property
     def message_count(self):
@@ -54,6 +62,12 @@ class RepairReport:
     def describe(self):
         """Return a human summary, one line per file and per topic."""
         lines = [s.describe() for s in self.scans]
+        for chunk in self.corrupt:
+            lines.append(f'{chunk["file"]}: corrupt chunk at byte {chunk["offset"]} (log time '
+                         f'{chunk["start_ns"]}..{chunk["end_ns"]} ns, {chunk["reason"]}) dropped')
+        if self.corrupt:
+            lines.append(f'{self.lost_messages} messages lost in {len(self.corrupt)} '
+                         'corrupt chunk(s)')
         if self.rewritten:
             lines.append('rewrote ' + ', '.join(os.path.basename(p) for p in self.rewritten)
                          + ' with summary and footer')
@@ -144,6 +158,12 @@ def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
             info = index_file(source, tolerant=False)
         except ValueError:
             info = None
+        if info is not None:
+            corrupt, lost = BagReader(source).verify()
+            if corrupt:
+                report.corrupt.extend(corrupt)
+                report.lost_messages += lost
+                info = None             # rewrite it without the corrupt chunks
         if info is not None:
             scan = ScanReport(source, size_bytes=os.path.getsize(source),
                               good_bytes=os.path.getsize(source), complete=True,
