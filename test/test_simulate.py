@@ -225,3 +225,30 @@ def test_segments_at_gaps():
     rate, bounds = csvio.sample_rate_and_segments(t)
     assert rate == pytest.approx(50.0)
     assert bounds == [(0, 100), (100, 150)]
+
+
+def test_simulate_refuses_an_existing_output_unless_overwrite(tmp_path, capsys):
+    out = tmp_path / 'a.csv'
+    common = ['simulate', '--duration-s', '1', '--rate-hz', '50', '--out', str(out)]
+    assert cli.main(common) == 0
+    first = out.read_bytes()
+    assert cli.main(common + ['--seed', '5']) == 2
+    assert 'exists: pass --overwrite' in capsys.readouterr().err
+    assert out.read_bytes() == first
+    assert cli.main(common + ['--seed', '5', '--overwrite']) == 0
+    assert out.read_bytes() != first
+
+
+@pytest.mark.parametrize('name', ['broken.csv', 'broken_bag'])
+def test_a_failed_simulate_leaves_nothing_behind(tmp_path, capsys, name):
+    """A die temperature that leaves the model range late in the run stops it."""
+    sensor = tmp_path / 'hot.yaml'
+    sensor.write_text('device: paper\nself_heating_c: 40.0\nthermal_time_constant_s: 1.0\n')
+    profile = tmp_path / 'ramp.yaml'
+    profile.write_text('segments:\n  - {duration_s: 20, temp_c: [25, 190]}\n')
+    out = tmp_path / name
+    rc = cli.main(['simulate', '--config', str(sensor), '--profile', str(profile),
+                   '--duration-s', '20', '--rate-hz', '200', '--out', str(out)])
+    assert rc == 2
+    assert 'out of range' in capsys.readouterr().err
+    assert sorted(os.listdir(tmp_path)) == ['hot.yaml', 'ramp.yaml']

@@ -10,7 +10,11 @@ An ``--out`` path not ending in .csv/.csv.gz is a rosbag2 MCAP bag directory
 with the node's topics (see ``gyro_emulator.analysis.replay``).
 """
 
+import contextlib
+import os
+import shutil
 import sys
+import tempfile
 import time
 
 HELP = 'simulate the sensor over a scripted profile and write CSV or a rosbag2 bag'
@@ -39,6 +43,8 @@ def add_arguments(parser):
     parser.add_argument('--out', required=True, metavar='FILE.csv|DIR',
                         help='output CSV (.csv or .csv.gz), or else a rosbag2 MCAP bag '
                              'directory in the emulator topic layout')
+    parser.add_argument('--overwrite', action='store_true',
+                        help='replace an existing output (default: refuse)')
 
 
 class Progress:
@@ -59,6 +65,32 @@ class Progress:
             print(f'simulate: {pct:5.1f} % ({done}/{total} samples, {elapsed:.1f} s)',
                   file=self.stream, flush=True)
             self.next_pct = 10 * (int(pct) // 10 + 1)
+
+
+@contextlib.contextmanager
+def staged_output(out, overwrite=False):
+    """
+    Yield a temporary path beside ``out``; move it to ``out`` only on success.
+
+    A run that fails (or is interrupted) leaves nothing behind, and an
+    existing ``out`` is replaced only with ``overwrite``. The temporary path
+    has the same name inside a hidden sibling directory, so a bag keeps its
+    file names.
+    """
+    out = os.path.abspath(out)
+    if os.path.exists(out) and not overwrite:
+        raise ValueError(f'--out {out} exists: pass --overwrite to replace it')
+    parent = os.path.dirname(out)
+    os.makedirs(parent, exist_ok=True)
+    stage = tempfile.mkdtemp(prefix='.simulate-', dir=parent)
+    try:
+        partial = os.path.join(stage, os.path.basename(out))
+        yield partial
+        if os.path.isdir(out):
+            shutil.rmtree(out)
+        os.replace(partial, out)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 def _open_writer(path, args=None, config=None):
@@ -88,7 +120,8 @@ def run(args):
     chunks = simulate.iter_simulation(config, args.profile, args.duration_s, args.rate_hz,
                                       seed=args.seed, temp_c=args.temp_c)
     started = time.monotonic()
-    rows = writer(args.out, chunks, progress=Progress(), total=total)
+    with staged_output(args.out, args.overwrite) as partial:
+        rows = writer(partial, chunks, progress=Progress(), total=total)
     print(f'wrote {args.out}: {rows} samples at {args.rate_hz:g} Hz '
           f'({args.duration_s:g} s, profile {args.profile}, config {args.config}) in '
           f'{time.monotonic() - started:.1f} s')
