@@ -375,6 +375,18 @@ def test_runtime_parameters_are_validated(wall):
     assert not refused.successful and 'SensorConfig.lsb_rad_s' in refused.reason
     refused = set_(('sensor.output_filter_hz', 150.0))[0]
     assert not refused.successful and 'Nyquist' in refused.reason
+    # Issue 14: a tiny LSB inside [0, 1] is refused in one line (it once overflowed);
+    # a bool array is not numbers; a 3x3 matrix can be set at run time (9 values).
+    refused = set_(('sensor.lsb_rad_s', [1e-310, 0.0, 0.0]))[0]
+    assert not refused.successful and 'allowed 0 (no quantisation)' in refused.reason
+    refused = set_(('sensor.scale_factor_error', [True, False, True]))[0]
+    assert not refused.successful and 'not a number' in refused.reason
+    matrix = [0.0, 0.002, 0.0, 0.0, 0.0, -0.001, 0.0, 0.0, 0.0]
+    assert set_(('sensor.misalignment', matrix))[0].successful
+    got = probe.call(client.get_parameters(['sensor.misalignment'])).values[0]
+    assert list(got.double_array_value) == matrix
+    assert set_(('sensor.misalignment', [0.0] * 9))[0].successful
+    assert wall.node.proc.poll() is None
     # Noise off: covariance zero, the output is the deterministic part only.
     latest_diag(wall, lambda s, v: v.get('stale') == 'true')  # rate held at zero
     assert set_(('noise_enabled', False))[0].successful

@@ -359,8 +359,9 @@ def sensor_descriptor(name, value):
 def _from_ros(field, value, base):
     if field == 'initial_die_temp_c':
         return None if isinstance(value, float) and math.isnan(value) else value
-    if isinstance(value, (list, tuple)):
-        value = [float(v) if not isinstance(v, bool) else v for v in value]
+    if isinstance(value, (list, tuple, array.array)):
+        # rclpy hands a double array parameter over as an array.array
+        value = [float(v) if not isinstance(v, (bool, str)) else v for v in value]
         current = getattr(base, field)
         if isinstance(current, tuple) and current and isinstance(current[0], tuple) \
                 and len(value) == 9:

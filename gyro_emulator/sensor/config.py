@@ -290,8 +290,9 @@ def _checked(name, value, kind, limits):
             return None
         return check_range(owner, name, value, low, high, unit, low_open)
     shape = {'axis': (3,), 'scalar': (), 'pair': (2,), 'matrix': (3, 3)}[kind]
-    if isinstance(value, (bool, str, np.bool_)):
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number')
+    if _has_non_number(value):
+        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list of numbers '
+                         '(true/false and text are not numbers)')
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError):
@@ -315,6 +316,18 @@ def _checked(name, value, kind, limits):
     if kind == 'matrix':
         return tuple(tuple(float(v) for v in row) for row in arr)
     return tuple(float(v) for v in arr)
+
+
+def _has_non_number(value):
+    """Return True if ``value`` is, or holds at any depth, a bool or a string."""
+    if isinstance(value, (bool, str, bytes, np.bool_)):
+        return True
+    if isinstance(value, (list, tuple)):
+        return any(_has_non_number(v) for v in value)
+    if isinstance(value, np.ndarray):
+        return value.dtype.kind in 'bSUO' and (value.dtype.kind != 'O' or any(
+            _has_non_number(v) for v in value.ravel()))
+    return False
 
 
 def _check_elements(owner, name, arr, low, high, unit, low_open):
