@@ -53,4 +53,5 @@ def read_yaml(path):
     except OSError as exc:
         raise ValueError(f'{path}: cannot read: {exc}') from None
     except yaml.YAMLError as exc:
-        raise ValueError(f'{path}: malformed YAML: {exc}') from None
+        text = ' '.join(str(exc).split())      # the parser's account, on one line
+        raise ValueError(f'{path}: malformed YAML: {text}') from None

@@ -210,8 +210,9 @@ def test_defaults_file_errors_name_the_problem(tmp_path):
     with pytest.raises(ValueError, match='missing parameter.*seed'):
         params.node_defaults(str(path))
     path.write_text('gyro: [1, 2')
-    with pytest.raises(ValueError, match='malformed YAML'):
+    with pytest.raises(ValueError, match='malformed YAML') as caught:
         params.load_params_file(str(path))
+    assert '\n' not in str(caught.value) and 'line 1, column 7' in str(caught.value)
 
 
 @pytest.mark.parametrize('name,value,match', [

@@ -115,3 +115,20 @@ def test_ros2_run_node_publishes_imu_from_the_colcon_install(workspace, monkeypa
                             'print(n.__file__)'], env=env, cwd=str(tmp_path),
                            capture_output=True, text=True)
     assert check.stdout.strip().startswith(site)
+
+
+@pytest.mark.parametrize('args,message', [
+    (['--ros-args', '--params-file', 'BAD'], 'cannot start ROS: failed to initialize rcl'),
+    (['--ros-args', '-p', 'record_dir:=/proc/no/such/dir'],
+     "record_dir = '/proc/no/such/dir': cannot write a bag there"),
+])
+def test_node_start_errors_are_one_line_not_tracebacks(tmp_path, args, message):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('gyro: [1, 2\n')
+    args = [str(bad) if a == 'BAD' else a for a in args]
+    proc = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.node'] + args,
+                          env=ros_env(), capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2
+    assert message in proc.stderr and 'Traceback' not in proc.stderr, proc.stderr
+    ours = [line for line in proc.stderr.splitlines() if 'gyro_emulator node: error' in line]
+    assert len(ours) == 1

@@ -495,15 +495,26 @@ class GyroEmulatorNode(Node):
                 f'{sum(book.clamped.values())} clamped, {book.model_errors} model errors')
 
 
+def _first_line(exc):
+    """Return an exception's message on one line (rcl appends source locations)."""
+    text = str(exc).split(', at /')[0]
+    return ' '.join(text.split())
+
+
 def main(args=None):
     """Run the node until SIGINT or SIGTERM; return the exit status."""
-    rclpy.init(args=args)
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # noqa: B902 - rcl reports bad arguments and params files so
+        print(f'gyro_emulator node: error: cannot start ROS: {_first_line(exc)}',
+              file=sys.stderr)
+        return 2
     node = None
     try:
         try:
             node = GyroEmulatorNode()
-        except (ValueError, ParameterException) as exc:
-            print(f'gyro_emulator node: error: {exc}', file=sys.stderr)
+        except (ValueError, ParameterException, OSError) as exc:
+            print(f'gyro_emulator node: error: {_first_line(exc)}', file=sys.stderr)
             return 2
         executor = SingleThreadedExecutor()
         executor.add_node(node)

@@ -62,8 +62,12 @@ class SelfRecorder:
         for name in ('sensor_config', 'seed', 'rate_hz', 'rate_source', 'frame_id'):
             if node.has_parameter(name):
                 custom[name] = str(node.get_parameter(name).value)
-        self.writer = bag.BagWriter(bag_path(record_dir), custom_data=custom,
-                                    flush_interval_s=flush_interval_s)
+        try:
+            self.writer = bag.BagWriter(bag_path(record_dir), custom_data=custom,
+                                        flush_interval_s=flush_interval_s)
+        except OSError as exc:
+            raise ValueError(f'record_dir = {record_dir!r}: cannot write a bag there '
+                             f'({exc.strerror or exc}): allowed a writable directory') from None
         self.path = self.writer.path
         self.finished = False
         self.counts = {}
