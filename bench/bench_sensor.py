@@ -146,8 +146,7 @@ class NaiveGyro:
             lsb, limit = c.lsb_rad_s[i], c.range_rad_s[i]
             y = min(max(round(y / lsb) * lsb, -limit), limit)
             out.append(y)
-        delay = max(c.latency_s + c.timestamp_jitter_s * rng.standard_normal(), 0.0) + \
-            self.index * self.dt * c.clock_drift_ppm * 1e-6
+        delay = max(c.latency_s + c.timestamp_jitter_s * rng.standard_normal(), 0.0)
         self.index += 1
         return out, die, delay
 

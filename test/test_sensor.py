@@ -237,9 +237,14 @@ def test_latency_jitter_and_clock_drift():
     assert np.all(out.output_delay_s >= 0.0)
     assert out.output_delay_s.mean() == pytest.approx(0.003, abs=5 * 2e-4 / math.sqrt(n))
     assert out.output_delay_s.std() == pytest.approx(2e-4, rel=5 / math.sqrt(2 * n))
+    # Clock drift sets the part's sample period (its output data rate), never the
+    # stamps: the delay stays bounded however long the record (issue 14).
     drift = replace(FULL, terms=replace(ErrorTerms.none(), clock_drift=True))
-    out = GyroModel(drift, FS, np.random.default_rng(0)).run(np.zeros((n, 3)), 25.0)
-    np.testing.assert_allclose(out.output_delay_s, np.arange(n) / FS * 50e-6, rtol=1e-12)
+    model = GyroModel(drift, FS, np.random.default_rng(0))
+    out = model.run(np.zeros((n, 3)), 25.0)
+    assert np.all(out.output_delay_s == 0.0)
+    assert model.sample_period_s == pytest.approx(1.0 / (FS * (1.0 + 50e-6)), rel=1e-15)
+    assert GyroModel(lat, FS, np.random.default_rng(0)).sample_period_s == 1.0 / FS
 
 
 def test_update_config_keeps_the_states():

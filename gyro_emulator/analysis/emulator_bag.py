@@ -16,7 +16,8 @@ topic                                     type                              cont
 ========================================  ================================  ==============
 
 ``gyro-emulator simulate --out DIR`` writes it with :func:`write_simulation_bag`
-(sample n at ``start_ns + round(n / rate_hz * 1e9)``; the Imu stamp adds the
+(sample n at ``start_ns + round(t_n 1e9)``, t_n = n ``GyroModel.sample_period_s``;
+the Imu stamp adds the
 model's output delay, as the node does).
 """
 

@@ -6,9 +6,10 @@ long runs and for any writer: CSV here, a rosbag2 writer later);
 :func:`run_simulation` returns it whole. Neither writes files.
 :func:`write_simulation_csv` writes the CSV layout of :data:`CSV_COLUMNS`.
 
-Sample n is at time_s = n / rate_hz. The model's batch API is used chunk by
-chunk; because it is partition-invariant, the record is identical whatever
-the chunk size.
+Sample n is at time_s = n T, T the part's sample period (1 / rate_hz, made
+shorter or longer by its clock drift: ``GyroModel.sample_period_s``). The
+model's batch API is used chunk by chunk; because it is partition-invariant,
+the record is identical whatever the chunk size.
 """
 
 from dataclasses import dataclass
@@ -91,7 +92,7 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
     model = GyroModel(config, rate_hz, np.random.default_rng(seed))
     for start in range(0, n, int(chunk_samples)):
         idx = np.arange(start, min(n, start + int(chunk_samples)))
-        time_s = idx / rate_hz
+        time_s = idx * model.sample_period_s
         samples = profile.sample(time_s)
         batch = model.run(samples.rate_rad_s, samples.temp_c, samples.accel_m_s2)
         yield SimulationChunk(time_s, samples, batch)

@@ -100,7 +100,9 @@ class GyroEmulatorNode(Node):
         self._make_publishers()
         self._temp_every = max(1, int(round(self.rate_hz / p['temperature_rate_hz'])))
         self._tick_count = 0
-        self._timer = self.create_timer(1.0 / self.rate_hz, self._tick)
+        # The part's clock drift sets its output data rate (sample period), so
+        # the stamps stay tied to the ROS clock (issue 14).
+        self._timer = self.create_timer(self._stepper.model.sample_period_s, self._tick)
         self._make_inputs()
         self._start_diagnostics()
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -212,8 +214,16 @@ class GyroEmulatorNode(Node):
         if changed_model:
             self._stepper.update_config(self._effective_config())
             self._refresh_covariance()
+            self._retime()
         self.get_logger().info('parameters set: ' + ', '.join(
             f'{q.name} = {q.value!r}' for q in parameters))
+
+    def _retime(self):
+        """Follow a new sample period (a changed clock drift) with a new timer."""
+        period_s = self._stepper.model.sample_period_s
+        if abs(self._timer.timer_period_ns - period_s * NS_PER_S) >= 1.0:
+            self.destroy_timer(self._timer)
+            self._timer = self.create_timer(period_s, self._tick)
 
     # --- publishers and subscriptions -------------------------------------
 

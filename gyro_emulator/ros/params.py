@@ -161,7 +161,7 @@ SENSOR_DESCRIPTIONS = {
     'range_rad_s': 'Full-scale range (x, y, z), rad/s; beyond it the output saturates',
     'latency_s': 'Output delay added to the imu/data_raw stamp, s',
     'timestamp_jitter_s': 'Sigma of the Gaussian stamp jitter, s',
-    'clock_drift_ppm': 'Sensor clock error accumulated into the stamp, ppm',
+    'clock_drift_ppm': 'Sensor clock error, ppm: sets the output data rate, not the stamps',
     'initial_die_temp_c': 'Die temperature at the first sample, deg C (NaN = in '
                           'equilibrium with ambient)',
     'terms': 'On/off switches of the error terms',

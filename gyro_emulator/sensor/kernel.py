@@ -316,12 +316,10 @@ def _output_stage(x, start, stop, on, ax, sat):
 
 @numba.njit(cache=True, error_model='numpy')
 def _delays(normals, at, start, stop, index, sc, on, delay):
-    """Latency + timestamp jitter (clipped at 0) + clock drift of each sample, s."""
+    """Latency + timestamp jitter (clipped at 0) of each sample, s (drift: sample period)."""
     latency, jitter = sc[S_LATENCY], sc[S_JITTER]
     for j in range(start, stop):
         dl = latency
         if on[F_JITTER]:
             dl = max(dl + jitter * normals[JITTER, at[JITTER] + j], 0.0)
-        if on[F_DRIFT]:
-            dl += (index + j - start) * sc[S_DT] * sc[S_DRIFT]
         delay[j] = dl

@@ -259,6 +259,22 @@ class GyroModel:
         return np.sqrt(sq) * plan.sqrt_fs * plan.lpf_noise_gain
 
     @property
+    def sample_period_s(self):
+        """
+        Return the part's true sample period, s: 1 / (f_s (1 + clock_drift_ppm 1e-6)).
+
+        A part's clock error changes its output data rate, not the stamps of
+        its samples: a driver stamps each sample when it arrives, so the
+        stamps stay tied to the host clock within the latency and jitter. A
+        positive drift is a fast clock (more samples per second). Every
+        sample is the same computation as at the nominal rate (the part's
+        filters run on its own clock); what changes is when it happens.
+        """
+        c = self.config
+        drift = c.clock_drift_ppm * 1e-6 if c.terms.clock_drift else 0.0
+        return self.dt_s / (1.0 + drift)
+
+    @property
     def die_temp_c(self):
         """Die temperature after the last sample (None before the first)."""
         state = self._state.kernel
