@@ -162,3 +162,15 @@ def test_bag_input_maps_topics_onto_the_contract(tmp_path):
     assert not no_accel.has_accel
     with pytest.raises(ValueError, match="no topic 'imu/nope' for the gyro"):
         dd.load_bag(str(tmp_path / 'run'), gyro_topic='imu/nope')
+
+
+def test_a_bag_with_a_corrupt_chunk_is_read_and_says_what_was_lost(tmp_path):
+    from test_fuzz_readers import _corrupt_middle_chunk
+    rec = _record(n=1500, dt=0.02)
+    _write_bag(tmp_path / 'run', rec)
+    clean = dd.load_bag(str(tmp_path / 'run'))
+    assert clean.recovery == ()
+    _corrupt_middle_chunk(str(tmp_path / 'run' / 'run_0.mcap'))
+    back = dd.load_bag(str(tmp_path / 'run'))
+    assert 0 < back.rows < rec.rows
+    assert len(back.recovery) >= 1 and 'corrupt chunk' in back.recovery[0]

@@ -14,6 +14,7 @@ named, with its parameters and the held-out gain.
 """
 
 import os
+import sys
 
 from gyro_emulator.cli.jsonout import write_json
 from gyro_emulator.recording import topics
@@ -66,6 +67,8 @@ def run(args):
                                accel_topic=args.accel_topic, axis=args.axis)
     else:
         record = data.load_csv(args.input)
+    for note in record.recovery:
+        print(f'gyro-emulator diagnose: warning: {note}', file=sys.stderr)
     effects = None if args.effects is None else [
         e.strip() for e in args.effects.split(',') if e.strip()]
     result = diagnose(record, preset=args.preset, ref_temp_c=args.ref_temp,

@@ -70,13 +70,16 @@ def run(args):
     config_name = args.config or reader.custom_data.get('sensor_config', 'paper')
     seed = args.seed if args.seed is not None else int(reader.custom_data.get('seed', 0))
     config = load_sensor_config(config_name)
+    shown = list(reader.problems)
     inputs = replay.load_inputs(
         reader, args.source, args.rate_topic, args.temperature_topic, args.accel_topic,
         args.measured_topic, args.rate_hz, args.temp_c, args.use_log_time)
+    for note in reader.problems[len(shown):]:
+        print(f'replay: warning: {note}', file=sys.stderr)
     _, batch = replay.emulate(inputs, config, seed)
     comparison = replay.compare(inputs, batch)
     header = [f'bag: {os.path.abspath(args.bag)}', f'sensor config: {config_name}',
-              f'seed: {seed}']
+              f'seed: {seed}'] + [f'recovered: {note}' for note in reader.problems]
     sigma = replay.white_noise_sigma(config, inputs.rate_hz)
     replay.write_output_bag(bag_dir, inputs, batch, comparison, sigma, custom_data={
         'generator': 'gyro-emulator replay', 'source_bag': os.path.abspath(args.bag),

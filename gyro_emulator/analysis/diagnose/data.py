@@ -53,6 +53,8 @@ class MeasuredData:
         Linear acceleration, shape (n, 3), m/s^2; None when not recorded.
     source : str
         Where the data came from (file name), for reports.
+    recovery : tuple of str
+        What a damaged source lost (e.g. a bag's corrupt chunks); () if sound.
 
     """
 
@@ -62,6 +64,7 @@ class MeasuredData:
     gyro_rad_s: np.ndarray
     accel_m_s2: np.ndarray = None
     source: str = ''
+    recovery: tuple = ()
 
     def __post_init__(self):
         """Check shapes, finiteness, the temperature range and monotonic time."""
@@ -446,4 +449,4 @@ def load_bag(path, rate_topic=None, temp_topic=None, gyro_topic=None,
                         rate_cmd_rad_s=series['rate'][inside, 0],
                         temp_c=series['temp'][inside, 0],
                         gyro_rad_s=gyro[inside], accel_m_s2=accel,
-                        source=str(path))
+                        source=str(path), recovery=tuple(reader.problems))

@@ -441,7 +441,7 @@ def _document(data, prep, preset, cal_all, cv, rmse_base, null, best_doc, findin
                                    float(data.temp_c.max())],
                   'rate_rms_rad_s': math.sqrt(float(np.mean(
                       data.rate_cmd_rad_s ** 2))),
-                  'has_accel': data.has_accel},
+                  'has_accel': data.has_accel, 'recovery': list(data.recovery)},
         'device_preset': preset,
         'calibration': cal_all.as_dict(),
         'baseline': {'rmse_rad_s': rmse_base,
