@@ -102,7 +102,10 @@ def test_replay_loops_until_interrupted(tmp_path):
     recorder = _start(['gyro_emulator.ros.recorder', '-o', target, '--topics',
                        '/imu/data_raw'], env, stdout=subprocess.DEVNULL,
                       stderr=subprocess.DEVNULL)
-    replay = _start(['gyro_emulator.ros.replay', source, '--rate', '5', '--loop',
+    # 100 messages/s: a loop every half second, and a pace a Python recorder keeps
+    # up with on a loaded 2-core machine (at 500/s its keep-last 100 history
+    # could overflow, and reliable delivery then loses the oldest messages).
+    replay = _start(['gyro_emulator.ros.replay', source, '--rate', '1', '--loop',
                      '--wait-for-subscribers', '60'], env, stdout=subprocess.PIPE, text=True)
     try:
         _wait(lambda: _recorded_count(target, '/imu/data_raw') >= 160, [recorder, replay])
