@@ -105,14 +105,29 @@ def test_out_of_order_and_future_stamps_are_rejected():
     stream = inputs.CommandStream('rate', initial=0)
     stream.offer(1, 500, now_ns=400, max_lead_ns=1000)
     with pytest.raises(inputs.InputRejected) as err:
-        stream.offer(2, 499, now_ns=410, max_lead_ns=1000)
-    assert err.value.reason == 'out_of_order'
-    with pytest.raises(inputs.InputRejected) as err:
         stream.offer(3, 5000, now_ns=420, max_lead_ns=1000)
     assert err.value.reason == 'future_stamp'
-    assert stream.accepted == 1 and stream.advance(10**6) == 1
+    assert stream.advance(10**6) == 1
+    # older than the command in force: out of order
+    with pytest.raises(inputs.InputRejected) as err:
+        stream.offer(2, 499, now_ns=10**6, max_lead_ns=1000)
+    assert err.value.reason == 'out_of_order'
+    assert stream.accepted == 1
     stream.reset_clock()
     assert stream.offer(4, 10, now_ns=5, max_lead_ns=1000) is None
+
+
+def test_a_future_stamped_command_does_not_block_the_stream():
+    """Issue 14: one command stamped 0.45 s ahead once blocked all others for 0.45 s."""
+    stream = inputs.CommandStream('rate', initial=0)
+    ms = 10**6
+    stream.offer('ahead', 450 * ms, now_ns=0, max_lead_ns=1000 * ms)
+    for k in range(1, 5):                       # the regular 10 ms stream goes on
+        stream.offer(k, 10 * k * ms, now_ns=10 * k * ms, max_lead_ns=1000 * ms)
+        assert stream.advance(10 * k * ms) == k
+    assert stream.advance(449 * ms) == 4 and stream.advance(450 * ms) == 'ahead'
+    with pytest.raises(inputs.InputRejected, match='older than the command in force'):
+        stream.offer(5, 440 * ms, now_ns=450 * ms, max_lead_ns=1000 * ms)
 
 
 def test_queue_overflow_drops_the_oldest():

@@ -24,6 +24,7 @@ Rules (documented in docs/node.md, "Bad input, stale commands, diagnostics"):
   ``future_stamp`` (typically a use_sim_time mismatch).
 """
 
+import bisect
 from collections import deque
 from dataclasses import dataclass
 import math
@@ -158,8 +159,11 @@ class CommandStream:
 
     A command applies at the first sample whose time is at or after its stamp
     (zero stamp: its arrival time), so a recorded or simulated sequence
-    replays sample-exactly. :meth:`offer` validates stamps, :meth:`advance`
-    moves commands whose time has come into :attr:`value`.
+    replays sample-exactly. :meth:`offer` validates stamps and queues the
+    command in stamp order, :meth:`advance` moves commands whose time has
+    come into :attr:`value`. A command stamped ahead (up to the lead limit)
+    waits for its time without blocking the commands stamped before it; only
+    a command older than the one already in force is out of order.
 
     Parameters
     ----------
@@ -178,6 +182,7 @@ class CommandStream:
         self.capacity = int(capacity)
         self.pending = deque()
         self.newest_stamp_ns = None
+        self.applied_stamp_ns = None
         self.last_arrival_ns = None
         self.accepted = 0
 
@@ -198,30 +203,35 @@ class CommandStream:
 
         """
         effective = now_ns if stamp_ns == 0 else stamp_ns
-        if self.newest_stamp_ns is not None and effective < self.newest_stamp_ns:
+        if self.applied_stamp_ns is not None and effective < self.applied_stamp_ns:
             raise InputRejected(
                 'out_of_order', f'{self.name}: stamp {effective * 1e-9:.9f} s is older '
-                f'than the newest accepted {self.newest_stamp_ns * 1e-9:.9f} s')
+                f'than the command in force since {self.applied_stamp_ns * 1e-9:.9f} s')
         if effective - now_ns > max_lead_ns:
             raise InputRejected(
                 'future_stamp', f'{self.name}: stamp {effective * 1e-9:.9f} s is '
                 f'{(effective - now_ns) * 1e-9:.3f} s ahead of the node clock '
                 f'(allowed {max_lead_ns * 1e-9:g} s; use_sim_time mismatch?)')
-        self.newest_stamp_ns = effective
+        self.newest_stamp_ns = max(effective, self.newest_stamp_ns or effective)
         self.last_arrival_ns = now_ns
         self.accepted += 1
         dropped = None
         if len(self.pending) >= self.capacity:
             self.pending.popleft()
             dropped = 'queue_overflow'
-        self.pending.append((effective, value))
+        if self.pending and effective < self.pending[-1][0]:
+            # stamp order; equal stamps keep their arrival order
+            index = bisect.bisect_right([stamp for stamp, _ in self.pending], effective)
+            self.pending.insert(index, (effective, value))
+        else:
+            self.pending.append((effective, value))
         return dropped
 
     def advance(self, now_ns):
         """Apply every queued command due at ``now_ns``; return the value in force."""
         pending = self.pending
         while pending and pending[0][0] <= now_ns:
-            self.value = pending.popleft()[1]
+            self.applied_stamp_ns, self.value = pending.popleft()
         return self.value
 
     def age_s(self, now_ns):
@@ -234,6 +244,7 @@ class CommandStream:
         """Forget stamps after the clock jumped back (e.g. a restarted simulation)."""
         self.pending.clear()
         self.newest_stamp_ns = None
+        self.applied_stamp_ns = None
         self.last_arrival_ns = None
 
 
