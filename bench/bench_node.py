@@ -5,8 +5,9 @@ Benchmark the emulator node at 1 kHz beside a bare rclpy Imu publisher.
     .venv/bin/python bench/bench_node.py --rate-hz 1000 --seconds 10 --repeats 5
 
 Two publishers run side by side at the same time (so they share whatever
-else loads the machine), each its own process on a private localhost-only
-ROS domain, in namespaces ``/bare`` and ``/node``:
+else loads the machine), each its own process on a localhost-only ROS domain
+(``ROS_DOMAIN_ID`` if set, else one derived from the process id), in
+namespaces ``/bare`` and ``/node``:
 
 * ``bare``: a minimal rclpy node whose timer builds and publishes one
   sensor_msgs/Imu per period (``rclpy.spin``, the executor the node uses);
@@ -252,8 +253,8 @@ def main(argv=None):
     if opts.bare_publisher:
         bare_publisher(opts.rate_hz)
         return 0
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               ROS_DOMAIN_ID=str(10 + os.getpid() % 90), PYTHONUNBUFFERED='1')
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
+    env.setdefault('ROS_DOMAIN_ID', str(10 + os.getpid() % 90))
     env['PYTHONPATH'] = ROOT + (os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH')
                                 else '')
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'

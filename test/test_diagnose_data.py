@@ -54,28 +54,20 @@ def test_missing_column_names_it(tmp_path):
         load_csv(path)
 
 
-def test_non_numeric_value_names_column_and_row(tmp_path):
+@pytest.mark.parametrize('row,line,message', [
+    (4, '0.4,0,hot,0.001', r"row 6, column temp_c: 'hot' is not a number"),
+    (7, '0.7,0,25,nan', 'data row 8, column gyro_rad_s: nan is not finite'),
+    (10, '0.85,0,25,0.001', 'time_s does not increase at data row 11: 0.85'),
+])
+def test_a_bad_cell_names_column_and_row(tmp_path, row, line, message):
     lines = list(GOOD)
-    lines[4] = '0.4,0,hot,0.001'
+    lines[row] = line
     path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
-    with pytest.raises(ValueError, match=r"row 6, column temp_c: 'hot' is not a number"):
+    with pytest.raises(ValueError, match=message):
         load_csv(path)
 
 
-def test_nan_value_names_column_and_row(tmp_path):
-    lines = list(GOOD)
-    lines[7] = '0.7,0,25,nan'
-    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
-    with pytest.raises(ValueError, match='data row 8, column gyro_rad_s: nan is not finite'):
-        load_csv(path)
-
-
-def test_time_going_back_is_an_error_but_a_repeated_stamp_is_not(tmp_path):
-    lines = list(GOOD)
-    lines[10] = '0.85,0,25,0.001'
-    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
-    with pytest.raises(ValueError, match='time_s does not increase at data row 11: 0.85'):
-        load_csv(path)
+def test_a_repeated_stamp_is_accepted(tmp_path):
     lines = list(GOOD)
     lines[10] = '0.9,0,25,0.001'
     path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
@@ -126,7 +118,7 @@ def test_thermal_lag_is_exact_on_a_ramp():
 
 
 def _write_bag(path, rec, with_accel=True):
-    from gyro_emulator.recording import bag, cdr
+    from gyro_emulator.recording import bag, cdr, topics
     stamps = np.round(1_700_000_000e9 + rec.time_s * 1e9).astype(np.int64)
     imu = cdr.layout_of('sensor_msgs/msg/Imu')
     values = np.zeros((rec.rows, len(imu.fields)))
@@ -136,14 +128,12 @@ def _write_bag(path, rec, with_accel=True):
     temp = np.column_stack([rec.temp_c, np.zeros(rec.rows)])
     with bag.BagWriter(str(path)) as writer:
         batches = []
-        for topic, type_name, vals in (
-                ('/cmd/angular_velocity', 'geometry_msgs/msg/Vector3Stamped', vec),
-                ('/cmd/temperature', 'sensor_msgs/msg/Temperature', temp),
-                ('/imu/data_raw', 'sensor_msgs/msg/Imu', values)) + (
-                (('/cmd/linear_acceleration', 'geometry_msgs/msg/Vector3Stamped',
-                  rec.accel_m_s2),) if with_accel else ()):
-            writer.add_topic(topic, type_name)
-            batches.append((topic, cdr.encode(type_name, stamps, vals), stamps))
+        for topic, vals in (
+                (topics.RATE_CMD, vec), (topics.TEMPERATURE_CMD, temp),
+                (topics.IMU_OUT, values)) + (
+                ((topics.ACCEL_CMD, rec.accel_m_s2),) if with_accel else ()):
+            writer.add_topic(topic.bag_name, topic.type_name)
+            batches.append((topic.bag_name, cdr.encode(topic.type_name, stamps, vals), stamps))
         writer.write_batches(batches)
 
 
@@ -174,3 +164,39 @@ def test_a_bag_with_a_corrupt_chunk_is_read_and_says_what_was_lost(tmp_path):
     back = dd.load_bag(str(tmp_path / 'run'))
     assert 0 < back.rows < rec.rows
     assert len(back.recovery) >= 1 and 'corrupt chunk' in back.recovery[0]
+
+
+def test_one_loader_for_csv_and_bag(tmp_path):
+    from gyro_emulator.recording import records, topics
+    rec = _record(n=300, dt=0.02)
+    write_measured_csv(tmp_path / 'run.csv', rec)
+    _write_bag(tmp_path / 'run', rec)
+    csv = records.load_record(tmp_path / 'run.csv', required=('time_s',))
+    assert csv.reader is None and csv.recovery == () and 'gyro_rad_s' in csv.columns
+    bag = records.load_record(tmp_path / 'run')
+    assert bag.columns is None and records.is_bag(bag.path)
+    topic = bag.find_topic('gyro', topics.IMU_OUT.name)
+    stream = bag.stream(topic)
+    assert topic == topics.IMU_OUT.bag_name and len(stream) == rec.rows
+    np.testing.assert_array_equal(np.diff(stream.times_ns) > 0, True)
+    np.testing.assert_allclose(stream.field('angular_velocity')[:, 2], rec.gyro_rad_s)
+    for path in (tmp_path / 'run.csv', tmp_path / 'run'):
+        back = dd.load_measured(str(path))
+        np.testing.assert_allclose(back.gyro_rad_s, rec.gyro_rad_s, rtol=1e-8)
+
+
+def test_stamp_rule_log_time_when_every_stamp_is_zero():
+    from gyro_emulator.recording import records
+
+    class Arrays:
+        stamp_ns = np.zeros(3, dtype=np.int64)
+        log_time_ns = np.array([30, 10, 20], dtype=np.int64)
+
+    times, order = records.stream_times_ns(Arrays())
+    np.testing.assert_array_equal(times, [10, 20, 30])
+    np.testing.assert_array_equal(order, [1, 2, 0])
+    Arrays.stamp_ns = np.array([5, 0, 7], dtype=np.int64)
+    times, _ = records.stream_times_ns(Arrays())
+    np.testing.assert_array_equal(times, [0, 5, 7])
+    times, _ = records.stream_times_ns(Arrays(), use_log_time=True)
+    np.testing.assert_array_equal(times, [10, 20, 30])

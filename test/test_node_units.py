@@ -288,7 +288,7 @@ def test_without_noise_switches_off_only_noise_terms():
 def test_shipped_paper_profile_is_the_papers_grid_and_short():
     profile = scenario.load_scenario(os.path.join(ROOT, 'config',
                                                   'scenario_paper_validation.yaml'))
-    temps = sorted({s.temperature_c for s in profile.steps})
+    temps = sorted({s.temp_c for s in profile.steps})
     rpm = sorted({round(s.rate_rad_s * 60.0 / (2.0 * math.pi), 9) for s in profile.steps})
     assert temps[0] == 25.0 and temps[-1] == 85.0
     assert rpm == [0.0, 10.0, 20.0, 40.0]
@@ -321,18 +321,18 @@ def test_scenario_and_simulate_profiles_share_one_segment_schema():
     segment = profiles.profile_from_mapping({'axis': [0, 1, 0], 'segments': [seg]}).segments[0]
     assert segment.rate_start_rad_s == pytest.approx((0.0, step.rate_rad_s, 0.0))
     assert step.rate_rad_s == pytest.approx(10.0 * 2.0 * math.pi / 60.0)
-    assert (step.temperature_c, step.settle_s) == (segment.temp_start_c, segment.settle_s)
+    assert (step.temp_c, step.settle_s) == (segment.temp_start_c, segment.settle_s)
 
 
 def test_old_temperature_spelling_is_read_with_a_deprecation_warning():
     old = {'segments': [{'duration_s': 1.0, 'rate_rpm': 1, 'temperature_c': 30.0}]}
     with pytest.warns(DeprecationWarning, match='temperature_c is deprecated, write temp_c'):
         step = scenario.parse_profile(old).steps[0]
-    assert step.temperature_c == 30.0
+    assert step.temp_c == 30.0
     with pytest.warns(DeprecationWarning, match='temperatures_c is deprecated'):
         grid = scenario.parse_profile({'grid': {'temperatures_c': [20.0], 'rates_rpm': [0],
                                                 'hold_s': 1.0}})
-    assert grid.steps[0].temperature_c == 20.0
+    assert grid.steps[0].temp_c == 20.0
 
 
 def test_a_scenario_step_refuses_a_ramp():

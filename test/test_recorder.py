@@ -17,8 +17,9 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 #: wall-clock stamp), Temperature (best effort) and one truth topic.
 PUBLISHER = r"""
 import time
+from gyro_emulator.ros.spinning import close, spin_once
 import rclpy
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from geometry_msgs.msg import Vector3Stamped
@@ -45,13 +46,11 @@ def tick():
         temp_pub.publish(Temperature(header=imu.header, temperature=25.0))
     count += 1
 node.create_timer(0.005, tick)
-try:
-    rclpy.spin(node)
-except (KeyboardInterrupt, ExternalShutdownException):
+executor = SingleThreadedExecutor()
+executor.add_node(node)
+while spin_once(executor, 0.25):
     pass
-finally:
-    node.destroy_node()
-    rclpy.try_shutdown()
+close(node)
 """
 
 

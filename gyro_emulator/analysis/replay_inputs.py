@@ -167,25 +167,22 @@ def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
     temp_c = DEFAULT_TEMP_C if temp_c is None else temp_c
     roles = _role_topics(reader, source, rate_topic, temperature_topic, accel_topic,
                          measured_topic, notes)
-    rate_arrays = reader.read_arrays(roles['rate'])
-    if rate_arrays.log_time_ns.size < 2:
-        raise ValueError(f'{roles["rate"]} has {rate_arrays.log_time_ns.size} message(s): '
-                         'need at least 2')
-    rate_stamp, order = records.stream_times_ns(rate_arrays, use_log_time)
-    rate_field = 'vector' if source == 'command' else 'angular_velocity'
-    rate_values = rate_arrays.field(rate_field)[order]
-    frame_id = str(rate_arrays.decoded.frame_id[0]) or DEFAULT_FRAME_ID
+    rate_stream = records.read_stream(reader, roles['rate'], use_log_time)
+    if len(rate_stream) < 2:
+        raise ValueError(f'{roles["rate"]} has {len(rate_stream)} message(s): need at least 2')
+    rate_stamp = rate_stream.times_ns
+    rate_values = rate_stream.field('vector' if source == 'command' else 'angular_velocity')
+    frame_id = str(rate_stream.arrays.decoded.frame_id[0]) or DEFAULT_FRAME_ID
     measured_stamp = measured = None
     if roles['measured'] is not None:
-        m = rate_arrays if roles['measured'] == roles['rate'] else \
-            reader.read_arrays(roles['measured'])
-        measured_stamp, m_order = records.stream_times_ns(m, use_log_time)
-        measured = m.field('angular_velocity')[m_order]
-        frame_id = str(m.decoded.frame_id[0]) or frame_id
+        m = rate_stream if roles['measured'] == roles['rate'] else \
+            records.read_stream(reader, roles['measured'], use_log_time)
+        measured_stamp, measured = m.times_ns, m.field('angular_velocity')
+        frame_id = str(m.arrays.decoded.frame_id[0]) or frame_id
     rate_hz = _sample_rate_hz(reader, rate_hz, measured_stamp, rate_stamp, notes)
     period_ns = NS_PER_S / rate_hz
     if source == 'imu':
-        stamp, rate, accel = _imu_truth(rate_arrays, order, rate_stamp, rate_values, notes)
+        stamp, rate, accel = _imu_truth(rate_stream, rate_values, notes)
     else:
         stamp, rate = _command_grid(rate_stamp, rate_values, rate_hz, notes)
         accel = _held(reader, roles['accel'], 'vector', stamp, period_ns, np.zeros(3),
@@ -209,8 +206,8 @@ def _resolve_source(reader, source, rate_topic):
     if source != 'auto':
         return source
     if rate_topic:
-        info = reader.topics.get(rate_topic)
-        return 'command' if info is not None and info.type_name == VECTOR3_STAMPED else 'imu'
+        found = records.find_topic(reader, 'rate', rate_topic)
+        return 'command' if reader.topics[found].type_name == VECTOR3_STAMPED else 'imu'
     found = records.find_topic(reader, 'rate', default=topics.RATE_CMD.name,
                                types=(VECTOR3_STAMPED,))
     return 'command' if found else 'imu'
@@ -231,7 +228,7 @@ def _role_topics(reader, source, rate_topic, temperature_topic, accel_topic, mea
         default_temp = topics.TEMPERATURE_CMD.name
         if roles['rate'] is None:
             raise ValueError(f'no rate commands in bag {reader.path}: expected a '
-                             'geometry_msgs/Vector3Stamped topic named */cmd/angular_velocity '
+                             f'geometry_msgs/Vector3Stamped topic named */{topics.RATE_CMD.name} '
                              '(or pass --rate-topic)')
     else:
         roles['rate'] = find(reader, 'imu', rate_topic or measured_topic, types=(IMU,))
@@ -249,7 +246,7 @@ def _only_imu_topic(reader, notes):
     imus = sorted(n for n, t in reader.topics.items() if t.type_name == IMU and t.message_count)
     if not imus:
         raise ValueError(
-            f'bag {reader.path} has neither cmd/angular_velocity '
+            f'bag {reader.path} has neither {topics.RATE_CMD.name} '
             '(geometry_msgs/Vector3Stamped) nor a sensor_msgs/Imu topic to replay; '
             f'topics: {", ".join(sorted(reader.topics)) or "(none)"}')
     if len(imus) > 1:
@@ -270,14 +267,14 @@ def _sample_rate_hz(reader, rate_hz, measured_stamp, rate_stamp, notes):
     return check_range('replay', 'rate_hz', rate_hz, 0.0, 1e6, 'Hz')
 
 
-def _imu_truth(rate_arrays, order, rate_stamp, rate_values, notes):
+def _imu_truth(rate_stream, rate_values, notes):
     """Imu source: its stamps and rates, and its specific force when it has one."""
     accel = None
-    cov0 = rate_arrays.field('linear_acceleration_covariance[0]')[order]
+    cov0 = rate_stream.field('linear_acceleration_covariance[0]')
     if np.all(cov0 != -1.0):
-        accel = rate_arrays.field('linear_acceleration')[order]
+        accel = rate_stream.field('linear_acceleration')
         notes.append('specific force from the Imu linear_acceleration')
-    return rate_stamp, rate_values, accel
+    return rate_stream.times_ns, rate_values, accel
 
 
 def _command_grid(rate_stamp, rate_values, rate_hz, notes):
@@ -297,9 +294,8 @@ def _held(reader, topic, name, stamp, period_ns, before, use_log_time):
     """Field ``name`` of ``topic`` held (zero-order) at ``stamp``; None without a topic."""
     if topic is None:
         return None
-    arrays = reader.read_arrays(topic)
-    times, order = records.stream_times_ns(arrays, use_log_time)
-    return hold(times, arrays.field(name)[order], stamp, int(period_ns // 2), before=before)
+    stream = records.read_stream(reader, topic, use_log_time)
+    return hold(stream.times_ns, stream.field(name), stamp, int(period_ns // 2), before=before)
 
 
 def emulate(inputs, config, seed):

@@ -4,7 +4,9 @@ Offline simulation: a scripted profile through the gyro model, in chunks.
 :func:`iter_simulation` yields the record chunk by chunk (bounded memory, for
 long runs and for any writer: CSV here, a rosbag2 writer later);
 :func:`run_simulation` returns it whole. Neither writes files.
-:func:`write_simulation_csv` writes the CSV layout of :data:`CSV_COLUMNS`.
+:func:`write_simulation_csv` writes the CSV layout of :data:`CSV_COLUMNS`;
+:func:`write_record` simulates into a CSV file or a bag directory, staged so
+that a failed run leaves nothing behind (what ``gyro-emulator simulate`` does).
 
 Sample n is at time_s = n T, T the part's sample period (1 / rate_hz, made
 shorter or longer by its clock drift: ``GyroModel.sample_period_s``). The
@@ -12,8 +14,14 @@ model's batch API is used chunk by chunk; because it is partition-invariant,
 the record is identical whatever the chunk size.
 """
 
+import contextlib
 from dataclasses import dataclass
+import functools
+import os
+import shutil
+import tempfile
 
+from gyro_emulator.analysis.emulator_bag import simulation_custom_data, write_simulation_bag
 from gyro_emulator.recording import csvio
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.model import GyroModel, SensorBatch
@@ -165,11 +173,76 @@ def write_simulation_csv(path, chunks, progress=None, total=None):
         Rows written.
 
     """
-    done = 0
-    with csvio.CsvWriter(path, CSV_COLUMNS, CSV_FORMATS) as writer:
-        for chunk in chunks:
-            writer.write(csv_columns(chunk))
-            done += len(chunk.time_s)
-            if progress is not None:
-                progress(done, total)
-    return done
+    return csvio.write_csv_blocks(path, CSV_COLUMNS, (csv_columns(chunk) for chunk in chunks),
+                                  CSV_FORMATS, progress, total)
+
+
+@contextlib.contextmanager
+def staged_output(out, overwrite=False):
+    """
+    Yield a temporary path beside ``out``; move it to ``out`` only on success.
+
+    A run that fails (or is interrupted) leaves nothing behind, and an
+    existing ``out`` is replaced only with ``overwrite``. The temporary path
+    has the same name inside a hidden sibling directory, so a bag keeps its
+    file names.
+    """
+    out = os.path.abspath(out)
+    if os.path.exists(out) and not overwrite:
+        raise ValueError(f'--out {out} exists: pass --overwrite to replace it')
+    parent = os.path.dirname(out)
+    os.makedirs(parent, exist_ok=True)
+    stage = tempfile.mkdtemp(prefix='.simulate-', dir=parent)
+    try:
+        partial = os.path.join(stage, os.path.basename(out))
+        yield partial
+        if os.path.isdir(out):
+            shutil.rmtree(out)
+        os.replace(partial, out)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def is_csv_path(path):
+    """Return whether ``path`` names a CSV record (``.csv`` or ``.csv.gz``), else a bag."""
+    return str(path).endswith(('.csv', '.csv.gz'))
+
+
+def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
+                 overwrite=False, progress=None):
+    """
+    Simulate (:func:`iter_simulation`) and write the record, staged (:func:`staged_output`).
+
+    Parameters
+    ----------
+    out : str
+        ``.csv``/``.csv.gz``: :func:`write_simulation_csv`; anything else: a
+        rosbag2 bag directory in the emulator layout
+        (:func:`gyro_emulator.analysis.emulator_bag.write_simulation_bag`,
+        whose ``custom_data`` records how to reproduce the run).
+    config, profile, duration_s, rate_hz, seed, temp_c
+        As for :func:`iter_simulation`; ``config`` and ``profile`` names are
+        recorded in a bag's ``custom_data``.
+    overwrite : bool
+        Replace an existing ``out``; without it that is an error.
+    progress : callable, optional
+        ``progress(done, total)`` after each chunk.
+
+    Returns
+    -------
+    int
+        Samples written.
+
+    """
+    sensor = config if isinstance(config, SensorConfig) else load_sensor_config(config)
+    if is_csv_path(out):
+        writer = write_simulation_csv
+    else:
+        writer = functools.partial(
+            write_simulation_bag, config=sensor, rate_hz=rate_hz,
+            custom_data=simulation_custom_data(config, profile, duration_s, rate_hz, seed,
+                                               temp_c))
+    total = sample_count(duration_s, rate_hz)
+    chunks = iter_simulation(sensor, profile, duration_s, rate_hz, seed=seed, temp_c=temp_c)
+    with staged_output(out, overwrite) as partial:
+        return writer(partial, chunks, progress=progress, total=total)

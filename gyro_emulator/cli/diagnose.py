@@ -13,7 +13,6 @@ cause is fitted and judged on held-out blocks; the best significant one is
 named, with its parameters and the held-out gain.
 """
 
-import os
 import sys
 
 from gyro_emulator.cli.jsonout import write_json
@@ -47,26 +46,19 @@ def add_arguments(parser):
     bag.add_argument('--gyro-topic', default=topics.IMU_OUT.name,
                      help='measured output topic (default: %(default)s)')
     bag.add_argument('--accel-topic', default=None,
-                     help='acceleration topic (default: cmd/linear_acceleration if '
+                     help=f'acceleration topic (default: {topics.ACCEL_CMD.name} if '
                           "present; 'none' to ignore)")
     bag.add_argument('--axis', default='z', choices=('x', 'y', 'z'),
                      help='sense axis (default: %(default)s)')
-
-
-def _is_bag(path):
-    return os.path.isdir(path) or path.endswith('.mcap')
 
 
 def run(args):
     """Load the record, diagnose it, print the verdict, write JSON/report."""
     from gyro_emulator.analysis.diagnose import data, diagnose, report
 
-    if _is_bag(args.input):
-        record = data.load_bag(args.input, rate_topic=args.rate_topic,
-                               temp_topic=args.temp_topic, gyro_topic=args.gyro_topic,
-                               accel_topic=args.accel_topic, axis=args.axis)
-    else:
-        record = data.load_csv(args.input)
+    record = data.load_measured(args.input, rate_topic=args.rate_topic,
+                                temp_topic=args.temp_topic, gyro_topic=args.gyro_topic,
+                                accel_topic=args.accel_topic, axis=args.axis)
     for note in record.recovery:
         print(f'gyro-emulator diagnose: warning: {note}', file=sys.stderr)
     effects = None if args.effects is None else [

@@ -137,7 +137,7 @@ def run_scenario(opts):
 
             def progress(index, step):
                 print(f'  step {index + 1:>2}/{len(profile.steps)}: {step.label:>8} at '
-                      f'{step.temperature_c:5.1f} C', flush=True)
+                      f'{step.temp_c:5.1f} C', flush=True)
 
             player = scenario.play(profile, collect=True, wait_s=NODE_START_TIMEOUT_S,
                                    progress=progress)
@@ -155,7 +155,7 @@ def run_scenario(opts):
     worst = max(results, key=lambda r: abs(r.error_deg_s) if math.isfinite(
         r.error_deg_s) else -1.0)
     print(f'largest |error|: {worst.error_deg_s:+.3f} deg/s at {worst.step.label}, '
-          f'{worst.step.temperature_c:g} C; {len(player.imu)} Imu samples in '
+          f'{worst.step.temp_c:g} C; {len(player.imu)} Imu samples in '
           f'{elapsed:.1f} s')
     doc = scenario.results_json(profile, results)
     for row, r in zip(doc['steps'], results):

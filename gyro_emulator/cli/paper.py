@@ -6,8 +6,6 @@ Table 1 compares our first-order physics (Eq 5-21) for the paper's device at
 viscosity variants so the effect of the constant-viscosity assumption shows.
 """
 
-import os
-
 from gyro_emulator.cli.jsonout import write_json
 
 HELP = "reproduce Patel & McCluskey's Table 1, Fig 5 and Fig 6"
@@ -28,22 +26,9 @@ def run(args):
     """Print Table 1, write the figures and optionally the JSON."""
     from gyro_emulator.physics import paper
 
-    rows = paper.table1_rows()
-    print('Table 1 (25 C, 1 atm, 60 deg/s): ours vs paper')
-    print(paper.format_table1(rows))
-    worst = max(rows, key=lambda r: abs(r[5]))
-    print(f'largest |error|: {worst[0]} {worst[5]:+.3f} %')
-    temps, rate = paper.fig6_data(viscosity_law='constant')
-    temps_s, rate_s = paper.fig6_data(viscosity_law='sutherland')
-    print(f'Fig 6 at 85 C (true 60 deg/s): {rate[-1]:.3f} deg/s with constant '
-          f'viscosity (paper: 61.8..62.0); {rate_s[-1]:.3f} deg/s with '
-          f"Sutherland's law")
+    print(paper.summary_text())
     if not args.no_plots:
-        os.makedirs(args.out_dir, exist_ok=True)
-        for name, plot in (('fig5.png', paper.plot_fig5),
-                           ('fig6.png', paper.plot_fig6)):
-            path = os.path.join(args.out_dir, name)
-            plot(path)
+        for path in paper.write_figures(args.out_dir):
             print(f'wrote {path}')
     if args.json:
         write_json(args.json, paper.paper_json())

@@ -18,7 +18,6 @@ allan.png (Allan deviation overlay). The same bag, config and seed give the
 identical decoded output.
 """
 
-import os
 import sys
 
 HELP = 'drive the emulator offline from a bag; write an output bag and a report'
@@ -58,37 +57,17 @@ def add_arguments(parser):
 def run(args):
     """Replay the bag through the model, write the bag and the report."""
     from gyro_emulator.analysis import replay
-    from gyro_emulator.recording import bag
-    from gyro_emulator.sensor.config import load_sensor_config
 
-    reader = bag.BagReader(args.bag, tolerant=True)
-    for note in reader.problems:
-        print(f'replay: warning: incomplete bag, {note}', file=sys.stderr)
-    bag_dir = os.path.join(args.out, 'emulated')
-    if os.path.isdir(bag_dir) and os.listdir(bag_dir) and not args.overwrite:
-        raise FileExistsError(f'{bag_dir} exists and is not empty (pass --overwrite)')
-    config_name = args.config or reader.custom_data.get('sensor_config', 'paper')
-    seed = args.seed if args.seed is not None else int(reader.custom_data.get('seed', 0))
-    config = load_sensor_config(config_name)
-    shown = list(reader.problems)
-    inputs = replay.load_inputs(
-        reader, args.source, args.rate_topic, args.temperature_topic, args.accel_topic,
-        args.measured_topic, args.rate_hz, args.temp_c, args.use_log_time)
-    for note in reader.problems[len(shown):]:
-        print(f'replay: warning: {note}', file=sys.stderr)
-    _, batch = replay.emulate(inputs, config, seed)
-    comparison = replay.compare(inputs, batch)
-    header = [f'bag: {os.path.abspath(args.bag)}', f'sensor config: {config_name}',
-              f'seed: {seed}'] + [f'recovered: {note}' for note in reader.problems]
-    sigma = replay.white_noise_sigma(config, inputs.rate_hz)
-    replay.write_output_bag(bag_dir, inputs, batch, comparison, sigma, custom_data={
-        'generator': 'gyro-emulator replay', 'source_bag': os.path.abspath(args.bag),
-        'sensor_config': str(config_name), 'seed': str(seed),
-        'rate_hz': repr(inputs.rate_hz), 'source': inputs.source})
-    paths = replay.write_report(args.out, comparison, inputs, header,
-                                plots=not args.no_plots)
-    print(replay.report_text(comparison, inputs, header), end='')
-    print(f'wrote {bag_dir} ({len(inputs.stamp_ns)} samples)')
-    for path in paths:
+    run = replay.replay_bag(
+        args.bag, args.out, config=args.config, seed=args.seed, plots=not args.no_plots,
+        overwrite=args.overwrite,
+        warn=lambda note: print(f'replay: warning: {note}', file=sys.stderr),
+        source=args.source, rate_topic=args.rate_topic,
+        temperature_topic=args.temperature_topic, accel_topic=args.accel_topic,
+        measured_topic=args.measured_topic, rate_hz=args.rate_hz, temp_c=args.temp_c,
+        use_log_time=args.use_log_time)
+    print(run.report, end='')
+    print(f'wrote {run.bag_dir} ({run.samples} samples)')
+    for path in run.paths:
         print(f'wrote {path}')
     return 0

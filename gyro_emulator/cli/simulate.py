@@ -10,11 +10,7 @@ An ``--out`` path not ending in .csv/.csv.gz is a rosbag2 MCAP bag directory
 with the node's topics (see ``gyro_emulator.analysis.replay``).
 """
 
-import contextlib
-import os
-import shutil
 import sys
-import tempfile
 import time
 
 HELP = 'simulate the sensor over a scripted profile and write CSV or a rosbag2 bag'
@@ -67,61 +63,14 @@ class Progress:
             self.next_pct = 10 * (int(pct) // 10 + 1)
 
 
-@contextlib.contextmanager
-def staged_output(out, overwrite=False):
-    """
-    Yield a temporary path beside ``out``; move it to ``out`` only on success.
-
-    A run that fails (or is interrupted) leaves nothing behind, and an
-    existing ``out`` is replaced only with ``overwrite``. The temporary path
-    has the same name inside a hidden sibling directory, so a bag keeps its
-    file names.
-    """
-    out = os.path.abspath(out)
-    if os.path.exists(out) and not overwrite:
-        raise ValueError(f'--out {out} exists: pass --overwrite to replace it')
-    parent = os.path.dirname(out)
-    os.makedirs(parent, exist_ok=True)
-    stage = tempfile.mkdtemp(prefix='.simulate-', dir=parent)
-    try:
-        partial = os.path.join(stage, os.path.basename(out))
-        yield partial
-        if os.path.isdir(out):
-            shutil.rmtree(out)
-        os.replace(partial, out)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
-
-
-def _open_writer(path, args=None, config=None):
-    """Return the record writer for ``path``: CSV for .csv/.csv.gz, else a bag directory."""
-    from gyro_emulator.analysis import simulate
-
-    if str(path).endswith(('.csv', '.csv.gz')):
-        return simulate.write_simulation_csv
-    import functools
-
-    from gyro_emulator.analysis import replay
-    custom = None if args is None else replay.simulation_custom_data(
-        args.config, args.profile, args.duration_s, args.rate_hz, args.seed, args.temp_c)
-    return functools.partial(replay.write_simulation_bag, config=config,
-                             rate_hz=None if args is None else args.rate_hz,
-                             custom_data=custom)
-
-
 def run(args):
     """Run the simulation and write the record."""
     from gyro_emulator.analysis import simulate
-    from gyro_emulator.sensor.config import load_sensor_config
 
-    config = load_sensor_config(args.config)
-    writer = _open_writer(args.out, args, config)
-    total = simulate.sample_count(args.duration_s, args.rate_hz)
-    chunks = simulate.iter_simulation(config, args.profile, args.duration_s, args.rate_hz,
-                                      seed=args.seed, temp_c=args.temp_c)
     started = time.monotonic()
-    with staged_output(args.out, args.overwrite) as partial:
-        rows = writer(partial, chunks, progress=Progress(), total=total)
+    rows = simulate.write_record(args.out, args.config, args.profile, args.duration_s,
+                                 args.rate_hz, seed=args.seed, temp_c=args.temp_c,
+                                 overwrite=args.overwrite, progress=Progress())
     print(f'wrote {args.out}: {rows} samples at {args.rate_hz:g} Hz '
           f'({args.duration_s:g} s, profile {args.profile}, config {args.config}) in '
           f'{time.monotonic() - started:.1f} s')

@@ -7,6 +7,7 @@ of a part calibrated at 25 C, at a true 60 deg/s, from 25 to 85 C.
 """
 
 from dataclasses import replace
+import os
 
 from gyro_emulator import plotting
 from gyro_emulator.physics import first_order
@@ -78,6 +79,28 @@ def format_table1(rows):
         lines.append('%-8s %-32s %-6s %12.4g %12.4g %+8.3f' % (
             key, desc, unit, ours, paper, err))
     return '\n'.join(lines)
+
+
+def summary_text(device=PAPER_DEVICE):
+    """
+    Return the report ``gyro-emulator paper`` prints.
+
+    Table 1 ours against the paper's, the row with the largest relative
+    error, and Fig 6's apparent rate at 85 C with constant and with
+    Sutherland viscosity.
+    """
+    rows = table1_rows(device)
+    worst = max(rows, key=lambda row: abs(row[5]))
+    rate = fig6_data(device, viscosity_law='constant')[1]
+    rate_s = fig6_data(device, viscosity_law='sutherland')[1]
+    low, high = FIG6_85C_BAND_DEG_S
+    return '\n'.join((
+        'Table 1 (25 C, 1 atm, 60 deg/s): ours vs paper',
+        format_table1(rows),
+        f'largest |error|: {worst[0]} {worst[5]:+.3f} %',
+        f'Fig 6 at 85 C (true 60 deg/s): {rate[-1]:.3f} deg/s with constant '
+        f'viscosity (paper: {low:.1f}..{high:.1f}); {rate_s[-1]:.3f} deg/s with '
+        f"Sutherland's law"))
 
 
 def fig5_data(device=PAPER_DEVICE, rpm=FIG5_RPM, temp_c=TABLE1_TEMP_C):
@@ -166,3 +189,13 @@ def plot_fig6(path, device=PAPER_DEVICE):
     for a in (ax, ax2):
         plotting.label(a, 'temperature (C)', 'apparent rate at a true 60 deg/s (deg/s)')
     plotting.save(fig, path)
+
+
+def write_figures(directory, device=PAPER_DEVICE):
+    """Write fig5.png and fig6.png into ``directory`` (made if absent); return the paths."""
+    os.makedirs(directory, exist_ok=True)
+    paths = []
+    for name, plot in (('fig5.png', plot_fig5), ('fig6.png', plot_fig6)):
+        paths.append(os.path.join(directory, name))
+        plot(paths[-1], device)
+    return paths

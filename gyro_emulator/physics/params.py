@@ -23,14 +23,26 @@ VISCOSITY_LAWS = ('constant', 'sutherland')
 CAVITY_KINDS = ('vented', 'sealed')
 
 
-def _validate(obj, spec):
-    """Check each ``field: (low, high, unit[, low_open, high_open])`` of spec."""
+def _ranged(default, low, high, unit, low_open=True):
+    """
+    Return a dataclass field with its default and allowed range.
+
+    The range ``(low, high]`` (``[low, high]`` when ``low_open`` is False), in
+    ``unit``, is kept in the field's metadata and checked by ``_validate``.
+    """
+    return field(default=default, metadata={'range': (low, high, unit, low_open)})
+
+
+def _validate(obj):
+    """Check every field of ``obj`` declared with ``_ranged`` against its range."""
     owner = type(obj).__name__
-    for name, rng in spec.items():
-        value = getattr(obj, name)
-        checked = check_range(owner, name, value, *rng)
+    for spec in fields(obj):
+        if 'range' not in spec.metadata:
+            continue
+        value = getattr(obj, spec.name)
+        checked = check_range(owner, spec.name, value, *spec.metadata['range'])
         if isinstance(checked, np.ndarray) and checked is not value:
-            object.__setattr__(obj, name, checked)
+            object.__setattr__(obj, spec.name, checked)
 
 
 @dataclass(frozen=True)
@@ -43,59 +55,33 @@ class Geometry:
     type 1 and four of type 2 suspend it (Eq 6). Lengths in m, counts plain.
     """
 
-    thickness_m: float = 2.0e-6
-    plate_side_m: float = 855.5e-6
-    clearance_m: float = 5.0e-6
-    frame_width_m: float = 20.0e-6
-    frame_count: int = 2
-    hole_count: int = 2100
-    hole_side_m: float = 5.0e-6
-    beam1_width_m: float = 2.0e-6
-    beam1_length_m: float = 54.9e-6
-    beam2_width_m: float = 2.0e-6
-    beam2_length_m: float = 54.9e-6
-    substrate_gap_m: float = 2.0e-6
-    flow_length_m: float = 2.0e-6
-    comb_gap_m: float = 2.0e-6
-    finger_width_m: float = 2.0e-6
-    drive_capacitor_count: int = 400
-    drive_finger_count: int = 200
-    drive_finger_length_m: float = 30.0e-6
-    drive_overlap_m: float = 19.75e-6
-    sense_capacitor_count: int = 152
-    sense_finger_count: int = 76
-    sense_finger_length_m: float = 135.0e-6
-    sense_overlap_m: float = 124.5e-6
-
-    _SPEC = {
-        'thickness_m': (0.0, 1e-4, 'm'),
-        'plate_side_m': (0.0, 1e-2, 'm'),
-        'clearance_m': (0.0, 1e-3, 'm', False),
-        'frame_width_m': (0.0, 1e-3, 'm', False),
-        'frame_count': (0, 10, '', False),
-        'hole_count': (0, 1e6, '', False),
-        'hole_side_m': (0.0, 1e-4, 'm', False),
-        'beam1_width_m': (0.0, 1e-4, 'm'),
-        'beam1_length_m': (0.0, 1e-2, 'm'),
-        'beam2_width_m': (0.0, 1e-4, 'm'),
-        'beam2_length_m': (0.0, 1e-2, 'm'),
-        'substrate_gap_m': (0.0, 1e-3, 'm'),
-        'flow_length_m': (0.0, 1e-3, 'm'),
-        'comb_gap_m': (0.0, 1e-4, 'm'),
-        'finger_width_m': (0.0, 1e-4, 'm'),
-        'drive_capacitor_count': (0, 1e5, ''),
-        'drive_finger_count': (0, 1e5, '', False),
-        'drive_finger_length_m': (0.0, 1e-2, 'm', False),
-        'drive_overlap_m': (0.0, 1e-2, 'm'),
-        'sense_capacitor_count': (0, 1e5, ''),
-        'sense_finger_count': (0, 1e5, '', False),
-        'sense_finger_length_m': (0.0, 1e-2, 'm', False),
-        'sense_overlap_m': (0.0, 1e-2, 'm'),
-    }
+    thickness_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
+    plate_side_m: float = _ranged(855.5e-6, 0.0, 1e-2, 'm')
+    clearance_m: float = _ranged(5.0e-6, 0.0, 1e-3, 'm', low_open=False)
+    frame_width_m: float = _ranged(20.0e-6, 0.0, 1e-3, 'm', low_open=False)
+    frame_count: int = _ranged(2, 0, 10, '', low_open=False)
+    hole_count: int = _ranged(2100, 0, 1e6, '', low_open=False)
+    hole_side_m: float = _ranged(5.0e-6, 0.0, 1e-4, 'm', low_open=False)
+    beam1_width_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
+    beam1_length_m: float = _ranged(54.9e-6, 0.0, 1e-2, 'm')
+    beam2_width_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
+    beam2_length_m: float = _ranged(54.9e-6, 0.0, 1e-2, 'm')
+    substrate_gap_m: float = _ranged(2.0e-6, 0.0, 1e-3, 'm')
+    flow_length_m: float = _ranged(2.0e-6, 0.0, 1e-3, 'm')
+    comb_gap_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
+    finger_width_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
+    drive_capacitor_count: int = _ranged(400, 0, 1e5, '')
+    drive_finger_count: int = _ranged(200, 0, 1e5, '', low_open=False)
+    drive_finger_length_m: float = _ranged(30.0e-6, 0.0, 1e-2, 'm', low_open=False)
+    drive_overlap_m: float = _ranged(19.75e-6, 0.0, 1e-2, 'm')
+    sense_capacitor_count: int = _ranged(152, 0, 1e5, '')
+    sense_finger_count: int = _ranged(76, 0, 1e5, '', low_open=False)
+    sense_finger_length_m: float = _ranged(135.0e-6, 0.0, 1e-2, 'm', low_open=False)
+    sense_overlap_m: float = _ranged(124.5e-6, 0.0, 1e-2, 'm')
 
     def __post_init__(self):
         """Validate every field; see the class docstring for units."""
-        _validate(self, self._SPEC)
+        _validate(self)
         holes = np.asarray(self.hole_count) * np.asarray(self.hole_side_m) ** 2
         if np.any(holes >= np.asarray(self.plate_side_m) ** 2):
             raise ValueError(
@@ -113,21 +99,14 @@ class Material:
     (Eq 22; the paper's polysilicon has -0.04 GPa/K).
     """
 
-    density_kg_m3: float = 2330.0
-    youngs_modulus_pa: float = 160.0e9
-    youngs_ref_temp_c: float = 25.0
-    youngs_temp_coeff_pa_k: float = -0.04e9
-
-    _SPEC = {
-        'density_kg_m3': (0.0, 3e4, 'kg/m^3'),
-        'youngs_modulus_pa': (1e9, 1e12, 'Pa'),
-        'youngs_ref_temp_c': (-100.0, 300.0, 'C', False),
-        'youngs_temp_coeff_pa_k': (-1e9, 1e9, 'Pa/K', False),
-    }
+    density_kg_m3: float = _ranged(2330.0, 0.0, 3e4, 'kg/m^3')
+    youngs_modulus_pa: float = _ranged(160.0e9, 1e9, 1e12, 'Pa')
+    youngs_ref_temp_c: float = _ranged(25.0, -100.0, 300.0, 'C', low_open=False)
+    youngs_temp_coeff_pa_k: float = _ranged(-0.04e9, -1e9, 1e9, 'Pa/K', low_open=False)
 
     def __post_init__(self):
         """Validate every field; see the class docstring for units."""
-        _validate(self, self._SPEC)
+        _validate(self)
 
 
 @dataclass(frozen=True)
@@ -142,29 +121,19 @@ class Gas:
     choice) or ``sutherland``: mu(T) = mu_ref (T/T_ref)^1.5 (T_ref + S)/(T + S).
     """
 
-    molecule_diameter_m: float = 3.70e-10
-    viscosity_pa_s: float = 1.85e-5
-    viscosity_ref_temp_c: float = 25.0
+    molecule_diameter_m: float = _ranged(3.70e-10, 1e-11, 1e-8, 'm')
+    viscosity_pa_s: float = _ranged(1.85e-5, 0.0, 1e-2, 'Pa s')
+    viscosity_ref_temp_c: float = _ranged(25.0, -100.0, 300.0, 'C', low_open=False)
     viscosity_law: str = 'constant'
-    sutherland_constant_k: float = 110.4
-    pressure_pa: float = 101325.0
-    pressure_ref_temp_c: float = 25.0
+    sutherland_constant_k: float = _ranged(110.4, 0.0, 1000.0, 'K', low_open=False)
+    pressure_pa: float = _ranged(101325.0, 0.0, 1e7, 'Pa')
+    pressure_ref_temp_c: float = _ranged(25.0, -100.0, 300.0, 'C', low_open=False)
     cavity: str = 'vented'
-    relative_permittivity: float = 1.00059
-
-    _SPEC = {
-        'molecule_diameter_m': (1e-11, 1e-8, 'm'),
-        'viscosity_pa_s': (0.0, 1e-2, 'Pa s'),
-        'viscosity_ref_temp_c': (-100.0, 300.0, 'C', False),
-        'sutherland_constant_k': (0.0, 1000.0, 'K', False),
-        'pressure_pa': (0.0, 1e7, 'Pa'),
-        'pressure_ref_temp_c': (-100.0, 300.0, 'C', False),
-        'relative_permittivity': (1.0, 100.0, '', False),
-    }
+    relative_permittivity: float = _ranged(1.00059, 1.0, 100.0, '', low_open=False)
 
     def __post_init__(self):
         """Validate every field; see the class docstring for units."""
-        _validate(self, self._SPEC)
+        _validate(self)
         check_choice('Gas', 'viscosity_law', self.viscosity_law, VISCOSITY_LAWS)
         check_choice('Gas', 'cavity', self.cavity, CAVITY_KINDS)
 
@@ -173,19 +142,13 @@ class Gas:
 class DriveElectronics:
     """Comb-drive excitation (Eq 12): F_d = k_f N eps t V_dc V_ac / g_c."""
 
-    dc_voltage_v: float = 27.0
-    ac_voltage_v: float = 20.0
-    comb_force_factor: float = 2.28
-
-    _SPEC = {
-        'dc_voltage_v': (0.0, 1000.0, 'V'),
-        'ac_voltage_v': (0.0, 1000.0, 'V'),
-        'comb_force_factor': (0.0, 100.0, ''),
-    }
+    dc_voltage_v: float = _ranged(27.0, 0.0, 1000.0, 'V')
+    ac_voltage_v: float = _ranged(20.0, 0.0, 1000.0, 'V')
+    comb_force_factor: float = _ranged(2.28, 0.0, 100.0, '')
 
     def __post_init__(self):
         """Validate every field; see the class docstring for units."""
-        _validate(self, self._SPEC)
+        _validate(self)
 
 
 @dataclass(frozen=True)

@@ -306,6 +306,40 @@ def write_csv(path, columns, fmt='%.10g'):
     fmt : str or sequence of str
         printf format per column.
 
+    Returns
+    -------
+    int
+        Rows written.
+
     """
-    with CsvWriter(path, list(columns), fmt) as writer:
-        writer.write(list(columns.values()))
+    return write_csv_blocks(path, list(columns), [list(columns.values())], fmt)
+
+
+def write_csv_blocks(path, names, blocks, fmt='%.10g', progress=None, total=None):
+    """
+    Write blocks of rows as one CSV file (bounded memory for long records).
+
+    Parameters
+    ----------
+    path, names, fmt
+        The file (``.gz`` compresses), the column names and the printf
+        formats, as for :class:`CsvWriter`.
+    blocks : iterable
+        Each a sequence of equal-length 1-D arrays, one per column, written in turn.
+    progress : callable, optional
+        ``progress(done, total)`` after each block, ``done`` the rows so far.
+    total : int, optional
+        Total rows, passed to ``progress``.
+
+    Returns
+    -------
+    int
+        Rows written.
+
+    """
+    with CsvWriter(path, names, fmt) as writer:
+        for block in blocks:
+            writer.write(block)
+            if progress is not None:
+                progress(writer.rows, total)
+        return writer.rows

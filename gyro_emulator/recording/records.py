@@ -1,10 +1,13 @@
 """
-Reading records, one way: which topic plays a role, and which time a message has.
+Reading records, one way: CSV or bag, which topic plays a role, which time a message has.
 
 Every reader of measured or recorded data (``replay``, ``diagnose``,
-``allan``) finds its topics with :func:`find_topic` and stamps its
-messages with :func:`stream_times_ns`, so a bag means the same thing to
-all of them. CSV files are read by :func:`gyro_emulator.recording.csvio.read_csv`.
+``allan``) opens its input with :func:`load_record` (a CSV file through
+:func:`gyro_emulator.recording.csvio.read_csv`, a bag directory or ``.mcap``
+file through :class:`gyro_emulator.recording.bag.BagReader`, tolerant of
+damage), finds its topics with :func:`find_topic` and reads a topic with
+:func:`read_stream`, so a record means the same thing to all of them.
+Default topic names come from :mod:`gyro_emulator.recording.topics`.
 
 The stamp rule. A message's time is its ``header.stamp``, the time the
 sensor sampled, unless the stream does not carry one: when every stamp of
@@ -15,6 +18,10 @@ log times always. Streams are returned in time order (a stable sort, so
 messages with equal times keep the bag's order).
 """
 
+from dataclasses import dataclass
+import os
+
+from gyro_emulator.recording import bag, csvio
 import numpy as np
 
 
@@ -86,3 +93,108 @@ def stream_times_ns(arrays, use_log_time=False):
         stamps = np.asarray(arrays.log_time_ns, dtype=np.int64)
     order = np.argsort(stamps, kind='stable')
     return stamps[order], order
+
+
+@dataclass(frozen=True)
+class Stream:
+    """
+    One bag topic, decoded and in time order (the module's stamp rule).
+
+    Attributes
+    ----------
+    topic : str
+        Topic name in the bag.
+    type_name : str
+        Message type, ``pkg/msg/Type``.
+    times_ns : numpy.ndarray of int64
+        Message times, ns, sorted.
+    order : numpy.ndarray of int
+        Bag order -> time order: index the decoded columns with it.
+    arrays : gyro_emulator.recording.bag.TopicArrays
+        The decoded columns in bag order.
+
+    """
+
+    topic: str
+    type_name: str
+    times_ns: np.ndarray
+    order: np.ndarray
+    arrays: object
+
+    def __len__(self):
+        """Return the number of messages."""
+        return len(self.times_ns)
+
+    def field(self, name):
+        """Return a float64 column or block in time order, e.g. ``angular_velocity``."""
+        return self.arrays.field(name)[self.order]
+
+
+def read_stream(reader, topic, use_log_time=False):
+    """Return :class:`Stream` ``topic`` of ``reader`` (a BagReader), in time order."""
+    arrays = reader.read_arrays(topic)
+    times_ns, order = stream_times_ns(arrays, use_log_time)
+    return Stream(topic, reader.topics[topic].type_name, times_ns, order, arrays)
+
+
+def is_bag(path):
+    """Return whether ``path`` is a bag (a directory or an ``.mcap`` file), else a CSV file."""
+    return os.path.isdir(path) or str(path).endswith('.mcap')
+
+
+@dataclass(frozen=True)
+class Record:
+    """
+    A loaded record: the columns of a CSV file, or an open bag.
+
+    Attributes
+    ----------
+    path : str
+        Where it was read from.
+    columns : dict or None
+        CSV: column name -> float array (see :func:`csvio.read_csv`); None for a bag.
+    reader : gyro_emulator.recording.bag.BagReader or None
+        Bag: the tolerant reader; None for a CSV file.
+
+    """
+
+    path: str
+    columns: dict = None
+    reader: object = None
+
+    @property
+    def recovery(self):
+        """Return what a damaged bag lost, one note each; () for CSV or a sound bag."""
+        return () if self.reader is None else tuple(self.reader.problems)
+
+    def find_topic(self, role, name=None, default=None, types=None):
+        """Return the bag topic that plays ``role`` (see :func:`find_topic`)."""
+        return find_topic(self.reader, role, name, default, types)
+
+    def stream(self, topic, use_log_time=False):
+        """Return the bag topic ``topic`` in time order (see :func:`read_stream`)."""
+        return read_stream(self.reader, topic, use_log_time)
+
+
+def load_record(path, required=(), time_order='increasing', only=None):
+    """
+    Open a record: a bag directory or ``.mcap`` file, else a CSV file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The record.
+    required, time_order, only
+        CSV only: see :func:`gyro_emulator.recording.csvio.read_csv`.
+
+    Returns
+    -------
+    Record
+        ``reader`` set for a bag (opened tolerant: damage is in
+        ``recovery``), ``columns`` for a CSV file.
+
+    """
+    path = os.fspath(path)
+    if is_bag(path):
+        return Record(path, reader=bag.BagReader(path, tolerant=True))
+    return Record(path, columns=csvio.read_csv(path, required, time_order, only))

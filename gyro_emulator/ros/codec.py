@@ -61,6 +61,25 @@ def message_class(type_name):
     return cls
 
 
+def topic_class(topic):
+    """Return the message class of a topic-table entry (:mod:`gyro_emulator.recording.topics`)."""
+    return message_class(topic.type_name)
+
+
+def topic_qos(topic):
+    """
+    Return the rclpy ``QoSProfile`` of a topic-table entry's QoS kind.
+
+    ``sensor_data`` is rclpy's ``qos_profile_sensor_data`` (best effort, keep
+    last 5, volatile); ``reliable`` is reliable, keep last 10, volatile.
+    """
+    from rclpy.qos import qos_profile_sensor_data, QoSProfile
+
+    if topic.qos == 'sensor_data':
+        return qos_profile_sensor_data
+    return QoSProfile(depth=10)
+
+
 def type_name_of(message):
     """Return ``package/msg/Name`` of a message instance or class."""
     cls = message if isinstance(message, type) else type(message)

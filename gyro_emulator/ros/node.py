@@ -28,10 +28,8 @@ import sys
 import threading
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import Vector3Stamped
 from gyro_emulator.recording import topics
-from gyro_emulator.ros import diagnostics, params
+from gyro_emulator.ros import codec, diagnostics, params
 from gyro_emulator.ros.inputs import (check_acceleration, check_rate, check_temperature,
                                       CommandStream, InputLimits, InputRejected, Throttle)
 from gyro_emulator.ros.rawmsg import RawMessage
@@ -40,7 +38,6 @@ from gyro_emulator.ros.stepper import BlockStepper
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
 from gyro_emulator.units import NS_PER_S
-from nav_msgs.msg import Odometry
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -51,7 +48,6 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.qos_overriding_options import QoSOverridingOptions
-from sensor_msgs.msg import Imu, Temperature
 
 ZERO3 = (0.0, 0.0, 0.0)
 #: Messages each command subscription keeps until the executor serves them.
@@ -233,19 +229,14 @@ class GyroEmulatorNode(Node):
         # drivers' users subscribe to, keeps them.
         qos_options = QoSOverridingOptions.with_default_policies
         quiet = PublisherEventCallbacks(use_default_callbacks=False)
-        self._imu_pub = self.create_publisher(
-            Imu, topics.IMU_OUT.name, qos_profile_sensor_data,
-            qos_overriding_options=qos_options())
-        self._temp_pub = self.create_publisher(
-            Temperature, topics.DIE_TEMPERATURE_OUT.name, qos_profile_sensor_data,
-            qos_overriding_options=qos_options(), event_callbacks=quiet)
+        self._imu_pub = self._publisher(topics.IMU_OUT, qos_overriding_options=qos_options())
+        self._temp_pub = self._publisher(topics.DIE_TEMPERATURE_OUT, event_callbacks=quiet,
+                                         qos_overriding_options=qos_options())
         self._truth_pubs = [
-            self.create_publisher(Vector3Stamped, topic.name, qos_profile_sensor_data,
-                                  qos_overriding_options=qos_options(), event_callbacks=quiet)
+            self._publisher(topic, qos_overriding_options=qos_options(), event_callbacks=quiet)
             for topic in topics.TRUTH_TOPICS.values()]
-        self._diag_pub = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS.name, 10,
-                                               event_callbacks=quiet)
-        imu = Imu()
+        self._diag_pub = self._publisher(topics.DIAGNOSTICS, event_callbacks=quiet)
+        imu = codec.topic_class(topics.IMU_OUT)()
         imu.header.frame_id = self.frame_id
         imu.orientation_covariance[0] = -1.0
         imu.linear_acceleration_covariance[0] = -1.0
@@ -257,16 +248,21 @@ class GyroEmulatorNode(Node):
         self._accel_shown = False
         self._sigma_shown = None
         self._refresh_covariance()
-        temp = Temperature()
+        temp = codec.topic_class(topics.DIE_TEMPERATURE_OUT)()
         temp.header.frame_id = self.frame_id
         self._temp_msg = RawMessage(temp, {'stamp': ('header.stamp', 'time'),
                                            'value': ('temperature', 'double')})
         self._truth_msgs = []
-        for _ in self._truth_pubs:
-            msg = Vector3Stamped()
+        for topic in topics.TRUTH_TOPICS.values():
+            msg = codec.topic_class(topic)()
             msg.header.frame_id = self.frame_id
             self._truth_msgs.append(RawMessage(msg, {'stamp': ('header.stamp', 'time'),
                                                      'value': ('vector', 'vector3')}))
+
+    def _publisher(self, topic, **kwargs):
+        """Return a publisher of a topic-table entry with its type and QoS."""
+        return self.create_publisher(codec.topic_class(topic), topic.name,
+                                     codec.topic_qos(topic), **kwargs)
 
     def _make_inputs(self):
         """
@@ -285,15 +281,15 @@ class GyroEmulatorNode(Node):
         # As for the publishers: default QoS event handlers would join every
         # executor wake-up (three waitables per subscription).
         quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
-        inputs = [(Vector3Stamped, topics.RATE_CMD.name, self._on_rate),
-                  (Temperature, topics.TEMPERATURE_CMD.name, self._on_temperature),
-                  (Vector3Stamped, topics.ACCEL_CMD.name, self._on_accel)]
-        if self._p['rate_source'] == 'odometry':
-            inputs[0] = (Odometry, topics.ODOM_CMD.name, self._on_odometry)
+        handlers = {topics.RATE_CMD: self._on_rate, topics.ODOM_CMD: self._on_odometry,
+                    topics.TEMPERATURE_CMD: self._on_temperature,
+                    topics.ACCEL_CMD: self._on_accel}
+        inputs = (topics.RATE_INPUTS[self._p['rate_source']], topics.TEMPERATURE_CMD,
+                  topics.ACCEL_CMD)
         self._input_subscriptions = [
-            self.create_subscription(msg_type, topic, handler, qos,
+            self.create_subscription(codec.topic_class(topic), topic.name, handlers[topic], qos,
                                      qos_overriding_options=options(), event_callbacks=quiet)
-            for msg_type, topic, handler in inputs]
+            for topic in inputs]
 
     def _start_diagnostics(self):
         """Publish /diagnostics from a thread on the steady clock (also when paused)."""

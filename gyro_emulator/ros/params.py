@@ -39,7 +39,8 @@ TERMS_PREFIX = 'sensor.terms.'
 #: Error terms that ``noise_enabled = false`` switches off.
 NOISE_TERMS = ('mechanical_noise', 'electronics_noise', 'bias_instability',
                'rate_random_walk', 'timestamp_jitter')
-RATE_SOURCES = ('angular_velocity', 'odometry')
+#: Values of ``rate_source``: the rate inputs of the topic table.
+RATE_SOURCES = tuple(topics.RATE_INPUTS)
 STALE_RATE_POLICIES = ('zero', 'hold')
 INT64_MAX = 2 ** 63 - 1
 

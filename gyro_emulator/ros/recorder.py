@@ -29,19 +29,27 @@ import sys
 import time
 
 from gyro_emulator.recording import bag, topics
-from gyro_emulator.ros import codec
-from gyro_emulator.ros.spinning import close, spin_once
+from gyro_emulator.ros import codec, program
+from gyro_emulator.ros.spinning import spin_once
 import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 #: The emulator's inputs and outputs, relative to the recorder's namespace.
 DEFAULT_TOPICS = tuple(t.name for t in topics.RECORDED_BY_DEFAULT)
 #: Name of the emulator node whose ``~/truth`` topics are recorded by default.
-DEFAULT_EMULATOR_NODE = 'gyro_emulator'
+DEFAULT_EMULATOR_NODE = topics.NODE_NAME
+#: The private namespace of the truth topics (``~/truth``).
+TRUTH_PRIVATE_NAMESPACE = topics.TRUTH_RATE.name.rsplit('/', 1)[0]
 #: How often the graph is searched for new topics, s.
 DISCOVERY_PERIOD_S = 0.5
+#: Options in seconds: flag -> (default, help).
+SECONDS_OPTIONS = {
+    '--duration': (None, 'stop after S seconds (default: until SIGINT/SIGTERM)'),
+    '--flush-interval': (bag.DEFAULT_FLUSH_INTERVAL_S, 'flush to disk at least every S '
+                         'seconds: what a SIGKILL can lose (default: %(default)s)'),
+}
 
 
 def adapted_qos(publisher_profiles, depth=100):
@@ -184,69 +192,72 @@ def build_parser():
     parser.add_argument('--emulator-node', default=DEFAULT_EMULATOR_NODE, metavar='NAME',
                         help='emulator node whose ~/truth topics are recorded by default '
                              '(default: %(default)s)')
-    parser.add_argument('--duration', type=float, default=None, metavar='S',
-                        help='stop after S seconds (default: until SIGINT/SIGTERM)')
     parser.add_argument('--compression', choices=bag.COMPRESSIONS, default='zstd',
                         help='MCAP chunk compression (default: %(default)s)')
-    parser.add_argument('--flush-interval', type=float, default=bag.DEFAULT_FLUSH_INTERVAL_S,
-                        metavar='S', help='flush to disk at least every S seconds: what a '
-                        'SIGKILL can lose (default: %(default)s)')
+    program.add_seconds_options(parser, SECONDS_OPTIONS)
     parser.add_argument('--overwrite', action='store_true',
                         help='replace an existing bag in the output directory')
     return parser
 
 
+def requested_topics(node, opts):
+    """
+    Return the resolved topics to record and the regular expressions to match.
+
+    Without ``--topics``: :data:`DEFAULT_TOPICS` and every topic under the
+    ``~/truth`` namespace of the ``--emulator-node``; a ``~/`` name is
+    resolved in that node's namespace.
+    """
+    emulator_ns = f'{node.get_namespace().rstrip("/")}/{opts.emulator_node}'
+    requested = DEFAULT_TOPICS if opts.topics is None else opts.topics
+    regexes = list(opts.regex)
+    if opts.topics is None:
+        truth_ns = emulator_ns + TRUTH_PRIVATE_NAMESPACE[1:]
+        regexes.append('^' + re.escape(truth_ns) + '(/|$)')
+    names = [node.resolve_topic_name(emulator_ns + t[1:] if t.startswith('~') else t)
+             for t in requested]
+    return names, regexes
+
+
+def _finish(writer, recorder):
+    """Finish the bag and say what it holds (a second signal must not interrupt it)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    if writer is None:
+        return
+    writer.finish()
+    counts = ', '.join(f'{k}: {v}' for k, v in sorted(recorder.counts.items())) \
+        if recorder is not None else ''
+    print(f'recorder: wrote {writer.message_count} messages to {writer.path}'
+          f'{" (" + counts + ")" if counts else ""}', flush=True)
+
+
 def main(args=None):
     """Run the recorder until SIGINT/SIGTERM or ``--duration``; finish the bag."""
-    argv = list(sys.argv) if args is None else ['recorder'] + list(args)
-    opts = build_parser().parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
-    if opts.duration is not None and not opts.duration > 0:
-        print(f'recorder: error: --duration = {opts.duration} is out of range: '
-              'allowed (0, inf) s', file=sys.stderr)
-        return 2
-    rclpy.init(args=argv)
-    node = writer = recorder = None
-    status = 0
-    try:
-        node = Node('gyro_recorder')
-        namespace = node.get_namespace().rstrip('/')
-        emulator_ns = f'{namespace}/{opts.emulator_node}'
-        requested = DEFAULT_TOPICS if opts.topics is None else opts.topics
-        regexes = list(opts.regex)
-        if opts.topics is None:
-            regexes.append('^' + re.escape(emulator_ns + '/truth') + '(/|$)')
-        topics = [node.resolve_topic_name(emulator_ns + t[1:] if t.startswith('~') else t)
-                  for t in requested]
+    argv, opts = program.parse_arguments(build_parser(), 'recorder', args)
+    with program.Run('recorder') as run:
+        if opts.duration is not None and not opts.duration > 0:
+            raise ValueError(f'--duration = {opts.duration} is out of range: '
+                             'allowed (0, inf) s')
+        rclpy.init(args=argv)
+        writer = recorder = None
+        run.on_exit(lambda: _finish(writer, recorder))
+        node = run.node = Node('gyro_recorder')
+        names, regexes = requested_topics(node, opts)
         writer = bag.BagWriter(opts.output or default_output(), compression=opts.compression,
                                flush_interval_s=opts.flush_interval, overwrite=opts.overwrite,
                                custom_data={'recorder': 'gyro_emulator recorder'})
-        recorder = TopicRecorder(node, writer, topics, regexes, opts.all,
+        recorder = TopicRecorder(node, writer, names, regexes, opts.all,
                                  [node.resolve_topic_name(t) for t in opts.exclude])
         node.get_logger().info(f'recording to {writer.path}; waiting for '
-                               f'{", ".join(sorted(topics))}')
+                               f'{", ".join(sorted(names))}')
         executor = SingleThreadedExecutor()
         executor.add_node(node)
         deadline = None if opts.duration is None else time.monotonic() + opts.duration
         while (deadline is None or time.monotonic() < deadline) and \
                 spin_once(executor, 0.1):
             pass
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ValueError, OSError) as exc:
-        print(f'recorder: error: {exc}', file=sys.stderr)
-        status = 2
-    finally:
-        # A second signal must not interrupt the summary being written.
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        if writer is not None:
-            writer.finish()
-            counts = ', '.join(f'{k}: {v}' for k, v in sorted(recorder.counts.items())) \
-                if recorder is not None else ''
-            print(f'recorder: wrote {writer.message_count} messages to {writer.path}'
-                  f'{" (" + counts + ")" if counts else ""}', flush=True)
-        close(node)
-    return status
+    return run.status
 
 
 if __name__ == '__main__':

@@ -22,17 +22,22 @@ import threading
 import time
 
 from gyro_emulator.recording import bag
-from gyro_emulator.ros import codec
-from gyro_emulator.ros.spinning import close
+from gyro_emulator.ros import codec, program
 from gyro_emulator.units import NS_PER_S
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
 #: Longest single sleep while waiting for a message, s (keeps /clock and signals live).
 MAX_SLEEP_S = 0.05
+#: Options in seconds, each at least 0: flag -> (default, help).
+SECONDS_OPTIONS = {
+    '--start-offset': (0.0, 'skip the first S seconds of the bag'),
+    '--delay': (0.0, 'wait S seconds before the first message'),
+    '--wait-for-subscribers': (0.0, 'wait up to S seconds until every publisher has a '
+                               'subscriber'),
+}
 
 
 def build_parser():
@@ -51,12 +56,7 @@ def build_parser():
                         help='only replay these topics (default: all)')
     parser.add_argument('--remap', nargs='+', default=[], metavar='FROM:=TO',
                         help='publish topic FROM as TO')
-    parser.add_argument('--start-offset', type=float, default=0.0, metavar='S',
-                        help='skip the first S seconds of the bag')
-    parser.add_argument('--delay', type=float, default=0.0, metavar='S',
-                        help='wait S seconds before the first message')
-    parser.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='S',
-                        help='wait up to S seconds until every publisher has a subscriber')
+    program.add_seconds_options(parser, SECONDS_OPTIONS)
     parser.add_argument('--reliable', action='store_true',
                         help='publish reliably whatever QoS was recorded')
     return parser
@@ -67,11 +67,10 @@ def _check(opts):
         raise ValueError(f'--rate = {opts.rate} is out of range: allowed (0, 1000]')
     if opts.clock is not None and not 0 < opts.clock <= 10000:
         raise ValueError(f'--clock = {opts.clock} is out of range: allowed (0, 10000] Hz')
-    for name in ('start_offset', 'delay', 'wait_for_subscribers'):
-        value = getattr(opts, name)
+    for flag in SECONDS_OPTIONS:
+        value = getattr(opts, flag[2:].replace('-', '_'))
         if not value >= 0:
-            raise ValueError(f'--{name.replace("_", "-")} = {value} is out of range: '
-                             'allowed [0, inf) s')
+            raise ValueError(f'{flag} = {value} is out of range: allowed [0, inf) s')
     remap = {}
     for rule in opts.remap:
         source, sep, target = rule.partition(':=')
@@ -194,52 +193,42 @@ class Player:
 
 def main(args=None):
     """Replay a bag until its end (or forever with ``--loop``) or SIGINT/SIGTERM."""
-    argv = list(sys.argv) if args is None else ['replay'] + list(args)
-    opts = build_parser().parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
-    try:
+    argv, opts = program.parse_arguments(build_parser(), 'replay', args)
+    with program.Run('replay') as run:
         remap = _check(opts)
         reader = bag.BagReader(opts.bag, tolerant=True)
-    except (ValueError, OSError) as exc:
-        print(f'replay: error: {exc}', file=sys.stderr)
-        return 2
-    for note in reader.problems:
-        print(f'replay: warning: incomplete bag, {note}', file=sys.stderr)
-    # Signals only set a flag: the loop stops between messages and the final
-    # count is exact (rclpy's handler would raise in the middle of a step).
-    rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-    node = None
-    status = 0
-    player = None
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, lambda *_: stop.set())
-    try:
-        node = Node('gyro_replay')
-        player = Player(node, reader, opts.topics, remap, opts.rate, opts.clock,
+        for note in reader.problems:
+            print(f'replay: warning: incomplete bag, {note}', file=sys.stderr)
+        # Signals only set a flag: the loop stops between messages and the final
+        # count is exact (rclpy's handler would raise in the middle of a step).
+        rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
+        stop = threading.Event()
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            signal.signal(signum, lambda *_: stop.set())
+        run.node = Node('gyro_replay')
+        player = Player(run.node, reader, opts.topics, remap, opts.rate, opts.clock,
                         opts.reliable, stop)
-        if opts.wait_for_subscribers > 0:
-            player.wait_for_subscribers(opts.wait_for_subscribers)
-        if opts.delay > 0:
-            time.sleep(opts.delay)
-        start_ns = reader.start_time_ns + int(round(opts.start_offset * NS_PER_S))
-        node.get_logger().info(
-            f'replaying {reader.message_count} messages of {opts.bag} at rate {opts.rate}')
-        while rclpy.ok() and not stop.is_set():
-            player.play_once(start_ns)
-            if not opts.loop:
-                break
-        if not stop.is_set():
-            player.wait_for_acks(2.0)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except (ValueError, OSError) as exc:
-        print(f'replay: error: {exc}', file=sys.stderr)
-        status = 2
-    finally:
-        if player is not None:
-            print(f'replay: published {player.published} messages', flush=True)
-        close(node)
-    return status
+        run.on_exit(lambda: print(f'replay: published {player.published} messages',
+                                  flush=True))
+        _play(player, opts, reader)
+    return run.status
+
+
+def _play(player, opts, reader):
+    """Wait as asked, then replay once (or until stopped with ``--loop``)."""
+    if opts.wait_for_subscribers > 0:
+        player.wait_for_subscribers(opts.wait_for_subscribers)
+    if opts.delay > 0:
+        time.sleep(opts.delay)
+    start_ns = reader.start_time_ns + int(round(opts.start_offset * NS_PER_S))
+    player.node.get_logger().info(
+        f'replaying {reader.message_count} messages of {opts.bag} at rate {opts.rate}')
+    while rclpy.ok() and not player.stop.is_set():
+        player.play_once(start_ns)
+        if not opts.loop:
+            break
+    if not player.stop.is_set():
+        player.wait_for_acks(2.0)
 
 
 if __name__ == '__main__':

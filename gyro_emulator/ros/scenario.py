@@ -45,8 +45,8 @@ from gyro_emulator.sensor import profiles
 from gyro_emulator.units import NS_PER_S
 
 DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
-_RATE_KEYS = {'rate_rad_s': 1.0, 'rate_deg_s': math.pi / 180.0,
-              'rate_rpm': 2.0 * math.pi / 60.0}
+#: How a step's label writes the unit of each rate key of the segment schema.
+RATE_LABELS = {'rate_rad_s': 'rad/s', 'rate_deg_s': 'deg/s', 'rate_rpm': 'RPM'}
 
 
 @dataclass(frozen=True)
@@ -60,7 +60,7 @@ class Step:
         Length of the step, s.
     rate_rad_s : float
         True rate along the profile axis, rad/s.
-    temperature_c : float
+    temp_c : float
         Ambient temperature, deg C.
     settle_s : float
         Start of the step excluded from the summary, s.
@@ -71,7 +71,7 @@ class Step:
 
     duration_s: float
     rate_rad_s: float
-    temperature_c: float
+    temp_c: float
     settle_s: float = 0.0
     label: str = ''
 
@@ -116,7 +116,7 @@ def _number(where, key, value, low=None, high=None, low_open=False):
 
 
 def _rate(where, mapping, plural=False):
-    names = {('rates_' + k[5:] if plural else k): k for k in _RATE_KEYS}
+    names = {('rates_' + k[5:] if plural else k): k for k in profiles.RATE_UNITS}
     found = [n for n in names if n in mapping]
     if len(found) != 1:
         raise ValueError(f'{where}: give exactly one of {", ".join(names)}')
@@ -127,15 +127,15 @@ def _step(where, raw, axis):
     """Parse one step with the shared segment schema (``sensor.profiles.parse_segment``)."""
     if not isinstance(raw, dict):
         raise ValueError(f'{where} = {raw!r} must be a mapping')
+    raw = profiles.canonical_segment(where, raw)
     key = _rate(where, raw)[0]
     value = _number(where, key, raw[key])
-    if 'temp_c' not in raw and 'temperature_c' not in raw:
+    if 'temp_c' not in raw:
         raise ValueError(f'{where}.temp_c = None is not a finite number')
     if 'duration_s' in raw:
         _number(where, 'duration_s', raw['duration_s'], 0.0, 86400.0, True)
     segment = profiles.parse_segment(where, raw, axis)
-    unit = {'rate_rad_s': 'rad/s', 'rate_deg_s': 'deg/s', 'rate_rpm': 'RPM'}[key]
-    return Step.from_segment(where, segment, axis, f'{value:g} {unit}')
+    return Step.from_segment(where, segment, axis, f'{value:g} {RATE_LABELS[key]}')
 
 
 def _grid(where, raw, axis):
@@ -279,7 +279,7 @@ def format_summary(results):
     lines = [head, '-' * len(head)]
     for i, r in enumerate(results):
         lines.append(
-            f'{i:>4} {r.step.temperature_c:>8.1f} {r.die_temp_c:>8.2f} '
+            f'{i:>4} {r.step.temp_c:>8.1f} {r.die_temp_c:>8.2f} '
             f'{r.step.label:>10} {r.commanded_deg_s:>10.3f} {r.measured_deg_s:>11.3f} '
             f'{r.error_deg_s:>+10.3f} {r.std_deg_s:>10.3f} {r.samples:>6d}')
     return '\n'.join(lines)
@@ -288,7 +288,7 @@ def format_summary(results):
 def results_json(profile, results):
     """Return the summary as a JSON-ready dict."""
     return {'profile': profile.name, 'axis': list(profile.axis), 'steps': [
-        {'temperature_c': r.step.temperature_c, 'rate': r.step.label,
+        {'temperature_c': r.step.temp_c, 'rate': r.step.label,
          'commanded_deg_s': r.commanded_deg_s, 'measured_deg_s': r.measured_deg_s,
          'error_deg_s': r.error_deg_s, 'std_deg_s': r.std_deg_s,
          'die_temp_c': r.die_temp_c, 'samples': r.samples} for r in results]}
@@ -314,23 +314,22 @@ class ScenarioPlayer:
     """
 
     def __init__(self, node, profile, collect=False, loop=False):
-        from geometry_msgs.msg import Vector3Stamped
-        from rclpy.qos import qos_profile_sensor_data
-        from sensor_msgs.msg import Imu, Temperature
+        from gyro_emulator.ros.codec import topic_class, topic_qos
 
         self.node = node
         self.profile = profile
         self.loop = loop
-        self.rate_pub = node.create_publisher(Vector3Stamped, topics.RATE_CMD.name, 10)
-        self.temp_pub = node.create_publisher(Temperature, topics.TEMPERATURE_CMD.name, 10)
-        self._rate_msg = Vector3Stamped()
-        self._temp_msg = Temperature()
+        self.rate_pub, self.temp_pub = (
+            node.create_publisher(topic_class(topic), topic.name, topic_qos(topic))
+            for topic in (topics.RATE_CMD, topics.TEMPERATURE_CMD))
+        self._rate_msg = topic_class(topics.RATE_CMD)()
+        self._temp_msg = topic_class(topics.TEMPERATURE_CMD)()
         self.imu, self.temps = [], []
         if collect:
-            node.create_subscription(Imu, topics.IMU_OUT.name, self._on_imu,
-                                     qos_profile_sensor_data)
-            node.create_subscription(Temperature, topics.DIE_TEMPERATURE_OUT.name, self._on_temp,
-                                     qos_profile_sensor_data)
+            for topic, handler in ((topics.IMU_OUT, self._on_imu),
+                                   (topics.DIE_TEMPERATURE_OUT, self._on_temp)):
+                node.create_subscription(topic_class(topic), topic.name, handler,
+                                         topic_qos(topic))
         self.start_ns = None
         self.done = False
         self._ends = []
@@ -387,7 +386,7 @@ class ScenarioPlayer:
         self.rate_pub.publish(msg)
         temp = self._temp_msg
         temp.header.stamp = stamp
-        temp.temperature = step.temperature_c
+        temp.temperature = step.temp_c
         self.temp_pub.publish(temp)
 
     def results(self):
@@ -435,8 +434,9 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
         while not player.connected():
             if time.monotonic() > deadline:
                 raise RuntimeError(
-                    f'no emulator subscribed to cmd/angular_velocity and cmd/temperature '
-                    f'within {wait_s:g} s (is `ros2 run gyro_emulator node` running on '
+                    f'no emulator subscribed to {topics.RATE_CMD.name} and '
+                    f'{topics.TEMPERATURE_CMD.name} within {wait_s:g} s (is '
+                    f'`ros2 run gyro_emulator node` running on '
                     f'ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")}?)')
             if not spin_once(executor, 0.05):
                 raise ExternalShutdownException()
@@ -496,7 +496,7 @@ def main(args=None):
               f'{profile.duration_s:g} s', flush=True)
 
         def progress(index, step):
-            print(f'  step {index}: {step.label} at {step.temperature_c:g} C for '
+            print(f'  step {index}: {step.label} at {step.temp_c:g} C for '
                   f'{step.duration_s:g} s', flush=True)
 
         player = play(profile, collect=opts.summary or bool(opts.json), wait_s=opts.wait,

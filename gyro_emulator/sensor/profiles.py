@@ -39,6 +39,7 @@ deprecation warning.
 
 from dataclasses import dataclass
 import os
+from types import MappingProxyType
 import warnings
 
 from gyro_emulator.resources import read_yaml
@@ -182,8 +183,9 @@ def temperature_ramp(duration_s, start_c=25.0, end_c=85.0, rate_deg_s=60.0):
 
 _SEGMENT_KEYS = ('duration_s', 'rate_rad_s', 'rate_deg_s', 'rate_rpm', 'temp_c',
                  'accel_m_s2', 'settle_s')
-_RATE_UNITS = {'rate_rad_s': lambda v: v, 'rate_deg_s': deg_s_to_rad_s,
-               'rate_rpm': rpm_to_rad_s}
+#: Rate keys of a segment and their conversion to rad/s.
+RATE_UNITS = MappingProxyType({'rate_rad_s': lambda v: v, 'rate_deg_s': deg_s_to_rad_s,
+                               'rate_rpm': rpm_to_rad_s})
 #: Old spellings still read, with a one-line deprecation warning.
 _ALIASES = {'temperature_c': 'temp_c'}
 #: Rate direction of scalar rates when a profile gives no ``axis``: z (REP 103).
@@ -209,7 +211,7 @@ def _rate_start_end(where, key, value, axis):
     return _start_end(where, key, value, (3,))
 
 
-def _canonical(where, seg):
+def canonical_segment(where, seg):
     """Return the segment mapping with old spellings renamed (warned once each)."""
     out = dict(seg)
     for old, new in _ALIASES.items():
@@ -233,21 +235,21 @@ def parse_segment(where, seg, axis=DEFAULT_AXIS, last_temp_c=25.0,
     """
     if not isinstance(seg, dict):
         raise ValueError(f'{where} must be a mapping, got {seg!r}')
-    seg = _canonical(where, seg)
+    seg = canonical_segment(where, seg)
     unknown = sorted(set(seg) - set(_SEGMENT_KEYS))
     if unknown:
         raise ValueError(f'{where}: unknown key(s) {", ".join(map(str, unknown))}; '
                          f'allowed: {", ".join(_SEGMENT_KEYS)}')
     if 'duration_s' not in seg:
         raise ValueError(f'{where}: duration_s is required')
-    rate_keys = [k for k in _RATE_UNITS if k in seg]
+    rate_keys = [k for k in RATE_UNITS if k in seg]
     if len(rate_keys) > 1:
         raise ValueError(f'{where}: give only one of {", ".join(rate_keys)}')
     r0 = r1 = np.zeros(3)
     if rate_keys:
         key = rate_keys[0]
         r0, r1 = _rate_start_end(where, key, seg[key], axis)
-        r0, r1 = _RATE_UNITS[key](r0), _RATE_UNITS[key](r1)
+        r0, r1 = RATE_UNITS[key](r0), RATE_UNITS[key](r1)
     t0, t1 = _start_end(where, 'temp_c', seg.get('temp_c', last_temp_c), ())
     acc, _ = _start_end(where, 'accel_m_s2', seg.get('accel_m_s2', default_accel_m_s2), (3,))
     try:

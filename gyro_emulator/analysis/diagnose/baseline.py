@@ -172,6 +172,11 @@ def calibration_rows(temp_c, weight, ref_temp_c, window_c=CAL_WINDOW_C,
     return dist <= width + 1e-12, width
 
 
+def rows_or_all(frame, rows=None):
+    """Return the row selection ``rows`` (a training set), or every row of ``frame`` when None."""
+    return np.ones(len(frame), bool) if rows is None else rows
+
+
 def calibrate(frame, dev_physics, rows=None):
     """
     Calibrate bias and scale factor at the reference temperature.
@@ -190,7 +195,7 @@ def calibrate(frame, dev_physics, rows=None):
     Calibration
 
     """
-    avail = np.ones(len(frame), bool) if rows is None else rows
+    avail = rows_or_all(frame, rows)
     t = frame.temp_c[avail]
     w = frame.weight[avail]
     sel, width = calibration_rows(t, w, dev_physics.ref_temp_c)

@@ -129,7 +129,7 @@ def load_csv(path):
     ----------
     path : str
         CSV file (``.gz`` for gzip) with a header row (see the module
-        docstring), read by :func:`gyro_emulator.recording.csvio.read_csv`.
+        docstring), read by :func:`gyro_emulator.recording.records.load_record`.
 
     Returns
     -------
@@ -142,8 +142,15 @@ def load_csv(path):
         or time goes back; the message names the column and the row.
 
     """
-    columns = csvio.read_csv(path, required=REQUIRED_COLUMNS, time_order='nondecreasing',
-                             only=REQUIRED_COLUMNS + ACCEL_COLUMNS)
+    record = records.load_record(path, required=REQUIRED_COLUMNS, time_order='nondecreasing',
+                                 only=REQUIRED_COLUMNS + ACCEL_COLUMNS)
+    if record.columns is None:
+        raise ValueError(f'{path} is a bag, not a CSV file')
+    return _from_columns(path, record.columns)
+
+
+def _from_columns(path, columns):
+    """Return the MeasuredData of CSV ``columns`` (see :func:`load_csv`)."""
     accel = [c for c in ACCEL_COLUMNS if c in columns]
     if accel and len(accel) != 3:
         raise ValueError(
@@ -154,6 +161,20 @@ def load_csv(path):
         temp_c=columns['temp_c'], gyro_rad_s=columns['gyro_rad_s'],
         accel_m_s2=np.column_stack([columns[c] for c in ACCEL_COLUMNS]) if accel else None,
         source=str(path))
+
+
+def load_measured(path, rate_topic=None, temp_topic=None, gyro_topic=None, accel_topic=None,
+                  axis='z'):
+    """
+    Read a measured record, a bag (:func:`load_bag`) or a CSV file (:func:`load_csv`).
+
+    Which one is :func:`gyro_emulator.recording.records.is_bag`'s rule; the
+    topic options apply to a bag only.
+    """
+    if records.is_bag(path):
+        return load_bag(path, rate_topic=rate_topic, temp_topic=temp_topic,
+                        gyro_topic=gyro_topic, accel_topic=accel_topic, axis=axis)
+    return load_csv(path)
 
 
 def write_measured_csv(path, data):
@@ -353,20 +374,27 @@ _SCALAR_FIELDS = {'sensor_msgs/msg/Temperature': 'temperature',
                   'std_msgs/msg/Float64': 'data'}
 
 
+#: Message field giving each role, by message type (``{kind}``: see :data:`_FIELD_KIND`).
+_FIELD_KIND = {'rate': 'angular_velocity', 'gyro': 'angular_velocity',
+               'accel': 'linear_acceleration'}
+
+
 def load_bag(path, rate_topic=None, temp_topic=None, gyro_topic=None,
              accel_topic=None, axis='z'):
     """
     Read a rosbag2 MCAP bag into the diagnose contract.
 
-    The gyro output topic sets the sample times (header stamps, or log
-    times when the stamps are zero); the commanded rate, temperature and
-    acceleration are interpolated linearly onto them. Samples outside the
-    span of any input topic are dropped.
+    The gyro output topic sets the sample times (the stamp rule of
+    :mod:`gyro_emulator.recording.records`: header stamps, or log times when
+    the stamps are zero); the commanded rate, temperature and acceleration
+    are interpolated linearly onto them. Samples outside the span of any
+    input topic are dropped.
 
     Parameters
     ----------
     path : str
-        Bag directory or .mcap file (read with :mod:`gyro_emulator.recording.bag`).
+        Bag directory or .mcap file (read with
+        :func:`gyro_emulator.recording.records.load_record`).
     rate_topic, temp_topic, gyro_topic : str, optional
         Topics of the applied rate (Vector3Stamped, TwistStamped, Imu,
         Float64), the temperature (Temperature, Float64) and the measured
@@ -382,60 +410,28 @@ def load_bag(path, rate_topic=None, temp_topic=None, gyro_topic=None,
     MeasuredData
 
     """
-    from gyro_emulator.recording import bag
     if axis not in ('x', 'y', 'z'):
         raise ValueError(f'diagnose.axis = {axis!r} is not allowed: choose '
                          "one of 'x', 'y', 'z'")
-    reader = bag.BagReader(path, tolerant=True)
-    names = {'rate': rate_topic or DEFAULT_BAG_TOPICS['rate'],
-             'temp': temp_topic or DEFAULT_BAG_TOPICS['temp'],
-             'gyro': gyro_topic or DEFAULT_BAG_TOPICS['gyro']}
-    resolved = {role: records.find_topic(reader, role + ' topic', name)
-                for role, name in names.items()}
-    if accel_topic != 'none':
-        found = records.find_topic(reader, 'acceleration topic', accel_topic,
-                                   DEFAULT_BAG_TOPICS['accel'])
-        if found is not None:
-            resolved['accel'] = found
-
-    def read(role, kind):
-        topic = resolved[role]
-        arrays = reader.read_arrays(topic)
-        type_name = reader.topics[topic].type_name
-        table = _SCALAR_FIELDS if role == 'temp' else _VECTOR_FIELDS
-        if type_name not in table:
-            raise ValueError(
-                f'bag topic {topic} has type {type_name}, which cannot give '
-                f'the {role}: allowed {", ".join(sorted(table))}')
-        fmt = table[type_name]
-        axes = [axis] if role in ('rate', 'gyro') else ['x', 'y', 'z']
-        cols = [arrays.field(fmt.format(kind=kind, axis=a)) for a in axes] \
-            if role != 'temp' else [arrays.field(fmt)]
-        if role == 'accel' and fmt == 'data':
-            raise ValueError(f'bag topic {topic}: a Float64 cannot hold a '
-                             '3-axis acceleration')
-        times, order = records.stream_times_ns(arrays)
-        return times, np.column_stack(cols)[order]
-
-    t_gyro, gyro = read('gyro', 'angular_velocity')
+    record = records.load_record(path)
+    if record.reader is None:
+        raise ValueError(f'{path} is not a bag (a directory or an .mcap file)')
+    resolved = _bag_topics(record, rate_topic, temp_topic, gyro_topic, accel_topic)
+    t_gyro, gyro = _read_role(record, 'gyro', resolved['gyro'], axis)
     if len(t_gyro) < 20:
         raise ValueError(f'bag {path}: topic {resolved["gyro"]} has '
                          f'{len(t_gyro)} messages: allowed >= 20')
-    order = np.argsort(t_gyro, kind='stable')
-    t_gyro, gyro = t_gyro[order], gyro[order, 0]
     keep = np.r_[True, np.diff(t_gyro) > 0]
-    t_gyro, gyro = t_gyro[keep], gyro[keep]
+    t_gyro, gyro = t_gyro[keep], gyro[keep, 0]
     t0 = t_gyro[0]
     t = (t_gyro - t0) * 1e-9
     inside = np.ones(len(t), bool)
     series = {}
-    for role, kind in (('rate', 'angular_velocity'), ('temp', ''),
-                       ('accel', 'linear_acceleration')):
+    for role in ('rate', 'temp', 'accel'):
         if role not in resolved:
             continue
-        ts, values = read(role, kind)
-        o = np.argsort(ts, kind='stable')
-        ts, values = (ts[o] - t0) * 1e-9, values[o]
+        ts, values = _read_role(record, role, resolved[role], axis)
+        ts = (ts - t0) * 1e-9
         if len(ts) == 0:
             raise ValueError(f'bag {path}: topic {resolved[role]} is empty')
         inside &= (t >= ts[0]) & (t <= ts[-1])
@@ -449,4 +445,38 @@ def load_bag(path, rate_topic=None, temp_topic=None, gyro_topic=None,
                         rate_cmd_rad_s=series['rate'][inside, 0],
                         temp_c=series['temp'][inside, 0],
                         gyro_rad_s=gyro[inside], accel_m_s2=accel,
-                        source=str(path), recovery=tuple(reader.problems))
+                        source=str(path), recovery=record.recovery)
+
+
+def _bag_topics(record, rate_topic, temp_topic, gyro_topic, accel_topic):
+    """Return the bag topic of each role (rate, temp, gyro, accel when present)."""
+    names = {'rate': rate_topic or DEFAULT_BAG_TOPICS['rate'],
+             'temp': temp_topic or DEFAULT_BAG_TOPICS['temp'],
+             'gyro': gyro_topic or DEFAULT_BAG_TOPICS['gyro']}
+    resolved = {role: record.find_topic(role + ' topic', name)
+                for role, name in names.items()}
+    if accel_topic != 'none':
+        found = record.find_topic('acceleration topic', accel_topic, DEFAULT_BAG_TOPICS['accel'])
+        if found is not None:
+            resolved['accel'] = found
+    return resolved
+
+
+def _read_role(record, role, topic, axis):
+    """Return (times_ns, values (n, k)) of ``role``'s topic, in time order."""
+    stream = record.stream(topic)
+    table = _SCALAR_FIELDS if role == 'temp' else _VECTOR_FIELDS
+    if stream.type_name not in table:
+        raise ValueError(
+            f'bag topic {topic} has type {stream.type_name}, which cannot give '
+            f'the {role}: allowed {", ".join(sorted(table))}')
+    fmt = table[stream.type_name]
+    if role == 'accel' and fmt == 'data':
+        raise ValueError(f'bag topic {topic}: a Float64 cannot hold a '
+                         '3-axis acceleration')
+    if role == 'temp':
+        names = [fmt]
+    else:
+        axes = [axis] if role in ('rate', 'gyro') else ['x', 'y', 'z']
+        names = [fmt.format(kind=_FIELD_KIND[role], axis=a) for a in axes]
+    return stream.times_ns, np.column_stack([stream.field(name) for name in names])

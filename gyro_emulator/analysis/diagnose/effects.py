@@ -44,18 +44,17 @@ def _slow_temp(frame):
     return frame.bins.binned.temp_c
 
 
-def _sf_column(frame, ratio_on_bins, rate=None):
-    return frame.slow(ratio_on_bins) * (frame.rate if rate is None else rate)
-
-
 class Effect:
     """
     One candidate cause.
 
     Subclasses set ``effect_id``, ``cause`` (a sentence), ``needs`` (subset of
-    'rate', 'temp', 'accel'), ``params`` (reported parameters), ``grid`` (one
-    array per non-linear parameter, empty when the model is linear) and
-    implement :meth:`columns` and :meth:`report`.
+    'rate', 'temp', 'accel'), ``params`` (reported parameters: the non-linear
+    ones first, one per grid, then the linear ones) and ``grid`` (one array
+    per non-linear parameter, empty when the model is linear). The model is
+    ``[1, s(T) Omega_s, extra...]``: subclasses change the scale-factor ratio
+    s (:meth:`ratio`), the sensed rate Omega_s (:meth:`sensed_rate`) or add
+    bias regressors (:meth:`extra_columns`).
     """
 
     effect_id = ''
@@ -68,13 +67,28 @@ class Effect:
         """Grids of the non-linear parameters for this record."""
         return self.grid
 
+    def ratio(self, ctx, frame, phi):
+        """Return the scale-factor ratio on the bins: the baseline R(T)."""
+        return ctx.phys.ratio(_slow_temp(frame))
+
+    def sensed_rate(self, frame, phi):
+        """Return the rate the scale factor multiplies: the applied rate."""
+        return frame.rate
+
+    def extra_columns(self, ctx, frame, phi):
+        """Return the regressors beyond bias and scale factor (none)."""
+        return []
+
     def columns(self, ctx, frame, phi):
         """Regressor columns [1, scale-factor term, ...] at ``frame``'s rows."""
-        raise NotImplementedError
+        return [np.ones(len(frame)),
+                frame.slow(self.ratio(ctx, frame, phi)) * self.sensed_rate(frame, phi)
+                ] + self.extra_columns(ctx, frame, phi)
 
     def report(self, beta, phi):
-        """Physical parameter values from the linear and non-linear solution."""
-        return {}
+        """Return the physical parameter values: the non-linear ones, then beta[2:]."""
+        values = list(phi) + list(beta[2:2 + len(self.params) - len(phi)])
+        return {p.name: v for p, v in zip(self.params, values)}
 
     @property
     def n_params(self):
@@ -83,15 +97,10 @@ class Effect:
 
 
 class Recalibrated(Effect):
-    """The baseline with b0, s0 refitted on the same data (the reference)."""
+    """The baseline with b0, s0 refitted on the same data (the reference): [1, R(T) Omega]."""
 
     effect_id = 'recalibrated_baseline'
     cause = 'The paper model with its bias and scale factor refitted.'
-
-    def columns(self, ctx, frame, phi):
-        """[1, R(T) Omega]."""
-        return [np.ones(len(frame)),
-                _sf_column(frame, ctx.phys.ratio(_slow_temp(frame)))]
 
 
 class ViscosityTemperature(Effect):
@@ -108,14 +117,9 @@ class ViscosityTemperature(Effect):
                     '(T_ref + S)/(T + S) (air: 110.4 K)'),)
     grid = (np.geomspace(20.0, 1000.0, 36),)
 
-    def columns(self, ctx, frame, phi):
-        """[1, R_S(T) Omega] with R_S from the physics at Sutherland constant S."""
-        ratio = ctx.phys.sutherland_ratio(_slow_temp(frame), phi[0])
-        return [np.ones(len(frame)), _sf_column(frame, ratio)]
-
-    def report(self, beta, phi):
-        """S, K."""
-        return {'sutherland_constant_k': phi[0]}
+    def ratio(self, ctx, frame, phi):
+        """R_S(T) from the physics at Sutherland constant S."""
+        return ctx.phys.sutherland_ratio(_slow_temp(frame), phi[0])
 
 
 class BiasTemperature(Effect):
@@ -130,17 +134,10 @@ class BiasTemperature(Effect):
               Param('bias_temp_coeff2_rad_s_k2', 'rad/s/K^2',
                     'quadratic bias coefficient'))
 
-    def columns(self, ctx, frame, phi):
-        """[1, R Omega, dT, dT^2], dT = T - T_ref."""
+    def extra_columns(self, ctx, frame, phi):
+        """[dT, dT^2], dT = T - T_ref."""
         dt = frame.slow(_slow_temp(frame) - ctx.ref_temp_c)
-        return [np.ones(len(frame)),
-                _sf_column(frame, ctx.phys.ratio(_slow_temp(frame))),
-                dt, dt * dt]
-
-    def report(self, beta, phi):
-        """b1, b2."""
-        return {'bias_temp_coeff_rad_s_k': beta[2],
-                'bias_temp_coeff2_rad_s_k2': beta[3]}
+        return [dt, dt * dt]
 
 
 class ThermalLag(Effect):
@@ -159,14 +156,9 @@ class ThermalLag(Effect):
         """Time constants from 5 s to the record's length."""
         return (np.geomspace(5.0, max(50.0, min(2e4, ctx.duration_s)), 40),)
 
-    def columns(self, ctx, frame, phi):
-        """[1, R(T_lag) Omega]."""
-        lagged = frame.bins.lagged_temp_on_bins(phi[0])
-        return [np.ones(len(frame)), _sf_column(frame, ctx.phys.ratio(lagged))]
-
-    def report(self, beta, phi):
-        """Tau, s."""
-        return {'thermal_time_constant_s': phi[0]}
+    def ratio(self, ctx, frame, phi):
+        """R(T_lag), T_lag the reading through a first-order lag tau."""
+        return ctx.phys.ratio(frame.bins.lagged_temp_on_bins(phi[0]))
 
 
 class ScaleFactorNonlinearity(Effect):
@@ -183,7 +175,7 @@ class ScaleFactorNonlinearity(Effect):
 
     def columns(self, ctx, frame, phi):
         """[1, R Omega, R Omega^2, R Omega^3]."""
-        ratio = frame.slow(ctx.phys.ratio(_slow_temp(frame)))
+        ratio = frame.slow(self.ratio(ctx, frame, phi))
         return [np.ones(len(frame)), ratio * frame.rate, ratio * frame.rate2,
                 ratio * frame.rate3]
 
@@ -206,16 +198,9 @@ class GSensitivity(Effect):
                          f'bias per unit acceleration along {a}')
                    for a in 'xyz')
 
-    def columns(self, ctx, frame, phi):
-        """[1, R Omega, a_x, a_y, a_z]."""
-        return [np.ones(len(frame)),
-                _sf_column(frame, ctx.phys.ratio(_slow_temp(frame)))] + [
-            frame.accel[:, k] for k in range(3)]
-
-    def report(self, beta, phi):
-        """G_x, G_y, G_z."""
-        return {f'g_sensitivity_{a}_rad_s_per_m_s2': beta[2 + k]
-                for k, a in enumerate('xyz')}
+    def extra_columns(self, ctx, frame, phi):
+        """[a_x, a_y, a_z]."""
+        return [frame.accel[:, k] for k in range(3)]
 
 
 class TimeDelay(Effect):
@@ -228,15 +213,9 @@ class TimeDelay(Effect):
     params = (Param('delay_s', 's', 'output delay behind the applied rate'),)
     grid = (np.linspace(-0.05, 0.3, 71),)
 
-    def columns(self, ctx, frame, phi):
-        """[1, R Omega(t - d)]."""
-        return [np.ones(len(frame)),
-                _sf_column(frame, ctx.phys.ratio(_slow_temp(frame)),
-                           frame.delayed_rate(phi[0]))]
-
-    def report(self, beta, phi):
-        """d, s."""
-        return {'delay_s': phi[0]}
+    def sensed_rate(self, frame, phi):
+        """Omega(t - d)."""
+        return frame.delayed_rate(phi[0])
 
 
 class PressureDrift(Effect):
@@ -258,17 +237,12 @@ class PressureDrift(Effect):
         hours = max(1e-6, (ctx.time_span_s[1] - ctx.time_span_s[0]) / HOUR_S)
         return (np.linspace(max(-0.9 / hours, -3.0), 3.0, 61),)
 
-    def columns(self, ctx, frame, phi):
-        """[1, R(T) (Y(T, P(t)) / Y(T, P_ref)) Omega]."""
+    def ratio(self, ctx, frame, phi):
+        """R(T) Y(T, P(t)) / Y(T, P_ref)."""
         b = frame.bins.binned
-        ratio = 1.0 + phi[0] * (b.time_s - ctx.time_span_s[0]) / HOUR_S
-        factor = ctx.phys.pressure_factor(b.temp_c, np.maximum(ratio, 0.05))
-        return [np.ones(len(frame)),
-                _sf_column(frame, ctx.phys.ratio(b.temp_c) * factor)]
-
-    def report(self, beta, phi):
-        """K, 1/h."""
-        return {'pressure_rate_per_h': phi[0]}
+        pressure = 1.0 + phi[0] * (b.time_s - ctx.time_span_s[0]) / HOUR_S
+        factor = ctx.phys.pressure_factor(b.temp_c, np.maximum(pressure, 0.05))
+        return ctx.phys.ratio(b.temp_c) * factor
 
 
 class ModeSplitDrift(Effect):
@@ -287,12 +261,11 @@ class ModeSplitDrift(Effect):
     grid = (np.r_[-_df0[:0:-1], _df0],
             np.array([0.0, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0]))
 
-    def columns(self, ctx, frame, phi):
-        """[1, R(T) m(T) Omega], m = 1/sqrt(1 + (2 Q (df0 + df1 dT)/f)^2)."""
+    def ratio(self, ctx, frame, phi):
+        """R(T) m(T), m = 1/sqrt(1 + (2 Q (df0 + df1 dT)/f)^2)."""
         temp = _slow_temp(frame)
         split = phi[0] + phi[1] * (temp - ctx.ref_temp_c)
-        ratio = ctx.phys.ratio(temp) * ctx.phys.mode_split_factor(temp, split)
-        return [np.ones(len(frame)), _sf_column(frame, ratio)]
+        return ctx.phys.ratio(temp) * ctx.phys.mode_split_factor(temp, split)
 
     def report(self, beta, phi):
         """df0, df1 (sign chosen so df1 >= 0: the model is even in df)."""
@@ -313,15 +286,9 @@ class TemperatureRateBias(Effect):
     params = (Param('bias_per_temp_rate_rad_s_per_k_s', 'rad/s per K/s',
                     'bias per unit dT/dt'),)
 
-    def columns(self, ctx, frame, phi):
-        """[1, R Omega, dT/dt]."""
-        return [np.ones(len(frame)),
-                _sf_column(frame, ctx.phys.ratio(_slow_temp(frame))),
-                frame.temp_rate_c_s()]
-
-    def report(self, beta, phi):
-        """C, rad/s per K/s."""
-        return {'bias_per_temp_rate_rad_s_per_k_s': beta[2]}
+    def extra_columns(self, ctx, frame, phi):
+        """[dT/dt]."""
+        return [frame.temp_rate_c_s()]
 
 
 #: The reference every cause is judged against.

@@ -100,74 +100,94 @@ def markdown(doc, plots=()):
     str
 
     """
-    inp, best, cal = doc['input'], doc['best'], doc['calibration']
-    lines = [f"# Diagnosis of `{os.path.basename(inp['source']) or 'record'}`",
-             '',
-             f"{inp['rows']} samples over {inp['duration_s']:.0f} s "
-             f"(sample interval {inp['sample_interval_s']:.4g} s), "
-             f"temperature {inp['temp_range_c'][0]:.1f}..."
-             f"{inp['temp_range_c'][1]:.1f} C, rms applied rate "
-             f"{inp['rate_rms_rad_s']:.3g} rad/s, acceleration "
-             f"{'recorded' if inp['has_accel'] else 'not recorded'}. Fits run "
-             f"on {inp['bins']} bin means of {inp['bin_s']:.3g} s.", '',
-             '## Verdict', '']
+    sections = (('Verdict', _verdict_lines(doc)),
+                ('Baseline', [_baseline_text(doc), '']),
+                ('Findings (ranked by held-out RMSE)', _findings_lines(doc)),
+                ('Residuals before and after',
+                 [line for name in plots for line in (f'![{name}]({name})', '')]),
+                ('Method', [_method_text(doc), '']))
+    lines = _summary_lines(doc)
+    for title, body in sections:
+        if body:
+            lines += [f'## {title}', ''] + body
+    return '\n'.join(lines)
+
+
+def _summary_lines(doc):
+    """Return the title and one paragraph on the record."""
+    inp = doc['input']
+    return [f"# Diagnosis of `{os.path.basename(inp['source']) or 'record'}`",
+            '',
+            f"{inp['rows']} samples over {inp['duration_s']:.0f} s "
+            f"(sample interval {inp['sample_interval_s']:.4g} s), "
+            f"temperature {inp['temp_range_c'][0]:.1f}..."
+            f"{inp['temp_range_c'][1]:.1f} C, rms applied rate "
+            f"{inp['rate_rms_rad_s']:.3g} rad/s, acceleration "
+            f"{'recorded' if inp['has_accel'] else 'not recorded'}. Fits run "
+            f"on {inp['bins']} bin means of {inp['bin_s']:.3g} s.", '']
+
+
+def _verdict_lines(doc):
+    """Return the verdict: the cause, its gain, the residual message, its parameters."""
+    best = doc['best']
     if best['effect'] == 'none':
-        lines.append('**No cause found** (`none`): no candidate improves the '
-                     'held-out fit significantly.')
+        lines = ['**No cause found** (`none`): no candidate improves the '
+                 'held-out fit significantly.']
     else:
-        lines.append(f"**{best['effect']}**: {best['cause']}")
-        lines.append('')
-        lines.append(f"Held-out RMSE {doc['baseline']['rmse_rad_s']:.4g} -> "
-                     f"{best['rmse_rad_s']:.4g} rad/s: gain "
-                     f"{100 * best['gain']:.1f} % (gain = 1 - RMSE_cause / "
-                     'RMSE_baseline).')
+        lines = [f"**{best['effect']}**: {best['cause']}", '',
+                 f"Held-out RMSE {doc['baseline']['rmse_rad_s']:.4g} -> "
+                 f"{best['rmse_rad_s']:.4g} rad/s: gain "
+                 f"{100 * best['gain']:.1f} % (gain = 1 - RMSE_cause / "
+                 'RMSE_baseline).']
     lines += ['', doc['residual']['message'], '']
     if best['parameters']:
         lines += ['| parameter | value | 1 sigma | unit | meaning |',
                   '|---|---|---|---|---|']
-        for name, p in best['parameters'].items():
-            lines.append(f"| {name} | {_fmt(p['value'])} | {_fmt(p['sigma'])} "
-                         f"| {p['unit']} | {p['meaning']} |")
-        lines.append('')
-    lines += ['## Baseline', '',
-              f"{doc['baseline']['model']}. Calibration: bias "
-              f"{cal['bias_rad_s']:.4g} rad/s, scale factor "
-              f"{cal['scale_factor']:.5g}"
-              + ('' if cal['scale_factor_calibrated'] else
-                 ' (nominal: no rate excitation near the reference temperature)')
-              + f", from {cal['samples']} samples within "
-              f"{cal['window_c']:.2f} C of {cal['ref_temp_c']:.1f} C. Held-out "
-              f"RMSE {doc['baseline']['rmse_rad_s']:.4g} rad/s (recalibrated "
-              'on all training data: '
-              f"{doc['recalibrated_baseline']['rmse_rad_s']:.4g} rad/s).", '',
-              '## Findings (ranked by held-out RMSE)', '',
-              '| effect | held-out RMSE (rad/s) | gain | gain over recalibrated '
-              '| p | delta BIC | significant |',
-              '|---|---|---|---|---|---|---|']
-    for f in doc['findings']:
-        lines.append(
-            f"| {f['effect']} | {f['rmse_rad_s']:.4g} | {100 * f['gain']:.2f} % "
+        lines += [f"| {name} | {_fmt(p['value'])} | {_fmt(p['sigma'])} "
+                  f"| {p['unit']} | {p['meaning']} |"
+                  for name, p in best['parameters'].items()] + ['']
+    return lines
+
+
+def _baseline_text(doc):
+    """Return the paragraph on the baseline model, its calibration and held-out RMSE."""
+    cal = doc['calibration']
+    return (f"{doc['baseline']['model']}. Calibration: bias "
+            f"{cal['bias_rad_s']:.4g} rad/s, scale factor "
+            f"{cal['scale_factor']:.5g}"
+            + ('' if cal['scale_factor_calibrated'] else
+               ' (nominal: no rate excitation near the reference temperature)')
+            + f", from {cal['samples']} samples within "
+            f"{cal['window_c']:.2f} C of {cal['ref_temp_c']:.1f} C. Held-out "
+            f"RMSE {doc['baseline']['rmse_rad_s']:.4g} rad/s (recalibrated "
+            'on all training data: '
+            f"{doc['recalibrated_baseline']['rmse_rad_s']:.4g} rad/s).")
+
+
+def _findings_lines(doc):
+    """Return the table of findings, then the entries not tested."""
+    rows = [f"| {f['effect']} | {f['rmse_rad_s']:.4g} | {100 * f['gain']:.2f} % "
             f"| {100 * f['gain_over_recalibrated']:.2f} % | {f['p_value']:.2g} "
-            f"| {f['delta_bic']:.0f} | {'yes' if f['significant'] else 'no'} |")
-    for nt in doc['not_tested']:
-        lines.append(f"| {nt['effect']} | not tested: {nt['reason']} | | | | | |")
-    lines.append('')
-    if plots:
-        lines += ['## Residuals before and after', '']
-        for name in plots:
-            lines.append(f'![{name}]({name})')
-            lines.append('')
+            f"| {f['delta_bic']:.0f} | {'yes' if f['significant'] else 'no'} |"
+            for f in doc['findings']]
+    rows += [f"| {nt['effect']} | not tested: {nt['reason']} | | | | | |"
+             for nt in doc['not_tested']]
+    return ['| effect | held-out RMSE (rad/s) | gain | gain over recalibrated '
+            '| p | delta BIC | significant |',
+            '|---|---|---|---|---|---|---|'] + rows + ['']
+
+
+def _method_text(doc):
+    """Return the selection rules in one paragraph."""
     m = doc['method']
-    lines += ['## Method', '',
-              f"{m['folds']} contiguous cross-validation blocks; every model "
-              'is fitted on the other blocks and predicts the held-out one '
-              'sample by sample. A cause is significant when its held-out '
-              'RMSE gain over the recalibrated baseline is >= '
-              f"{100 * m['min_gain']:.1f} %, a paired test over "
-              f"{m['sub_blocks']} sub-blocks gives p < {m['alpha']:g} and its "
-              f"BIC is lower by more than {-m['delta_bic_max']:g}. "
-              f"Uncertainties: {m['uncertainty']}.", '']
-    return '\n'.join(lines)
+    return (f"{m['folds']} contiguous cross-validation blocks; every model "
+            'is fitted on the other blocks and predicts the held-out one '
+            'sample by sample. A cause is significant when its held-out '
+            'RMSE gain over the recalibrated baseline is >= '
+            f"{100 * m['min_gain']:.1f} %, a paired test over "
+            f"{m['sub_blocks']} sub-blocks gives p < {m['alpha']:g} and its "
+            f"BIC is lower by more than {-m['delta_bic_max']:g}. "
+            f"Uncertainties: {m['uncertainty']}.")
 
 
 def write_report(diagnosis, out_dir):

@@ -95,13 +95,12 @@ def fit_effect(effect, ctx, frame, rows=None):
 
     Variable projection: the linear coefficients are solved in closed form
     (weighted least squares, :func:`_wls`) for each value of the nonlinear
-    ones, which a grid search and a bounded refinement choose. ``ctx`` holds
-    the physics and reference points, ``frame`` the bin means and ``rows``
-    the training rows (all when None).
+    ones, which a grid search and a bounded refinement choose
+    (:func:`_search_1d`, :func:`_search_2d`). ``ctx`` holds the physics and
+    reference points, ``frame`` the bin means and ``rows`` the training rows
+    (all when None).
     """
-    from scipy.optimize import minimize, minimize_scalar
-
-    rows = np.ones(len(frame), bool) if rows is None else rows
+    rows = base.rows_or_all(frame, rows)
     y = frame.gyro[rows]
     w = frame.weight[rows]
 
@@ -114,37 +113,46 @@ def fit_effect(effect, ctx, frame, rows=None):
     if not grids:
         beta, sse = solve(())
         return Fit(beta, (), sse)
-    if len(grids) == 1:
-        g = grids[0]
-        sses = np.array([solve((v,))[1] for v in g])
-        i = int(np.argmin(sses))
-        lo, hi = g[max(i - 1, 0)], g[min(i + 1, len(g) - 1)]
-        best_phi, best_sse = (float(g[i]),), sses[i]
-        if hi > lo:
-            res = minimize_scalar(lambda v: solve((v,))[1], bounds=(lo, hi),
-                                  method='bounded',
-                                  options={'xatol': 1e-4 * (hi - lo)})
-            if res.fun < best_sse:
-                best_phi, best_sse = (float(res.x),), res.fun
-    else:
-        g0, g1 = grids
-        sses = np.array([[solve((a, b))[1] for b in g1] for a in g0])
-        i, j = np.unravel_index(int(np.argmin(sses)), sses.shape)
-        best_phi, best_sse = (float(g0[i]), float(g1[j])), sses[i, j]
-        step = np.array([
-            max(np.diff(g0).min(), 0.5 * (g0[min(i + 1, len(g0) - 1)]
-                                          - g0[max(i - 1, 0)])),
-            max(np.diff(g1).min(), 0.5 * (g1[min(j + 1, len(g1) - 1)]
-                                          - g1[max(j - 1, 0)]))])
-        start = np.array(best_phi)
-        simplex = np.array([start, start + [step[0], 0], start + [0, step[1]]])
-        res = minimize(lambda p: solve(tuple(p))[1], start, method='Nelder-Mead',
-                       options={'initial_simplex': simplex, 'maxfev': 120,
-                                'xatol': 1e-3, 'fatol': 1e-9 * best_sse})
-        if res.fun < best_sse:
-            best_phi, best_sse = tuple(float(v) for v in res.x), res.fun
+    search = _search_1d if len(grids) == 1 else _search_2d
+    best_phi = search(lambda phi: solve(phi)[1], *grids)
     beta, sse = solve(best_phi)
     return Fit(beta, best_phi, sse)
+
+
+def _search_1d(sse_of, g):
+    """Grid search over ``g``, then bounded refinement between the best point's neighbours."""
+    from scipy.optimize import minimize_scalar
+
+    sses = np.array([sse_of((v,)) for v in g])
+    i = int(np.argmin(sses))
+    lo, hi = g[max(i - 1, 0)], g[min(i + 1, len(g) - 1)]
+    best_phi, best_sse = (float(g[i]),), sses[i]
+    if hi > lo:
+        res = minimize_scalar(lambda v: sse_of((v,)), bounds=(lo, hi),
+                              method='bounded', options={'xatol': 1e-4 * (hi - lo)})
+        if res.fun < best_sse:
+            best_phi = (float(res.x),)
+    return best_phi
+
+
+def _search_2d(sse_of, g0, g1):
+    """Grid search over ``g0 x g1``, then a Nelder-Mead refinement from the best point."""
+    from scipy.optimize import minimize
+
+    sses = np.array([[sse_of((a, b)) for b in g1] for a in g0])
+    i, j = np.unravel_index(int(np.argmin(sses)), sses.shape)
+    best_phi, best_sse = (float(g0[i]), float(g1[j])), sses[i, j]
+    step = np.array([
+        max(np.diff(g0).min(), 0.5 * (g0[min(i + 1, len(g0) - 1)] - g0[max(i - 1, 0)])),
+        max(np.diff(g1).min(), 0.5 * (g1[min(j + 1, len(g1) - 1)] - g1[max(j - 1, 0)]))])
+    start = np.array(best_phi)
+    simplex = np.array([start, start + [step[0], 0], start + [0, step[1]]])
+    res = minimize(lambda p: sse_of(tuple(p)), start, method='Nelder-Mead',
+                   options={'initial_simplex': simplex, 'maxfev': 120,
+                            'xatol': 1e-3, 'fatol': 1e-9 * best_sse})
+    if res.fun < best_sse:
+        best_phi = tuple(float(v) for v in res.x)
+    return best_phi
 
 
 def predict(effect, ctx, frame, fit):
@@ -290,6 +298,25 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     Diagnosis
 
     """
+    cv = _cross_validation(data, preset, ref_temp_c, folds, max_bins)
+    catalogue = fx.CATALOGUE if effects is None else tuple(
+        fx.effect(e) for e in effects)
+    rmse_base = _baseline_rmse(cv)
+    null = cv.evaluate(fx.NULL)
+    findings, not_tested, evaluated = _test_catalogue(catalogue, cv, null, rmse_base)
+    best = _choose(findings, evaluated)
+    after_effect, after = (fx.NULL, null) if best is None else evaluated[best['effect']]
+    structure = residual_structure(cv.prep, after.resid)
+    structure['message'] = _structure_message(best, structure)
+    cal_all = base.calibrate(cv.prep.binned, cv.ctx.phys)
+    doc = _document(data, preset, cal_all, cv, rmse_base, null, _best_doc(best, rmse_base),
+                    findings, not_tested, structure)
+    label = best['effect'] if best else 'recalibrated baseline (no cause found)'
+    return _diagnosis(doc, cv, cal_all, after_effect, after.full, label)
+
+
+def _cross_validation(data, preset, ref_temp_c, folds, max_bins):
+    """Check ``folds``, bin the record, evaluate the device physics over it, cut the folds."""
     if folds < 3 or folds > 50:
         raise ValueError(f'diagnose.folds = {folds!r} is out of range: '
                          'allowed [3, 50]')
@@ -303,16 +330,27 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     ctx = fx.Context(phys=phys, ref_temp_c=tref,
                      time_span_s=(float(data.time_s[0]), float(data.time_s[-1])),
                      duration_s=prep.duration_s)
-    catalogue = fx.CATALOGUE if effects is None else tuple(
-        fx.effect(e) for e in effects)
-    cv = _CrossValidation(data, prep, folds, ctx)
-    # user-calibrated baseline, recalibrated from each fold's training rows
+    return _CrossValidation(data, prep, folds, ctx)
+
+
+def _baseline_rmse(cv):
+    """Held-out RMSE of the user-calibrated baseline, recalibrated on each fold's training rows."""
+    prep, phys = cv.prep, cv.ctx.phys
     _, base_sub = cv.held_out(lambda k: base.baseline_prediction(
-        prep.samples, phys, base.calibrate(b, phys, rows=cv.fold_of_bin != k)))
-    rmse_base = math.sqrt(float(np.sum(base_sub)) / data.rows)
-    null = cv.evaluate(fx.NULL)
-    have = _excitation(prep)
-    findings, not_tested, store = [], [], {}
+        prep.samples, phys, base.calibrate(prep.binned, phys, rows=cv.fold_of_bin != k)))
+    return math.sqrt(float(np.sum(base_sub)) / len(cv.y))
+
+
+def _test_catalogue(catalogue, cv, null, rmse_base):
+    """
+    Evaluate every catalogue entry the record can show.
+
+    Returns the findings ranked by held-out RMSE, the entries not tested
+    (with the reason: the excitation they need is missing) and
+    ``{effect_id: (effect, _Evaluated)}`` of those tested.
+    """
+    have = _excitation(cv.prep)
+    findings, not_tested, evaluated = [], [], {}
     for eff in catalogue:
         missing = [need for need in eff.needs if need not in have]
         if missing:
@@ -321,25 +359,18 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
             continue
         result = cv.evaluate(eff)
         findings.append(_finding(eff, result, null, cv, rmse_base))
-        store[eff.effect_id] = (eff, result.resid, result.sub, result.full)
+        evaluated[eff.effect_id] = (eff, result)
     findings.sort(key=lambda f: f['rmse_rad_s'])
-    best = _choose(findings, store)
-    if best is None:
-        chosen_resid, after_effect, after_fit = null.resid, fx.NULL, null.full
-    else:
-        after_effect, chosen_resid, _, after_fit = store[best['effect']]
-    structure = residual_structure(prep, chosen_resid)
-    best_doc = _best_doc(best, rmse_base, structure)
-    structure['message'] = _structure_message(best, structure)
-    cal_all = base.calibrate(b, phys)
-    doc = _document(data, prep, preset, cal_all, cv, rmse_base, null, best_doc, findings,
-                    not_tested, structure)
-    before = b.gyro - base.baseline_prediction(b, phys, cal_all)
-    after = b.gyro - predict(after_effect, ctx, b, after_fit)
-    return Diagnosis(doc=doc, prepared=prep, residual_before=before,
-                     residual_after=after,
-                     after_label=(best['effect'] if best else
-                                  'recalibrated baseline (no cause found)'))
+    return findings, not_tested, evaluated
+
+
+def _diagnosis(doc, cv, cal_all, after_effect, after_fit, after_label):
+    """Return the :class:`Diagnosis`: the document and the bin-mean residuals before and after."""
+    b = cv.prep.binned
+    before = b.gyro - base.baseline_prediction(b, cv.ctx.phys, cal_all)
+    after = b.gyro - predict(after_effect, cv.ctx, b, after_fit)
+    return Diagnosis(doc=doc, prepared=cv.prep, residual_before=before,
+                     residual_after=after, after_label=after_label)
 
 
 @dataclass
@@ -430,9 +461,10 @@ def _finding(eff, result, null, cv, rmse_base):
             'significant': significant}
 
 
-def _document(data, prep, preset, cal_all, cv, rmse_base, null, best_doc, findings,
+def _document(data, preset, cal_all, cv, rmse_base, null, best_doc, findings,
               not_tested, structure):
     """Return the JSON document of a diagnosis."""
+    prep = cv.prep
     return {
         'input': {'source': data.source, 'rows': data.rows,
                   'duration_s': prep.duration_s, 'sample_interval_s': prep.dt_s,
@@ -462,22 +494,23 @@ def _document(data, prep, preset, cal_all, cv, rmse_base, null, best_doc, findin
     }
 
 
-def _choose(findings, store):
+def _choose(findings, evaluated):
     """Top significant finding, preferring fewer parameters when not separable."""
     sig = [f for f in findings if f['significant']]
     if not sig:
         return None
     top = sig[0]
     simpler = [f for f in sig[1:] if f['n_params'] < top['n_params']
-               and _paired_p(store[f['effect']][2],
-                             store[top['effect']][2]) >= ALPHA_TIE]
+               and _paired_p(evaluated[f['effect']][1].sub,
+                             evaluated[top['effect']][1].sub) >= ALPHA_TIE]
     if simpler:
         simpler.sort(key=lambda f: (f['n_params'], f['rmse_rad_s']))
         return simpler[0]
     return top
 
 
-def _best_doc(best, rmse_base, structure):
+def _best_doc(best, rmse_base):
+    """Return the verdict's entry of the document ('none' when no cause is significant)."""
     if best is None:
         return {'effect': 'none', 'cause': None, 'parameters': {},
                 'rmse_rad_s': rmse_base, 'gain': 0.0}

@@ -14,9 +14,10 @@ random magnitude, driven by a seeded random lab-like profile, plus noise:
 - a temperature reading with 0.02 C white noise.
 
 Effects the error model has (bias temperature coefficients, die thermal lag,
-g-sensitivity) are its terms; the others act on the rate the part senses
-(delay, cubic nonlinearity, a drifting mode split, a leaking cavity) or, for
-the temperature-rate bias, add to its output.
+g-sensitivity, quadratic nonlinearity) are its terms; the others are physics
+or lab effects it cannot express: they act on the rate the part senses
+(delay, the cubic nonlinearity term, a drifting mode split, a leaking cavity)
+or, for the temperature-rate bias, add to its output.
 
 The profile (:func:`lab_profile`) resembles real lab work: temperature soaks
 (the first one at 25 C for calibration) joined by heating and cooling ramps,
@@ -90,6 +91,26 @@ def lab_profile(rng, sample_rate_hz=25.0, levels=5, max_duration_s=None):
     Profile
 
     """
+    plan, end_s = _soak_plan(rng, levels)
+    duration = end_s if max_duration_s is None else min(end_s, max_duration_s)
+    dt = 1.0 / sample_rate_hz
+    t = np.arange(0.0, duration, dt)
+    temp = _soak_ramp_temperature(t, plan)
+    rate, max_rate = _table_rate(rng, t, duration, sample_rate_hz)
+    accel = _table_gravity(rng, t, rate, duration, dt)
+    return Profile(time_s=t, rate_rad_s=rate, temp_c=temp, accel_m_s2=accel,
+                   max_rate_rad_s=float(max_rate), name='lab')
+
+
+def _soak_plan(rng, levels):
+    """
+    Draw the chamber plan: soaks at ``levels`` temperatures joined by ramps.
+
+    The first soak (600 s) and the last are at 25 C; the others last 6 to
+    11 min at levels spread from -10..12 C to 55..85 C in random order, and
+    the ramps run at 1 to 3 K/min. Return the (time, temp) knots and the end
+    time, s.
+    """
     t_lo = rng.uniform(-10.0, 12.0)
     t_hi = rng.uniform(55.0, 85.0)
     temps = list(np.linspace(t_lo, t_hi, levels) + rng.uniform(-3, 3, levels))
@@ -104,11 +125,18 @@ def lab_profile(rng, sample_rate_hz=25.0, levels=5, max_duration_s=None):
         if i + 1 < len(order):
             ramp_k_s = rng.uniform(1.0, 3.0) / 60.0
             now += abs(order[i + 1] - level) / ramp_k_s
-    duration = now if max_duration_s is None else min(now, max_duration_s)
-    dt = 1.0 / sample_rate_hz
-    t = np.arange(0.0, duration, dt)
-    temp = _soak_ramp_temperature(t, plan)
+    return plan, now
 
+
+def _table_rate(rng, t, duration, sample_rate_hz):
+    """
+    Draw the rate-table program: steps under an acceleration limit and chirps.
+
+    Dwells of 20 to 60 s at 0 or +-10, 25, 50, 75 or 100 % of a full scale
+    of 150 to 300 deg/s, reached at 100 to 300 deg/s^2; 12 % of the dwells carry a
+    swept sine (0.2 Hz up to at most 4 Hz or f_s / 6) with a sin^2 taper.
+    Return the rate at ``t``, rad/s, and the full scale, rad/s.
+    """
     max_rate = deg_s_to_rad_s(rng.uniform(150.0, 300.0))
     accel_limit = deg_s_to_rad_s(rng.uniform(100.0, 300.0))
     fractions = np.array([0.0, 0.1, 0.25, 0.5, 0.75, 1.0])
@@ -141,8 +169,17 @@ def lab_profile(rng, sample_rate_hz=25.0, levels=5, max_duration_s=None):
         phase = 2 * np.pi * (f0 * tau + 0.5 * (f1 - f0) / length * tau ** 2)
         taper = np.sin(np.pi * tau / length) ** 2
         rate[m] += amp * taper * np.sin(phase)
+    return rate, max_rate
 
-    # tilt of the table axis from vertical; gravity rotates with the table
+
+def _table_gravity(rng, t, rate, duration, dt):
+    """
+    Draw the tilts of the table axis; return gravity in the sensor frame, m/s^2.
+
+    The axis dwells 3 to 10 min at a tilt from vertical of 0 to 180 deg;
+    gravity's horizontal part turns with the table angle (the integral of
+    the rate).
+    """
     tilt = np.zeros_like(t)
     now = 0.0
     angles = np.deg2rad([0.0, 30.0, 60.0, 90.0, 120.0, 180.0])
@@ -152,11 +189,9 @@ def lab_profile(rng, sample_rate_hz=25.0, levels=5, max_duration_s=None):
         now += dwell
     table_angle = np.cumsum(rate) * dt
     g = STANDARD_GRAVITY_M_S2
-    accel = np.column_stack([g * np.sin(tilt) * np.cos(table_angle),
-                             -g * np.sin(tilt) * np.sin(table_angle),
-                             g * np.cos(tilt)])
-    return Profile(time_s=t, rate_rad_s=rate, temp_c=temp, accel_m_s2=accel,
-                   max_rate_rad_s=float(max_rate), name='lab')
+    return np.column_stack([g * np.sin(tilt) * np.cos(table_angle),
+                            -g * np.sin(tilt) * np.sin(table_angle),
+                            g * np.cos(tilt)])
 
 
 def paper_profile(sample_rate_hz=10.0, minutes_per_point=5.0,
@@ -278,7 +313,8 @@ def _sensor_config(device, effect, params, drawn):
     The part's own terms: turn-on bias, scale-factor error, SF(T) from the
     physics of ``device``, white rate noise N and rate random walk K, and the
     hidden effect where the error model has it (bias temperature
-    coefficients, die thermal lag, g-sensitivity). Everything else is off.
+    coefficients, die thermal lag, g-sensitivity, quadratic nonlinearity).
+    Everything else is off.
     """
     on = {'scale_factor_temperature', 'turn_on_bias', 'scale_factor_error',
           'electronics_noise', 'rate_random_walk'}
@@ -295,6 +331,9 @@ def _sensor_config(device, effect, params, drawn):
         on.add('g_sensitivity')
         row = tuple(params[f'g_sensitivity_{a}_rad_s_per_m_s2'] for a in 'xyz')
         extra = {'g_sensitivity_rad_s_m_s2': ((0.0,) * 3, (0.0,) * 3, row)}
+    elif effect == 'scale_factor_nonlinearity':
+        on.add('nonlinearity')
+        extra = {'nonlinearity_s_rad': (0.0, 0.0, params['nonlinearity_quadratic_s_rad'])}
     terms = ErrorTerms(**{name: name in on for name in ErrorTerms.names()})
     return SensorConfig(
         device=device, terms=terms, range_rad_s=(1000.0,) * 3,
@@ -310,9 +349,13 @@ def _rate_into_the_part(profile, effect, params, device):
     """
     Return the rate the error model sees: the true rate with the effects it lacks.
 
-    Delay, cubic nonlinearity, and the scale-factor changes of a drifting
-    mode split (Eq 4 off resonance) or a leaking cavity pressure (Eq 5-12
-    at the new pressure) act on the sensed rate before the part's own gain.
+    Delay (the part's latency term only stamps its samples, it does not
+    shift them), the cubic term of the nonlinearity (x = Omega (1 + a3 Omega^2);
+    the part adds its quadratic term, x + a2 x^2, so the output is
+    Omega (1 + a2 Omega + a3 Omega^2) to within 2 a3 Omega^2 <= 2 % of the
+    quadratic term), and the scale-factor changes of a drifting mode split
+    (Eq 4 off resonance) or a leaking cavity pressure (Eq 5-12 at the new
+    pressure) act on the sensed rate before the part's own gain.
     """
     t, rate, temp = profile.time_s, profile.rate_rad_s, profile.temp_c
     tref = device.calibration_temp_c
@@ -320,8 +363,7 @@ def _rate_into_the_part(profile, effect, params, device):
     if effect == 'time_delay':
         rate_in = np.interp(t - params['delay_s'], t, rate, left=rate[0])
     if effect == 'scale_factor_nonlinearity':
-        rate_in = rate_in * (1.0 + params['nonlinearity_quadratic_s_rad'] * rate_in
-                             + params['nonlinearity_cubic_s2_rad2'] * rate_in ** 2)
+        rate_in = rate_in * (1.0 + params['nonlinearity_cubic_s2_rad2'] * rate_in ** 2)
     if effect == 'mode_split_drift':
         p = first_order.lumped_parameters(device, temp)
         split = params['mode_split_at_ref_hz'] + params[
@@ -336,6 +378,20 @@ def _rate_into_the_part(profile, effect, params, device):
             device, temp[coarse])
         rate_in = rate_in * np.interp(t, t[coarse], sf_p)
     return rate_in
+
+
+def _draw_part_errors(rng, noise=None):
+    """Draw the part's noise densities, turn-on bias and scale factor; ``noise`` overrides."""
+    drawn = {
+        # white noise density, deg/s/sqrt(Hz) (= deg/sqrt(s))
+        'arw_deg_sqrt_s': rng.uniform(0.006, 0.015),
+        # rate random walk, deg/h/sqrt(h) -> deg/s/sqrt(s)
+        'rrw_deg_s_sqrt_s': rng.uniform(5.0, 40.0) / 3600.0 / 60.0,
+        'bias_deg_s': rng.uniform(-0.5, 0.5),
+        'scale_factor': rng.uniform(0.98, 1.02),
+    }
+    drawn.update(noise or {})
+    return drawn
 
 
 def simulate(profile, effect, params, rng, preset='paper', noise=None):
@@ -376,15 +432,7 @@ def simulate(profile, effect, params, rng, preset='paper', noise=None):
     t, rate, temp = profile.time_s, profile.rate_rad_s, profile.temp_c
     n = len(t)
     dt = float(t[1] - t[0])
-    drawn = {
-        # white noise density, deg/s/sqrt(Hz) (= deg/sqrt(s))
-        'arw_deg_sqrt_s': rng.uniform(0.006, 0.015),
-        # rate random walk, deg/h/sqrt(h) -> deg/s/sqrt(s)
-        'rrw_deg_s_sqrt_s': rng.uniform(5.0, 40.0) / 3600.0 / 60.0,
-        'bias_deg_s': rng.uniform(-0.5, 0.5),
-        'scale_factor': rng.uniform(0.98, 1.02),
-    }
-    drawn.update(noise or {})
+    drawn = _draw_part_errors(rng, noise)
     part = device
     if effect == 'viscosity_temperature':
         part = device.with_gas(viscosity_law='sutherland',

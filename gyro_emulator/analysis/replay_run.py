@@ -1,0 +1,107 @@
+"""
+One offline replay run: a bag in; the emulated bag, the report and the plots out.
+
+:func:`replay_bag` is what ``gyro-emulator replay`` does once its arguments
+are parsed: open the bag (:func:`gyro_emulator.recording.records.load_record`,
+tolerant of damage), take the sensor configuration and seed as given or else
+from the bag's ``custom_data``, read the inputs (:func:`load_inputs`),
+emulate, compare, and write ``DIR/emulated``, the report and the plots.
+"""
+
+from dataclasses import dataclass
+import os
+
+from gyro_emulator.analysis.emulator_bag import white_noise_sigma, write_output_bag
+from gyro_emulator.analysis.replay_inputs import emulate, load_inputs
+from gyro_emulator.analysis.replay_report import compare, report_text, write_report
+from gyro_emulator.recording import records
+from gyro_emulator.sensor.config import load_sensor_config
+
+#: Sensor configuration when neither the caller nor the bag names one.
+DEFAULT_CONFIG = 'paper'
+
+
+@dataclass(frozen=True)
+class ReplayRun:
+    """
+    What a replay run wrote.
+
+    ``bag_dir`` is the emulated bag directory, ``samples`` the number of
+    emulated samples, ``report`` the report text (as in ``report.md``) and
+    ``paths`` the report and plot files written.
+    """
+
+    bag_dir: str
+    samples: int
+    report: str
+    paths: list
+
+
+def _ignore(note):
+    """Drop a warning."""
+
+
+def replay_bag(bag_path, out_dir, config=None, seed=None, plots=True, overwrite=False,
+               warn=_ignore, **input_options):
+    """
+    Replay a bag through the model and write the emulated bag and the report.
+
+    Parameters
+    ----------
+    bag_path : str
+        Bag directory or ``.mcap`` file.
+    out_dir : str
+        Output directory: ``emulated`` (a bag), ``report.md``, ``report.json``
+        and the plots.
+    config : str, optional
+        Sensor preset or YAML (default: the bag's ``custom_data``
+        ``sensor_config``, else ``paper``).
+    seed : int, optional
+        Random seed (default: the bag's ``custom_data`` ``seed``, else 0).
+    plots : bool
+        Write the PNG plots.
+    overwrite : bool
+        Replace a non-empty ``out_dir/emulated``; without it that is an error.
+    warn : callable
+        ``warn(note)`` for each thing a damaged bag lost.
+    **input_options
+        Keywords of :func:`load_inputs` (source, topics, rate_hz, temp_c,
+        use_log_time).
+
+    Returns
+    -------
+    ReplayRun
+
+    Raises
+    ------
+    FileExistsError
+        ``out_dir/emulated`` exists, is not empty and ``overwrite`` is false.
+
+    """
+    reader = records.load_record(bag_path).reader
+    if reader is None:
+        raise ValueError(f'{bag_path} is not a bag (a directory or an .mcap file)')
+    for note in reader.problems:
+        warn(f'incomplete bag, {note}')
+    bag_dir = os.path.join(out_dir, 'emulated')
+    if os.path.isdir(bag_dir) and os.listdir(bag_dir) and not overwrite:
+        raise FileExistsError(f'{bag_dir} exists and is not empty (pass --overwrite)')
+    config_name = config or reader.custom_data.get('sensor_config', DEFAULT_CONFIG)
+    seed = seed if seed is not None else int(reader.custom_data.get('seed', 0))
+    sensor_config = load_sensor_config(config_name)
+    shown = len(reader.problems)
+    inputs = load_inputs(reader, **input_options)
+    for note in reader.problems[shown:]:
+        warn(note)
+    _, batch = emulate(inputs, sensor_config, seed)
+    comparison = compare(inputs, batch)
+    header = [f'bag: {os.path.abspath(bag_path)}', f'sensor config: {config_name}',
+              f'seed: {seed}'] + [f'recovered: {note}' for note in reader.problems]
+    sigma = white_noise_sigma(sensor_config, inputs.rate_hz)
+    write_output_bag(bag_dir, inputs, batch, comparison, sigma, custom_data={
+        'generator': 'gyro-emulator replay', 'source_bag': os.path.abspath(bag_path),
+        'sensor_config': str(config_name), 'seed': str(seed),
+        'rate_hz': repr(inputs.rate_hz), 'source': inputs.source})
+    paths = write_report(out_dir, comparison, inputs, header, plots=plots)
+    return ReplayRun(bag_dir=bag_dir, samples=len(inputs.stamp_ns),
+                     report=report_text(comparison, inputs, header), paths=paths)

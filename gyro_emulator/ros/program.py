@@ -1,0 +1,95 @@
+"""
+What the ROS programs ``recorder`` and ``replay`` share: arguments, errors, the end.
+
+Each parses its options from the command line without the ROS arguments
+(``--ros-args ...``, which ``rclpy.init`` reads), reports bad input as one
+line ``<program>: error: ...`` with exit status 2, ends quietly on SIGINT or
+SIGTERM, and however the run ends cleans up, destroys its node and shuts
+rclpy down (:class:`Run`).
+"""
+
+import sys
+
+from gyro_emulator.ros.spinning import close
+import rclpy
+from rclpy.executors import ExternalShutdownException
+
+#: Exit status of a run stopped by bad input.
+ERROR_STATUS = 2
+
+
+def parse_arguments(parser, program, args=None):
+    """
+    Return the argument list for ``rclpy.init`` and the parsed options.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The program's own options.
+    program : str
+        Program name, the first entry of the argument list.
+    args : list of str or None
+        Arguments after the program name (None: ``sys.argv``).
+
+    Returns
+    -------
+    tuple
+        ``(argv, options)``; ``argv`` keeps the ROS arguments.
+
+    """
+    argv = list(sys.argv) if args is None else [program] + list(args)
+    return argv, parser.parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
+
+
+def add_seconds_options(parser, options):
+    """Add options that take a duration in seconds: ``{flag: (default, help)}``."""
+    for flag, (default, text) in options.items():
+        parser.add_argument(flag, type=float, default=default, metavar='S', help=text)
+
+
+class Run:
+    """
+    One run of a ROS program: its node, its exit status and its clean-up.
+
+    Use as ``with Run('replay') as run:``; set ``run.node`` once the node
+    exists and register clean-ups with :meth:`on_exit`. On leaving the block,
+    SIGINT/SIGTERM (``KeyboardInterrupt``, ``ExternalShutdownException``)
+    end the run quietly, a ``ValueError`` or ``OSError`` is printed as one
+    line and sets :attr:`status` to :data:`ERROR_STATUS`; then the clean-ups
+    run in order, the node is destroyed and rclpy is shut down.
+
+    Parameters
+    ----------
+    program : str
+        Name that prefixes the error line.
+
+    """
+
+    def __init__(self, program):
+        self.program = program
+        self.node = None
+        self.status = 0
+        self._cleanups = []
+
+    def on_exit(self, cleanup):
+        """Call ``cleanup()`` when the run ends, before the node is destroyed."""
+        self._cleanups.append(cleanup)
+
+    def __enter__(self):
+        """Return the run."""
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        """Report the error (if any), clean up, close; say whether the error was handled."""
+        handled = kind is not None and issubclass(
+            kind, (KeyboardInterrupt, ExternalShutdownException))
+        if kind is not None and issubclass(kind, (ValueError, OSError)):
+            print(f'{self.program}: error: {error}', file=sys.stderr)
+            self.status = ERROR_STATUS
+            handled = True
+        try:
+            for cleanup in self._cleanups:
+                cleanup()
+        finally:
+            close(self.node)
+        return handled
