@@ -55,7 +55,7 @@ def test_consumer_preset_recovery_through_its_output_filter():
     """
     The consumer preset (42 Hz output filter, N 0.30, B 10, K 50) recovered from 2 h at 200 Hz.
 
-    Before issue 13 the fit gave N 0.20 / B 70 / K 0. Over 24 simulated axes
+    Before issue 13 the fit gave N 0.20 / B 70 / K 0. Over 18 simulated axes
     the spread was 0.7 % (N), 3.5 % (B) and 37 % (K, one axis per record,
     K dominant only above ~200 s): N to 3 %, B to 15 %, each axis's 95 %
     interval of K must hold 50 and the mean of the three axes lies within

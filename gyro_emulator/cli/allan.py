@@ -54,8 +54,9 @@ def add_arguments(parser):
                              '(default: %(default)s)')
 
 
-def print_terms(info, out=sys.stdout, indent='  '):
+def print_terms(info, out=None, indent='  '):
     """Print the fitted terms, their intervals and read-offs of an ``analyse_record`` dict."""
+    out = sys.stdout if out is None else out
     fit = info['fit']
     lo, hi = fit['tau_range_s']
     print(f'{indent}fit over tau {lo:.3g} .. {hi:.4g} s, {100 * fit["ci"]:.0f} % intervals '

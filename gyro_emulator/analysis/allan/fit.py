@@ -464,15 +464,21 @@ def readings(taus_s, adev):
     its line: Q = sigma tau / sqrt(3), N = sigma sqrt(tau), B = sigma / 0.664,
     K = sigma sqrt(3 / tau), R = sigma sqrt(2) / tau. Every other term only
     adds to sigma, so each read-off is an upper bound of the term, equal to
-    it where the term dominates.
+    it where the term dominates. N is read the classic way where the curve
+    has a white region (local slope -1/2): sigma sqrt(tau) at the tau of
+    that region closest to 1 s.
     """
     taus = np.asarray(taus_s, dtype=float)
     sig = np.asarray(adev, dtype=float)
     slopes = local_slopes(taus, sig, half_width=1)
     out = {}
+    white = np.flatnonzero(np.abs(slopes - SLOPES['arw']) <= READING_SLOPE_TOLERANCE)
     for term in TERMS:
         values = _READ_AT[term][1](sig, taus)
         i = int(np.argmin(values))
+        if term == 'arw' and len(white):
+            # the classic reading: the -1/2 line through the white region, at 1 s
+            i = int(white[np.argmin(np.abs(np.log(taus[white])))])
         interior = 0 < i < len(taus) - 1 or term != 'bias_instability'
         out[term] = Reading(value=float(values[i]), tau_s=float(taus[i]),
                             slope=float(slopes[i]), identified=bool(
