@@ -16,6 +16,7 @@ COMMANDS = (
     ('paper', 'gyro_emulator.cli.paper'),
     ('simulate', 'gyro_emulator.cli.simulate'),
     ('allan', 'gyro_emulator.cli.allan'),
+    ('calibrate', 'gyro_emulator.cli.calibrate'),
     ('dynamics', 'gyro_emulator.cli.dynamics'),
     ('bag', 'gyro_emulator.cli.bag'),
     ('replay', 'gyro_emulator.cli.replay'),

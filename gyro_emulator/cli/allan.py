@@ -1,5 +1,5 @@
 """
-Allan deviation of a gyro record, with the N (ARW), B and K noise fit.
+Allan deviation of a gyro record and its IEEE Std 952 noise identification.
 
 Reads a CSV with ``time_s`` and ``gyro_rad_s`` or ``gyro_{x,y,z}_rad_s``
 (``.csv.gz`` too; our ``simulate`` output and measured logs alike), or a
@@ -9,8 +9,15 @@ timestamps of a jittery logger are accepted); a step longer than
 ``--gap-factor`` times the median is a gap, and the Allan variance is then
 pooled over the contiguous segments.
 
+The short-tau region shaped by an output filter or band-limiting is found
+from the PSD (or the slope) and left out; the five IEEE Std 952 terms are
+fitted above it, each with its confidence interval, and printed beside the
+read-offs (tangent lines), with a warning where the fitted curve and the
+measured one disagree.
+
 Units: N (angle random walk) in deg/sqrt(h), B (bias instability, Allan floor
-0.664 B) in deg/h, K (rate random walk) in deg/h/sqrt(h) (IEEE Std 952).
+0.664 B) in deg/h, K (rate random walk) in deg/h/sqrt(h), Q (quantisation)
+in urad, R (rate ramp) in deg/h/h.
 """
 
 import os
@@ -18,7 +25,14 @@ import sys
 
 from gyro_emulator.cli.jsonout import write_json
 
-HELP = 'overlapping Allan deviation of a gyro record and its N, B, K fit'
+HELP = 'overlapping Allan deviation of a gyro record and its IEEE Std 952 noise terms'
+
+_ROWS = (('quantization', 'Q (quantisation)     '), ('arw', 'N (ARW)              '),
+         ('bias_instability', 'B (bias instability) '), ('rrw', 'K (rate random walk) '),
+         ('rate_ramp', 'R (rate ramp)        '))
+_READ = {'quantization': 'tau^-1 line at sqrt(3) s', 'arw': '-1/2 line at 1 s',
+         'bias_instability': 'minimum / 0.664', 'rrw': '+1/2 line at 3 s',
+         'rate_ramp': '+1 line at sqrt(2) s'}
 
 
 def add_arguments(parser):
@@ -40,6 +54,29 @@ def add_arguments(parser):
                              '(default: %(default)s)')
 
 
+def print_terms(info, out=None, indent='  '):
+    """Print the fitted terms, their intervals and read-offs of an ``analyse_record`` dict."""
+    out = sys.stdout if out is None else out
+    fit = info['fit']
+    lo, hi = fit['tau_range_s']
+    print(f'{indent}fit over tau {lo:.3g} .. {hi:.4g} s, {100 * fit["ci"]:.0f} % intervals '
+          f'(model discrepancy {100 * fit["misfit"]:.1f} %)', file=out)
+    for term, name in _ROWS:
+        row = fit['terms'][term]
+        if term in ('quantization', 'rate_ramp') and not row['resolved']:
+            continue
+        low, high = row['interval']
+        flag = '' if row['resolved'] else '  (not resolved: upper bound)'
+        read = f'read-off {row["read_off"]:.4g} ({_READ[term]}, tau {row["read_off_tau_s"]:.3g} s)'
+        if not row['read_off_identified']:
+            read += ' upper bound'
+        elif row['share_at_read_off'] is not None and row['share_at_read_off'] < 0.8:
+            read += (f' upper bound: the term carries {100 * row["share_at_read_off"]:.0f} % '
+                     'of the fitted variance there')
+        print(f'{indent}fit  {name}{row["value"]:10.4g} [{low:.4g}, {high:.4g}] {row["unit"]}'
+              f'{flag}; {read}', file=out)
+
+
 def run(args):
     """Analyse the record, print the summary, write JSON and plot if asked."""
     from gyro_emulator.analysis import allan
@@ -52,12 +89,10 @@ def run(args):
           f'{info["sample_rate_hz"]:.4g} Hz, {info["duration_s"]:.1f} s, '
           f'{info["segments"]} segment(s), {info["repeated_timestamps"]} repeated '
           'timestamp(s)')
-    print(f'  fit  N (ARW)              {info["arw_deg_sqrt_h"]:10.4g} deg/sqrt(h)')
-    print(f'  fit  B (bias instability) {info["bias_instability_deg_h"]:10.4g} deg/h')
-    print(f'  fit  K (rate random walk) {info["rrw_deg_h_sqrt_h"]:10.4g} deg/h/sqrt(h)')
-    print(f'  read ADEV(1 s) sqrt(1 s)  {info["arw_at_1s_deg_sqrt_h"]:10.4g} deg/sqrt(h)')
-    print(f'  read min ADEV / 0.664     {info["bias_instability_min_deg_h"]:10.4g} deg/h '
-          f'at tau = {info["tau_at_min_s"]:.4g} s')
+    print(f'  band limit: {fit.band.note}')
+    print_terms(info)
+    for warning in fit.warnings:
+        print(f'gyro-emulator allan: warning: {warning}', file=sys.stderr)
     if args.json:
         write_json(args.json, info)
     if args.plot:

@@ -1,0 +1,207 @@
+"""
+Noise identification of a record, as ``gyro-emulator allan`` and ``calibrate noise`` run it.
+
+:func:`read_gyro_record` reads the gyro axes of a CSV file or a bag once
+(through :func:`gyro_emulator.recording.records.load_record`);
+:func:`identify` runs the IEEE Std 952 procedure on one axis: overlapping
+Allan deviation with confidence intervals, the band-limited short-tau region
+(:mod:`~gyro_emulator.analysis.allan.band`), the five-term fit and its
+intervals (:mod:`~gyro_emulator.analysis.allan.fit`), the read-offs, and the
+warnings when they disagree; :func:`analyse_record` does both for one axis
+and returns the JSON summary.
+"""
+
+from dataclasses import dataclass, replace
+
+from gyro_emulator import units
+from gyro_emulator.analysis.allan import adev, band, fit as fitting
+from gyro_emulator.recording import csvio, records, topics
+import numpy as np
+
+AXES = ('x', 'y', 'z')
+
+
+@dataclass(frozen=True)
+class GyroRecord:
+    """
+    The gyro axes of a record.
+
+    Attributes
+    ----------
+    path : str
+        Where it was read from.
+    time_s : numpy.ndarray
+        Sample times from the first, s (non-decreasing).
+    rates : dict
+        Axis ('x', 'y', 'z') -> rate samples, rad/s (one entry for a
+        single-axis CSV: its column is taken as axis 'x').
+    columns : dict
+        Axis -> the column or topic field it came from.
+    recovery : tuple of str
+        What a damaged bag lost.
+
+    """
+
+    path: str
+    time_s: np.ndarray
+    rates: dict
+    columns: dict
+    recovery: tuple = ()
+
+
+def read_gyro_record(path, topic=None):
+    """
+    Read the gyro axes of a CSV file (``gyro_rad_s`` or ``gyro_{x,y,z}_rad_s``) or a bag.
+
+    A bag must have one sensor_msgs/Imu topic, or ``topic`` names it.
+    Repeated timestamps of a jittery logger are accepted.
+    """
+    path = str(path)
+    if records.is_bag(path):
+        rec = records.load_record(path)
+        imu = [name for name, info in rec.reader.topics.items()
+               if info.type_name == topics.IMU]
+        if topic is None and len(imu) != 1:
+            raise ValueError(f'{path}: {len(imu)} sensor_msgs/Imu topics '
+                             f'({", ".join(imu) or "none"}): choose one with --topic')
+        name = rec.find_topic('gyro', topic or imu[0], types=(topics.IMU,))
+        stream = rec.stream(name)
+        time_s = (stream.times_ns - stream.times_ns[0]) * 1e-9
+        csvio.check_increasing(time_s, f'{path}: header stamps', strict=False)
+        block = stream.field('angular_velocity')
+        return GyroRecord(path, time_s, {a: block[:, i] for i, a in enumerate(AXES)},
+                          {a: f'{name} angular_velocity.{a}' for a in AXES},
+                          tuple(rec.recovery))
+    rec = records.load_record(path, required=('time_s',), time_order='nondecreasing')
+    names = csvio.gyro_columns(rec.columns, path)
+    if len(names) == 1:
+        return GyroRecord(path, rec.columns['time_s'], {'x': rec.columns[names[0]]},
+                          {'x': names[0]})
+    return GyroRecord(path, rec.columns['time_s'],
+                      {a: rec.columns[n] for a, n in zip(AXES, names)}, dict(zip(AXES, names)))
+
+
+def axis_of(record, axis):
+    """Return (rate, column) of ``axis`` (None: x); a one-column record has only x."""
+    axis = 'x' if axis is None else axis
+    if axis not in AXES:
+        raise ValueError(f'axis = {axis!r} is not allowed: choose x, y or z')
+    if axis not in record.rates:
+        raise ValueError(f'{record.path}: has one gyro column ({record.columns["x"]}): '
+                         f'there is no axis {axis!r}; leave --axis out')
+    return record.rates[axis], record.columns[axis]
+
+
+def segments_of(time_s, rate, gap_factor=3.0):
+    """Return (nominal rate Hz, contiguous segments of >= 3 samples) split at gaps."""
+    rate_hz, bounds = csvio.sample_rate_and_segments(time_s, gap_factor)
+    segments = [np.asarray(rate[a:b], dtype=float) for a, b in bounds if b - a >= 3]
+    if not segments:
+        raise ValueError('no segment has 3 or more samples')
+    return rate_hz, segments
+
+
+def identify(segments, rate_hz, max_tau_fraction=0.25, ci=0.683):
+    """
+    IEEE Std 952 noise identification of one axis.
+
+    Returns ``(AllanResult, NoiseFit)``: the overlapping Allan deviation of
+    the pooled segments over about 10 taus per decade (bands at level
+    ``ci``), and the five-term fit (95 % term intervals)
+    above the band-limited region, with its ``band``, ``readings`` and the
+    warnings of the fit, of the read-off comparison and of the band limit.
+    """
+    longest = max(len(s) for s in segments)
+    taus = adev.tau_multiples(longest, 10, max_tau_fraction) / rate_hz
+    result = adev.overlapping_adev(segments, rate_hz, taus=taus, ci=ci)
+    limit = band.band_limit(segments, rate_hz, result.taus_s, result.adev)
+    usable = result.taus_s >= limit.tau_min_s * (1 - 1e-9)
+    if np.count_nonzero(usable) < 3:
+        raise ValueError(f'only {np.count_nonzero(usable)} averaging times above the '
+                         f'band-limited region (tau >= {limit.tau_min_s:.3g} s): the record '
+                         'is too short for a noise fit')
+    found = fitting.fit_noise_terms(result, (limit.tau_min_s, result.taus_s[-1]))
+    read = fitting.readings(result.taus_s[usable], result.adev[usable])
+    warnings = list(found.warnings) + fitting.compare_readings(found, result, read)
+    return result, replace(found, band=limit, readings=read, warnings=tuple(warnings))
+
+
+def summary(fit):
+    """Return a :class:`NoiseFit` as JSON: values, intervals, read-offs (datasheet units)."""
+    conv = {'quantization': (lambda v: np.asarray(v) * 1e6, 'urad'),
+            'arw': (units.rad_s_sqrt_hz_to_arw_deg_sqrt_h, 'deg/sqrt(h)'),
+            'bias_instability': (units.rad_s_to_deg_h, 'deg/h'),
+            'rrw': (units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h, 'deg/h/sqrt(h)'),
+            'rate_ramp': (lambda v: units.rad_s_to_deg_h(v) * 3600.0, 'deg/h/h')}
+    terms = {}
+    for term in fitting.TERMS:
+        to, unit = conv[term]
+        interval = fit.intervals.get(term)
+        reading = fit.readings.get(term)
+        share = None
+        if reading is not None and fit.adev([reading.tau_s])[0] > 0:
+            share = float((fit.term_adev(term, [reading.tau_s])[0]
+                           / fit.adev([reading.tau_s])[0]) ** 2)
+        terms[term] = {
+            'value': float(to(fit.value(term))), 'unit': unit,
+            'si': fit.value(term),
+            'interval': None if interval is None else [
+                float(to(interval.low)), float(to(interval.high))],
+            'resolved': fit.resolved(term),
+            'read_off': None if reading is None else float(to(reading.value)),
+            'read_off_tau_s': None if reading is None else reading.tau_s,
+            'read_off_identified': None if reading is None else reading.identified,
+            'share_at_read_off': share}
+    limit = fit.band
+    return {'terms': terms, 'ci': fit.ci, 'tau_range_s': list(fit.tau_range_s),
+            'misfit': fit.misfit, 'warnings': list(fit.warnings),
+            'band_limit': None if limit is None else {
+                'tau_min_s': limit.tau_min_s, 'method': limit.method,
+                'edge_hz': limit.edge_hz, 'quantisation': limit.quantisation,
+                'note': limit.note}}
+
+
+def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_factor=3.0,
+                   record=None):
+    """
+    Analyse one axis of a record (CSV or bag) as ``gyro-emulator allan`` does.
+
+    Returns ``(JSON-ready dict, AllanResult, NoiseFit)``; ``record`` (a
+    :class:`GyroRecord`) skips reading the file again.
+    """
+    record = read_gyro_record(path, topic) if record is None else record
+    rate, column = axis_of(record, axis)
+    try:
+        rate_hz, segments = segments_of(record.time_s, rate, gap_factor)
+    except ValueError as exc:
+        raise ValueError(f'{path}: {exc}') from None
+    result, found = identify(segments, rate_hz, max_tau_fraction)
+    time_s = record.time_s
+    info = {
+        'file': str(path), 'column': column, 'sample_rate_hz': rate_hz,
+        'recovery': list(record.recovery),
+        'n_samples': result.n_samples, 'segments': len(segments),
+        'repeated_timestamps': int(np.sum(np.diff(time_s) == 0.0)),
+        'duration_s': float(time_s[-1] - time_s[0]),
+        'arw_deg_sqrt_h': found.arw_deg_sqrt_h,
+        'bias_instability_deg_h': found.bias_instability_deg_h,
+        'rrw_deg_h_sqrt_h': found.rrw_deg_h_sqrt_h,
+        'arw_rad_s_sqrt_hz': found.arw_rad_s_sqrt_hz,
+        'bias_instability_rad_s': found.bias_instability_rad_s,
+        'rrw_rad_s_sqrt_s': found.rrw_rad_s_sqrt_s,
+        'quantization_rad': found.quantization_rad,
+        'rate_ramp_rad_s2': found.rate_ramp_rad_s2,
+        'arw_at_1s_deg_sqrt_h': float(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(
+            found.readings['arw'].value)),
+        'bias_instability_min_deg_h': float(units.rad_s_to_deg_h(
+            found.readings['bias_instability'].value)),
+        'tau_at_min_s': found.readings['bias_instability'].tau_s,
+        'fit': summary(found),
+        'taus_s': result.taus_s.tolist(), 'adev_rad_s': result.adev.tolist(),
+        'adev_lo_rad_s': result.adev_lo.tolist(), 'adev_hi_rad_s': result.adev_hi.tolist(),
+        'edf': result.edf.tolist(), 'ci': result.ci,
+        'units': {'arw': 'deg/sqrt(h)', 'bias_instability': 'deg/h (Allan floor 0.664 B)',
+                  'rrw': 'deg/h/sqrt(h)', 'adev': 'rad/s', 'quantization': 'rad',
+                  'rate_ramp': 'rad/s^2'},
+    }
+    return info, result, found

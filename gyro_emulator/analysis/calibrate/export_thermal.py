@@ -1,0 +1,194 @@
+"""
+Thermal exports: PX4 TC_G0_* and ArduPilot INS_TCAL1_* parameters, this emulator's bias terms.
+
+* ``px4``: a QGroundControl parameter file (``1 1 NAME VALUE TYPE``, tab
+  separated, as PX4's Tools/process_sensor_caldata.py writes it). PX4's
+  sensors module subtracts X0 + X1 d + X2 d^2 + X3 d^3 with d = T - TREF and
+  T held within [TMIN, TMAX]; TREF is the middle of the range; values in
+  rad/s per K^k. TC_G0_ID must be the gyro's device id, which a log does
+  not give: it is left as a marked comment.
+* ``ardupilot``: ``NAME VALUE`` lines (as Tools/scripts/tempcal_IMU.py
+  writes them). ArduPilot's AP_InertialSensor_tempcal.cpp subtracts
+  p(T - 35) - p(T_cal - 35), p(d) = (GYR1 d + GYR2 d^2 + GYR3 d^3) 1e-6,
+  T and T_cal held within [TMIN, TMAX]: a fixed reference of 35 C, no
+  constant term (the ordinary gyro calibration at T_cal takes the offset),
+  coefficients in rad/s per K^k times 1e6.
+* ``preset``: this emulator's sensor YAML: ``turn_on_bias_deg_s`` (the
+  polynomial at T_ref), ``bias_temp_coeff_deg_s_k`` and
+  ``bias_temp_coeff2_deg_s_k2`` about T_ref (the device's
+  ``calibration_temp_c``); the emulator's bias model is at most quadratic.
+"""
+
+from gyro_emulator import units
+from gyro_emulator.analysis.calibrate.noise import detect_lsb
+from gyro_emulator.analysis.calibrate.provenance import as_comments, MARKER, thermal_lines
+from gyro_emulator.analysis.calibrate.thermal import AXES, polyfit_stats, white_noise_of
+from gyro_emulator.sensor.config import ErrorTerms
+import numpy as np
+
+FORMATS = ('px4', 'ardupilot', 'preset')
+#: ArduPilot's fixed reference temperature (AP_InertialSensor_tempcal.cpp TEMP_REFERENCE), C.
+ARDUPILOT_TREF_C = 35.0
+#: ArduPilot stores its coefficients times this (SCALE_FACTOR).
+ARDUPILOT_SCALE = 1.0e6
+
+
+def _num(value):
+    return f'{float(value):.9g}'
+
+
+def _padded(coeffs):
+    out = np.zeros(4)
+    out[:len(coeffs)] = coeffs
+    return out
+
+
+def _require_three(fit, tool):
+    missing = [a for a in AXES if a not in fit.coefficients]
+    if missing:
+        raise ValueError(f'--format {tool} needs all three gyro axes: the log has '
+                         f'{", ".join(fit.coefficients)} (give x, y and z)')
+
+
+def px4_params(fit):
+    """Return the PX4 values {name: value}: TC_G0_TMIN/TMAX/TREF and TC_G0_X{k}_{axis}."""
+    params = {'TC_G0_TMIN': fit.temp_min_c, 'TC_G0_TMAX': fit.temp_max_c,
+              'TC_G0_TREF': fit.temp_ref_c}
+    for i, axis in enumerate(AXES):
+        coeffs = _padded(fit.coefficients[axis])
+        for k in range(4):
+            params[f'TC_G0_X{k}_{i}'] = float(coeffs[k])
+    return params
+
+
+def px4(fit):
+    """Write the PX4 parameter file (module docstring)."""
+    _require_three(fit, 'px4')
+    convention = ('PX4 subtracts X0 + X1 d + X2 d^2 + X3 d^3, d = T - TC_G0_TREF with T held '
+                  'within [TC_G0_TMIN, TC_G0_TMAX]; X_k in rad/s/K^k, temperatures in deg C '
+                  '(TREF = middle of the range, as PX4 process_sensor_caldata.py sets it).')
+    text = as_comments(thermal_lines(fit, 'px4', convention)
+                       + ['Load with QGroundControl (Parameters > Tools > Load from file), then '
+                          'reboot.',
+                          f'TC_G0_ID: {MARKER}: the device id of this gyro (param show '
+                          'CAL_GYRO0_ID); a log does not give it, and PX4 applies TC_G0_* only '
+                          'to the gyro with that id.',
+                          'TC_A* (accelerometer): not measured by this gyro log; this file '
+                          'leaves them unchanged.',
+                          '',
+                          'Vehicle-Id Component-Id Name Value Type'])
+    rows = [('TC_G_ENABLE', 1, 6)]
+    rows += [(name, value, 9) for name, value in sorted(px4_params(fit).items())]
+    return text + ''.join(f'1\t1\t{name}\t{_num(value) if kind == 9 else int(value)}\t{kind}\n'
+                          for name, value, kind in rows)
+
+
+def read_px4_params(text):
+    """Parse a QGroundControl parameter file (the :func:`px4` layout) to {name: value}."""
+    params = {}
+    for number, line in enumerate(text.splitlines(), 1):
+        if not line.strip() or line.lstrip().startswith('#'):
+            continue
+        cells = line.split('\t')
+        if len(cells) != 5:
+            raise ValueError(f'PX4 parameter file line {number}: {len(cells)} tab-separated '
+                             'cells: expected 5 (vehicle, component, name, value, type)')
+        try:
+            params[cells[2]] = float(cells[3])
+        except ValueError:
+            raise ValueError(f'PX4 parameter file line {number}: {cells[2]} = {cells[3]!r} is '
+                             'not a number') from None
+    return params
+
+
+def rebase(coeffs, old_ref_c, new_ref_c):
+    """Re-expand a polynomial in (T - old_ref) as one in (T - new_ref), ascending powers."""
+    poly = np.polynomial.Polynomial(coeffs)
+    shifted = poly(np.polynomial.Polynomial([new_ref_c - old_ref_c, 1.0]))
+    return _padded(shifted.coef[:4]) if len(shifted.coef) <= 4 else shifted.coef
+
+
+def ardupilot(fit):
+    """Write the ArduPilot parameter file (module docstring)."""
+    _require_three(fit, 'ardupilot')
+    convention = ('ArduPilot subtracts p(T - 35) - p(T_cal - 35), p(d) = (GYR1 d + GYR2 d^2 '
+                  '+ GYR3 d^3) 1e-6 rad/s, T held within [TMIN, TMAX]; the constant term is '
+                  'not stored (the ordinary gyro calibration at T_cal takes it): GYRk are the '
+                  f'fitted rad/s/K^k, re-expanded about {ARDUPILOT_TREF_C:g} C, times 1e6.')
+    lines = thermal_lines(fit, 'ardupilot', convention) + [
+        'INS_TCAL1_ACC* (accelerometer): not measured by this gyro log; left unset '
+        '(0 = no correction).',
+        'ArduPilot learns on board only over 10 K or more; these offline values have no such '
+        'limit but hold only within TMIN..TMAX.']
+    rows = [('INS_TCAL1_ENABLE', '1'), ('INS_TCAL1_TMIN', f'{fit.temp_min_c:.2f}'),
+            ('INS_TCAL1_TMAX', f'{fit.temp_max_c:.2f}')]
+    shifted = {a: rebase(fit.coefficients[a], fit.temp_ref_c, ARDUPILOT_TREF_C) for a in AXES}
+    for k in (1, 2, 3):
+        for axis in AXES:
+            rows.append((f'INS_TCAL1_GYR{k}_{axis.upper()}',
+                         _num(shifted[axis][k] * ARDUPILOT_SCALE)))
+    return as_comments(lines) + ''.join(f'{name} {value}\n' for name, value in rows)
+
+
+def _preset_axis_values(fit, axis):
+    """(turn-on bias, c1, c2) about T_ref: the fit itself up to order 2, else an order-2 refit."""
+    if fit.order <= 2:
+        coeffs = _padded(fit.coefficients[axis])
+        return coeffs[0], coeffs[1], coeffs[2]
+    g = fit.groups[axis]
+    coeffs, _, _ = polyfit_stats(g.temp_c - fit.temp_ref_c, g.rate_rad_s, 2)
+    return coeffs[0], coeffs[1], coeffs[2]
+
+
+def preset(fit, log):
+    """Write this emulator's sensor YAML (module docstring), N and the LSB from the log."""
+    convention = ('bias(T) = turn_on_bias + c1 (T - T_cal) + c2 (T - T_cal)^2 with T_cal = '
+                  "device calibration_temp_c = the fit's T_ref; T is the die temperature "
+                  "(thermal_lag off: the log's temperature is the die's).")
+    values = {a: _preset_axis_values(fit, a) for a in fit.coefficients}
+    noise = {a: white_noise_of(log, a, fit.gyro_scale)[0] for a in fit.coefficients}
+    steps = [detect_lsb(log.axes[a][2] * fit.gyro_scale) for a in fit.coefficients]
+    lsb = float(np.median(steps)) if all(s > 0 for s in steps) else 0.0
+    lines = thermal_lines(fit, 'preset', convention) + [
+        'N (electronics_arw) from the same samples (IEEE Std 952 fit); bias instability and '
+        'rate random walk: not measurable from this log, left at 0.']
+    if fit.order > 2:
+        lines.append("The emulator's bias model is quadratic: the cubic fit is refitted at "
+                     'order 2 here.')
+    if len(values) < 3:
+        lines.append(f'Axes {", ".join(a for a in AXES if a not in values)} copy axis '
+                     f'{next(iter(values))}.')
+    if lsb > 0.0:
+        lines.append(f'Samples lie on a grid of {lsb:.6g} rad/s (the LSB, or the precision the '
+                     'log was written with): quantization on.')
+    on = {'electronics_noise', 'turn_on_bias', 'bias_temperature'} | (
+        {'quantization'} if lsb > 0.0 else set())
+    rows = [values.get(a) or next(iter(values.values())) for a in AXES]
+    noise_rows = [noise.get(a) or next(iter(noise.values())) for a in AXES]
+
+    def vec(items):
+        return '[' + ', '.join(f'{float(v):.6g}' for v in items) + ']'
+
+    text = as_comments(lines)
+    text += (f'device:\n  preset: paper\n  calibration_temp_c: {fit.temp_ref_c:.4f}\nterms:\n'
+             + ''.join(f'  {n}: {"true" if n in on else "false"}\n' for n in ErrorTerms.names())
+             + 'electronics_arw_deg_sqrt_h: '
+             + vec(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v) for v in noise_rows) + '\n'
+             + 'turn_on_bias_deg_s: ' + vec(units.rad_s_to_deg_s(v[0]) for v in rows) + '\n'
+             + 'bias_temp_coeff_deg_s_k: ' + vec(units.rad_s_to_deg_s(v[1]) for v in rows)
+             + '\n' + 'bias_temp_coeff2_deg_s_k2: '
+             + vec(units.rad_s_to_deg_s(v[2]) for v in rows) + '\n')
+    if lsb > 0.0:
+        text += f'lsb_deg_s: {float(units.rad_s_to_deg_s(lsb)):.6g}\n'
+    return text
+
+
+def write_thermal(fit, fmt, log=None):
+    """Return the text of format ``fmt`` (one of :data:`FORMATS`); ``preset`` needs the log."""
+    if fmt == 'px4':
+        return px4(fit)
+    if fmt == 'ardupilot':
+        return ardupilot(fit)
+    if fmt == 'preset':
+        return preset(fit, log)
+    raise ValueError(f'format = {fmt!r} is not allowed: choose {", ".join(FORMATS)}')

@@ -1,0 +1,207 @@
+"""
+Noise calibration of a measured gyro log: the values an estimator or the emulator needs.
+
+:func:`calibrate_noise` runs the IEEE Std 952 identification
+(:func:`gyro_emulator.analysis.allan.identify`) on each axis of a static
+log and keeps what the exporters need: N, B and K per axis with their
+intervals, the tau range used, the log's sample rate, the value grid of
+its samples (:func:`detect_lsb`) and its mean.
+
+Estimators model white noise and a bias random walk only. :func:`export_noise`
+turns a calibration into those two numbers (continuous time, IEEE Std 952
+units: N in rad/s/sqrt(Hz), K in rad/s^2/sqrt(Hz) = rad/s/sqrt(s)):
+
+* a K the record does not resolve (lower 95 % bound zero) is exported as its
+  upper bound, and said so: an estimator that believes its bias never walks
+  is the failure to avoid;
+* with several axes, each number is the largest over the axes;
+* ``inflate`` multiplies N, B and K (and is written into every file).
+"""
+
+from dataclasses import dataclass
+
+from gyro_emulator.analysis import allan
+from gyro_emulator.analysis.allan import record as allan_record
+import numpy as np
+
+#: A grid is a quantisation step when every sample lies on it within this fraction.
+GRID_TOLERANCE = 0.02
+
+
+@dataclass(frozen=True)
+class AxisNoise:
+    """The identification of one axis: its Allan deviation, fit, mean (rad/s) and segments."""
+
+    axis: str
+    column: str
+    result: object
+    fit: object
+    mean_rad_s: float
+    segments: tuple = ()
+
+
+@dataclass(frozen=True)
+class NoiseCalibration:
+    """
+    Noise calibration of a log.
+
+    Attributes
+    ----------
+    source : str
+        The log.
+    rate_hz : float
+        Its nominal sample rate, Hz.
+    duration_s : float
+        First to last sample, s.
+    axes : tuple of AxisNoise
+        One per calibrated axis.
+    lsb_rad_s : float
+        The grid the samples lie on (0: none found), rad/s.
+    recovery : tuple of str
+        What a damaged bag lost.
+
+    """
+
+    source: str
+    rate_hz: float
+    duration_s: float
+    axes: tuple
+    lsb_rad_s: float = 0.0
+    recovery: tuple = ()
+
+    def axis(self, name):
+        """Return the :class:`AxisNoise` of axis ``name``."""
+        for item in self.axes:
+            if item.axis == name:
+                return item
+        raise ValueError(f'{self.source}: axis {name!r} was not calibrated')
+
+    @property
+    def tau_range_s(self):
+        """(shortest, longest) tau used by any axis, s."""
+        lows = [a.fit.tau_range_s[0] for a in self.axes]
+        highs = [a.fit.tau_range_s[1] for a in self.axes]
+        return min(lows), max(highs)
+
+
+def detect_lsb(rate, max_unique=200_000):
+    """
+    Quantisation step of a log: the grid its samples lie on, or 0.
+
+    The smallest gap between distinct values, refined over all gaps, is a
+    grid when every sample is on it within 2 % of a step, there are at least
+    8 distinct values and the step is below half the samples' standard
+    deviation. It is the part's LSB or the precision the log was written
+    with; either way the log's values are quantised to it.
+    """
+    values = np.asarray(rate, dtype=float)
+    unique = np.unique(values)
+    if len(unique) < 8 or len(unique) > max_unique:
+        return 0.0
+    gaps = np.diff(unique)
+    smallest = float(np.min(gaps))
+    if not smallest > 0.0:
+        return 0.0
+    counts = np.round(gaps / smallest)
+    step = float(np.sum(gaps) / np.sum(counts))
+    offsets = (unique - unique[0]) / step
+    if np.max(np.abs(offsets - np.round(offsets))) > GRID_TOLERANCE:
+        return 0.0
+    if step > 0.5 * float(np.std(values)):
+        return 0.0
+    return step
+
+
+def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fraction=0.25,
+                    record=None):
+    """
+    Identify the noise terms of each axis of a static log.
+
+    Parameters
+    ----------
+    path : str
+        CSV or bag (see :func:`gyro_emulator.analysis.allan.read_gyro_record`).
+    axes : sequence of str, optional
+        Axes to calibrate (default: all the log has).
+    topic : str, optional
+        Imu topic of a bag.
+    gap_factor, max_tau_fraction : float
+        As for ``gyro-emulator allan``.
+    record : GyroRecord, optional
+        Already read.
+
+    Returns
+    -------
+    NoiseCalibration
+
+    """
+    record = allan.read_gyro_record(path, topic) if record is None else record
+    axes = tuple(record.rates) if axes is None else tuple(axes)
+    found, rate_hz, steps = [], None, []
+    for name in axes:
+        rate, column = allan_record.axis_of(record, name)
+        try:
+            rate_hz, segments = allan.segments_of(record.time_s, rate, gap_factor)
+        except ValueError as exc:
+            raise ValueError(f'{path}: {exc}') from None
+        result, fit = allan.identify(segments, rate_hz, max_tau_fraction)
+        found.append(AxisNoise(name, column, result, fit, float(np.mean(rate)),
+                               tuple(segments)))
+        steps.append(detect_lsb(rate))
+    lsb = float(np.median(steps)) if all(s > 0.0 for s in steps) else 0.0
+    return NoiseCalibration(source=str(path), rate_hz=float(rate_hz),
+                            duration_s=float(record.time_s[-1] - record.time_s[0]),
+                            axes=tuple(found), lsb_rad_s=lsb, recovery=record.recovery)
+
+
+@dataclass(frozen=True)
+class ExportedNoise:
+    """
+    The white noise and bias random walk an estimator gets, continuous time.
+
+    ``arw_rad_s_sqrt_hz`` (N) and ``rrw_rad_s_sqrt_s`` (K, = rad/s^2/sqrt(Hz))
+    after ``inflate``; ``rrw_is_bound`` when K is an upper bound (not
+    resolved on some axis); ``per_axis`` maps each axis to its own (N, K)
+    before inflation; ``note`` says how the numbers were chosen.
+    """
+
+    arw_rad_s_sqrt_hz: float
+    rrw_rad_s_sqrt_s: float
+    bias_instability_rad_s: float
+    rrw_is_bound: bool
+    inflate: float
+    per_axis: dict
+    note: str
+
+
+def axis_values(item):
+    """Return (N, B, K, K is a bound) of one axis, rad/s units; K bound when not resolved."""
+    fit = item.fit
+    if fit.resolved('rrw'):
+        return fit.arw_rad_s_sqrt_hz, fit.bias_instability_rad_s, fit.rrw_rad_s_sqrt_s, False
+    return (fit.arw_rad_s_sqrt_hz, fit.bias_instability_rad_s,
+            max(fit.intervals['rrw'].high, fit.rrw_rad_s_sqrt_s), True)
+
+
+def export_noise(calibration, inflate=1.0):
+    """Return the estimator's N and K (module docstring): largest over axes, x ``inflate``."""
+    if not (np.isfinite(inflate) and 1.0 <= inflate <= 1000.0):
+        raise ValueError(f'inflate = {inflate!r} is out of range: allowed [1, 1000]')
+    per_axis = {a.axis: axis_values(a) for a in calibration.axes}
+    n = max(v[0] for v in per_axis.values())
+    b = max(v[1] for v in per_axis.values())
+    k = max(v[2] for v in per_axis.values())
+    bound = any(v[3] for v in per_axis.values())
+    parts = []
+    if len(per_axis) > 1:
+        parts.append('largest of the axes')
+    if bound:
+        parts.append('K not resolved on ' + ', '.join(
+            a for a, v in per_axis.items() if v[3]) + ': its upper bound is used')
+    if inflate != 1.0:
+        parts.append(f'inflated x{inflate:g} on request')
+    return ExportedNoise(arw_rad_s_sqrt_hz=n * inflate, rrw_rad_s_sqrt_s=k * inflate,
+                         bias_instability_rad_s=b * inflate, rrw_is_bound=bound,
+                         inflate=float(inflate),
+                         per_axis={a: (v[0], v[2]) for a, v in per_axis.items()},
+                         note='; '.join(parts))

@@ -1,0 +1,364 @@
+"""
+Thermal calibration: zero-rate bias against die temperature, from a static log.
+
+The log (:func:`read_thermal_log`) is a CSV with ``time_s``, ``temp_c`` and
+``gyro_rad_s`` or ``gyro_{x,y,z}_rad_s``, or several one-axis CSVs (x, y, z
+in the order given), or a bag with an Imu topic and a sensor_msgs/Temperature
+topic (default ``imu/temperature``, the die temperature). The samples are
+averaged in groups (:func:`group_means`): the bursts of a log with gaps, or
+windows of ``window_s`` of a continuous one. The bias is a polynomial in
+(T - T_ref), T_ref the middle of the logged range (PX4's TREF), fitted to
+the group means by least squares (:func:`fit_thermal`).
+
+The rule (what data can support which polynomial)
+-------------------------------------------------
+* Order k needs a temperature span of at least :data:`MIN_SPAN_K` [k] kelvin
+  (5, 15 and 25 K for orders 1, 2 and 3) and at least k + 3 distinct group
+  temperatures (group means :data:`DISTINCT_K` or more apart): k + 1
+  coefficients and two degrees of freedom to judge them.
+* The order is the highest the rule allows up to the one asked for (3), then
+  lowered while its top coefficient is within 3 standard errors of zero (the
+  errors from the scatter of the group means about the fit).
+* Data that cannot support order 1 are refused with a message naming the
+  span and the count and what is needed.
+
+When temperature and time move together (|correlation| > 0.9 over the
+groups) a drift in time cannot be told from a temperature effect, and the
+fit says so.
+"""
+
+from dataclasses import dataclass
+
+from gyro_emulator.analysis.allan import record as allan_record
+from gyro_emulator.recording import csvio, records, topics
+import numpy as np
+
+#: Smallest temperature span (K) for each polynomial order.
+MIN_SPAN_K = {1: 5.0, 2: 15.0, 3: 25.0}
+#: Group temperatures closer than this (K) count as one.
+DISTINCT_K = 0.25
+#: Highest order PX4 and ArduPilot store.
+MAX_ORDER = 3
+#: A top coefficient within this many standard errors of zero is dropped.
+SIGNIFICANCE = 3.0
+#: |corr(temperature, time)| above this: temperature and time are confounded.
+CONFOUNDED = 0.9
+AXES = ('x', 'y', 'z')
+
+
+@dataclass(frozen=True)
+class ThermalLog:
+    """Static gyro samples with their die temperature: per axis (time_s, temp_c, rate_rad_s)."""
+
+    sources: tuple
+    axes: dict
+    columns: dict
+
+
+def _read_bag(path, topic, temperature_topic):
+    rec = records.load_record(path)
+    imu = [n for n, info in rec.reader.topics.items() if info.type_name == topics.IMU]
+    if topic is None and len(imu) != 1:
+        raise ValueError(f'{path}: {len(imu)} sensor_msgs/Imu topics: choose one with --topic')
+    name = rec.find_topic('gyro', topic or imu[0], types=(topics.IMU,))
+    temp_name = rec.find_topic('temperature', temperature_topic,
+                               default=topics.DIE_TEMPERATURE_OUT.name,
+                               types=(topics.TEMPERATURE,))
+    if temp_name is None:
+        raise ValueError(f'{path}: no sensor_msgs/Temperature topic (default '
+                         f'{topics.DIE_TEMPERATURE_OUT.name}): name one with --temperature-topic')
+    gyro, temp = rec.stream(name), rec.stream(temp_name)
+    if len(temp) < 2:
+        raise ValueError(f'{path}: {temp_name} has {len(temp)} messages: need >= 2')
+    t0 = gyro.times_ns[0]
+    time_s = (gyro.times_ns - t0) * 1e-9
+    temp_c = np.interp(time_s, (temp.times_ns - t0) * 1e-9, temp.field('temperature'))
+    block = gyro.field('angular_velocity')
+    return ({a: (time_s, temp_c, block[:, i]) for i, a in enumerate(AXES)},
+            {a: f'{name} angular_velocity.{a}' for a in AXES})
+
+
+def read_thermal_log(paths, topic=None, temperature_topic=None):
+    """
+    Read a thermal log: one 3-axis CSV or bag, or one-axis CSVs taken as x, y, z in order.
+
+    Returns a :class:`ThermalLog`.
+    """
+    paths = [str(p) for p in paths]
+    if not paths or len(paths) > 3:
+        raise ValueError(f'thermal log: {len(paths)} files given: give one 3-axis file or '
+                         'one to three one-axis files (x, y, z in that order)')
+    if len(paths) == 1 and records.is_bag(paths[0]):
+        axes, columns = _read_bag(paths[0], topic, temperature_topic)
+        return ThermalLog(tuple(paths), axes, columns)
+    axes, columns = {}, {}
+    for i, path in enumerate(paths):
+        if records.is_bag(path):
+            raise ValueError(f'{path}: a bag must be the only thermal log given')
+        cols = records.load_record(path, required=('time_s', 'temp_c'),
+                                   time_order='nondecreasing').columns
+        names = csvio.gyro_columns(cols, path)
+        if len(names) == 3 and len(paths) > 1:
+            raise ValueError(f'{path}: has three gyro axes: give it alone')
+        for j, name in enumerate(names):
+            axis = AXES[i] if len(names) == 1 else AXES[j]
+            axes[axis] = (cols['time_s'], cols['temp_c'], cols[name])
+            columns[axis] = f'{path}:{name}'
+    return ThermalLog(tuple(paths), axes, columns)
+
+
+@dataclass(frozen=True)
+class Groups:
+    """Group means of one axis: time_s, temp_c, rate (rad/s), its standard error, count."""
+
+    time_s: np.ndarray
+    temp_c: np.ndarray
+    rate_rad_s: np.ndarray
+    sem_rad_s: np.ndarray
+    count: np.ndarray
+    bounds: tuple
+    how: str
+
+
+def group_means(time_s, temp_c, rate, window_s=60.0, gap_factor=3.0):
+    """
+    Average a static log in groups: its bursts (3 or more), or windows of ``window_s``.
+
+    The standard error of each mean is the sample standard deviation over
+    sqrt(count): it treats the samples within a group as independent.
+    """
+    _, bounds = csvio.sample_rate_and_segments(time_s, gap_factor)
+    bounds = [(a, b) for a, b in bounds if b - a >= 3]
+    how = f'{len(bounds)} bursts'
+    if len(bounds) < 3:
+        edges = np.arange(time_s[0], time_s[-1] + window_s, window_s)
+        idx = np.searchsorted(time_s, edges)
+        bounds = [(int(a), int(b)) for a, b in zip(idx[:-1], idx[1:]) if b - a >= 3]
+        how = f'{len(bounds)} windows of {window_s:g} s'
+    stats = np.array([(np.mean(time_s[a:b]), np.mean(temp_c[a:b]), np.mean(rate[a:b]),
+                       np.std(rate[a:b], ddof=1) / np.sqrt(b - a), b - a) for a, b in bounds])
+    if len(stats) == 0:
+        raise ValueError('thermal log: no group of 3 or more samples')
+    return Groups(stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3],
+                  stats[:, 4].astype(int), tuple(bounds), how)
+
+
+def distinct_temperatures(temps_c, resolution_k=DISTINCT_K):
+    """Count group temperatures at least ``resolution_k`` apart (greedy over sorted)."""
+    count, last = 0, -np.inf
+    for value in np.sort(np.asarray(temps_c, dtype=float)):
+        if value - last >= resolution_k:
+            count, last = count + 1, value
+    return count
+
+
+def allowed_order(span_k, distinct, requested=MAX_ORDER):
+    """Highest polynomial order the rule allows (module docstring); ValueError below 1."""
+    for order in range(min(int(requested), MAX_ORDER), 0, -1):
+        if span_k >= MIN_SPAN_K[order] and distinct >= order + 3:
+            return order
+    needs = '; '.join(f'order {k}: {MIN_SPAN_K[k]:g} K and {k + 3}' for k in (1, 2, 3))
+    raise ValueError(f'thermal log spans {span_k:.2f} K with {distinct} distinct temperatures '
+                     f'({DISTINCT_K:g} K apart): too little to fit bias against temperature '
+                     f'(need, for {needs})')
+
+
+def polyfit_stats(dtemp, values, order):
+    """Least squares in ascending powers of dtemp: (coefficients, standard errors, residuals)."""
+    design = np.vander(np.asarray(dtemp, dtype=float), order + 1, increasing=True)
+    coef, _, _, _ = np.linalg.lstsq(design, values, rcond=None)
+    resid = values - design @ coef
+    dof = max(len(values) - order - 1, 1)
+    scale = float(np.sum(resid ** 2) / dof)
+    cov = scale * np.linalg.pinv(design.T @ design)
+    return coef, np.sqrt(np.maximum(np.diag(cov), 0.0)), resid
+
+
+@dataclass(frozen=True)
+class ThermalFit:
+    """
+    Bias against temperature, per axis: polynomial in (T - temp_ref_c), rad/s per K^k.
+
+    ``coefficients[axis]`` ascending powers (order + 1 values), ``errors``
+    their standard errors, ``groups[axis]`` the group means, ``residual_rms``
+    the scatter of the group means about the fit and ``group_noise`` their
+    typical standard error (rad/s); ``notes`` what a user must know.
+    """
+
+    sources: tuple
+    columns: dict
+    temp_ref_c: float
+    temp_min_c: float
+    temp_max_c: float
+    order: int
+    order_reason: str
+    coefficients: dict
+    errors: dict
+    groups: dict
+    residual_rms: dict
+    group_noise: dict
+    span_k: float
+    distinct_temps: int
+    correlation: float
+    grouping: str
+    gyro_scale: float
+    notes: tuple
+
+    @property
+    def groups_temp_c(self):
+        """Group temperatures of the first axis, deg C."""
+        return next(iter(self.groups.values())).temp_c
+
+    def bias(self, axis, temp_c, clamp=True):
+        """Fitted bias of ``axis`` at ``temp_c`` (clamped to the logged range, as PX4 does)."""
+        t = np.asarray(temp_c, dtype=float)
+        if clamp:
+            t = np.clip(t, self.temp_min_c, self.temp_max_c)
+        return np.polynomial.polynomial.polyval(t - self.temp_ref_c, self.coefficients[axis])
+
+
+def _order_for(groups, temp_ref, order):
+    """Lower ``order`` while the top coefficient of any axis is insignificant."""
+    for k in range(order, 0, -1):
+        significant = []
+        for g in groups.values():
+            coef, err, _ = polyfit_stats(g.temp_c - temp_ref, g.rate_rad_s, k)
+            significant.append(abs(coef[k]) > SIGNIFICANCE * err[k])
+        if any(significant) or k == 1:
+            return k, significant
+    return 1, []
+
+
+def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0):
+    """
+    Fit bias against temperature for every axis of ``log`` (module docstring).
+
+    Parameters
+    ----------
+    log : ThermalLog
+        From :func:`read_thermal_log`.
+    order : int
+        Highest polynomial order wanted (1 to 3).
+    window_s : float
+        Group length of a log without gaps, s.
+    gyro_scale : float
+        Factor applied to the logged rates first (a known scale error).
+
+    Returns
+    -------
+    ThermalFit
+
+    """
+    if order not in (1, 2, 3):
+        raise ValueError(f'order = {order!r} is not allowed: choose 1, 2 or 3')
+    if not (np.isfinite(window_s) and 1.0 <= window_s <= 86400.0):
+        raise ValueError(f'window_s = {window_s!r} is out of range: allowed [1, 86400] s')
+    if not (np.isfinite(gyro_scale) and 0.01 <= gyro_scale <= 100.0):
+        raise ValueError(f'gyro_scale = {gyro_scale!r} is out of range: allowed [0.01, 100]')
+    groups = {a: group_means(t, temp, rate * gyro_scale, window_s)
+              for a, (t, temp, rate) in log.axes.items()}
+    temps = np.concatenate([temp for _, temp, _ in log.axes.values()])
+    t_min, t_max = float(np.min(temps)), float(np.max(temps))
+    first = next(iter(groups.values()))
+    span = float(np.ptp(first.temp_c))
+    distinct = distinct_temperatures(first.temp_c)
+    rule = allowed_order(span, distinct, order)
+    temp_ref = 0.5 * (t_min + t_max)
+    chosen, significant = _order_for(groups, temp_ref, rule)
+    reason = (f'the rule allows order {rule} for {span:.2f} K and {distinct} distinct '
+              f'temperatures (1: {MIN_SPAN_K[1]:g} K, 2: {MIN_SPAN_K[2]:g} K, 3: '
+              f'{MIN_SPAN_K[3]:g} K)')
+    if chosen < rule:
+        reason += f'; higher terms within {SIGNIFICANCE:g} standard errors of zero: order {chosen}'
+    coefs, errs, rms, noise = {}, {}, {}, {}
+    for axis, g in groups.items():
+        coef, err, resid = polyfit_stats(g.temp_c - temp_ref, g.rate_rad_s, chosen)
+        coefs[axis], errs[axis] = coef, err
+        rms[axis] = float(np.sqrt(np.mean(resid ** 2)))
+        noise[axis] = float(np.sqrt(np.mean(g.sem_rad_s ** 2)))
+    corr = float(np.corrcoef(first.temp_c, first.time_s)[0, 1]) if span > 0 else 0.0
+    notes = _notes(coefs, errs, rms, noise, corr, chosen, significant, gyro_scale)
+    return ThermalFit(sources=log.sources, columns=log.columns, temp_ref_c=temp_ref,
+                      temp_min_c=t_min, temp_max_c=t_max, order=chosen, order_reason=reason,
+                      coefficients=coefs, errors=errs, groups=groups, residual_rms=rms,
+                      group_noise=noise, span_k=span, distinct_temps=distinct,
+                      correlation=corr, grouping=first.how, gyro_scale=float(gyro_scale),
+                      notes=tuple(notes))
+
+
+def _notes(coefs, errs, rms, noise, corr, order, significant, gyro_scale):
+    notes = []
+    if abs(corr) > CONFOUNDED:
+        notes.append(f'temperature and time are confounded (correlation {corr:+.3f} over the '
+                     'groups): a drift in time (warm-up, bias instability, random walk) cannot '
+                     'be told apart from a temperature effect in this log; the coefficients '
+                     'hold for other runs only if the bias does not drift at constant '
+                     'temperature')
+    for axis in coefs:
+        if rms[axis] > 2.0 * noise[axis]:
+            notes.append(f'axis {axis}: the group means scatter about the fit by '
+                         f'{rms[axis] / noise[axis]:.1f}x their own noise: drift or structure '
+                         'that temperature does not explain')
+        if order == 1 and abs(coefs[axis][1]) <= SIGNIFICANCE * errs[axis][1]:
+            notes.append(f'axis {axis}: its slope is within {SIGNIFICANCE:g} standard errors '
+                         'of zero: no measurable temperature dependence over this span')
+    if gyro_scale != 1.0:
+        notes.append(f'the logged rates were multiplied by {gyro_scale:g} first (--gyro-scale)')
+    return notes
+
+
+def px4_offset(params, axis, temp_c):
+    """
+    Offset PX4 subtracts: X0 + X1 d + X2 d^2 + X3 d^3, d = clip(T, TMIN, TMAX) - TREF.
+
+    ``params`` maps PX4 names to values (``TC_G0_TREF``, ``TC_G0_X1_0``, ...).
+    """
+    i = AXES.index(axis)
+    t = np.clip(np.asarray(temp_c, dtype=float), params['TC_G0_TMIN'], params['TC_G0_TMAX'])
+    d = t - params['TC_G0_TREF']
+    return sum(params[f'TC_G0_X{k}_{i}'] * d ** k for k in range(4))
+
+
+@dataclass(frozen=True)
+class Compensation:
+    """Group-mean bias before and after a correction (std, peak-to-peak, rad/s) and its slope."""
+
+    before_std: float
+    after_std: float
+    before_ptp: float
+    after_ptp: float
+    held_out_std: float
+    slope_rad_s_k: float
+    slope_error: float
+
+
+def compensation_check(fit, params, axis):
+    """
+    Apply a PX4 thermal correction to the log's group means of ``axis``.
+
+    Before/after spread of the group means; ``held_out_std`` is the spread
+    when each group is corrected by a fit that left it out (same order); the
+    slope of the corrected means against temperature and its standard error
+    say whether the residual is flat.
+    """
+    g = fit.groups[axis]
+    after = g.rate_rad_s - px4_offset(params, axis, g.temp_c)
+    coef, err, _ = polyfit_stats(g.temp_c - fit.temp_ref_c, after, 1)
+    held = []
+    for i in range(len(g.temp_c)):
+        keep = np.arange(len(g.temp_c)) != i
+        c, _, _ = polyfit_stats(g.temp_c[keep] - fit.temp_ref_c, g.rate_rad_s[keep], fit.order)
+        held.append(g.rate_rad_s[i] - np.polynomial.polynomial.polyval(
+            g.temp_c[i] - fit.temp_ref_c, c))
+    return Compensation(before_std=float(np.std(g.rate_rad_s)), after_std=float(np.std(after)),
+                        before_ptp=float(np.ptp(g.rate_rad_s)), after_ptp=float(np.ptp(after)),
+                        held_out_std=float(np.std(held)), slope_rad_s_k=float(coef[1]),
+                        slope_error=float(err[1]))
+
+
+def white_noise_of(log, axis, gyro_scale=1.0, gap_factor=3.0):
+    """(N of one axis from its samples, rad/s/sqrt(Hz); sample rate, Hz): IEEE Std 952 fit."""
+    time_s, _, rate = log.axes[axis]
+    rate_hz, segments = allan_record.segments_of(time_s, rate * gyro_scale, gap_factor)
+    _, found = allan_record.identify(segments, rate_hz)
+    return found.arw_rad_s_sqrt_hz, rate_hz
