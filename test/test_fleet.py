@@ -93,9 +93,9 @@ def test_sf_spread_matches_a_per_device_loop(tmp_path):
                 exact=True, attribution_devices=0)
     n = 300
     summary = run.run_fleet(cfg, n, 11, str(tmp_path), scheduler='in-process')
-    values, invalid, _ = sampling.checked(cfg, sampling.draw_block(cfg, 11, 0, n).values())
+    values, invalid, _ = sampling.checked(cfg, sampling.draw_block(cfg, 11, 0, n).values(), n)
     assert not invalid.any()
-    metrics = evaluate.evaluate(cfg, values)
+    metrics = evaluate.evaluate(cfg, values, n)
     temps = np.array(cfg.temperatures_c)
     ratios, arws, splits = [], [], []
     for i in range(n):
@@ -138,7 +138,17 @@ def _without_run(summary):
 
 
 def test_output_is_the_same_in_process_and_on_a_two_worker_local_cluster(tmp_path):
-    """Same seed: identical rows and summary for any scheduler, worker count or partitioning."""
+    """
+    Same seed: identical rows and summary for any scheduler, worker count or partitioning.
+
+    ``local`` (two worker threads) and a cluster of two worker processes
+    reached by its address (the ``tcp://`` path, other processes) against
+    two in-process partitionings.
+    """
+    import logging
+
+    from dask.distributed import LocalCluster
+
     cfg = fleet(tolerances={'geometry.beam1_width_m': {'uniform': '2%'},
                             'gas.pressure_pa': {'uniform': '10%'},
                             'mismatch.sense_beam_width_m': {'uniform': 5e-9}},
@@ -155,12 +165,16 @@ def test_output_is_the_same_in_process_and_on_a_two_worker_local_cluster(tmp_pat
     c = run.run_fleet(cfg, n, 9, str(tmp_path / 'c'), scheduler='local', workers=2,
                       blocks_per_task=2)
     assert c['run']['scheduler'] == 'local' and c['run']['workers'] == 2
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, scheduler_port=0,
+                      dashboard_address=':0', silence_logs=logging.ERROR) as cluster:
+        e = run.run_fleet(cfg, n, 9, str(tmp_path / 'e'), scheduler=cluster.scheduler_address,
+                          blocks_per_task=1)
     rows = _rows(tmp_path / 'a')
     assert rows.num_rows == n
     assert np.array_equal(rows['device_id'].to_numpy(), np.arange(n))
-    for other in ('b', 'c'):
+    for other in ('b', 'c', 'e'):
         assert rows.equals(_rows(tmp_path / other)), other
-    assert _without_run(a) == _without_run(b) == _without_run(c)
+    assert _without_run(a) == _without_run(b) == _without_run(c) == _without_run(e)
     d = run.run_fleet(cfg, n, 10, str(tmp_path / 'd'), scheduler='in-process', write=False)
     assert _without_run(d) != _without_run(a)                   # the seed matters
 
@@ -188,6 +202,16 @@ def test_attribution_names_the_parameter_behind_each_failing_spec(tmp_path):
     assert gains['drive.ac_voltage_v']['spec_gain']['sf_tempco_ppm_k'] == 0.0
     assert gains['gas.pressure_pa']['spec_gain']['sf_tempco_ppm_k'] > 0.3
     assert attribution['drives_the_yield'] in ('gas.pressure_pa', 'drive.ac_voltage_v')
+
+
+def test_a_fleet_without_tolerances_is_n_copies_of_the_nominal_part(tmp_path):
+    summary = run.run_fleet(fleet(specs={'split_hz': {'abs_max': 1.0}}), 1000, 0,
+                            str(tmp_path), scheduler='in-process')
+    assert summary['yield'] == 1.0 and summary['valid'] == 1000
+    rows = _rows(tmp_path)
+    assert rows.num_rows == 1000 and np.ptp(rows['f_drive_hz'].to_numpy()) == 0.0
+    nominal = first_order.scale_factor_ratio(fleet().device, -40.0, 25.0)
+    assert rows['sf_ratio_m40c'].to_numpy()[0] == pytest.approx(nominal, rel=1e-7)
 
 
 def test_impossible_parts_are_rejected_or_clipped_and_counted(tmp_path):

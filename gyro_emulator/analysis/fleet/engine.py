@@ -19,7 +19,8 @@ import os
 import time
 
 from gyro_emulator.analysis.fleet import evaluate as fleet_eval
-from gyro_emulator.analysis.fleet import sampling, sensor_runs
+from gyro_emulator.analysis.fleet import sampling
+from gyro_emulator.analysis.fleet.config import EXACT_METRICS, METRICS
 import numpy as np
 
 #: Blocks whose metrics come back for the quantiles (the first 131 072 parts).
@@ -48,7 +49,6 @@ def temperature_label(temp_c):
 
 def metric_names(config):
     """Return the per-device metrics of this fleet, in column order."""
-    from gyro_emulator.analysis.fleet.config import EXACT_METRICS, METRICS
     return tuple(m for m in METRICS if config.exact or m not in EXACT_METRICS)
 
 
@@ -79,10 +79,11 @@ def _counts(config, invalid, clipped, per_spec, ok):
             'spec_pass': {m: int(flag.sum()) for m, flag in per_spec.items()}}
 
 
-def _add(total, part):
+def add_counts(total, part):
+    """Add the (nested) counts of ``part`` into ``total``, in place."""
     for key, value in part.items():
         if isinstance(value, dict):
-            _add(total.setdefault(key, {}), value)
+            add_counts(total.setdefault(key, {}), value)
         else:
             total[key] = total.get(key, 0) + value
 
@@ -141,13 +142,13 @@ def run_task(job, blocks, progress=None):
                 table = _table(job, block, values, invalid, clipped, metrics, per_spec, ok)
                 writer = writer or _writer(job, blocks[0], table.schema)
                 writer.write_table(table)
-            _add(result['counts'], _counts(config, invalid, clipped, per_spec, ok))
+            add_counts(result['counts'], _counts(config, invalid, clipped, per_spec, ok))
             if block < QUANTILE_BLOCKS:
                 result['sample'].append((block, _sample(metrics, values, invalid)))
             if block == 0:
                 result['attribution'] = attribution(config, draw)
-                result['sensor_runs'] = sensor_runs.run_parts(config, values, metrics,
-                                                              invalid, job.seed)
+                result['sensor_runs'] = _sensor_runs(config, values, metrics, invalid,
+                                                     job.seed)
             if progress is not None:
                 progress(n)
     finally:
@@ -157,12 +158,21 @@ def run_task(job, blocks, progress=None):
     return result
 
 
+def _sensor_runs(config, values, metrics, invalid, seed):
+    """Sensor-level runs of block 0 (the sensor model is imported only when asked for)."""
+    if config.sensor_runs is None:
+        return []
+    from gyro_emulator.analysis.fleet import sensor_runs
+    return sensor_runs.run_parts(config, values, metrics, invalid, seed)
+
+
 def _writer(job, first_block, schema):
     import pyarrow.parquet as pq
 
     path = os.path.join(job.out_dir, 'devices', f'part-{first_block:06d}.parquet')
-    # No dictionary encoding: it cannot shrink continuous values and costs 5x the time.
-    return pq.ParquetWriter(path, schema, compression='snappy', use_dictionary=False)
+    # LZ4 (as small as snappy here, 8 % faster to write); no dictionary
+    # encoding: it cannot shrink continuous values and costs 5x the time.
+    return pq.ParquetWriter(path, schema, compression='lz4', use_dictionary=False)
 
 
 def tasks_of(n_devices, blocks_per_task):

@@ -75,7 +75,7 @@ def _sf_metrics(ratio, temps_c):
     return error, slope, residual
 
 
-def evaluate(config, values):
+def evaluate(config, values, n):
     """
     Metrics of n parts (see the module docstring).
 
@@ -85,6 +85,8 @@ def evaluate(config, values):
         The fleet.
     values : dict
         Parameter name -> array of n drawn values (checked).
+    n : int
+        Number of parts.
 
     Returns
     -------
@@ -93,7 +95,6 @@ def evaluate(config, values):
         SF(T_cal), one row per grid temperature.
 
     """
-    n = len(next(iter(values.values()))) if values else 1
     temps, cal = _grid(config)
     grid = len(config.temperatures_c)
     width = len(temps)
@@ -161,9 +162,9 @@ def passes(config, metrics, invalid):
 
 def evaluate_draw(config, draw, without=None):
     """Check, evaluate and judge a block's parts (``without``: a source left at nominal)."""
-    values, invalid, clipped = sampling.checked(config, draw.values(without))
+    values, invalid, clipped = sampling.checked(config, draw.values(without), draw.n)
     with np.errstate(all='ignore'):     # a clipped extreme part may divide by ~0: NaN fails
-        metrics = evaluate(config, values)
+        metrics = evaluate(config, values, draw.n)
     per_spec, ok = passes(config, metrics, invalid)
     if invalid.any():
         for name, arr in metrics.items():

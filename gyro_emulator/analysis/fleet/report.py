@@ -11,7 +11,7 @@ left at its nominal against the pass count with all of them.
 """
 
 from gyro_emulator import plotting
-from gyro_emulator.analysis.fleet.engine import metric_names, temperature_label
+from gyro_emulator.analysis.fleet.engine import add_counts, metric_names, temperature_label
 from gyro_emulator.analysis.fleet.sampling import BLOCK_DEVICES
 import numpy as np
 
@@ -22,12 +22,7 @@ LEVELS = (1.0, 5.0, 50.0, 95.0, 99.0)
 def _merged_counts(results):
     total = {}
     for result in results:
-        for key, value in result['counts'].items():
-            if isinstance(value, dict):
-                for k, v in value.items():
-                    total.setdefault(key, {})[k] = total.get(key, {}).get(k, 0) + v
-            else:
-                total[key] = total.get(key, 0) + value
+        add_counts(total, result['counts'])
     return total
 
 
@@ -120,10 +115,12 @@ def _limits(ax, spec, vertical=True):
     if spec is None:
         return
     lines = [spec.high] + ([-spec.high] if spec.absolute else [spec.low])
+    label = 'spec'
     for value in lines:
         if np.isfinite(value):
             (ax.axvline if vertical else ax.axhline)(value, color='k', ls='--', lw=1,
-                                                     label='spec')
+                                                     label=label)
+            label = None
 
 
 def _spec(config, metric):
@@ -181,7 +178,7 @@ def plot_yield(summary, path):
     for y, v in enumerate(values):
         ax.text(100.0 * v, y, f' {100.0 * v:.1f} %', va='center', fontsize=8)
     ax.set_xlim(0, 110)
-    plotting.label(ax, 'yield, %', '', f'Yield of {summary["devices"]} parts')
+    plotting.label(ax, 'yield, %', '', f'Yield of {summary["devices"]:,} parts')
     plotting.save(fig, path)
 
 

@@ -2,11 +2,12 @@
 The fleet run: schedulers, output directory, progress, summary and plots.
 
 ``in-process`` runs the tasks one after the other in this process and needs
-no Dask. ``local`` starts a ``dask.distributed.LocalCluster`` (one
-single-threaded worker process per core by default) for the run and shuts it
-down after; an address (``tcp://HOST:PORT``) uses an existing cluster, whose
-workers must import this package and write to ``out_dir``. The default is
-``in-process`` below 1e6 devices and ``local`` from there on.
+no Dask. ``local`` starts a ``dask.distributed.LocalCluster`` for the run
+(one single-threaded worker per core by default, as threads of this
+process) and shuts it down after; an address (``tcp://HOST:PORT``) uses an
+existing cluster, whose workers must import this package and write to
+``out_dir`` (docs/fleet.md: worker settings). The default is ``in-process``
+below 1e6 devices and ``local`` from there on.
 """
 
 import json
@@ -25,7 +26,7 @@ MAX_DEVICES = 10_000_000_000
 
 
 def default_scheduler(n_devices):
-    """``in-process`` below :data:`LOCAL_FROM_DEVICES` devices, else ``local``."""
+    """Return ``in-process`` below :data:`LOCAL_FROM_DEVICES` devices, else ``local``."""
     return 'local' if n_devices >= LOCAL_FROM_DEVICES else 'in-process'
 
 
@@ -65,7 +66,11 @@ def _dask(job, tasks, scheduler, workers, bar):
 
     cluster = None
     if scheduler == 'local':
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+        # Worker threads in this process: no spawn, no imports, no transfer of
+        # results (a process cluster costs 2-4 s to start and stop). The work
+        # is numpy and pyarrow loops on 65 536-part arrays, which run without
+        # the GIL, so threads scale with cores.
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=False,
                                scheduler_port=0, dashboard_address=':0',
                                silence_logs=logging.ERROR)
         client = Client(cluster)

@@ -115,14 +115,13 @@ def _clip(param, values):
     return np.clip(values, low, high)
 
 
-def checked(config, values):
+def checked(config, values, n):
     """
-    Validate drawn parameter arrays; return (values, invalid mask, clipped mask).
+    Validate n parts' drawn parameter arrays; return (values, invalid, clipped masks).
 
     Invalid parts get the nominal values (so the physics runs on valid
     numbers) and are reported by the mask; see the module docstring.
     """
-    n = len(next(iter(values.values()))) if values else 0
     invalid = np.zeros(n, dtype=bool)
     clipped = np.zeros(n, dtype=bool)
     out = dict(values)
@@ -135,14 +134,14 @@ def checked(config, values):
             clipped |= bad
         else:
             invalid |= bad
-    invalid |= _cross_field(config, out)
+    invalid |= _cross_field(config, out, n)
     if invalid.any():
         for name in out:
             out[name] = np.where(invalid, config.parameters[name].nominal, out[name])
     return out, invalid, clipped & ~invalid
 
 
-def _cross_field(config, values):
+def _cross_field(config, values, n):
     """Parts breaking a rule between fields: holes larger than the plate, beams <= 0."""
     g = config.device.geometry
     side = _param_or(values, 'geometry.plate_side_m', g.plate_side_m)
@@ -151,7 +150,6 @@ def _cross_field(config, values):
     delta = _param_or(values, MISMATCH, config.parameters[MISMATCH].nominal)
     for width in ('beam1_width_m', 'beam2_width_m'):
         bad = bad | (_param_or(values, 'geometry.' + width, getattr(g, width)) + delta <= 0.0)
-    n = len(next(iter(values.values()))) if values else 1
     return np.broadcast_to(bad, (n,)).copy()
 
 
