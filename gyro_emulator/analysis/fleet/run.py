@@ -24,6 +24,10 @@ LOCAL_FROM_DEVICES = 1_000_000
 #: Most devices in one fleet (1e10: 152 588 blocks).
 MAX_DEVICES = 10_000_000_000
 
+#: Dask settings of the ``local`` cluster (worker threads of this process).
+QUIET_WORKERS = {'distributed.worker.profile.enabled': False,
+                 'distributed.admin.system-monitor.gil.enabled': False}
+
 
 def default_scheduler(n_devices):
     """Return ``in-process`` below :data:`LOCAL_FROM_DEVICES` devices, else ``local``."""
@@ -62,6 +66,7 @@ def _dask(job, tasks, scheduler, workers, bar):
     """Run the tasks on a Dask cluster, a few in flight per worker; results in task order."""
     import logging
 
+    import dask
     from dask.distributed import as_completed, Client, LocalCluster
 
     cluster = None
@@ -70,9 +75,12 @@ def _dask(job, tasks, scheduler, workers, bar):
         # results (a process cluster costs 2-4 s to start and stop). The work
         # is numpy and pyarrow loops on 65 536-part arrays, which run without
         # the GIL, so threads scale with cores.
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=False,
-                               scheduler_port=0, dashboard_address=':0',
-                               silence_logs=logging.ERROR)
+        # Dask's sampling profiler (every 10 ms) and GIL monitor would share the
+        # workers' interpreter: off for this cluster.
+        with dask.config.set(QUIET_WORKERS):
+            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=False,
+                                   scheduler_port=0, dashboard_address=':0',
+                                   silence_logs=logging.ERROR)
         client = Client(cluster)
     else:
         client = Client(scheduler, timeout='20s')
