@@ -141,9 +141,10 @@ def test_output_is_the_same_in_process_and_on_a_two_worker_local_cluster(tmp_pat
     """
     Same seed: identical rows and summary for any scheduler, worker count or partitioning.
 
-    ``local`` (two worker threads) and a cluster of two worker processes
-    reached by its address (the ``tcp://`` path, other processes) against
-    two in-process partitionings.
+    Two in-process partitionings against a LocalCluster of two worker
+    processes, reached by its address (already up, so the cluster runs all
+    but the first task; ``local`` starts one the same way and runs tasks here
+    while it starts).
     """
     import logging
 
@@ -162,21 +163,30 @@ def test_output_is_the_same_in_process_and_on_a_two_worker_local_cluster(tmp_pat
                       blocks_per_task=3)
     b = run.run_fleet(cfg, n, 9, str(tmp_path / 'b'), scheduler='in-process',
                       blocks_per_task=1)
-    c = run.run_fleet(cfg, n, 9, str(tmp_path / 'c'), scheduler='local', workers=2,
-                      blocks_per_task=2)
-    assert c['run']['scheduler'] == 'local' and c['run']['workers'] == 2
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, scheduler_port=0,
                       dashboard_address=':0', silence_logs=logging.ERROR) as cluster:
-        e = run.run_fleet(cfg, n, 9, str(tmp_path / 'e'), scheduler=cluster.scheduler_address,
+        c = run.run_fleet(cfg, n, 9, str(tmp_path / 'c'), scheduler=cluster.scheduler_address,
                           blocks_per_task=1)
+    assert c['run']['tasks'] == 3 and c['run']['tasks_here'] < 3
     rows = _rows(tmp_path / 'a')
     assert rows.num_rows == n
     assert np.array_equal(rows['device_id'].to_numpy(), np.arange(n))
-    for other in ('b', 'c', 'e'):
+    for other in ('b', 'c'):
         assert rows.equals(_rows(tmp_path / other)), other
-    assert _without_run(a) == _without_run(b) == _without_run(c) == _without_run(e)
+    assert _without_run(a) == _without_run(b) == _without_run(c)
     d = run.run_fleet(cfg, n, 10, str(tmp_path / 'd'), scheduler='in-process', write=False)
     assert _without_run(d) != _without_run(a)                   # the seed matters
+
+
+def test_the_local_scheduler_starts_and_stops_its_own_cluster(tmp_path):
+    """``local``: a LocalCluster of two processes; this process works while it starts."""
+    cfg = fleet(tolerances={'gas.pressure_pa': {'uniform': '10%'}}, attribution_devices=0)
+    n = 3 * sampling.BLOCK_DEVICES
+    local = run.run_fleet(cfg, n, 2, str(tmp_path / 'l'), scheduler='local', workers=2,
+                          blocks_per_task=1, write=False)
+    here = run.run_fleet(cfg, n, 2, str(tmp_path / 'h'), scheduler='in-process', write=False)
+    assert local['run']['scheduler'] == 'local' and local['run']['tasks'] == 3
+    assert _without_run(local) == _without_run(here)
 
 
 def test_attribution_names_the_parameter_behind_each_failing_spec(tmp_path):

@@ -3,11 +3,12 @@ The fleet run: schedulers, output directory, progress, summary and plots.
 
 ``in-process`` runs the tasks one after the other in this process and needs
 no Dask. ``local`` starts a ``dask.distributed.LocalCluster`` for the run
-(one single-threaded worker per core by default, as threads of this
-process) and shuts it down after; an address (``tcp://HOST:PORT``) uses an
-existing cluster, whose workers must import this package and write to
-``out_dir`` (docs/fleet.md: worker settings). The default is ``in-process``
-below 1e6 devices and ``local`` from there on.
+(one single-threaded worker process per core by default) and shuts it down
+after; an address (``tcp://HOST:PORT``) uses an existing cluster, whose
+workers must import this package and write to ``out_dir`` (docs/fleet.md:
+worker settings). While a cluster starts, this process runs the first tasks
+itself. The default is ``in-process`` below 1e6 devices and ``local`` from
+there on.
 """
 
 import json
@@ -24,9 +25,13 @@ LOCAL_FROM_DEVICES = 1_000_000
 #: Most devices in one fleet (1e10: 152 588 blocks).
 MAX_DEVICES = 10_000_000_000
 
-#: Dask settings of the ``local`` cluster (worker threads of this process).
-QUIET_WORKERS = {'distributed.worker.profile.enabled': False,
-                 'distributed.admin.system-monitor.gil.enabled': False}
+#: Environment of the ``local`` cluster's worker processes. Dask's default sets
+#: MALLOC_TRIM_THRESHOLD_, which switches glibc's adaptive mmap threshold off:
+#: every array over 128 kB is then mapped and unmapped afresh, page faults and
+#: all (a block costs twice the CPU). Here arrays up to 64 MB come from the
+#: heap and are reused; BLAS single-threaded, as Dask has it.
+WORKER_ENVIRON = {'MALLOC_MMAP_THRESHOLD_': 1 << 26, 'MALLOC_TRIM_THRESHOLD_': 1 << 28,
+                  'OMP_NUM_THREADS': 1, 'MKL_NUM_THREADS': 1, 'OPENBLAS_NUM_THREADS': 1}
 
 
 def default_scheduler(n_devices):
@@ -62,33 +67,60 @@ def _in_process(job, tasks, bar):
     return [engine.run_task(job, blocks, progress=bar.update) for blocks in tasks]
 
 
-def _dask(job, tasks, scheduler, workers, bar):
-    """Run the tasks on a Dask cluster, a few in flight per worker; results in task order."""
-    import logging
+class _DaskRun:
+    """
+    A Dask run whose cluster starts and stops while this process works.
 
-    import dask
-    from dask.distributed import as_completed, Client, LocalCluster
+    The cluster (or the client of an existing one) starts in a thread; until
+    it is up, this process runs tasks itself, so the 1-3 s a process cluster
+    takes to start costs no time. The cluster closes in a thread too, while
+    the summary and plots are written (:meth:`join` waits for it).
+    """
 
-    cluster = None
-    if scheduler == 'local':
-        # Worker threads in this process: no spawn, no imports, no transfer of
-        # results (a process cluster costs 2-4 s to start and stop). The work
-        # is numpy and pyarrow loops on 65 536-part arrays, which run without
-        # the GIL, so threads scale with cores.
-        # Dask's sampling profiler (every 10 ms) and GIL monitor would share the
-        # workers' interpreter: off for this cluster.
-        with dask.config.set(QUIET_WORKERS):
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=False,
-                                   scheduler_port=0, dashboard_address=':0',
-                                   silence_logs=logging.ERROR)
-        client = Client(cluster)
-    else:
-        client = Client(scheduler, timeout='20s')
-    try:
-        shared = client.scatter(job, broadcast=True)
-        queue = list(enumerate(tasks))
-        limit = 2 * max(1, len(client.scheduler_info()['workers']))
+    def __init__(self, scheduler, workers):
+        import threading
+
+        self.scheduler, self.workers = scheduler, workers
+        self.cluster = self.client = self.error = self.closer = None
+        self.here = 0
+        self.starter = threading.Thread(target=self._start, daemon=True)
+        self.starter.start()
+
+    def _start(self):
+        import logging
+
+        import dask
+        from dask.distributed import Client, LocalCluster
+
+        try:
+            if self.scheduler == 'local':
+                with dask.config.set({'distributed.nanny.pre-spawn-environ': WORKER_ENVIRON,
+                                      'distributed.worker.profile.enabled': False}):
+                    self.cluster = LocalCluster(
+                        n_workers=self.workers, threads_per_worker=1, processes=True,
+                        scheduler_port=0, dashboard_address=':0', silence_logs=logging.ERROR)
+                self.client = Client(self.cluster)
+            else:
+                self.client = Client(self.scheduler, timeout='20s')
+        except Exception as exc:        # raised in the caller's thread by run()
+            self.error = exc
+
+    def run(self, job, tasks, bar):
+        """Run the tasks, a few in flight per worker; return the results in task order."""
+        from dask.distributed import as_completed
+
         results = {}
+        queue = list(enumerate(tasks))
+        while queue and self.starter.is_alive():
+            _, blocks = queue.pop(0)
+            results[blocks[0]] = engine.run_task(job, blocks, progress=bar.update)
+        self.here = len(results)
+        self.starter.join()
+        if self.error is not None:
+            raise self.error
+        client = self.client
+        shared = client.scatter(job, broadcast=True)
+        limit = 2 * max(1, len(client.scheduler_info()['workers']))
         pending = as_completed()
         for _ in range(min(limit, len(queue))):
             index, blocks = queue.pop(0)
@@ -102,10 +134,24 @@ def _dask(job, tasks, scheduler, workers, bar):
                 pending.add(client.submit(engine.run_task, shared, blocks,
                                           key=f'fleet-{index}'))
         return [results[blocks[0]] for blocks in tasks]
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
+
+    def close(self):
+        """Close the client and the cluster in a thread."""
+        import threading
+
+        def stop():
+            self.starter.join()
+            if self.client is not None:
+                self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
+        self.closer = threading.Thread(target=stop, daemon=True)
+        self.closer.start()
+
+    def join(self):
+        """Wait until the cluster is closed."""
+        if self.closer is not None:
+            self.closer.join()
 
 
 class _NoBar:
@@ -167,20 +213,28 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
     tasks = engine.tasks_of(n_devices, blocks_per_task)
     bar = _bar(n_devices) if progress else _NoBar()
     start = time.perf_counter()
+    dask_run = None if scheduler == 'in-process' else _DaskRun(scheduler, workers)
     try:
-        if scheduler == 'in-process':
-            results = _in_process(job, tasks, bar)
-        else:
-            results = _dask(job, tasks, scheduler, workers, bar)
+        try:
+            if dask_run is None:
+                results = _in_process(job, tasks, bar)
+            else:
+                results = dask_run.run(job, tasks, bar)
+        finally:
+            bar.close()
+            if dask_run is not None:
+                dask_run.close()
+        wall = time.perf_counter() - start
+        run = {'scheduler': scheduler, 'workers': workers, 'blocks_per_task': blocks_per_task,
+               'tasks': len(tasks), 'tasks_here': len(tasks) if dask_run is None else
+               dask_run.here, 'wall_s': wall}
+        summary = report.summary(job, results, run)
+        with open(os.path.join(out_dir, 'summary.json'), 'w', encoding='utf-8') as handle:
+            json.dump(summary, handle, indent=2)
+        report.plots(job, results, summary, os.path.join(out_dir, 'plots'))
     finally:
-        bar.close()
-    wall = time.perf_counter() - start
-    run = {'scheduler': scheduler, 'workers': workers, 'blocks_per_task': blocks_per_task,
-           'tasks': len(tasks), 'wall_s': wall}
-    summary = report.summary(job, results, run)
-    with open(os.path.join(out_dir, 'summary.json'), 'w', encoding='utf-8') as handle:
-        json.dump(summary, handle, indent=2)
-    report.plots(job, results, summary, os.path.join(out_dir, 'plots'))
+        if dask_run is not None:
+            dask_run.join()
     return summary
 
 
