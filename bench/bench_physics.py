@@ -4,7 +4,8 @@
 Evaluates Eq 5-21 for 1e6 devices whose geometry lengths are each drawn
 uniformly within +-5 % of the paper's preset, vectorised, and the same
 computation as a per-device Python loop (on a subset, extrapolated), in the
-same run. Prints devices per second and the ratio.
+same run. Prints devices per CPU-second (the vectorised call best of 3, its
+wall-clock rate beside it) and the ratio.
 
 Usage: python bench/bench_physics.py [--devices N] [--loop-devices M] [--seed S]
 """
@@ -51,26 +52,29 @@ def main():
     t0 = time.perf_counter()
     pop = random_population(args.devices, rng)
     t_build = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    resp = first_order.first_order_response(pop, rate, 25.0)
-    t_vec = time.perf_counter() - t0
+    t_vec = cpu_vec = float('inf')
+    for _ in range(3):                  # best of 3; CPU time is the one-core figure
+        t0, c0 = time.perf_counter(), time.process_time()
+        resp = first_order.first_order_response(pop, rate, 25.0)
+        t_vec = min(t_vec, time.perf_counter() - t0)
+        cpu_vec = min(cpu_vec, time.process_time() - c0)
     y = resp.sense_amplitude_m
 
     m = min(args.loop_devices, args.devices)
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     loop = np.empty(m)
     for i in range(m):
         loop[i] = float(first_order.first_order_response(device_at(pop, i), rate,
                                                          25.0).sense_amplitude_m)
-    t_loop = time.perf_counter() - t0
+    t_loop = time.process_time() - t0
     np.testing.assert_allclose(loop, y[:m], rtol=1e-12)
 
-    vec_rate = args.devices / t_vec
+    vec_rate = args.devices / cpu_vec
     loop_rate = m / t_loop
-    print(f'first-order model, {args.devices} devices with geometry +-5 %')
+    print(f'first-order model, {args.devices} devices with geometry +-5 % (per CPU-second)')
     print(f'  build + validate population : {t_build:8.3f} s')
-    print(f'  vectorised                  : {t_vec:8.3f} s  '
-          f'{vec_rate:12.4g} devices/s')
+    print(f'  vectorised (best of 3)      : {cpu_vec:8.3f} s  '
+          f'{vec_rate:12.4g} devices/s  ({args.devices / t_vec:.4g}/s wall)')
     print(f'  per-device Python loop      : {t_loop:8.3f} s for {m}  '
           f'{loop_rate:12.4g} devices/s')
     print(f'  ratio vectorised / loop     : {vec_rate / loop_rate:8.1f}x')

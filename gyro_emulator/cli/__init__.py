@@ -22,6 +22,7 @@ COMMANDS = (
     ('replay', 'gyro_emulator.cli.replay'),
     ('diagnose', 'gyro_emulator.cli.diagnose'),
     ('truth', 'gyro_emulator.cli.truth'),
+    ('fleet', 'gyro_emulator.cli.fleet'),
 )
 
 

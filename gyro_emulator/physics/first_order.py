@@ -148,17 +148,30 @@ def viscosity_pa_s(gas, temp_c):
     return mu_ref * (temp_k / ref_k) ** 1.5 * (ref_k + s_k) / (temp_k + s_k)
 
 
-def proof_mass_damping_n_s_m(geometry, gas, temp_c):
-    """Slide-film damping under the plate, C = mu A / (h (1 + 2 Kn)), N s/m (Eq 9)."""
-    kn = knudsen_number(geometry, gas, temp_c)
-    return viscosity_pa_s(gas, temp_c) * plate_area_m2(geometry) / (
+def proof_mass_damping_n_s_m(geometry, gas, temp_c, knudsen=None, viscosity=None):
+    """
+    Slide-film damping under the plate, C = mu A / (h (1 + 2 Kn)), N s/m (Eq 9).
+
+    ``knudsen`` and ``viscosity``, when given, are Kn and mu already computed
+    for the same geometry, gas and temperature (they are not recomputed).
+    """
+    kn = knudsen_number(geometry, gas, temp_c) if knudsen is None else knudsen
+    mu = viscosity_pa_s(gas, temp_c) if viscosity is None else viscosity
+    return mu * plate_area_m2(geometry) / (
         _a(geometry.substrate_gap_m) * (1.0 + 2.0 * kn))
 
 
-def comb_damping_n_s_m(geometry, gas, temp_c, capacitor_count, overlap_m):
-    """Comb slide-film damping C = mu N l t / (g_c + 2 lambda), N s/m (Eq 10)."""
-    lam = mean_free_path_m(gas, temp_c)
-    return viscosity_pa_s(gas, temp_c) * _a(capacitor_count) * _a(overlap_m) \
+def comb_damping_n_s_m(geometry, gas, temp_c, capacitor_count, overlap_m,
+                       mean_free_path=None, viscosity=None):
+    """
+    Comb slide-film damping C = mu N l t / (g_c + 2 lambda), N s/m (Eq 10).
+
+    ``mean_free_path`` and ``viscosity``, when given, are lambda and mu
+    already computed for the same gas and temperature.
+    """
+    lam = mean_free_path_m(gas, temp_c) if mean_free_path is None else mean_free_path
+    mu = viscosity_pa_s(gas, temp_c) if viscosity is None else viscosity
+    return mu * _a(capacitor_count) * _a(overlap_m) \
         * _a(geometry.thickness_m) / (_a(geometry.comb_gap_m) + 2.0 * lam)
 
 
@@ -250,19 +263,20 @@ def lumped_parameters(device, temp_c=25.0):
     g, m, gas = device.geometry, device.material, device.gas
     mass = mass_kg(g, m)
     k = stiffness_n_m(g, m, temp_c)
-    c_proof = proof_mass_damping_n_s_m(g, gas, temp_c)
+    lam = mean_free_path_m(gas, temp_c)         # once: every damping term uses it
+    mu = viscosity_pa_s(gas, temp_c)
+    kn = lam / _a(g.flow_length_m)
+    c_proof = proof_mass_damping_n_s_m(g, gas, temp_c, kn, mu)
     c_comb_d = comb_damping_n_s_m(g, gas, temp_c, g.drive_capacitor_count,
-                                  g.drive_overlap_m)
+                                  g.drive_overlap_m, lam, mu)
     c_comb_s = comb_damping_n_s_m(g, gas, temp_c, g.sense_capacitor_count,
-                                  g.sense_overlap_m)
+                                  g.sense_overlap_m, lam, mu)
     c_d = c_proof + c_comb_d
     c_s = c_proof + c_comb_s
     f = resonant_frequency_hz(k, mass)
     return LumpedParameters(
         mass_kg=mass, stiffness_x_n_m=k, stiffness_y_n_m=k, freq_x_hz=f,
-        freq_y_hz=f, mean_free_path_m=mean_free_path_m(gas, temp_c),
-        knudsen=knudsen_number(g, gas, temp_c),
-        viscosity_pa_s=viscosity_pa_s(gas, temp_c),
+        freq_y_hz=f, mean_free_path_m=lam, knudsen=kn, viscosity_pa_s=mu,
         damping_proof_n_s_m=c_proof, damping_comb_drive_n_s_m=c_comb_d,
         damping_comb_sense_n_s_m=c_comb_s, damping_drive_n_s_m=c_d,
         damping_sense_n_s_m=c_s,

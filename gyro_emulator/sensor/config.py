@@ -368,6 +368,16 @@ def _device_from_spec(spec, owner):
         '(optionally with "preset") or a list of three of those')
 
 
+def device_from_spec(spec, owner):
+    """
+    Return a physics Device from a preset name, a Device or a mapping of fields.
+
+    A mapping may name a ``preset`` to start from and override any field,
+    nested by component (``gas: {pressure_pa: 100}``); errors name ``owner``.
+    """
+    return _device_from_spec(spec, owner)
+
+
 def _devices(spec):
     owner = 'SensorConfig.device'
     if isinstance(spec, (list, tuple)):

@@ -1,10 +1,12 @@
 """
 The compiled kernel of :class:`gyro_emulator.sensor.model.GyroModel`.
 
-Every term (see :mod:`gyro_emulator.sensor.model` for the equations), term
-by term over a block of samples, with each sample's arithmetic in the order
-of a per-sample pass (so the result does not depend on the block size), on
-three parameter structs (numba-supported namedtuples of arrays):
+Every term (see :mod:`gyro_emulator.sensor.model` for the equations) in one
+pass over a block of samples, the three axes side by side as the lanes of one
+SIMD vector (:mod:`gyro_emulator.sensor.simd`), each lane's arithmetic that
+of a scalar per-sample pass in the same order (so the result does not depend
+on the block size and is bit for bit the scalar kernel's), on three parameter
+structs (numba-supported namedtuples of arrays):
 
 * :class:`Coefficients` -- read-only, precomputed by
   :class:`gyro_emulator.sensor.plan.Plan`: switches (``flags``), scalars and
@@ -27,6 +29,9 @@ phi = exp(-dt/T); white sigma N sqrt(fs); walk steps K sqrt(dt).
 from collections import namedtuple
 import math
 
+from gyro_emulator.sensor.simd import (vabs, vget, vlane, vload4, vmax, vmin, vpack, vput,
+                                       vrint, vrow, vsplat, vsqrt, vstore4, vstore_greater,
+                                       vwhere)
 from gyro_emulator.sensor.streams import FLICKER, JITTER, RRW, WHITE
 import numba
 import numpy as np
@@ -55,8 +60,8 @@ Coefficients.__doc__ = 'Read-only coefficients of the kernel (built by sensor.pl
 State = namedtuple('State', ['ints', 'die_c', 'dyn_z', 'lpf_z', 'flicker', 'rrw'])
 State.__doc__ = 'Mutable kernel state: I_* integers, die temperature, filter and noise states.'
 
-Outputs = namedtuple('Outputs', ['gyro', 'true', 'die', 'bias', 'gain', 'sat', 'delay'])
-Outputs.__doc__ = 'Output arrays of a call, in SensorBatch field order.'
+Outputs = namedtuple('Outputs', ['gyro', 'die', 'bias', 'gain', 'sat', 'delay'])
+Outputs.__doc__ = 'Output arrays of a call, SensorBatch order (the true rate is the input).'
 
 
 def consumed_streams(flags):
@@ -116,7 +121,7 @@ def _die_temperatures(amb, coef, state, die):
     return 0
 
 
-@numba.njit(cache=True, error_model='numpy', inline='always')
+@numba.njit(cache=True, error_model='numpy')
 def _switches(flags):
     """Return the switches as a tuple of booleans (registers, not memory, in the loop)."""
     return (flags[0] != 0, flags[1] != 0, flags[2] != 0, flags[3] != 0, flags[4] != 0,
@@ -125,201 +130,321 @@ def _switches(flags):
             flags[14] != 0, flags[15] != 0)
 
 
-@numba.njit(cache=True, error_model='numpy', inline='always')
-def _offsets(pos, start):
-    """Return ``pos - start`` per stream as a tuple (constant during a call)."""
-    return (pos[0] - start, pos[1] - start, pos[2] - start, pos[3] - start,
-            pos[4] - start, pos[5] - start, pos[6] - start, pos[7] - start,
-            pos[8] - start, pos[9] - start, pos[10] - start)
-
-
 @numba.njit(cache=True, error_model='numpy')
 def _samples(rate, accel, coef, state, normals, pos, out, start, stop):
     """
     Every term of samples ``start:stop``, whose die temperatures are in ``out.die``.
 
-    Term by term over the block (each loop is simple enough for the compiler
-    to vectorise, and the recursions run their three axes side by side),
-    with the arithmetic of each sample in the same order as a per-sample
-    pass, so the result does not depend on the block size. ``out.gyro``
-    holds the signal as it goes through the chain; ``out.bias`` the bias.
+    One pass, sample by sample (:func:`_loop`), the three axes side by side
+    as the lanes of one vector (:mod:`gyro_emulator.sensor.simd`: each
+    operation on the three axes is one instruction, each lane's arithmetic
+    that of a scalar pass in the same order, so the result does not depend on
+    the block size). Filter and walk states and up to 8 flicker sections live
+    in registers; more sections and an output low-pass of order 3 or 4 keep
+    theirs in small arrays of lane rows.
     """
-    on, at = _switches(coef.flags), _offsets(pos, start)
-    ax, ints = coef.axis, state.ints
-    x, bias = out.gyro, out.bias
-    cell, u = _table_cells(out.die, start, stop, on[F_SF] or on[F_MECH], coef)
-    _sensed(rate, start, stop, on, ax, coef.misalignment, coef.sf_tab, coef.sf_index,
-            cell, u, x, out.true, out.gain)
-    if on[F_DYN]:
-        _filter(coef.dyn_b, coef.dyn_a, coef.dyn_zi, state.dyn_z, ints, I_DYN_READY, x,
-                start, stop)
-    _static_bias(out.die, accel, start, stop, on, ax, coef.g_sensitivity, bias)
-    if on[F_FLICKER]:
-        _flicker(normals, at, start, stop, ax, coef.flicker_phi,
-                 coef.flicker_gains, state.flicker, bias)
-    if on[F_RRW]:
-        _walk(normals, at, start, stop, ax, state.rrw, bias)
-    _add_bias_and_noise(normals, at, start, stop, on, ax, coef,
-                        cell, u, bias, x)
-    if on[F_LPF]:
-        _filter(coef.lpf_b, coef.lpf_a, coef.lpf_zi, state.lpf_z, ints, I_LPF_READY, x,
-                start, stop)
-    _output_stage(x, start, stop, on, ax, out.sat)
-    _delays(normals, at, start, stop, ints[I_INDEX], coef.scalars, on, out.delay)
+    on = _switches(coef.flags)
+    ax, sc = coef.axis, coef.scalars
+    quantise = vpack(1.0 if on[F_QUANT] and ax[A_LSB, 0] > 0.0 else 0.0,
+                     1.0 if on[F_QUANT] and ax[A_LSB, 1] > 0.0 else 0.0,
+                     1.0 if on[F_QUANT] and ax[A_LSB, 2] > 0.0 else 0.0)
+    limit, gs = vrow(ax, A_SAT_LIMIT), _lanes(coef.g_sensitivity)
+    g_held = vsplat(0.0)
+    if accel.shape[0] == 1:
+        g_held = (vsplat(accel[0, 0]) * vload4(gs, 0) + vsplat(accel[0, 1]) * vload4(gs, 1)
+                  + vsplat(accel[0, 2]) * vload4(gs, 2))
+    const = (vrow(ax, A_SF1), vrow(ax, A_NONLIN), vrow(ax, A_CAL), vrow(ax, A_C1),
+             vrow(ax, A_C2), vrow(ax, A_TURN_ON), vrow(ax, A_FLICKER_B),
+             vrow(ax, A_RRW_STEP), vrow(ax, A_ELEC_SQ), vrow(ax, A_WHITE_SIGMA),
+             vwhere(quantise, vrow(ax, A_LSB), vsplat(1.0)), quantise, vrow(ax, A_RANGE),
+             limit, vsplat(0.0) - limit, vsplat(sc[S_SQRT_FS]), g_held)
+    mis, db, da = _lanes(coef.misalignment), _lanes(coef.dyn_b), _lanes(coef.dyn_a)
+    lb, la = _lanes(coef.lpf_b), _lanes(coef.lpf_a)
+    top = lb.shape[0] - 1
+    rows = (vload4(mis, 0), vload4(mis, 1), vload4(mis, 2), vload4(gs, 0), vload4(gs, 1),
+            vload4(gs, 2), vload4(db, 0), vload4(db, 1), vload4(db, 2), vload4(da, 1),
+            vload4(da, 2), vload4(lb, 0), vload4(lb, min(1, top)), vload4(lb, min(2, top)),
+            vload4(la, min(1, top)), vload4(la, min(2, top)))
+    fl, dz, lz = _lanes(state.flicker), _lanes(state.dyn_z), _lanes(state.lpf_z)
+    # Rows below ``wide`` are read and written four doubles at a time (the
+    # spare lane touches the next row's first element, written later).
+    wide = stop - start if stop < rate.shape[0] else stop - start - 1
+    walk = _loop(rate[start:stop], accel if accel.shape[0] <= 1 else accel[start:stop],
+                 coef, state.ints, normals, pos, out, start, stop, wide, on, const, rows,
+                 lb, la, fl, dz, lz, vpack(state.rrw[0], state.rrw[1], state.rrw[2]))
+    _lanes_out(fl, state.flicker)
+    _lanes_out(dz, state.dyn_z)
+    _lanes_out(lz, state.lpf_z)
+    state.rrw[0], state.rrw[1], state.rrw[2] = vlane(walk, 0), vlane(walk, 1), vlane(walk, 2)
+    if not on[F_SAT]:
+        out.sat[start:stop] = False
+    _delays(normals[JITTER, pos[JITTER]:], sc, on, out.delay[start:stop])
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _table_cells(die, start, stop, used, coef):
-    """Grid cell and fraction of each die temperature in the temperature tables."""
-    n = stop - start
-    cell = np.zeros(n, dtype=np.int64)
-    u = np.zeros(n)
-    if not used:
-        return cell, u
-    sc = coef.scalars
-    low_c, steps = sc[S_LOW_C], sc[S_STEPS]
-    last_cell = (coef.sf_tab.shape[2] if coef.flags[F_SF] else coef.mech_tab.shape[2]) - 2
-    for m in range(n):
-        v = (die[start + m] - low_c) * steps
-        c = min(max(int(v), 0), last_cell)
-        cell[m] = c
-        u[m] = v - c
-    return cell, u
+def _loop(rate, accel, coef, ints, normals, pos, out, start, stop, wide, on, const, rows,
+          lb, la, fl, dz, lz, walk):
+    """Run the per-sample pass of :func:`_samples` (equations: sensor.model)."""
+    (sf1, nl, cal, c1, c2, turn_on, fb, walk_step, elec, sigma, lsb, quantise, full, limit,
+     neg_limit, sqrt_fs, g_held) = const
+    m0, m1, m2, g0, g1, g2, b0, b1, b2, a1, a2, lb0, lb1, lb2, la1, la2 = rows
+    die, gain, bias, gyro, sat = (out.die[start:stop], out.gain[start:stop],
+                                  out.bias[start:stop], out.gyro[start:stop],
+                                  out.sat[start:stop])
+    sf, mech, tx, ty, tz, mx, my, mz = (coef.sf_tab, coef.mech_tab, coef.sf_index[0],
+                                        coef.sf_index[1], coef.sf_index[2], coef.mech_index[0],
+                                        coef.mech_index[1], coef.mech_index[2])
+    low_c, steps, last_cell = (coef.scalars[S_LOW_C], coef.scalars[S_STEPS],
+                               (sf.shape[2] if on[F_SF] else mech.shape[2]) - 2)
+    use_g, held = on[F_GSENS] and accel.shape[0] > 0, accel.shape[0] == 1
+    phi, gains, sections = coef.flicker_phi, coef.flicker_gains, fl.shape[0]
+    ps, qs, xs = _section_lanes(phi, gains, fl)
+    lpf = lb.shape[0] - 1 if on[F_LPF] else 0
+    zd0, zd1, zl0, zl1 = vload4(dz, 0), vload4(dz, 1), vload4(lz, 0), vload4(lz, lz.shape[0] - 1)
+    sf_shared, mech_shared = tx == ty and ty == tz, mx == my and my == mz
+    # Each stream's unread normals from its read position on (indices from 0:
+    # no wrap-around arithmetic per access).
+    f0, f1, f2, r0, r1, r2, w0, w1, w2 = _unread(normals, pos)
+    dyn_fresh, lpf_fresh = on[F_DYN] and ints[I_DYN_READY] == 0, lpf and ints[I_LPF_READY] == 0
+    c, u = 0, vsplat(0.0)
+    for j in range(stop - start):
+        d = die[j]
+        if on[F_SF] or on[F_MECH]:      # one grid cell for every temperature curve
+            v = (d - low_c) * steps
+            c = min(max(int(v), 0), last_cell)
+            u = vsplat(v - c)
+        x = _sensed(vget(rate, j, wide), rate[j, 0], rate[j, 1], rate[j, 2], m0, m1, m2, nl, on)
+        g = sf1
+        if on[F_SF] and sf_shared:
+            g = (vsplat(sf[tx, 0, c]) + u * vsplat(sf[tx, 1, c])) * g
+        elif on[F_SF]:
+            g = (vpack(sf[tx, 0, c], sf[ty, 0, c], sf[tz, 0, c])
+                 + u * vpack(sf[tx, 1, c], sf[ty, 1, c], sf[tz, 1, c])) * g
+        vput(gain, j, g, wide)
+        s = x * g
+        if on[F_DYN]:
+            if dyn_fresh:               # a filter starts in steady state for its first input
+                _steady(dz, coef.dyn_zi, s)
+                zd0, zd1, dyn_fresh, ints[I_DYN_READY] = vload4(dz, 0), vload4(dz, 1), False, 1
+            s, zd0, zd1 = _tdf2(s, zd0, zd1, b0, b1, b2, a1, a2)
+        e = _static_bias(d, turn_on, cal, c1, c2, on)
+        if use_g:
+            e = e + (g_held if held else vsplat(accel[j, 0]) * g0 + vsplat(accel[j, 1]) * g1
+                     + vsplat(accel[j, 2]) * g2)
+        if on[F_FLICKER]:               # sections x_k = phi_k x_k + c_k B w, summed in k order
+            w = vpack(f0[j], f1[j], f2[j]) * fb
+            if sections <= SECTIONS_IN_REGISTERS:
+                e, xs = _sections(e, w, xs, ps, qs, sections)
+            else:
+                for k in range(sections):
+                    xk = vsplat(phi[k]) * vload4(fl, k) + vsplat(gains[k]) * w
+                    vstore4(fl, k, xk)
+                    e = e + xk
+        if on[F_RRW]:
+            walk = walk + vpack(r0[j], r1[j], r2[j]) * walk_step
+            e = e + walk
+        vput(bias, j, e, wide)
+        y = s + e
+        if on[F_WHITE]:
+            if on[F_MECH] and mech_shared:
+                sigma = vsqrt(vsplat(mech[mx, 0, c]) + u * vsplat(mech[mx, 1, c]) + elec) * sqrt_fs
+            elif on[F_MECH]:
+                sigma = vsqrt(vpack(mech[mx, 0, c], mech[my, 0, c], mech[mz, 0, c])
+                              + u * vpack(mech[mx, 1, c], mech[my, 1, c], mech[mz, 1, c])
+                              + elec) * sqrt_fs
+            y = y + vpack(w0[j], w1[j], w2[j]) * sigma
+        if lpf:
+            if lpf_fresh:               # a filter starts in steady state for its first input
+                _steady(lz, coef.lpf_zi, y)
+                zl0, zl1 = vload4(lz, 0), vload4(lz, lz.shape[0] - 1)
+                lpf_fresh, ints[I_LPF_READY] = False, 1
+            if lpf == 1:
+                y, zl0 = _tdf1(y, zl0, lb0, lb1, la1)
+            elif lpf == 2:
+                y, zl0, zl1 = _tdf2(y, zl0, zl1, lb0, lb1, lb2, la1, la2)
+            else:
+                y = _tdf2_rows(lb, la, lz, y)
+        if on[F_SAT]:
+            vstore_greater(sat, j, vabs(y), full)
+        vput(gyro, j, _output(y, on, quantise, lsb, limit, neg_limit), wide)
+    _store_states(dz, zd0, zd1, fl, xs, sections, lz, zl0, zl1, lpf)
+    return walk
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _sensed(rate, start, stop, on, ax, mis, sf_tab, sf_index, cell, u, x, true, gain):
-    """Sensed signal x: misalignment, nonlinearity, total gain (Eq 18 with errors)."""
-    for j in range(start, stop):
-        for i in range(3):
-            true[j, i] = rate[j, i]
-    for i in range(3):
-        sf1, nl, t = ax[A_SF1, i], ax[A_NONLIN, i], sf_index[i]
-        m0, m1, m2 = mis[i, 0], mis[i, 1], mis[i, 2]
-        for j in range(start, stop):
-            xi = rate[j, i]
-            if on[F_MIS]:
-                xi = xi + (rate[j, 0] * m0 + rate[j, 1] * m1 + rate[j, 2] * m2)
-            if on[F_NONLIN]:
-                xi = xi + nl * xi * xi
-            gi = sf1
-            if on[F_SF]:
-                c = cell[j - start]
-                gi = (sf_tab[t, 0, c] + u[j - start] * sf_tab[t, 1, c]) * gi
-            gain[j, i] = gi
-            x[j, i] = xi * gi
+def _unread(normals, pos):
+    """Return the unread normals of the flicker, walk and white streams (x, y, z each)."""
+    return (normals[FLICKER, pos[FLICKER]:], normals[FLICKER + 1, pos[FLICKER + 1]:],
+            normals[FLICKER + 2, pos[FLICKER + 2]:], normals[RRW, pos[RRW]:],
+            normals[RRW + 1, pos[RRW + 1]:], normals[RRW + 2, pos[RRW + 2]:],
+            normals[WHITE, pos[WHITE]:], normals[WHITE + 1, pos[WHITE + 1]:],
+            normals[WHITE + 2, pos[WHITE + 2]:])
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _filter(b, a, zi0, z, ints, ready, x, start, stop):
+def _sensed(x, r0, r1, r2, m0, m1, m2, nl, on):
+    """Misaligned, nonlinear rate x + M x, then x + nl x^2 (lanes; Eq 18 with errors)."""
+    if on[F_MIS]:
+        x = x + (vsplat(r0) * m0 + vsplat(r1) * m1 + vsplat(r2) * m2)
+    if on[F_NONLIN]:
+        x = x + nl * x * x
+    return x
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _static_bias(d, turn_on, cal, c1, c2, on):
+    """Turn-on bias + (c1 + c2 dT) dT, dT = T_die - T_cal (lanes)."""
+    if on[F_BIAS_T]:
+        dtemp = vsplat(d) - cal
+        return turn_on + (c1 + c2 * dtemp) * dtemp
+    return turn_on
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _tdf1(x, z0, b0, b1, a1):
+    """One sample of a first-order transposed direct form II (scipy.signal.lfilter)."""
+    y = z0 + b0 * x
+    return y, b1 * x - a1 * y
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _tdf2(x, z0, z1, b0, b1, b2, a1, a2):
+    """One sample of a second-order transposed direct form II (scipy.signal.lfilter)."""
+    y = z0 + b0 * x
+    return y, z1 + b1 * x - a1 * y, b2 * x - a2 * y
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _output(y, on, quantise, lsb, limit, neg_limit):
+    """LSB rounding (lanes with quantise != 0) and clip to whole LSBs within the range."""
+    if on[F_QUANT]:
+        y = vwhere(quantise, vrint(y / lsb) * lsb, y)
+    if on[F_SAT]:
+        y = vmax(vmin(y, limit), neg_limit)
+    return y
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _store_states(dz, zd0, zd1, fl, xs, sections, lz, zl0, zl1, lpf):
+    """Write the register states of :func:`_loop` back into their lane rows."""
+    vstore4(dz, 0, zd0)
+    vstore4(dz, 1, zd1)
+    if sections <= SECTIONS_IN_REGISTERS:
+        for k in range(sections):
+            vstore4(fl, k, xs[k])
+    if lpf == 1 or lpf == 2:
+        vstore4(lz, lz.shape[0] - 1, zl1)
+        vstore4(lz, 0, zl0)
+
+
+#: Flicker sections whose states the per-sample pass keeps in registers.
+SECTIONS_IN_REGISTERS = 8
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _section_lanes(phi, gains, fl):
+    """Return the first 8 flicker sections as vectors: phi_k, c_k and states x_k (0 past K)."""
+    count = min(fl.shape[0], SECTIONS_IN_REGISTERS)
+    return (_splat8(phi, count), _splat8(gains, count),
+            (_state(fl, 0, count), _state(fl, 1, count), _state(fl, 2, count),
+             _state(fl, 3, count), _state(fl, 4, count), _state(fl, 5, count),
+             _state(fl, 6, count), _state(fl, 7, count)))
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _state(rows, k, count):
+    """Return lane row k of ``rows`` as a vector, or zeros for k >= count."""
+    return vload4(rows, k) if k < count else vsplat(0.0)
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _splat8(values, count):
+    """Return values[0..7] splatted into 8 vectors (zeros from index ``count`` on)."""
+    v = np.zeros(8)
+    for k in range(count):
+        v[k] = values[k]
+    return (vsplat(v[0]), vsplat(v[1]), vsplat(v[2]), vsplat(v[3]), vsplat(v[4]),
+            vsplat(v[5]), vsplat(v[6]), vsplat(v[7]))
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _sections(e, w, xs, ps, qs, count):
+    """Flicker sections x_k = phi_k x_k + c_k w (k < count <= 8) added to e in k order."""
+    x0, x1, x2, x3, x4, x5, x6, x7 = xs
+    if count > 0:
+        x0 = ps[0] * x0 + qs[0] * w
+        e = e + x0
+    if count > 1:
+        x1 = ps[1] * x1 + qs[1] * w
+        e = e + x1
+    if count > 2:
+        x2 = ps[2] * x2 + qs[2] * w
+        e = e + x2
+    if count > 3:
+        x3 = ps[3] * x3 + qs[3] * w
+        e = e + x3
+    if count > 4:
+        x4 = ps[4] * x4 + qs[4] * w
+        e = e + x4
+    if count > 5:
+        x5 = ps[5] * x5 + qs[5] * w
+        e = e + x5
+    if count > 6:
+        x6 = ps[6] * x6 + qs[6] * w
+        e = e + x6
+    if count > 7:
+        x7 = ps[7] * x7 + qs[7] * w
+        e = e + x7
+    return e, (x0, x1, x2, x3, x4, x5, x6, x7)
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _lanes(arr):
     """
-    Filter each axis of x[start:stop] by b[i], a[i] (transposed direct form II).
+    Return a per-axis array (3, k) as (max(k, 1), 4) lane rows (row i = column i).
 
-    The scipy.signal.lfilter recursion on state z; a filter not yet started
-    starts in steady state for its first input, z = zi0 x.
+    Coefficients and states in this form load and store as whole vectors.
     """
-    order = b.shape[1] - 1
-    if ints[ready] == 0:
-        for i in range(3):
-            for k in range(order):
-                z[i, k] = zi0[i, k] * x[start, i]
-        ints[ready] = 1
-    for j in range(start, stop):
-        for i in range(3):
-            xi = x[j, i]
-            y = z[i, 0] + b[i, 0] * xi
-            for k in range(order - 1):
-                z[i, k] = z[i, k + 1] + b[i, k + 1] * xi - a[i, k + 1] * y
-            z[i, order - 1] = b[i, order] * xi - a[i, order] * y
-            x[j, i] = y
-
-
-@numba.njit(cache=True, error_model='numpy')
-def _static_bias(die, accel, start, stop, on, ax, g, bias):
-    """Bias b = turn-on + temperature polynomial + g-sensitivity, per sample and axis."""
-    use_g = on[F_GSENS] and accel.shape[0] > 0
-    held = accel.shape[0] == 1
+    rows = np.zeros((max(arr.shape[1], 1), 4))
     for i in range(3):
-        b0, cal, c1, c2 = ax[A_TURN_ON, i], ax[A_CAL, i], ax[A_C1, i], ax[A_C2, i]
-        g0, g1, g2 = g[i, 0], g[i, 1], g[i, 2]
-        for j in range(start, stop):
-            b = b0
-            if on[F_BIAS_T]:
-                dtemp = die[j] - cal
-                b += (c1 + c2 * dtemp) * dtemp
-            if use_g:
-                ja = 0 if held else j
-                b += (accel[ja, 0] * g0 + accel[ja, 1] * g1 + accel[ja, 2] * g2)
-            bias[j, i] = b
+        for k in range(arr.shape[1]):
+            rows[k, i] = arr[i, k]
+    return rows
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _flicker(normals, at, start, stop, ax, phi, gains, fl, bias):
-    """Add the bias instability: sections x_k = phi_k x_k + c_k B w, summed in k order."""
-    sections = phi.shape[0]
-    for j in range(start, stop):
-        for i in range(3):
-            w = normals[FLICKER + i, at[FLICKER + i] + j] * ax[A_FLICKER_B, i]
-            b = bias[j, i]
-            for k in range(sections):
-                xk = phi[k] * fl[i, k] + gains[k] * w
-                fl[i, k] = xk
-                b += xk
-            bias[j, i] = b
-
-
-@numba.njit(cache=True, error_model='numpy')
-def _walk(normals, at, start, stop, ax, rrw, bias):
-    """Add the rate random walk r[n] = r[n-1] + K sqrt(dt) w[n]."""
+def _lanes_out(rows, z):
+    """Write the lane rows of :func:`_lanes` back into the per-axis state (3, k)."""
     for i in range(3):
-        r, step = rrw[i], ax[A_RRW_STEP, i]
-        for j in range(start, stop):
-            r += normals[RRW + i, at[RRW + i] + j] * step
-            bias[j, i] += r
-        rrw[i] = r
+        for k in range(z.shape[1]):
+            z[i, k] = rows[k, i]
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _add_bias_and_noise(normals, at, start, stop, on, ax, coef, cell, u, bias, x):
-    """Add the bias and the white noise of sigma N(T_die) sqrt(fs) to x."""
-    mech_tab, mech_index = coef.mech_tab, coef.mech_index
-    sqrt_fs = coef.scalars[S_SQRT_FS]
-    for i in range(3):
-        sigma, elec_sq, t = ax[A_WHITE_SIGMA, i], ax[A_ELEC_SQ, i], mech_index[i]
-        for j in range(start, stop):
-            y = x[j, i] + bias[j, i]
-            if on[F_WHITE]:
-                if on[F_MECH]:
-                    c = cell[j - start]
-                    sigma = math.sqrt(mech_tab[t, 0, c] + u[j - start] * mech_tab[t, 1, c]
-                                      + elec_sq) * sqrt_fs
-                y += normals[WHITE + i, at[WHITE + i] + j] * sigma
-            x[j, i] = y
+def _steady(rows, zi, y):
+    """Set a filter state to steady state for input ``y``: row k = zi[:, k] y (lanes)."""
+    zi_rows = _lanes(zi)
+    for k in range(zi.shape[1]):
+        vstore4(rows, k, vload4(zi_rows, k) * y)
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _output_stage(x, start, stop, on, ax, sat):
-    """Range flag, LSB rounding and clip to whole LSBs, in place on x."""
-    use_sat, use_q = on[F_SAT], on[F_QUANT]
-    for i in range(3):
-        lsb, full, limit = ax[A_LSB, i], ax[A_RANGE, i], ax[A_SAT_LIMIT, i]
-        quantise = use_q and lsb > 0.0
-        for j in range(start, stop):
-            y = x[j, i]
-            sat[j, i] = use_sat and abs(y) > full
-            if quantise:
-                y = np.rint(y / lsb) * lsb
-            if use_sat:
-                y = max(min(y, limit), -limit)
-            x[j, i] = y
+def _tdf2_rows(b, a, z, x):
+    """One sample of transposed direct form II (scipy.signal.lfilter), lane-row state z."""
+    order = z.shape[0]
+    y = vload4(z, 0) + vload4(b, 0) * x
+    for k in range(order - 1):
+        vstore4(z, k, vload4(z, k + 1) + vload4(b, k + 1) * x - vload4(a, k + 1) * y)
+    vstore4(z, order - 1, vload4(b, order) * x - vload4(a, order) * y)
+    return y
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _delays(normals, at, start, stop, index, sc, on, delay):
-    """Latency + timestamp jitter (clipped at 0) of each sample, s (drift: sample period)."""
+def _delays(jitter_normals, sc, on, delay):
+    """Latency + timestamp jitter (clipped at 0) of each sample of the block, s."""
     latency, jitter = sc[S_LATENCY], sc[S_JITTER]
-    for j in range(start, stop):
-        dl = latency
-        if on[F_JITTER]:
-            dl = max(dl + jitter * normals[JITTER, at[JITTER] + j], 0.0)
-        delay[j] = dl
+    if not on[F_JITTER]:
+        delay[:] = latency
+        return
+    for j in range(delay.shape[0]):
+        delay[j] = max(latency + jitter * jitter_normals[j], 0.0)

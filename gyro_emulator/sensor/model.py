@@ -99,7 +99,12 @@ class SensorSample:
 
 @dataclass(frozen=True)
 class SensorBatch:
-    """The fields of :class:`SensorSample` for N samples: (N, 3) or (N,) arrays."""
+    """
+    The fields of :class:`SensorSample` for N samples: (N, 3) or (N,) arrays.
+
+    From :meth:`GyroModel.run`, ``true_rate_rad_s`` is the rate passed in: a
+    read-only view of it when it was a C-contiguous float64 array (no copy).
+    """
 
     gyro_rad_s: np.ndarray
     true_rate_rad_s: np.ndarray
@@ -369,15 +374,20 @@ class GyroModel:
         return SensorBatch(*self._advance(rate, temp, accel))
 
     def _advance(self, rate, temp, accel):
-        """Run the kernel over validated inputs; return the SensorBatch fields in order."""
+        """
+        Run the kernel over validated inputs; return the SensorBatch fields in order.
+
+        The true rate is the kernel's input itself (a read-only view of ``rate``
+        when that is already a C-contiguous float64 array): no copy.
+        """
         n = rate.shape[0]
-        out = kernel.Outputs(np.empty((n, 3)), np.empty((n, 3)), np.empty(n),
-                             np.empty((n, 3)), np.empty((n, 3)),
-                             np.empty((n, 3), dtype=np.bool_), np.empty(n))
-        if n == 0:
-            return out
-        plan, st = self._plan, self._state
         rate, temp = _kernel_input(rate), _kernel_input(temp)
+        out = kernel.Outputs(np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
+                             np.empty((n, 3), dtype=np.bool_), np.empty(n))
+        fields = (out.gyro, rate, out.die, out.bias, out.gain, out.sat, out.delay)
+        if n == 0:
+            return fields
+        plan, st = self._plan, self._state
         accel = _NO_ACCEL if accel is None else _kernel_input(accel)
         normals = st.normals
         for start in range(0, n, streams.BLOCK):
@@ -390,7 +400,7 @@ class GyroModel:
                 raise ValueError(f'GyroModel: die temperature {float(out.die[bad - 1]):g} C '
                                  '(ambient + self_heating_c) is out of range: allowed '
                                  f'[{lo}, {hi}] C')
-        return out
+        return fields
 
     def _check_temp(self, temp):
         lo, hi = MODEL_TEMP_RANGE_C
@@ -432,7 +442,16 @@ def _vector(name, value):
 
 
 def _finite(name, arr):
-    if not np.all(np.isfinite(arr)):
+    """
+    Raise ValueError naming the first NaN or inf in ``arr``; return ``arr``.
+
+    A finite sum proves every element finite (a NaN or inf makes the sum NaN
+    or inf) at a quarter of the cost of ``isfinite``; only a sum that is not
+    finite (a bad element, or an overflow) needs the element-wise test.
+    """
+    with np.errstate(over='ignore', invalid='ignore'):
+        total = np.add.reduce(arr, axis=None)
+    if not np.isfinite(total) and not np.all(np.isfinite(arr)):
         bad = np.flatnonzero(~np.isfinite(arr.ravel()))[0]
         raise ValueError(f'GyroModel: {name} = {float(arr.ravel()[bad])!r} (element {bad}) is '
                          'not finite: allowed finite numbers')

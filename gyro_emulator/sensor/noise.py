@@ -234,8 +234,21 @@ def brownian_arw_rad_s_sqrt_hz(device, temp_c=25.0):
         N, rad/s/sqrt(Hz).
 
     """
-    r = first_order.first_order_response(device, 1.0, temp_c)
-    p = r.params
+    return brownian_arw_from_response(first_order.first_order_response(device, 1.0, temp_c),
+                                      temp_c)
+
+
+def brownian_arw_from_response(response, temp_c):
+    """
+    Brownian angle random walk N from a first-order response already computed.
+
+    N = sqrt(4 k_B T C_sense) / (2 M V_drive), rad/s/sqrt(Hz) (see
+    :func:`brownian_arw_rad_s_sqrt_hz`), for the
+    :class:`~gyro_emulator.physics.first_order.FirstOrderResponse` of the
+    device at ``temp_c`` (deg C): a fleet evaluates the response once and
+    reads its scale factor and its noise from it.
+    """
+    p = response.params
     force = np.sqrt(4.0 * BOLTZMANN_J_K * celsius_to_kelvin(temp_c)
                     * p.damping_sense_n_s_m)
-    return force / (2.0 * p.mass_kg * r.drive_velocity_m_s)
+    return force / (2.0 * p.mass_kg * response.drive_velocity_m_s)

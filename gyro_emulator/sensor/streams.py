@@ -12,12 +12,12 @@ one from four of its own draws first). The streams, in order: turn-on bias,
 timestamp jitter, then white noise, flicker and rate random walk for the
 axes x, y, z.
 
-:class:`NormalStreams` draws each stream in blocks of :data:`BLOCK` with
-``Generator.standard_normal(out=...)`` into a buffer row that the compiled
-kernel reads in order. numpy's normal stream does not depend on how the
-draws are split into calls, so the k-th normal of a stream is the same
-whatever the block boundaries, the record split or the call pattern
-(``run`` over a record or ``step`` sample by sample).
+:class:`NormalStreams` draws each stream in blocks (up to :data:`BLOCK`,
+as many as a call needs) with ``Generator.standard_normal(out=...)`` into a
+buffer row that the compiled kernel reads in order. numpy's normal stream
+does not depend on how the draws are split into calls, so the k-th normal
+of a stream is the same whatever the block boundaries, the record split or
+the call pattern (``run`` over a record or ``step`` sample by sample).
 """
 
 import numpy as np
@@ -27,9 +27,12 @@ import numpy as np
 TURN_ON, JITTER, WHITE, FLICKER, RRW = 0, 1, 2, 5, 8
 STREAM_COUNT = 11
 
-#: Normals drawn per refill of a stream; also the most samples one kernel
-#: call may consume (the model splits longer records into calls of BLOCK).
-BLOCK = 4096
+#: Capacity of a stream's buffer row: the most samples one kernel call may
+#: consume (the model splits longer records into calls of BLOCK).
+BLOCK = 16384
+#: Fewest normals drawn per refill (a streaming caller asking for a few
+#: samples at a time refills little and often, not a whole row at once).
+MIN_REFILL = 1024
 
 
 def spawn_generators(rng, count=STREAM_COUNT):
@@ -72,10 +75,11 @@ class NormalStreams:
     """
     Buffered standard normals of the :data:`STREAM_COUNT` streams.
 
-    ``buffer[k, pos[k]:]`` holds the next unread normals of stream ``k``, in
-    stream order. The kernel reads ``buffer[k, pos[k] + m]`` for the m-th
-    sample of a call and advances ``pos``; :meth:`reserve` refills the rows
-    beforehand and :meth:`draw` takes normals on the Python side.
+    ``buffer[k, pos[k]:end[k]]`` holds the next unread normals of stream
+    ``k``, in stream order. The kernel reads ``buffer[k, pos[k] + m]`` for the
+    m-th sample of a call and advances ``pos``; :meth:`reserve` refills the
+    rows beforehand (at least the call's need, at least :data:`MIN_REFILL`)
+    and :meth:`draw` takes normals on the Python side.
 
     Parameters
     ----------
@@ -87,7 +91,8 @@ class NormalStreams:
     def __init__(self, rng):
         self.generators = spawn_generators(rng)
         self.buffer = np.empty((STREAM_COUNT, BLOCK))
-        self.pos = np.full(STREAM_COUNT, BLOCK, dtype=np.int64)    # all rows empty
+        self.pos = np.zeros(STREAM_COUNT, dtype=np.int64)
+        self.end = np.zeros(STREAM_COUNT, dtype=np.int64)          # all rows empty
         # Unread normals common to every stream of the last reserve(), less what
         # it reserved: an O(1) answer for the next reserve of the same streams
         # (the kernel consumes exactly one normal per sample of each).
@@ -98,11 +103,11 @@ class NormalStreams:
         if streams is self._headroom_streams and self._headroom >= count:
             self._headroom -= count
             return
-        pos = self.pos
+        pos, end = self.pos, self.end
         for k in streams:
-            if BLOCK - pos[k] < count:
-                self._refill(k)
-        unread = min((BLOCK - int(pos[k]) for k in streams), default=BLOCK)
+            if end[k] - pos[k] < count:
+                self._refill(k, count)
+        unread = min((int(end[k] - pos[k]) for k in streams), default=BLOCK)
         self._headroom_streams, self._headroom = streams, unread - count
 
     def draw(self, stream, count):
@@ -111,22 +116,24 @@ class NormalStreams:
         out = np.empty(count)
         done = 0
         while done < count:
-            if self.pos[stream] == BLOCK:
-                self._refill(stream)
+            if self.pos[stream] == self.end[stream]:
+                self._refill(stream, count - done)
             start = self.pos[stream]
-            take = min(count - done, BLOCK - start)
+            take = min(count - done, int(self.end[stream]) - start)
             out[done:done + take] = self.buffer[stream, start:start + take]
             self.pos[stream] = start + take
             done += take
         return out
 
-    def _refill(self, stream):
-        """Move the unread normals of ``stream`` to the front; draw the rest of the row."""
+    def _refill(self, stream, need):
+        """Move the unread normals of ``stream`` to the front; draw ``need`` or more after them."""
         row = self.buffer[stream]
-        unread = BLOCK - self.pos[stream]
-        row[:unread] = row[BLOCK - unread:]
-        self.generators[stream].standard_normal(out=row[unread:])
-        self.pos[stream] = 0
+        pos, end = int(self.pos[stream]), int(self.end[stream])
+        unread = end - pos
+        row[:unread] = row[pos:end]
+        stop = min(BLOCK, unread + max(need, MIN_REFILL))
+        self.generators[stream].standard_normal(out=row[unread:stop])
+        self.pos[stream], self.end[stream] = 0, stop
 
     def __deepcopy__(self, memo):
         """Return an independent copy that continues every stream identically."""
@@ -134,6 +141,7 @@ class NormalStreams:
         twin.generators = [_clone(g) for g in self.generators]
         twin.buffer = self.buffer.copy()
         twin.pos = self.pos.copy()
+        twin.end = self.end.copy()
         twin._headroom_streams, twin._headroom = None, 0
         memo[id(self)] = twin
         return twin

@@ -1,0 +1,1 @@
+"""Fleets: Monte Carlo over fabrication tolerances and temperature (issue 16)."""

@@ -1,0 +1,93 @@
+"""
+Short sensor-level runs of a few parts of a fleet, and their Allan N, B and K.
+
+For each of the first ``sensor_runs.devices`` valid parts of block 0, the
+3-axis error model (:class:`gyro_emulator.sensor.model.GyroModel`) runs the
+part's own physics on every axis: its device, its drive-sense split (the
+sense envelope of ``mode_split_hz``, magnitude) and its electronics terms,
+on top of the non-physics terms of the ``sensor_runs.config`` preset. The
+record is static, at the calibration temperature; the x axis is analysed
+with :func:`gyro_emulator.analysis.allan.overlapping_adev` and
+:func:`~gyro_emulator.analysis.allan.fit_noise_terms` (IEEE Std 952).
+
+Part i's record draws from ``SeedSequence(seed, spawn_key=(0, i))``, a
+child of block 0's sequence, so it is the same run whatever the scheduler.
+"""
+
+from dataclasses import replace
+
+from gyro_emulator import units
+from gyro_emulator.analysis import allan
+from gyro_emulator.analysis.fleet import config as fleet_config
+from gyro_emulator.sensor import noise
+from gyro_emulator.sensor.model import GyroModel
+import numpy as np
+
+#: Largest split the sensor configuration accepts, Hz.
+MAX_SPLIT_HZ = 5000.0
+
+
+def part_device(config, values, i):
+    """Part i of a block of drawn values as a scalar Device."""
+    changes = {}
+    for group in fleet_config.DEVICE_GROUPS:
+        prefix = group + '.'
+        fields = {name[len(prefix):]: float(arr[i]) for name, arr in values.items()
+                  if name.startswith(prefix)}
+        if fields:
+            changes[group] = replace(getattr(config.device, group), **fields)
+    return replace(config.device, **changes)
+
+
+def _electronics(config, values, i):
+    out = {}
+    for name, target in fleet_config.ELECTRONICS.items():
+        key = 'electronics.' + name
+        out[target] = float(values[key][i]) if key in values else \
+            config.parameters[key].nominal
+    return out
+
+
+def run_part(config, values, metrics, i, seed):
+    """
+    Run part i of block 0 for ``sensor_runs.duration_s`` and fit its Allan terms.
+
+    Returns
+    -------
+    dict
+        Device id, split, the predicted ARW (physics + electronics, at the
+        calibration temperature) and the fitted N, B, K (deg/sqrt(h), deg/h,
+        deg/h/sqrt(h)).
+
+    """
+    runs = config.sensor_runs
+    split = float(min(abs(metrics['split_hz'][i]), MAX_SPLIT_HZ))
+    device = part_device(config, values, i)
+    sensor = replace(runs.config, device=(device,) * 3,
+                     mode_split_hz=(split,) * 3, **{
+                         key: (value,) * 3
+                         for key, value in _electronics(config, values, i).items()})
+    rng = np.random.Generator(np.random.SFC64(np.random.SeedSequence(seed, spawn_key=(0, i))))
+    model = GyroModel(sensor, runs.rate_hz, rng)
+    n = int(round(runs.duration_s * runs.rate_hz))
+    batch = model.run(np.zeros((n, 3)), config.calibration_temp_c)
+    result = allan.overlapping_adev(batch.gyro_rad_s[:, 0], runs.rate_hz)
+    fit = allan.fit_noise_terms(result)
+    elec = _electronics(config, values, i)['electronics_noise_rad_s_sqrt_hz']
+    predicted = float(np.hypot(noise.brownian_arw_rad_s_sqrt_hz(
+        device, config.calibration_temp_c), elec))
+    return {
+        'device_id': int(i), 'split_hz': float(metrics['split_hz'][i]),
+        'arw_predicted_deg_sqrt_h': float(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(predicted)),
+        'arw_deg_sqrt_h': fit.arw_deg_sqrt_h,
+        'bias_instability_deg_h': fit.bias_instability_deg_h,
+        'rrw_deg_h_sqrt_h': fit.rrw_deg_h_sqrt_h,
+    }
+
+
+def run_parts(config, values, metrics, invalid, seed):
+    """Sensor-level runs of the first ``sensor_runs.devices`` valid parts of block 0."""
+    if config.sensor_runs is None:
+        return []
+    chosen = np.flatnonzero(~invalid)[:config.sensor_runs.devices]
+    return [run_part(config, values, metrics, int(i), seed) for i in chosen]

@@ -1,0 +1,70 @@
+"""
+Fleet: Monte Carlo over fabrication tolerances and a temperature grid.
+
+Draws N parts from the tolerances of FLEET.yaml (see docs/fleet.md and
+config/fleet_paper_etch2.yaml), evaluates each part's first-order physics
+over the temperature grid (frequencies, split, Q, SF(T), Brownian ARW;
+optionally the exact 2-DOF sense amplitude at the part's own split and short
+sensor-level runs of a few parts), checks the specs and writes DIR/devices/
+(Parquet, one row per part), DIR/summary.json (yield per spec, overall
+yield, quantiles, which tolerance drives the yield, devices/s) and
+DIR/plots/. Part i is the same for the same seed whatever the scheduler,
+the number of workers or the partitioning.
+"""
+
+import sys
+
+HELP = 'Monte Carlo of a fleet over fabrication tolerances and temperature: yield per spec'
+
+
+def add_arguments(parser):
+    """Register the ``fleet`` options."""
+    parser.add_argument('fleet', metavar='FLEET.yaml',
+                        help='the fleet: nominal device, tolerances, temperatures, specs')
+    parser.add_argument('--devices', type=int, required=True, metavar='N',
+                        help='number of parts (1 to 1e10)')
+    parser.add_argument('--seed', type=int, default=0, metavar='S',
+                        help='random seed (default: %(default)s)')
+    parser.add_argument('--out', required=True, metavar='DIR', help='output directory')
+    parser.add_argument('--scheduler', default=None, metavar='in-process|local|tcp://HOST:PORT',
+                        help='where the blocks run: this process (no Dask), a Dask '
+                             'LocalCluster, or an existing Dask cluster (default: '
+                             'in-process below 1e6 parts, local from 1e6 on)')
+    parser.add_argument('--workers', type=int, default=None, metavar='K',
+                        help='workers of a local cluster (default: one per core)')
+    parser.add_argument('--blocks-per-task', type=int, default=None, metavar='B',
+                        help='blocks of 65536 parts per task (changes no result)')
+    parser.add_argument('--no-parquet', action='store_true',
+                        help='write summary.json and plots only')
+    parser.add_argument('--overwrite', action='store_true',
+                        help='replace an earlier fleet in DIR (default: refuse)')
+
+
+def run(args):
+    """Run the fleet and print its yields."""
+    from gyro_emulator.analysis.fleet.config import load_fleet_config
+    from gyro_emulator.analysis.fleet.run import run_fleet
+
+    config = load_fleet_config(args.fleet)
+    summary = run_fleet(config, args.devices, args.seed, args.out, scheduler=args.scheduler,
+                        workers=args.workers, blocks_per_task=args.blocks_per_task,
+                        progress=sys.stderr.isatty(), overwrite=args.overwrite,
+                        write=not args.no_parquet)
+    run_info = summary['run']
+    print(f'{summary["devices"]} parts ({summary["invalid"]} invalid, {summary["clipped"]} '
+          f'clipped) over {len(summary["temperatures_c"])} temperatures in '
+          f'{run_info["wall_s"]:.1f} s ({run_info["devices_per_s"]:.3g} parts/s, '
+          f'{run_info["scheduler"]}, {run_info["workers"]} worker(s))')
+    for metric, spec in summary['specs'].items():
+        print(f'  {metric:22s} yield {100 * spec["yield"]:6.2f} %')
+    print(f'  {"all specs":22s} yield {100 * summary["yield"]:6.2f} %'
+          + (f'; fails most: {summary["fails_most"]}' if summary['fails_most'] else ''))
+    attribution = summary['attribution']
+    if attribution and attribution['drives_the_yield']:
+        top = attribution['drives_the_yield']
+        gain = attribution['sources'][top]['gain']
+        print(f'  drives the yield: {top} (without it: +{100 * gain:.1f} points, on '
+              f'{attribution["devices"]} parts)')
+    print(f'wrote {args.out}/summary.json, {args.out}/plots/'
+          + ('' if args.no_parquet else f', {args.out}/devices/'))
+    return 0

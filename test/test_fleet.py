@@ -1,0 +1,311 @@
+"""Fleets (issue 16): tolerance draws, per-device physics, determinism, attribution, errors."""
+
+from dataclasses import replace
+import glob
+import json
+import os
+
+from gyro_emulator.analysis.fleet import config as fleet_config
+from gyro_emulator.analysis.fleet import evaluate, run, sampling
+from gyro_emulator.cli import main
+from gyro_emulator.physics import first_order
+from gyro_emulator.sensor import noise
+from gyro_emulator.units import rad_s_sqrt_hz_to_arw_deg_sqrt_h
+import numpy as np
+import pytest
+
+
+def fleet(**mapping):
+    """Build a FleetConfig from keyword sections (paper device by default)."""
+    return fleet_config.config_from_mapping(mapping)
+
+
+def test_block_seeds_are_the_spawned_children_of_the_root_seed():
+    children = np.random.SeedSequence(2026).spawn(5)
+    for k, child in enumerate(children):
+        assert np.array_equal(child.generate_state(4),
+                              sampling.block_seed(2026, k).generate_state(4))
+
+
+@pytest.mark.parametrize('seed', [1, 2, 3])
+def test_tolerances_have_the_asked_moments(seed):
+    """Normal and uniform, absolute and %, with an offset: mean and spread within 4.5 SE."""
+    cfg = fleet(tolerances={
+        'geometry.thickness_m': {'normal': '2%'},
+        'geometry.comb_gap_m': {'uniform': 0.1e-6, 'offset': 0.02e-6},
+        'gas.pressure_pa': {'uniform': '10%', 'offset': '-5%'},
+        'drive.ac_voltage_v': {'normal': 0.3}})
+    n = 2 * sampling.BLOCK_DEVICES
+    values = {}
+    for block in range(2):
+        for name, arr in sampling.draw_block(cfg, seed, block, n // 2).values().items():
+            values.setdefault(name, []).append(arr)
+    expect = {  # name: (mean, standard deviation)
+        'geometry.thickness_m': (2e-6, 0.02 * 2e-6),
+        'geometry.comb_gap_m': (2.02e-6, 0.1e-6 / np.sqrt(3.0)),
+        'gas.pressure_pa': (101325.0 * 0.95, 0.1 * 101325.0 / np.sqrt(3.0)),
+        'drive.ac_voltage_v': (20.0, 0.3)}
+    for name, (mean, sd) in expect.items():
+        x = np.concatenate(values[name])
+        assert abs(x.mean() - mean) < 4.5 * sd / np.sqrt(n), name
+        # SE of the variance: sd^2 sqrt(2/n) (normal); uniform is smaller.
+        assert abs(x.var() - sd ** 2) < 4.5 * sd ** 2 * np.sqrt(2.0 / n), name
+    width = np.concatenate(values['geometry.comb_gap_m'])
+    assert width.min() >= 1.92e-6 and width.max() <= 2.12e-6      # uniform stays in bounds
+
+
+def test_a_factor_correlates_the_lengths_it_moves():
+    """Over-etch thins beams and widens gaps together: the correlation the factor implies."""
+    s_f, s_w, s_g = 20e-9, 10e-9, 30e-9
+    cfg = fleet(tolerances={'geometry.beam1_width_m': {'normal': s_w},
+                            'geometry.comb_gap_m': {'normal': s_g}},
+                factors={'etch': {'normal': s_f, 'moves': {'geometry.beam1_width_m': -2.0,
+                                                           'geometry.comb_gap_m': 2.0}}})
+    n = sampling.BLOCK_DEVICES
+    rhos = []
+    for seed in range(4):
+        v = sampling.draw_block(cfg, seed, 0, n).values()
+        rhos.append(np.corrcoef(v['geometry.beam1_width_m'], v['geometry.comb_gap_m'])[0, 1])
+    var_f = (2 * s_f) ** 2
+    rho = -var_f / np.sqrt((var_f + s_w ** 2) * (var_f + s_g ** 2))
+    for r in rhos:                                    # SE of r: (1 - rho^2) / sqrt(n)
+        assert abs(r - rho) < 4.5 * (1 - rho ** 2) / np.sqrt(n)
+    # A relative factor moves by a fraction of each nominal.
+    rel = fleet(factors={'bias': {'uniform': '1%', 'moves': {'geometry.thickness_m': 1.0,
+                                                             'geometry.plate_side_m': 1.0}}})
+    v = sampling.draw_block(rel, 0, 0, 1000).values()
+    assert np.allclose(v['geometry.thickness_m'] / 2e-6, v['geometry.plate_side_m'] / 855.5e-6,
+                       rtol=1e-12)
+
+
+def _scalar_device(cfg, values, i):
+    from gyro_emulator.analysis.fleet.sensor_runs import part_device
+    return part_device(cfg, values, i)
+
+
+def test_sf_spread_matches_a_per_device_loop(tmp_path):
+    """Every metric of a small fleet equals the physics evaluated part by part."""
+    cfg = fleet(tolerances={'geometry.beam1_width_m': {'uniform': '3%'},
+                            'geometry.thickness_m': {'normal': '2%'},
+                            'gas.pressure_pa': {'uniform': '30%'},
+                            'mismatch.sense_beam_width_m': {'normal': 5e-9},
+                            'electronics.noise_rad_s_sqrt_hz': {'uniform': 2e-5, 'offset': 3e-5}},
+                exact=True, attribution_devices=0)
+    n = 300
+    summary = run.run_fleet(cfg, n, 11, str(tmp_path), scheduler='in-process')
+    values, invalid, _ = sampling.checked(cfg, sampling.draw_block(cfg, 11, 0, n).values(), n)
+    assert not invalid.any()
+    metrics = evaluate.evaluate(cfg, values, n)
+    temps = np.array(cfg.temperatures_c)
+    ratios, arws, splits = [], [], []
+    for i in range(n):
+        dev = _scalar_device(cfg, values, i)
+        ratios.append(first_order.scale_factor_ratio(dev, temps, 25.0))
+        brown = noise.brownian_arw_rad_s_sqrt_hz(dev, temps).max()
+        arws.append(rad_s_sqrt_hz_to_arw_deg_sqrt_h(np.hypot(
+            brown, values['electronics.noise_rad_s_sqrt_hz'][i])))
+        delta = values['mismatch.sense_beam_width_m'][i]
+        sense = replace(dev.geometry, beam1_width_m=dev.geometry.beam1_width_m + delta,
+                        beam2_width_m=dev.geometry.beam2_width_m + delta)
+        k_y = first_order.stiffness_n_m(sense, dev.material, 25.0)
+        p = first_order.lumped_parameters(dev, 25.0)
+        splits.append(first_order.resonant_frequency_hz(k_y, p.mass_kg) - p.freq_x_hz)
+    ratios = np.array(ratios).T
+    np.testing.assert_allclose(metrics['sf_ratio'], ratios, rtol=1e-13)
+    np.testing.assert_allclose(metrics['arw_deg_sqrt_h'], arws, rtol=1e-13)
+    np.testing.assert_allclose(metrics['split_hz'], splits, rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(metrics['sf_error_pct'],
+                               100 * np.abs(ratios - 1).max(axis=0), rtol=1e-12)
+    # The spread written to summary.json and to the Parquet rows.
+    q = summary['quantiles']['sf_error_pct_at_m40c']
+    assert q['5%'] == pytest.approx(np.percentile(100 * (ratios[0] - 1), 5), rel=1e-12)
+    assert q['95%'] == pytest.approx(np.percentile(100 * (ratios[0] - 1), 95), rel=1e-12)
+    assert 0.5 < q['95%'] - q['5%'] < 3.0                # pressure +-30 % spreads SF(-40 C)
+    table = _rows(tmp_path)
+    np.testing.assert_allclose(table['sf_ratio_m40c'].to_numpy(), ratios[0], rtol=1e-6)
+    assert summary['devices'] == n == table.num_rows
+
+
+def _rows(out):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+    return pa.concat_tables([pq.read_table(f) for f in sorted(glob.glob(
+        os.path.join(str(out), 'devices', '*.parquet')))])
+
+
+def _without_run(summary):
+    return json.dumps({k: v for k, v in summary.items() if k != 'run'}, sort_keys=True)
+
+
+def test_output_is_the_same_in_process_and_on_a_two_worker_local_cluster(tmp_path):
+    """
+    Same seed: identical rows and summary for any scheduler, worker count or partitioning.
+
+    Two in-process partitionings against a LocalCluster of two worker
+    processes, reached by its address (already up, so the cluster runs all
+    but the first task; ``local`` starts one the same way and runs tasks here
+    while it starts).
+    """
+    import logging
+
+    from dask.distributed import LocalCluster
+
+    cfg = fleet(tolerances={'geometry.beam1_width_m': {'uniform': '2%'},
+                            'gas.pressure_pa': {'uniform': '10%'},
+                            'mismatch.sense_beam_width_m': {'uniform': 5e-9}},
+                factors={'etch': {'uniform': 20e-9, 'moves': {'geometry.beam2_width_m': -2.0,
+                                                              'geometry.comb_gap_m': 2.0}}},
+                specs={'split_hz': {'abs_max': 30.0}, 'sf_tempco_ppm_k': {'max': 550.0}},
+                attribution_devices=2048,
+                sensor_runs={'devices': 1, 'duration_s': 20.0, 'rate_hz': 50.0})
+    n = 2 * sampling.BLOCK_DEVICES + 1000
+    a = run.run_fleet(cfg, n, 9, str(tmp_path / 'a'), scheduler='in-process',
+                      blocks_per_task=3)
+    b = run.run_fleet(cfg, n, 9, str(tmp_path / 'b'), scheduler='in-process',
+                      blocks_per_task=1)
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, scheduler_port=0,
+                      dashboard_address=':0', silence_logs=logging.ERROR) as cluster:
+        c = run.run_fleet(cfg, n, 9, str(tmp_path / 'c'), scheduler=cluster.scheduler_address,
+                          blocks_per_task=1)
+    assert c['run']['tasks'] == 3 and c['run']['tasks_here'] < 3
+    rows = _rows(tmp_path / 'a')
+    assert rows.num_rows == n
+    assert np.array_equal(rows['device_id'].to_numpy(), np.arange(n))
+    for other in ('b', 'c'):
+        assert rows.equals(_rows(tmp_path / other)), other
+    assert _without_run(a) == _without_run(b) == _without_run(c)
+    d = run.run_fleet(cfg, n, 10, str(tmp_path / 'd'), scheduler='in-process', write=False)
+    assert _without_run(d) != _without_run(a)                   # the seed matters
+
+
+def test_the_local_scheduler_starts_and_stops_its_own_cluster(tmp_path):
+    """``local``: a LocalCluster of two processes; this process works while it starts."""
+    cfg = fleet(tolerances={'gas.pressure_pa': {'uniform': '10%'}}, attribution_devices=0)
+    n = 3 * sampling.BLOCK_DEVICES
+    local = run.run_fleet(cfg, n, 2, str(tmp_path / 'l'), scheduler='local', workers=2,
+                          blocks_per_task=1, write=False)
+    here = run.run_fleet(cfg, n, 2, str(tmp_path / 'h'), scheduler='in-process', write=False)
+    assert local['run']['scheduler'] == 'local' and local['run']['tasks'] == 3
+    assert _without_run(local) == _without_run(here)
+
+
+def test_attribution_names_the_parameter_behind_each_failing_spec(tmp_path):
+    """
+    Pressure moves the SF temperature coefficient; the drive voltage only the SF itself.
+
+    The SF tempco (a ratio of SFs) is blind to V_ac exactly (F_d cancels), and
+    SF(25 C) is blind to the pressure only weakly; a sense-overlap tolerance
+    moves neither spec much. Each spec must be pinned on its own cause.
+    """
+    cfg = fleet(tolerances={'gas.pressure_pa': {'uniform': '50%'},
+                            'drive.ac_voltage_v': {'uniform': '20%'},
+                            'geometry.sense_overlap_m': {'uniform': '5%'}},
+                specs={'sf_tempco_ppm_k': {'min': 530.0, 'max': 560.0},
+                       'sf_m_per_rad_s': {'min': 6.2e-9, 'max': 6.7e-9}},
+                attribution_devices=20000)
+    summary = run.run_fleet(cfg, 20000, 4, str(tmp_path), scheduler='in-process', write=False)
+    assert summary['yield'] < 0.5
+    attribution = summary['attribution']
+    assert attribution['spec_driver'] == {'sf_tempco_ppm_k': 'gas.pressure_pa',
+                                          'sf_m_per_rad_s': 'drive.ac_voltage_v'}
+    gains = attribution['sources']
+    assert gains['drive.ac_voltage_v']['spec_gain']['sf_tempco_ppm_k'] == 0.0
+    assert gains['gas.pressure_pa']['spec_gain']['sf_tempco_ppm_k'] > 0.3
+    assert attribution['drives_the_yield'] in ('gas.pressure_pa', 'drive.ac_voltage_v')
+
+
+def test_a_fleet_without_tolerances_is_n_copies_of_the_nominal_part(tmp_path):
+    summary = run.run_fleet(fleet(specs={'split_hz': {'abs_max': 1.0}}), 1000, 0,
+                            str(tmp_path), scheduler='in-process')
+    assert summary['yield'] == 1.0 and summary['valid'] == 1000
+    rows = _rows(tmp_path)
+    assert rows.num_rows == 1000 and np.ptp(rows['f_drive_hz'].to_numpy()) == 0.0
+    nominal = first_order.scale_factor_ratio(fleet().device, -40.0, 25.0)
+    assert rows['sf_ratio_m40c'].to_numpy()[0] == pytest.approx(nominal, rel=1e-7)
+
+
+def test_impossible_parts_are_rejected_or_clipped_and_counted(tmp_path):
+    """A tolerance wide enough to draw negative widths never crashes the run."""
+    tol = {'geometry.beam1_width_m': {'normal': '60%'}}
+    spec = {'split_hz': {'abs_max': 1e6}}
+    rejected = run.run_fleet(fleet(tolerances=tol, specs=spec, attribution_devices=256), 5000,
+                             1, str(tmp_path / 'r'), scheduler='in-process')
+    frac = rejected['invalid'] / 5000
+    assert 0.03 < frac < 0.08                          # P(z < -1/0.6) = 4.8 %
+    assert rejected['yield'] == pytest.approx(1 - frac)
+    rows = _rows(tmp_path / 'r')
+    bad = ~rows['valid'].to_numpy()
+    assert np.isnan(rows['sf_error_pct'].to_numpy()[bad]).all()
+    assert not rows['pass'].to_numpy()[bad].any()
+    clipped = run.run_fleet(fleet(tolerances=tol, specs=spec, invalid='clip',
+                                  attribution_devices=256), 5000, 1, str(tmp_path / 'c'),
+                            scheduler='in-process')
+    assert clipped['clipped'] == rejected['invalid'] and clipped['invalid'] == 0
+
+
+@pytest.mark.parametrize('mapping, match', [
+    ({'tolerance': {}}, r'unknown key\(s\) tolerance'),
+    ({'tolerances': {'geometry.beam_width_m': {'normal': 1e-9}}},
+     r"unknown parameter 'geometry.beam_width_m'"),
+    ({'tolerances': {'geometry.hole_count': {'normal': 10}}}, r'hole_count is a count'),
+    ({'tolerances': {'gas.pressure_pa': {'normal': '1%', 'uniform': '1%'}}},
+     r'exactly one of normal'),
+    ({'tolerances': {'gas.pressure_pa': {'normal': -3.0}}}, r'normal: -3.0 is out of range'),
+    ({'tolerances': {'mismatch.sense_beam_width_m': {'normal': '1%'}}},
+     r'percentage of a zero nominal'),
+    ({'tolerances': {'gas.pressure_pa': {'normal': 'lots'}}}, r"'lots' is not a number"),
+    ({'device': {'geometry': {'hole_side_m': 50e-6}}}, r'hole_count .* removes more'),
+    ({'device': {'geometry': {'thickness_m': -1e-6}}}, r'thickness_m = -1e-06 is out of range'),
+    ({'device': {'geometry': {'flux_m': 1.0}}}, r'unknown field\(s\) flux_m'),
+    ({'temperatures_c': [-100, 25]}, r'temperatures_c'),
+    ({'specs': {'yield': {'min': 1}}}, r"unknown metric 'yield'"),
+    ({'specs': {'exact_ratio': {'min': 0.9}}}, r'set exact: true'),
+    ({'specs': {'split_hz': {'min': 5, 'max': 1}}}, r'min 5.0 is above max 1.0'),
+    ({'factors': {'etch': {'normal': 1e-9, 'moves': {'geometry.frame_count': 1}}}},
+     r'frame_count is a count'),
+    ({'invalid': 'ignore'}, r"'ignore' is not allowed"),
+    ({'sensor_runs': {'devices': 0}}, r'devices = 0'),
+])
+def test_bad_fleet_yaml_gives_one_line_naming_the_field(mapping, match):
+    with pytest.raises(ValueError, match=match) as info:
+        fleet_config.config_from_mapping(mapping)
+    assert '\n' not in str(info.value)
+
+
+def test_cli_runs_a_fleet_and_refuses_bad_input_in_one_line(tmp_path, capsys):
+    path = tmp_path / 'fleet.yaml'
+    path.write_text('tolerances:\n  gas.pressure_pa: {uniform: 10%}\n'
+                    'specs:\n  sf_tempco_ppm_k: {max: 546}\n')
+    out = tmp_path / 'out'
+    assert main(['fleet', str(path), '--devices', '3000', '--seed', '5', '--out',
+                 str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert 'sf_tempco_ppm_k' in printed and 'drives the yield: gas.pressure_pa' in printed
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['devices'] == 3000 and 0.2 < summary['yield'] < 0.8
+    for name in ('sf_envelope', 'split_histogram', 'yield_per_spec', 'fails_most'):
+        assert (out / 'plots' / f'{name}.png').stat().st_size > 1000
+    assert main(['fleet', str(path), '--devices', '3000', '--out', str(out)]) == 2
+    assert 'already holds a fleet' in capsys.readouterr().err
+    path.write_text('tolerances:\n  gas.presure_pa: {uniform: 10%}\n')
+    assert main(['fleet', str(path), '--devices', '10', '--out', str(tmp_path / 'x')]) == 2
+    err = capsys.readouterr().err
+    assert err.count('\n') == 1 and "unknown parameter 'gas.presure_pa'" in err
+    assert main(['fleet', str(tmp_path / 'none.yaml'), '--devices', '10', '--out',
+                 str(tmp_path / 'y')]) == 2
+    assert main(['fleet', str(path), '--devices', '0', '--out', str(tmp_path / 'z')]) == 2
+
+
+def test_sensor_runs_find_the_part_s_own_angle_random_walk(tmp_path):
+    """A short static run of a part: the Allan N it finds is the ARW its physics predicts."""
+    cfg = fleet(tolerances={'gas.pressure_pa': {'uniform': '50%'}},
+                electronics={'noise_rad_s_sqrt_hz': 4e-5},
+                sensor_runs={'devices': 3, 'duration_s': 200.0, 'rate_hz': 100.0},
+                attribution_devices=0)
+    summary = run.run_fleet(cfg, 50, 3, str(tmp_path), scheduler='in-process', write=False)
+    runs = summary['sensor_runs']
+    assert [r['device_id'] for r in runs] == [0, 1, 2]
+    predicted = [r['arw_predicted_deg_sqrt_h'] for r in runs]
+    assert np.ptp(predicted) > 0.01                      # the parts differ
+    for r in runs:                          # 20 000 samples: N to a few % (1 sigma ~1 %)
+        assert r['arw_deg_sqrt_h'] == pytest.approx(r['arw_predicted_deg_sqrt_h'], rel=0.06)
