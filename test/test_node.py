@@ -21,6 +21,7 @@ from geometry_msgs.msg import Vector3Stamped
 from gyro_emulator.physics import first_order
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
+from gyro_emulator.sensor import profiles
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -201,7 +202,7 @@ def test_params_file_values_are_in_force(wall):
     assert got[1].string_value == 'gyro_test'
     assert got[2].double_value == 20.0 and got[3].double_value == 0.3
     assert list(got[4].double_array_value) == [2.0e-4] * 3
-    assert got[5].integer_value == 0
+    assert got[5].integer_value == -1  # the default: derived from the node name
 
 
 def test_imu_contents_follow_rep_145(wall):
@@ -436,7 +437,9 @@ def expected_samples(sensor_yaml, seed, warmup):
     """Step the offline model: ``warmup`` resting samples, then the script per tick."""
     model = sensor_model.GyroModel(sensor_config.load_sensor_config(sensor_yaml), 200.0,
                                    np.random.default_rng(seed))
-    rate, temp, accel = (0.0, 0.0, 0.0), 25.0, None
+    # The node's specific force before any command: level, +1 g on z (the one
+    # default shared with simulate's profiles).
+    rate, temp, accel = (0.0, 0.0, 0.0), 25.0, profiles.LEVEL_ACCEL_M_S2
     for _ in range(warmup):
         model.step(rate, temp, accel)
     out = []
@@ -537,11 +540,12 @@ def test_sim_time_output_is_exactly_the_offline_model_and_reproducible(tmp_path)
                     return k + 1
                 probe.spin_for(0.02)
             raise AssertionError(f'{what}: {latest_diag_values()}')
-        # Handshake: resend the resting inputs (zero rate, 25 C, zero specific
-        # force: the model's defaults, so its output is unchanged) until every
-        # node has taken one of each; a best-effort reader drops what arrives
-        # before it has matched the writer.
-        handshake = [('rate', (0.0, 0.0, 0.0)), ('temp', 25.0), ('accel', (0.0, 0.0, 0.0))]
+        # Handshake: resend the resting inputs (zero rate, 25 C, level at 1 g:
+        # the node's defaults, so its output is unchanged) until every node has
+        # taken one of each; a best-effort reader drops what arrives before it
+        # has matched the writer.
+        handshake = [('rate', (0.0, 0.0, 0.0)), ('temp', 25.0),
+                     ('accel', profiles.LEVEL_ACCEL_M_S2)]
 
         def shake(values):
             for ns in nodes:
