@@ -376,7 +376,8 @@ def _stub_launch_modules(monkeypatch):
         return make
     modules = {
         'launch': {'LaunchDescription': recorder('LaunchDescription')},
-        'launch.actions': {'DeclareLaunchArgument': recorder('DeclareLaunchArgument')},
+        'launch.actions': {'DeclareLaunchArgument': recorder('DeclareLaunchArgument'),
+                           'OpaqueFunction': recorder('OpaqueFunction')},
         'launch.substitutions': {'LaunchConfiguration': recorder('LaunchConfiguration')},
         'launch_ros': {}, 'launch_ros.actions': {'Node': recorder('Node')}}
     for name, attrs in modules.items():

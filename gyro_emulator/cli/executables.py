@@ -57,5 +57,10 @@ def run_replay():
     return _run('gyro_emulator.ros.replay')
 
 
+def run_array():
+    """Run N emulator nodes from an array spec (``ros2 run gyro_emulator array``)."""
+    return _run('gyro_emulator.ros.gyro_array')
+
+
 if __name__ == '__main__':
     sys.exit(run_cli())

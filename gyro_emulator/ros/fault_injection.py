@@ -44,6 +44,11 @@ class FaultState:
         self.changed = True
         self._injector = None
 
+    def end(self, now_ns):
+        """End a pending or active fault at ``now_ns`` (it is being replaced)."""
+        if self.state in ('pending', 'active'):
+            self._move('ended', now_ns)
+
     def start(self, fault, now_ns, last_rad_s):
         """Put ``fault`` in force from ``now_ns`` (ns); ``last_rad_s`` is the last output."""
         self.fault = fault

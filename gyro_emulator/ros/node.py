@@ -269,6 +269,9 @@ class GyroEmulatorNode(Node):
             f'{q.name} = {q.value!r}' for q in parameters))
 
     def _set_fault(self, fault, now_ns):
+        self._fault.end(now_ns)
+        if self._fault.changed:
+            self._publish_fault(now_ns)         # the fault it replaces ends here
         self._fault.start(fault, now_ns, self._out.last_rate)
         if fault.kind != 'none':
             self.get_logger().warning(f'fault set: {fault.describe()}')
