@@ -408,6 +408,44 @@ def test_runtime_parameters_are_validated(wall):
                                           ('temperature_override_enabled', False)))
 
 
+def test_a_clock_drift_set_at_run_time_retimes_the_timer(wall):
+    """Issue 14: the part's period 1 / (f_s (1 + ppm 1e-6)) follows a runtime drift change."""
+    probe, client = wall.probe, wall.params
+
+    def timer_period_s():
+        _, values = latest_diag(wall, lambda s, v: True)
+        return float(values['timer_period_s'])
+    assert timer_period_s() == pytest.approx(0.005, rel=1e-6)
+    done = probe.call(client.set_parameters([Parameter('sensor.clock_drift_ppm',
+                                                       value=10000.0)]))
+    assert done.results[0].successful
+    want = 0.005 / 1.01
+    probe.spin_until(lambda: abs(timer_period_s() / want - 1.0) < 1e-6, 5.0,
+                     'the new timer period')
+    fresh(wall)
+    probe.spin_until(lambda: len(wall.topics['imu']) >= 300, 10.0, '300 samples')
+    stamps = np.array([stamp_ns(m.header) for m in wall.topics['imu']])
+    # The median spacing follows the 1 % faster clock (timer jitter allows 0.3 %).
+    assert np.median(np.diff(stamps)) * 1e-9 == pytest.approx(want, rel=3e-3)
+    assert probe.call(client.set_parameters([Parameter('sensor.clock_drift_ppm',
+                                                       value=0.0)])).results[0].successful
+    probe.spin_until(lambda: abs(timer_period_s() / 0.005 - 1.0) < 1e-6, 5.0,
+                     'the nominal period back')
+
+
+def test_the_inputs_are_subscriptions_of_the_node_itself(wall):
+    """``ros2 node info /gyro_emulator`` lists the command subscriptions (issue 15)."""
+    probe = wall.probe
+    subscribed = {}
+    probe.spin_until(lambda: subscribed.update(
+        probe.node.get_subscriber_names_and_types_by_node('gyro_emulator', '/')) or
+        {'/cmd/angular_velocity', '/cmd/temperature', '/cmd/linear_acceleration'}
+        <= set(subscribed), 10.0, 'the command subscriptions in the graph')
+    assert subscribed['/cmd/angular_velocity'] == ['geometry_msgs/msg/Vector3Stamped']
+    published = dict(probe.node.get_publisher_names_and_types_by_node('gyro_emulator', '/'))
+    assert {'/imu/data_raw', '/gyro_emulator/truth/fault', '/diagnostics'} <= set(published)
+
+
 def test_parameters_are_described(wall):
     probe, client = wall.probe, wall.params
     names = probe.call(client.list_parameters()).result.names
@@ -611,6 +649,18 @@ def test_sim_time_output_is_exactly_the_offline_model_and_reproducible(tmp_path)
 
 
 # --- start-up errors and shutdown ------------------------------------------------------
+
+def test_help_prints_parameters_and_topics_without_starting_ros():
+    proc = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.node', '--help'],
+                          env=ros_env(), cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and not proc.stderr
+    text = proc.stdout
+    for name in ('rate_hz', 'input_source', 'seed', 'fault.type', 'sensor.<field>',
+                 'default_linear_acceleration_m_s2', 'imu/ideal', 'imu/data_raw',
+                 '~/truth/fault', '/diagnostics', 'cmd/temperature'):
+        assert name in text, name
+    assert '``' not in text and 'gyro emulator up' not in text
+
 
 @pytest.mark.parametrize('args,message', [
     (['-p', 'rate_hz:=-5.0'], 'rate_hz'),

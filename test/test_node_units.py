@@ -213,6 +213,29 @@ def test_shipped_defaults_define_every_node_parameter_and_validate():
     assert defaults['rate_hz'] == 200.0 and defaults['sensor_config'] == 'paper'
 
 
+def test_node_and_simulate_share_one_gravity_default_and_a_driver_like_temperature_rate():
+    """Issue 15: level and at rest, +1 g on z (REP 103) in both; imu/temperature at 1-10 Hz."""
+    defaults = params.node_defaults()
+    assert defaults['default_linear_acceleration_m_s2'] == list(profiles.LEVEL_ACCEL_M_S2)
+    assert profiles.LEVEL_ACCEL_M_S2 == (0.0, 0.0, 9.80665)
+    for name in profiles.PROFILE_NAMES:
+        accel = profiles.make_profile(name, 10.0).sample(np.array([0.0, 5.0])).accel_m_s2
+        assert np.array_equal(accel, np.tile(profiles.LEVEL_ACCEL_M_S2, (2, 1))), name
+    assert 1.0 <= defaults['temperature_rate_hz'] <= 10.0
+    assert defaults['seed'] == params.SEED_FROM_NAME and defaults['fault.type'] == 'none'
+
+
+@pytest.mark.parametrize('value,match', [
+    ([0.0, 0.0], 'is not three numbers'), ([0.0, True, 1.0], 'is not three numbers'),
+    ([0.0, 0.0, float('nan')], r'default_linear_acceleration_m_s2.z = nan is out of range'),
+    ('up', 'is not three numbers')])
+def test_a_vector_parameter_is_three_finite_numbers(value, match):
+    spec = params.NODE_SPECS['default_linear_acceleration_m_s2']
+    with pytest.raises(ValueError, match=match):
+        params.check_value(spec, value)
+    assert params.check_value(spec, [0, 0, 9]) == [0.0, 0.0, 9.0]
+
+
 def test_defaults_file_errors_name_the_problem(tmp_path):
     path = tmp_path / 'p.yaml'
     raw = params.load_params_file(os.path.join(ROOT, 'config', 'gyro_emulator.yaml'))

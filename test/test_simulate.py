@@ -5,6 +5,7 @@ import io
 import json
 import math
 import os
+import time
 
 from gyro_emulator import cli, units
 from gyro_emulator.analysis import simulate
@@ -252,3 +253,37 @@ def test_a_failed_simulate_leaves_nothing_behind(tmp_path, capsys, name):
     assert rc == 2
     assert 'out of range' in capsys.readouterr().err
     assert sorted(os.listdir(tmp_path)) == ['hot.yaml', 'ramp.yaml']
+
+
+def test_a_simulated_bag_starts_at_the_start_time_asked_for(tmp_path):
+    """Issue 15: a bag stamped from a settable start time (default now), not from 1970."""
+    from gyro_emulator.recording import bag
+    t0 = simulate.parse_start_time('2026-03-01T12:00:00')
+    assert t0 == simulate.parse_start_time('2026-03-01T12:00:00Z') == 1772366400 * 10**9
+    assert simulate.parse_start_time('0') == 0 and simulate.parse_start_time('1.5') == 1.5e9
+    assert abs(simulate.parse_start_time('now') - time.time_ns()) < 10**9
+    out = str(tmp_path / 'b')
+    simulate.write_record(out, 'paper', 'static', 0.1, 100.0, start_time_ns=t0)
+    reader = bag.BagReader(out)
+    assert reader.start_time_ns == t0 and reader.custom_data['start_time_ns'] == str(t0)
+    for bad in ('yesterday', '-1', '1e12'):
+        with pytest.raises(ValueError, match=f"start_time = '{bad}' is"):
+            simulate.parse_start_time(bad)
+
+
+@pytest.mark.parametrize('command', [name for name, _ in cli.COMMANDS])
+def test_help_shows_no_rst_markup(command, capsys):
+    """Issue 15: ``--help`` shows ``name``, not RST backticks or roles."""
+    with pytest.raises(SystemExit) as done:
+        cli.main([command, '--help'])
+    assert done.value.code == 0
+    text = capsys.readouterr().out
+    assert 'usage: gyro-emulator ' + command in text
+    assert '``' not in text and not any(role in text for role in (':func:', ':mod:',
+                                                                  ':class:', ':data:'))
+
+
+def test_plain_text_keeps_the_words_of_rst_markup():
+    assert cli.plain_text('see ``--out`` and :func:`gyro_emulator.sensor.streams.spawn`, '
+                          ':class:`~a.b.GyroModel` or :mod:`the replay <x.y>`') == \
+        'see --out and gyro_emulator.sensor.streams.spawn, GyroModel or the replay'

@@ -16,10 +16,12 @@ the record is identical whatever the chunk size.
 
 import contextlib
 from dataclasses import dataclass
+import datetime
 import functools
 import os
 import shutil
 import tempfile
+import time
 
 from gyro_emulator.analysis.emulator_bag import simulation_custom_data, write_simulation_bag
 from gyro_emulator.recording import csvio
@@ -208,8 +210,37 @@ def is_csv_path(path):
     return str(path).endswith(('.csv', '.csv.gz'))
 
 
+def parse_start_time(text):
+    """
+    Return a bag start time in ns since the Unix epoch from ``now``, seconds or ISO 8601.
+
+    ``now`` (the default of ``simulate --start-time``) is the current time;
+    a number is seconds since 1970-01-01 UTC (``0``: the epoch itself); an
+    ISO 8601 date-time without a zone is UTC (``2026-03-01T12:00:00``).
+    """
+    text = str(text).strip()
+    if text == 'now':
+        return time.time_ns()
+    try:
+        seconds = float(text)
+    except ValueError:
+        try:
+            moment = datetime.datetime.fromisoformat(text.replace('Z', '+00:00'))
+        except ValueError:
+            raise ValueError(f'start_time = {text!r} is not understood: allowed now, seconds '
+                             'since the epoch, or an ISO 8601 date-time such as '
+                             '2026-03-01T12:00:00') from None
+        if moment.tzinfo is None:
+            moment = moment.replace(tzinfo=datetime.timezone.utc)
+        seconds = moment.timestamp()
+    if not (np.isfinite(seconds) and 0.0 <= seconds < 2 ** 31):
+        raise ValueError(f'start_time = {text!r} is out of range: allowed [0, 2^31) s since '
+                         'the epoch (1970 to 2038, as builtin_interfaces/Time holds it)')
+    return int(round(seconds * 1e9))
+
+
 def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
-                 overwrite=False, progress=None):
+                 overwrite=False, progress=None, start_time_ns=None):
     """
     Simulate (:func:`iter_simulation`) and write the record, staged (:func:`staged_output`).
 
@@ -227,6 +258,10 @@ def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
         Replace an existing ``out``; without it that is an error.
     progress : callable, optional
         ``progress(done, total)`` after each chunk.
+    start_time_ns : int, optional
+        Bag time of sample 0, ns since the epoch (None: now), so that a bag
+        opens at its date in Foxglove or ``ros2 bag``; recorded in
+        ``custom_data``. The CSV's ``time_s`` counts from 0 either way.
 
     Returns
     -------
@@ -234,14 +269,15 @@ def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
         Samples written.
 
     """
+    start_ns = time.time_ns() if start_time_ns is None else int(start_time_ns)
     sensor = config if isinstance(config, SensorConfig) else load_sensor_config(config)
     if is_csv_path(out):
         writer = write_simulation_csv
     else:
-        writer = functools.partial(
-            write_simulation_bag, config=sensor, rate_hz=rate_hz,
-            custom_data=simulation_custom_data(config, profile, duration_s, rate_hz, seed,
-                                               temp_c))
+        custom = simulation_custom_data(config, profile, duration_s, rate_hz, seed, temp_c)
+        custom['start_time_ns'] = str(start_ns)
+        writer = functools.partial(write_simulation_bag, config=sensor, rate_hz=rate_hz,
+                                   custom_data=custom, start_ns=start_ns)
     total = sample_count(duration_s, rate_hz)
     chunks = iter_simulation(sensor, profile, duration_s, rate_hz, seed=seed, temp_c=temp_c)
     with staged_output(out, overwrite) as partial:
