@@ -287,3 +287,35 @@ def test_plain_text_keeps_the_words_of_rst_markup():
     assert cli.plain_text('see ``--out`` and :func:`gyro_emulator.sensor.streams.spawn`, '
                           ':class:`~a.b.GyroModel` or :mod:`the replay <x.y>`') == \
         'see --out and gyro_emulator.sensor.streams.spawn, GyroModel or the replay'
+
+
+def test_simulate_applies_a_fault_schedule_as_the_node_does(tmp_path):
+    """Issue 15: the one fault model (sensor.faults) also drives simulate."""
+    from gyro_emulator.recording import bag
+    from gyro_emulator.sensor import faults
+    schedule_file = tmp_path / 'faults.yaml'
+    schedule_file.write_text(
+        'faults:\n'
+        '  - {type: bias_step, axis: z, magnitude: 0.02, start_s: 1.0, duration_s: 0.5}\n'
+        '  - {type: dropout, start_s: 2.0, duration_s: 0.25}\n')
+    schedule = faults.load_schedule(str(schedule_file))
+    clean = tmp_path / 'clean.csv'
+    faulty = tmp_path / 'faulty.csv'
+    for out, extra in ((clean, []), (faulty, ['--faults', str(schedule_file)])):
+        assert cli.main(['simulate', '--profile', 'static', '--duration-s', '3',
+                         '--rate-hz', '100', '--seed', '4', '--out', str(out)] + extra) == 0
+    a = csvio.read_csv(str(clean))
+    b = csvio.read_csv(str(faulty))
+    assert len(a['time_s']) == 300 and len(b['time_s']) == 275   # 25 samples dropped
+    kept = ~((a['time_s'] >= 2.0) & (a['time_s'] < 2.25))
+    assert np.array_equal(b['time_s'], a['time_s'][kept])
+    diff = b['gyro_z_rad_s'] - a['gyro_z_rad_s'][kept]
+    inside = (b['time_s'] >= 1.0) & (b['time_s'] < 1.5)
+    assert np.allclose(diff[inside], 0.02, atol=1e-9) and not diff[~inside].any()
+    path = str(tmp_path / 'bag')
+    simulate.write_record(path, 'paper', 'static', 3.0, 100.0, seed=4, faults=schedule,
+                          start_time_ns=0)
+    reader = bag.BagReader(path)
+    assert reader.topics['/imu/data_raw'].message_count == 275
+    assert reader.topics['/gyro_emulator/truth/rate'].message_count == 300
+    assert 'dropout on all' in reader.custom_data['faults']

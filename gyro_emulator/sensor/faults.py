@@ -37,6 +37,7 @@ list of non-overlapping faults, as a scenario or profile YAML gives it::
 from dataclasses import dataclass
 import math
 
+from gyro_emulator.resources import read_yaml
 import numpy as np
 
 FAULT_TYPES = ('none', 'stuck', 'bias_step', 'drift', 'spike', 'dropout', 'saturate',
@@ -321,6 +322,14 @@ def parse_schedule(where, raw):
                              f'{where}[{a}] ends ({faults[a].end_s:g} s): faults may not '
                              'overlap')
     return tuple(faults[k] for k in order)
+
+
+def load_schedule(path):
+    """Return the ``faults:`` list of a YAML file (a scenario, a profile or faults only)."""
+    doc = read_yaml(path)
+    if not isinstance(doc, dict) or 'faults' not in doc:
+        raise ValueError(f'{path}: expected a mapping with a faults: list')
+    return parse_schedule(f'{path}: faults', doc['faults'])
 
 
 def fault_generator(seed_sequence):
