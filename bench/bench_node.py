@@ -216,6 +216,14 @@ def run(env, rate_hz, seconds, repeats, sensor_config, flood_hz):
                                            stdout=subprocess.PIPE,
                                            stderr=subprocess.DEVNULL) if flood else None
                 spin(time.monotonic() + 1.5)  # settle into the phase (and match)
+                if flooder is not None:
+                    # The flood's commands carry x > 0 (their send time): wait until
+                    # they are in force before the window opens.
+                    deadline = time.monotonic() + 30.0
+                    while not (truth and truth[-1][2] > 0.0):
+                        if time.monotonic() > deadline:
+                            raise RuntimeError('the flood never reached the node')
+                        spin(time.monotonic() + 0.1)
                 for stream in streams.values():
                     stream.clear()
                 truth.clear()
@@ -234,8 +242,8 @@ def run(env, rate_hz, seconds, repeats, sensor_config, flood_hz):
                     out[name].append((window, list(stream.arrivals), list(stream.stamps)))
                 if flood:
                     for t_arrived, _, x in truth:
-                        age_s = (t_arrived / NS - x) % FOLD_S
-                        out['age'].append(1e3 * age_s)
+                        if x > 0.0:
+                            out['age'].append(1e3 * ((t_arrived / NS - x) % FOLD_S))
                 else:
                     for value, t_sent in sent.items():
                         hits = [t for t, z, _ in truth if z == value and t >= t_sent]
