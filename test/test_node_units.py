@@ -486,3 +486,34 @@ def test_raw_message_falls_back_to_the_message_when_a_slot_is_not_unique(monkeyp
     assert not raw.raw
     raw.put('value', 42.5)
     assert raw.payload() is msg and msg.temperature == 42.5
+
+
+# --- the node's fault state (ros.fault_injection) ----------------------------------
+
+def test_fault_state_moves_pending_active_ended_and_follows_a_jump_back():
+    from gyro_emulator.ros.fault_injection import FaultState
+    from gyro_emulator.sensor import faults
+    state = FaultState((8.0, 8.0, 8.0), np.random.default_rng(0))
+    assert state.state == 'none' and state.changed
+    state.changed = False
+    ms = 1_000_000
+    state.start(faults.Fault('stuck', 'x', 0.0, 0.01, 0.02), 100 * ms, (0.5, 0.0, 0.0))
+    seen = []
+    offset = 0
+    for k in range(40):
+        sample_ns = 100 * ms + k * ms + offset
+        value, published, pinned = state.apply(sample_ns, np.array([1.0 + k, 2.0, 3.0]))
+        if state.changed:
+            seen.append((state.state, state.since_ns - 100 * ms))
+            state.changed = False
+        if k == 10:
+            assert value == (10.0, 2.0, 3.0) and state.level == 2   # the sample before
+        if k == 20:
+            # A simulation reset 15 ms back: the fault's clock continues.
+            offset = -15 * ms
+            state.shift(offset)
+            value, _, _ = state.apply(sample_ns + offset, np.array([99.0, 2.0, 3.0]))
+            assert value[0] == 10.0
+    # Ends 20 ms of fault time after it began: at k = 30, on the new time line.
+    assert seen == [('pending', 0), ('active', 10 * ms), ('ended', 15 * ms)]
+    assert published and pinned is None

@@ -57,6 +57,10 @@ class FaultState:
             [fault], self.range_rad_s, self.rng, last_rad_s)
         self._move('none' if fault.kind == 'none' else 'pending', now_ns)
 
+    def shift(self, delta_ns):
+        """Move the fault's clock with a jump of the time line (a simulation reset)."""
+        self.epoch_ns += int(delta_ns)
+
     def _move(self, state, now_ns):
         if state != self.state:
             self.state = state

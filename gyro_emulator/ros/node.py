@@ -264,9 +264,15 @@ class GyroEmulatorNode(Node):
             self._refresh_covariance()
             self._retime()
         if fault is not None:
-            self._set_fault(fault, self._now_ns())
+            self._set_fault(fault, self._fault_clock_ns())
         self.get_logger().info('parameters set: ' + ', '.join(
             f'{q.name} = {q.value!r}' for q in parameters))
+
+    def _fault_clock_ns(self):
+        """Return "now" on the samples' time line: the last input stamp behind a simulator."""
+        if self._timeline is not None and self._timeline.last_ns is not None:
+            return self._timeline.last_ns
+        return self._now_ns()
 
     def _set_fault(self, fault, now_ns):
         self._fault.end(now_ns)
@@ -385,8 +391,9 @@ class GyroEmulatorNode(Node):
     def _set_temperature_decimation(self, sample_rate_hz):
         self._out.temp_every = max(1, int(round(sample_rate_hz / self._p['temperature_rate_hz'])))
 
-    def _restart(self, why):
+    def _restart(self, why, jump_ns=0):
         """Restart the filters after a discontinuity of the time line; say so."""
+        self._fault.shift(jump_ns)
         self._stepper.sync()
         self._stepper.model.restart_filters()
         self._intake.reset_clock()
@@ -415,7 +422,7 @@ class GyroEmulatorNode(Node):
     def _tick(self):
         now_ns = self._now_ns()
         if self._last_tick_ns is not None and now_ns < self._last_tick_ns:
-            self._restart('clock jumped back')
+            self._restart('clock jumped back', now_ns - self._last_tick_ns)
         self._last_tick_ns = now_ns
         rate, temp, accel = self._inputs(now_ns)
         shown = accel if self._intake.accel.accepted else None
@@ -464,7 +471,8 @@ class GyroEmulatorNode(Node):
         if step.restart:
             why = ('the input clock jumped back' if step.restart == 'jump_back'
                    else f'a gap of {step.dt_s:.3f} s in the input stamps')
-            self._restart(why)
+            self._restart(why, int(round(step.dt_s * NS_PER_S)) if step.restart ==
+                          'jump_back' else 0)
         if step.rate_hz is not None:
             self._replan(step.rate_hz)
         if self._rate_refused:
