@@ -283,6 +283,16 @@ def test_help_shows_no_rst_markup(command, capsys):
                                                                   ':class:', ':data:'))
 
 
+def test_help_of_the_installed_command_shows_no_rst_markup():
+    """The same through a real process of the command line."""
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-m', 'gyro_emulator.cli', 'simulate', '--help'],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and '--start-time' in proc.stdout
+    assert '``' not in proc.stdout and 'gyro_emulator.analysis.replay' in proc.stdout
+
+
 def test_plain_text_keeps_the_words_of_rst_markup():
     assert cli.plain_text('see ``--out`` and :func:`gyro_emulator.sensor.streams.spawn`, '
                           ':class:`~a.b.GyroModel` or :mod:`the replay <x.y>`') == \
