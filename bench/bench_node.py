@@ -32,8 +32,9 @@ The probe (this process) takes the messages still serialized through rclpy's
 events executor and reads their stamps afterwards, so that measuring loads
 the two cores as little as it can (on 2026-11-25; the earlier figures used
 deserialized messages through a SingleThreadedExecutor). For each publisher
-it prints the achieved rate (received, and from header stamps), the jitter |dt - 1/rate| between consecutive messages (p50/p99/max,
-at the receiver, and between header stamps), its CPU (psutil, user + system
+it prints the achieved rate (received, and from header stamps), the jitter
+|dt - 1/rate| between consecutive messages (p50/p99/max, at the receiver,
+and between header stamps), its CPU (psutil, user + system
 over the window) and the ratio to ``bare`` in the same phase, and for the
 node the command-to-output latency: from publishing a new command to
 receiving the first ``~/truth/rate`` sample that carries it (same stamp and
