@@ -1,16 +1,13 @@
-"""Array specs (ros.array) and the gyro_array launch file, without ROS processes."""
+"""Array specs (ros.gyro_array) and the gyro_array launch file, without ROS processes."""
 
 import os
-import sys
 
 from gyro_emulator.ros import gyro_array as array
 from gyro_emulator.sensor.config import load_sensor_config
 import numpy as np
 import pytest
-from test_node_units import _stub_launch_modules
+from test_node_units import load_launch_file
 import yaml
-
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
 def write(tmp_path, doc):
@@ -91,14 +88,7 @@ def test_the_array_entry_point_prints_its_plan_and_refuses_a_bad_spec(tmp_path, 
 
 
 def test_the_array_launch_file_makes_one_node_per_instance(monkeypatch):
-    made = _stub_launch_modules(monkeypatch)
-    monkeypatch.setenv('AMENT_PREFIX_PATH', sys.prefix)
-    import importlib.util
-    spec = importlib.util.spec_from_file_location(
-        'gyro_array_launch', os.path.join(ROOT, 'launch', 'gyro_array.launch.py'))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    module.generate_launch_description()
+    made, module = load_launch_file(monkeypatch, 'gyro_array.launch.py')
     declared = {args[0]: kwargs for args, kwargs in made['DeclareLaunchArgument']}
     assert declared['spec']['default_value'].endswith(os.path.join('config',
                                                                    'gyro_array.yaml'))

@@ -410,15 +410,21 @@ def _stub_launch_modules(monkeypatch):
     return made
 
 
-def test_launch_file_starts_the_node_executable_with_the_shipped_config(monkeypatch):
+def load_launch_file(monkeypatch, name):
+    """Run ``launch/<name>`` against the stand-ins; return (what it made, the module)."""
     made = _stub_launch_modules(monkeypatch)
     monkeypatch.setenv('AMENT_PREFIX_PATH', sys.prefix)
     import importlib.util
     spec = importlib.util.spec_from_file_location(
-        'gyro_launch', os.path.join(ROOT, 'launch', 'gyro_emulator.launch.py'))
+        name.replace('.', '_'), os.path.join(ROOT, 'launch', name))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     module.generate_launch_description()
+    return made, module
+
+
+def test_launch_file_starts_the_node_executable_with_the_shipped_config(monkeypatch):
+    made, _ = load_launch_file(monkeypatch, 'gyro_emulator.launch.py')
     (_, node_kwargs), = made['Node']
     assert node_kwargs['package'] == 'gyro_emulator' and node_kwargs['executable'] == 'node'
     declared = {args[0]: kwargs for args, kwargs in made['DeclareLaunchArgument']}
