@@ -390,6 +390,11 @@ def test_runtime_parameters_are_validated(wall):
     assert wall.node.proc.poll() is None
     # Noise off: covariance zero, the output is the deterministic part only.
     latest_diag(wall, lambda s, v: v.get('stale') == 'true')  # rate held at zero
+    # ... once the die has settled at the clamped 200 C of the bad-input test
+    # (0.2 s lag; with a 1e-5 rad/s/K bias it would drift LSBs meanwhile).
+    probe.spin_until(lambda: wall.topics['temp'] and
+                     abs(wall.topics['temp'][-1].temperature - 200.0) < 1e-4, 10.0,
+                     'the die settled')
     assert set_(('noise_enabled', False))[0].successful
     fresh(wall)
     probe.spin_until(lambda: len(wall.topics['imu']) >= 40, 5.0, 'quiet samples')
@@ -721,6 +726,23 @@ def test_presets_stamp_their_latency_and_signals_shut_down_cleanly(tmp_path, sig
     # order of it; the period itself is tested exactly on the model (test_sensor).
     period = np.median(np.diff(ticks)) * 1e-9
     assert period == pytest.approx(0.01 / (1.0 + config.clock_drift_ppm * 1e-6), rel=5e-3)
+
+
+@pytest.mark.parametrize('delay_s', [0.3, 1.2, 2.4])
+def test_a_signal_during_start_up_stops_the_node_without_a_traceback(tmp_path, delay_s):
+    """SIGINT while importing, warming up or constructing (the ros2 run entry point)."""
+    log = tmp_path / 'node.log'
+    with open(log, 'w') as handle:
+        proc = subprocess.Popen(
+            [sys.executable, '-c', 'import sys; from gyro_emulator.cli.executables import '
+             'run_node; sys.exit(run_node())', '--ros-args', '-p', 'rate_hz:=1000.0'],
+            env=ros_env(), cwd=ROOT, stdout=handle, stderr=subprocess.STDOUT)
+        time.sleep(delay_s)   # the moment of the signal, not a synchronisation
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(30)
+    text = log.read_text()
+    assert code in (0, 130), text
+    assert 'Traceback' not in text and 'Error occurred' not in text, text
 
 
 def test_main_job_plays_a_profile_against_the_node_and_prints_the_summary(tmp_path):

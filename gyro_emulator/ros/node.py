@@ -32,6 +32,8 @@ rad/s, sensor frame) or, with ``rate_source = odometry``, ``cmd/odom``
 :mod:`.inputs`. ``--help`` prints the parameters and topics and exits.
 """
 
+import functools
+import signal
 import sys
 import threading
 import time
@@ -67,6 +69,31 @@ from rclpy.time import Time
 ZERO3 = (0.0, 0.0, 0.0)
 #: Longest wait of the executor between checks for shutdown, s.
 SHUTDOWN_POLL_S = 0.25
+
+
+def _while_up(callback):
+    """
+    Wrap an executor callback: an error once the context is down is the shutdown.
+
+    A SIGINT/SIGTERM shuts the context down from rclpy's signal handler while
+    a callback may be publishing; the events executor would log that error
+    with its traceback. While the context is up, errors propagate.
+    """
+    @functools.wraps(callback)
+    def run(self, *args):
+        try:
+            return callback(self, *args)
+        except (Exception, KeyboardInterrupt):  # noqa: B902 - after shutdown: the shutdown
+            if self.context.ok():
+                raise
+            return None
+    return run
+
+
+def _warm_up():
+    """Load the compiled sensor kernel (numba's cache) before ROS takes the signals."""
+    config = sensor_config.SensorConfig()
+    sensor_model.GyroModel(config, 100.0, np.random.default_rng(0)).step(ZERO3, 25.0)
 
 
 def _appender(inbox):
@@ -419,6 +446,7 @@ class GyroEmulatorNode(Node):
         low, high = self._limits.temp_range_c
         return min(max(temp, low), high)
 
+    @_while_up
     def _tick(self):
         now_ns = self._now_ns()
         if self._last_tick_ns is not None and now_ns < self._last_tick_ns:
@@ -454,6 +482,7 @@ class GyroEmulatorNode(Node):
 
     # --- behind a simulator: one sample per imu/ideal message ----------------
 
+    @_while_up
     def _on_imu(self, msg):
         stamp = msg.header.stamp
         stamp_ns = stamp.sec * NS_PER_S + stamp.nanosec
@@ -565,6 +594,10 @@ class GyroEmulatorNode(Node):
                 f'{sum(book.clamped.values())} clamped, {book.model_errors} model errors')
 
 
+def _quiet_sigint(signum, frame):
+    """Python's SIGINT handler under rclpy's: rclpy already shut the context down."""
+
+
 def _first_line(exc):
     """Return an exception's message on one line (rcl appends source locations)."""
     text = str(exc).split(', at /')[0]
@@ -578,6 +611,15 @@ def main(args=None):
         print(node_help.help_text())
         return 0
     try:
+        _warm_up()
+    except KeyboardInterrupt:
+        return 130
+    # rclpy's SIGINT handler shuts the context down, then calls the Python
+    # handler it found: with Python's default that raises KeyboardInterrupt
+    # inside whatever callback runs, which the events executor logs with its
+    # traceback. With this one the loop below just sees the context go down.
+    signal.signal(signal.SIGINT, _quiet_sigint)
+    try:
         rclpy.init(args=args)
     except Exception as exc:  # noqa: B902 - rcl reports bad arguments and params files so
         print(f'gyro_emulator node: error: cannot start ROS: {_first_line(exc)}',
@@ -590,6 +632,11 @@ def main(args=None):
         except (ValueError, ParameterException, OSError) as exc:
             print(f'gyro_emulator node: error: {_first_line(exc)}', file=sys.stderr)
             return 2
+        except Exception:  # noqa: B902 - a SIGINT/SIGTERM while the node starts up
+            if rclpy.ok():
+                raise
+            print('[gyro_emulator] shutting down: stopped while starting', file=sys.stderr)
+            return 0
         # The events executor serves a callback for about 1.5 us instead of the
         # ~100 us of a SingleThreadedExecutor wait set (issue 14: command floods).
         executor = EventsExecutor()
