@@ -6,6 +6,10 @@
 #   ./dev.sh setup  only set up .venv
 #   ./dev.sh shell  a shell with the venv and ROS environment active
 #
+# In ./dev.sh shell, `colcon build` then `. install/setup.sh` (colcon-core's hook;
+# install/setup.bash would need the colcon-bash extension, which is not pinned)
+# puts the package where `ros2 run` looks.
+#
 # Works on a fresh Debian 12 with Python 3.11 and no ROS: everything comes from PyPI.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")"
@@ -87,6 +91,6 @@ case "$cmd" in
         setup; activate
         exec "${SHELL:-bash}" -i ;;
     *)
-        sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'
+        sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'
         exit 2 ;;
 esac

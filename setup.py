@@ -35,6 +35,7 @@ setup(
             'scenario = gyro_emulator.cli.executables:run_scenario',
             'recorder = gyro_emulator.cli.executables:run_recorder',
             'replay = gyro_emulator.cli.executables:run_replay',
+            'array = gyro_emulator.cli.executables:run_array',
         ],
     },
 )

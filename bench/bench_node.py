@@ -20,29 +20,46 @@ Windows cycle through three phases (``--repeats`` times, pooled per phase):
 * ``held``: a new cmd/angular_velocity every 0.5 s (a rate that holds);
 * ``stream``: a new command every 10 ms (100 Hz, as a simulator sends);
 * ``latency``: a new command every 50 ms, with ``~/truth/rate`` subscribed
-  too (in the other phases only ``imu/data_raw`` is, as for ``bare``).
+  too (in the other phases only ``imu/data_raw`` is, as for ``bare``);
+* ``flood``: a third process floods ``cmd/angular_velocity`` at
+  ``--flood-hz`` (10 kHz: ten commands per output sample, sent in a burst
+  every millisecond), each carrying its send time (CLOCK_MONOTONIC, shared by
+  the processes) in ``vector.x``; ``~/truth/rate`` is subscribed, and the age
+  of the command in force when its sample arrives shows whether the node keeps
+  the newest (issue 14).
 
-For each publisher it prints the achieved rate (received, and from header
-stamps), the jitter |dt - 1/rate| between consecutive messages (p50/p99/max,
-at the receiver, and between header stamps), its CPU (psutil, user + system
+The probe (this process) takes the messages still serialized through rclpy's
+events executor and reads their stamps afterwards, so that measuring loads
+the two cores as little as it can (on 2026-11-25; the earlier figures used
+deserialized messages through a SingleThreadedExecutor). For each publisher
+it prints the achieved rate (received, and from header stamps), the jitter
+|dt - 1/rate| between consecutive messages (p50/p99/max, at the receiver,
+and between header stamps), its CPU (psutil, user + system
 over the window) and the ratio to ``bare`` in the same phase, and for the
 node the command-to-output latency: from publishing a new command to
 receiving the first ``~/truth/rate`` sample that carries it (same stamp and
-tick as the Imu with it). Targets (issue 5): 1 kHz sustained, p99 jitter
-< 0.5 ms, CPU <= 1.5 x bare.
+tick as the Imu with it); in ``flood`` the age of the command in force
+(p50/p99/max) and the flood's achieved rate. Targets (issue 5): 1 kHz
+sustained, p99 jitter < 0.5 ms, CPU <= 1.5 x bare; (issue 14) under the
+flood, the p99 period within 0.5 ms of nominal, at the bare publisher's.
 """
 
 import argparse
 import os
 import signal
+import struct
 import subprocess
 import sys
 import time
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 NS = 1_000_000_000
-#: Phase: (send a new rate command every N-th 10 ms period, subscribe ~/truth/rate).
-PHASES = {'held': (50, False), 'stream': (1, False), 'latency': (5, True)}
+#: Phase: (send a new rate command every N-th 10 ms period, subscribe ~/truth/rate,
+#: flood cmd/angular_velocity from a third process).
+PHASES = {'held': (50, False, False), 'stream': (1, False, False),
+          'latency': (5, True, False), 'flood': (10 ** 9, True, True)}
+#: CLOCK_MONOTONIC of a flood command, folded below the node's rate limit, s.
+FOLD_S = 50.0
 
 
 def bare_publisher(rate_hz):
@@ -74,6 +91,36 @@ def bare_publisher(rate_hz):
         rclpy.try_shutdown()
 
 
+def flood_publisher(rate_hz, topic):
+    """Publish commands at ``rate_hz`` in bursts every 1 ms until SIGINT; print the count."""
+    import rclpy
+    from geometry_msgs.msg import Vector3Stamped
+
+    rclpy.init()
+    node = rclpy.create_node('flood')
+    pub = node.create_publisher(Vector3Stamped, topic, 10)
+    stop = []
+    signal.signal(signal.SIGINT, lambda *args: stop.append(1))
+    msg = Vector3Stamped()
+    period = 1.0 / rate_hz
+    due = started = time.monotonic()
+    sent = 0
+    while not stop:
+        now = time.monotonic()
+        while now >= due:
+            msg.vector.x = time.monotonic() % FOLD_S
+            msg.vector.z = 1e-6 * (sent % 1000)
+            pub.publish(msg)
+            sent += 1
+            due += period
+            if now - due > 0.01:
+                due = now
+        time.sleep(max(0.0, due - time.monotonic() + 0.0009))
+    print(f'{sent} {time.monotonic() - started}', flush=True)
+    node.destroy_node()
+    rclpy.try_shutdown()
+
+
 def percentiles(values, qs=(50, 99, 100)):
     """Return the given percentiles of ``values`` (NaN when empty)."""
     import numpy as np
@@ -82,22 +129,33 @@ def percentiles(values, qs=(50, 99, 100)):
     return [float(np.percentile(values, q)) for q in qs]
 
 
+def stamp_of(payload):
+    """Return ``header.stamp`` of a serialized message (little-endian CDR), ns."""
+    sec, nanosec = struct.unpack_from('<iI', payload, 4)
+    return sec * NS + nanosec
+
+
 class Stream:
-    """Arrival times and stamps of one Imu topic."""
+    """Arrival times and serialized messages of one Imu topic (stamps read later)."""
 
     def __init__(self):
-        self.arrivals, self.stamps = [], []
+        self.arrivals, self.payloads = [], []
 
-    def __call__(self, msg):
+    def __call__(self, payload):
         self.arrivals.append(time.monotonic_ns())
-        self.stamps.append(msg.header.stamp.sec * NS + msg.header.stamp.nanosec)
+        self.payloads.append(payload)
+
+    @property
+    def stamps(self):
+        """Return the header stamps of the messages received, ns."""
+        return [stamp_of(p) for p in self.payloads]
 
     def clear(self):
         self.arrivals.clear()
-        self.stamps.clear()
+        self.payloads.clear()
 
 
-def run(env, rate_hz, seconds, repeats, sensor_config):
+def run(env, rate_hz, seconds, repeats, sensor_config, flood_hz):
     """
     Start bare and node side by side and measure alternating windows.
 
@@ -108,7 +166,8 @@ def run(env, rate_hz, seconds, repeats, sensor_config):
     import psutil
     import rclpy
     from geometry_msgs.msg import Vector3Stamped
-    from rclpy.executors import SingleThreadedExecutor
+    from gyro_emulator.recording import cdr, topics
+    from rclpy.experimental.events_executor import EventsExecutor
     from rclpy.qos import qos_profile_sensor_data
     from sensor_msgs.msg import Imu
 
@@ -124,12 +183,14 @@ def run(env, rate_hz, seconds, repeats, sensor_config):
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=int(env['ROS_DOMAIN_ID']))
     node = rclpy.create_node('bench_probe', context=context)
-    executor = SingleThreadedExecutor(context=context)
+    # The probe takes serialized messages through the events executor, so that
+    # measuring (3 kHz of Imu and truth) loads the two cores as little as it can.
+    executor = EventsExecutor(context=context)
     executor.add_node(node)
     streams = {name: Stream() for name in procs}
     for name, stream in streams.items():
         node.create_subscription(Imu, f'/{name}/imu/data_raw', stream,
-                                 qos_profile_sensor_data)
+                                 qos_profile_sensor_data, raw=True)
     truth = []
     cmd_pub = node.create_publisher(Vector3Stamped, '/node/cmd/angular_velocity', 10)
     state = {'every': 50, 'calls': 0, 'count': 0}
@@ -148,8 +209,11 @@ def run(env, rate_hz, seconds, repeats, sensor_config):
     def spin(until):
         while time.monotonic() < until:
             executor.spin_once(timeout_sec=0.01)
-    pooled = {phase: {'bare': [], 'node': [], 'latency': [], 'sent': 0, 'cpu': {}}
+    pooled = {phase: {'bare': [], 'node': [], 'latency': [], 'sent': 0, 'cpu': {},
+                      'age': [], 'flood': [0, 0.0]}
               for phase in PHASES}
+    flood_cmd = [sys.executable, os.path.abspath(__file__), '--flood-publisher',
+                 '--flood-hz', str(flood_hz), '--ros-args', '-r', '__ns:=/node']
     try:
         deadline = time.monotonic() + 60.0
         while not all(s.arrivals for s in streams.values()):
@@ -160,13 +224,25 @@ def run(env, rate_hz, seconds, repeats, sensor_config):
         node.create_timer(0.01, send)
         ps = {name: psutil.Process(p.pid) for name, p in procs.items()}
         for _ in range(repeats):
-            for phase, (every, watch_truth) in PHASES.items():
+            for phase, (every, watch_truth, flood) in PHASES.items():
                 state['every'] = every
                 truth_sub = node.create_subscription(
                     Vector3Stamped, '/node/gyro_emulator/truth/rate',
-                    lambda msg: truth.append((time.monotonic_ns(), msg.vector.z)),
-                    qos_profile_sensor_data) if watch_truth else None
+                    lambda data: truth.append((time.monotonic_ns(), data)),
+                    qos_profile_sensor_data, raw=True) if watch_truth else None
+                flooder = subprocess.Popen(flood_cmd, env=env, cwd=ROOT, text=True,
+                                           stdout=subprocess.PIPE,
+                                           stderr=subprocess.DEVNULL) if flood else None
                 spin(time.monotonic() + 1.5)  # settle into the phase (and match)
+                if flooder is not None:
+                    # The flood's commands carry x > 0 (their send time): wait until
+                    # they are in force before the window opens.
+                    deadline = time.monotonic() + 30.0
+                    while not (truth and cdr.decode(topics.VECTOR3_STAMPED, [truth[-1][1]])
+                               .field('vector.x')[0] > 0.0):
+                        if time.monotonic() > deadline:
+                            raise RuntimeError('the flood never reached the node')
+                        spin(time.monotonic() + 0.1)
                 for stream in streams.values():
                     stream.clear()
                 truth.clear()
@@ -183,11 +259,24 @@ def run(env, rate_hz, seconds, repeats, sensor_config):
                     cpu_s, win_s = out['cpu'].get(name, (0.0, 0.0))
                     out['cpu'][name] = (cpu_s + used, win_s + window)
                     out[name].append((window, list(stream.arrivals), list(stream.stamps)))
-                for value, t_sent in sent.items():
-                    hits = [t for t, z in truth if z == value and t >= t_sent]
-                    if hits:
-                        out['latency'].append((hits[0] - t_sent) / 1e6)
-                out['sent'] += len(sent)
+                decoded = cdr.decode(topics.VECTOR3_STAMPED, [p for _, p in truth])
+                truth_xz = list(zip((t for t, _ in truth), decoded.field('vector.z').tolist(),
+                                    decoded.field('vector.x').tolist()))
+                if flood:
+                    for t_arrived, _, x in truth_xz:
+                        if x > 0.0:
+                            out['age'].append(1e3 * ((t_arrived / NS - x) % FOLD_S))
+                else:
+                    for value, t_sent in sent.items():
+                        hits = [t for t, z, _ in truth_xz if z == value and t >= t_sent]
+                        if hits:
+                            out['latency'].append((hits[0] - t_sent) / 1e6)
+                    out['sent'] += len(sent)
+                if flooder is not None:
+                    flooder.send_signal(signal.SIGINT)
+                    count, span = flooder.communicate(timeout=15)[0].split()
+                    out['flood'][0] += int(count)
+                    out['flood'][1] += float(span)
                 if truth_sub is not None:
                     node.destroy_subscription(truth_sub)
         load = os.getloadavg()[0]
@@ -209,7 +298,10 @@ def run(env, rate_hz, seconds, repeats, sensor_config):
             rows[name] = pooled_figures(out[name], rate_hz)
             cpu_s, win_s = out['cpu'][name]
             rows[name]['cpu_pct'] = 100.0 * cpu_s / win_s
-        if PHASES[phase][1]:
+        if PHASES[phase][2]:
+            rows['node']['latency_ms'] = percentiles(out['age'])
+            rows['node']['flood_hz'] = out['flood'][0] / max(out['flood'][1], 1e-9)
+        elif PHASES[phase][1]:
             rows['node']['latency_ms'] = percentiles(out['latency'])
             rows['node']['answered'] = (len(out['latency']), out['sent'])
         results[phase] = rows
@@ -245,13 +337,19 @@ def main(argv=None):
     parser.add_argument('--repeats', type=int, default=3,
                         help='held/stream window pairs (default: %(default)s)')
     parser.add_argument('--sensor-config', default='paper')
+    parser.add_argument('--flood-hz', type=float, default=10000.0,
+                        help='command rate of the flood phase (default: %(default)s)')
     parser.add_argument('--bare-publisher', action='store_true', help=argparse.SUPPRESS)
+    parser.add_argument('--flood-publisher', action='store_true', help=argparse.SUPPRESS)
     argv = sys.argv[1:] if argv is None else argv
     if '--ros-args' in argv:
         argv = argv[:argv.index('--ros-args')]
     opts = parser.parse_args(argv)
     if opts.bare_publisher:
         bare_publisher(opts.rate_hz)
+        return 0
+    if opts.flood_publisher:
+        flood_publisher(opts.flood_hz, 'cmd/angular_velocity')
         return 0
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', PYTHONUNBUFFERED='1')
     env.setdefault('ROS_DOMAIN_ID', str(10 + os.getpid() % 90))
@@ -262,7 +360,8 @@ def main(argv=None):
     print(f'{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; bare and node '
           f'side by side at {rate:g} Hz; {opts.repeats} x {len(PHASES)} windows of '
           f'{opts.seconds:g} s ({", ".join(PHASES)}), pooled per phase', flush=True)
-    results, load = run(env, rate, opts.seconds, opts.repeats, opts.sensor_config)
+    results, load = run(env, rate, opts.seconds, opts.repeats, opts.sensor_config,
+                        opts.flood_hz)
     head = (f'{"phase":<7} {"subject":<5} {"rate rx":>8} {"rate st":>8} '
             f'{"rx jitter p50/p99/max ms":>25} {"stamp jitter p50/p99/max":>25} '
             f'{"CPU %":>6} {"xbare":>6} {"latency p50/p99/max ms":>23}')
@@ -280,6 +379,8 @@ def main(argv=None):
                   f'{lat:>23}')
     answered, sent = results['latency']['node']['answered']
     print(f'latency: {answered}/{sent} commands seen on ~/truth/rate')
+    print(f'flood: {results["flood"]["node"]["flood_hz"]:.0f} commands/s achieved; its '
+          'latency column is the age of the command in force when its sample arrived')
     print(f'load average at the end {load:.2f}')
     return 0
 

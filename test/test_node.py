@@ -21,6 +21,7 @@ from geometry_msgs.msg import Vector3Stamped
 from gyro_emulator.physics import first_order
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
+from gyro_emulator.sensor import profiles
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -201,7 +202,7 @@ def test_params_file_values_are_in_force(wall):
     assert got[1].string_value == 'gyro_test'
     assert got[2].double_value == 20.0 and got[3].double_value == 0.3
     assert list(got[4].double_array_value) == [2.0e-4] * 3
-    assert got[5].integer_value == 0
+    assert got[5].integer_value == -1  # the default: derived from the node name
 
 
 def test_imu_contents_follow_rep_145(wall):
@@ -389,6 +390,11 @@ def test_runtime_parameters_are_validated(wall):
     assert wall.node.proc.poll() is None
     # Noise off: covariance zero, the output is the deterministic part only.
     latest_diag(wall, lambda s, v: v.get('stale') == 'true')  # rate held at zero
+    # ... once the die has settled at the clamped 200 C of the bad-input test
+    # (0.2 s lag; with a 1e-5 rad/s/K bias it would drift LSBs meanwhile).
+    probe.spin_until(lambda: wall.topics['temp'] and
+                     abs(wall.topics['temp'][-1].temperature - 200.0) < 1e-4, 10.0,
+                     'the die settled')
     assert set_(('noise_enabled', False))[0].successful
     fresh(wall)
     probe.spin_until(lambda: len(wall.topics['imu']) >= 40, 5.0, 'quiet samples')
@@ -405,6 +411,44 @@ def test_runtime_parameters_are_validated(wall):
                      'the die at the override temperature')
     assert all(r.successful for r in set_(('noise_enabled', True),
                                           ('temperature_override_enabled', False)))
+
+
+def test_a_clock_drift_set_at_run_time_retimes_the_timer(wall):
+    """Issue 14: the part's period 1 / (f_s (1 + ppm 1e-6)) follows a runtime drift change."""
+    probe, client = wall.probe, wall.params
+
+    def timer_period_s():
+        _, values = latest_diag(wall, lambda s, v: True)
+        return float(values['timer_period_s'])
+    assert timer_period_s() == pytest.approx(0.005, rel=1e-6)
+    done = probe.call(client.set_parameters([Parameter('sensor.clock_drift_ppm',
+                                                       value=10000.0)]))
+    assert done.results[0].successful
+    want = 0.005 / 1.01
+    probe.spin_until(lambda: abs(timer_period_s() / want - 1.0) < 1e-6, 5.0,
+                     'the new timer period')
+    fresh(wall)
+    probe.spin_until(lambda: len(wall.topics['imu']) >= 300, 10.0, '300 samples')
+    stamps = np.array([stamp_ns(m.header) for m in wall.topics['imu']])
+    # The median spacing follows the 1 % faster clock (timer jitter allows 0.3 %).
+    assert np.median(np.diff(stamps)) * 1e-9 == pytest.approx(want, rel=3e-3)
+    assert probe.call(client.set_parameters([Parameter('sensor.clock_drift_ppm',
+                                                       value=0.0)])).results[0].successful
+    probe.spin_until(lambda: abs(timer_period_s() / 0.005 - 1.0) < 1e-6, 5.0,
+                     'the nominal period back')
+
+
+def test_the_inputs_are_subscriptions_of_the_node_itself(wall):
+    """``ros2 node info /gyro_emulator`` lists the command subscriptions (issue 15)."""
+    probe = wall.probe
+    subscribed = {}
+    probe.spin_until(lambda: subscribed.update(
+        probe.node.get_subscriber_names_and_types_by_node('gyro_emulator', '/')) or
+        {'/cmd/angular_velocity', '/cmd/temperature', '/cmd/linear_acceleration'}
+        <= set(subscribed), 10.0, 'the command subscriptions in the graph')
+    assert subscribed['/cmd/angular_velocity'] == ['geometry_msgs/msg/Vector3Stamped']
+    published = dict(probe.node.get_publisher_names_and_types_by_node('gyro_emulator', '/'))
+    assert {'/imu/data_raw', '/gyro_emulator/truth/fault', '/diagnostics'} <= set(published)
 
 
 def test_parameters_are_described(wall):
@@ -436,7 +480,9 @@ def expected_samples(sensor_yaml, seed, warmup):
     """Step the offline model: ``warmup`` resting samples, then the script per tick."""
     model = sensor_model.GyroModel(sensor_config.load_sensor_config(sensor_yaml), 200.0,
                                    np.random.default_rng(seed))
-    rate, temp, accel = (0.0, 0.0, 0.0), 25.0, None
+    # The node's specific force before any command: level, +1 g on z (the one
+    # default shared with simulate's profiles).
+    rate, temp, accel = (0.0, 0.0, 0.0), 25.0, profiles.LEVEL_ACCEL_M_S2
     for _ in range(warmup):
         model.step(rate, temp, accel)
     out = []
@@ -537,11 +583,12 @@ def test_sim_time_output_is_exactly_the_offline_model_and_reproducible(tmp_path)
                     return k + 1
                 probe.spin_for(0.02)
             raise AssertionError(f'{what}: {latest_diag_values()}')
-        # Handshake: resend the resting inputs (zero rate, 25 C, zero specific
-        # force: the model's defaults, so its output is unchanged) until every
-        # node has taken one of each; a best-effort reader drops what arrives
-        # before it has matched the writer.
-        handshake = [('rate', (0.0, 0.0, 0.0)), ('temp', 25.0), ('accel', (0.0, 0.0, 0.0))]
+        # Handshake: resend the resting inputs (zero rate, 25 C, level at 1 g:
+        # the node's defaults, so its output is unchanged) until every node has
+        # taken one of each; a best-effort reader drops what arrives before it
+        # has matched the writer.
+        handshake = [('rate', (0.0, 0.0, 0.0)), ('temp', 25.0),
+                     ('accel', profiles.LEVEL_ACCEL_M_S2)]
 
         def shake(values):
             for ns in nodes:
@@ -608,6 +655,18 @@ def test_sim_time_output_is_exactly_the_offline_model_and_reproducible(tmp_path)
 
 # --- start-up errors and shutdown ------------------------------------------------------
 
+def test_help_prints_parameters_and_topics_without_starting_ros():
+    proc = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.node', '--help'],
+                          env=ros_env(), cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and not proc.stderr
+    text = proc.stdout
+    for name in ('rate_hz', 'input_source', 'seed', 'fault.type', 'sensor.<field>',
+                 'default_linear_acceleration_m_s2', 'imu/ideal', 'imu/data_raw',
+                 '~/truth/fault', '/diagnostics', 'cmd/temperature'):
+        assert name in text, name
+    assert '``' not in text and 'gyro emulator up' not in text
+
+
 @pytest.mark.parametrize('args,message', [
     (['-p', 'rate_hz:=-5.0'], 'rate_hz'),
     (['-p', 'stale_rate_policy:=freeze'], 'stale_rate_policy = '),
@@ -667,6 +726,23 @@ def test_presets_stamp_their_latency_and_signals_shut_down_cleanly(tmp_path, sig
     # order of it; the period itself is tested exactly on the model (test_sensor).
     period = np.median(np.diff(ticks)) * 1e-9
     assert period == pytest.approx(0.01 / (1.0 + config.clock_drift_ppm * 1e-6), rel=5e-3)
+
+
+@pytest.mark.parametrize('delay_s', [0.3, 1.2, 2.4])
+def test_a_signal_during_start_up_stops_the_node_without_a_traceback(tmp_path, delay_s):
+    """SIGINT while importing, warming up or constructing (the ros2 run entry point)."""
+    log = tmp_path / 'node.log'
+    with open(log, 'w') as handle:
+        proc = subprocess.Popen(
+            [sys.executable, '-c', 'import sys; from gyro_emulator.cli.executables import '
+             'run_node; sys.exit(run_node())', '--ros-args', '-p', 'rate_hz:=1000.0'],
+            env=ros_env(), cwd=ROOT, stdout=handle, stderr=subprocess.STDOUT)
+        time.sleep(delay_s)   # the moment of the signal, not a synchronisation
+        proc.send_signal(signal.SIGINT)
+        code = proc.wait(30)
+    text = log.read_text()
+    assert code in (0, 130), text
+    assert 'Traceback' not in text and 'Error occurred' not in text, text
 
 
 def test_main_job_plays_a_profile_against_the_node_and_prints_the_summary(tmp_path):

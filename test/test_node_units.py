@@ -213,6 +213,29 @@ def test_shipped_defaults_define_every_node_parameter_and_validate():
     assert defaults['rate_hz'] == 200.0 and defaults['sensor_config'] == 'paper'
 
 
+def test_node_and_simulate_share_one_gravity_default_and_a_driver_like_temperature_rate():
+    """Issue 15: level and at rest, +1 g on z (REP 103) in both; imu/temperature at 1-10 Hz."""
+    defaults = params.node_defaults()
+    assert defaults['default_linear_acceleration_m_s2'] == list(profiles.LEVEL_ACCEL_M_S2)
+    assert profiles.LEVEL_ACCEL_M_S2 == (0.0, 0.0, 9.80665)
+    for name in profiles.PROFILE_NAMES:
+        accel = profiles.make_profile(name, 10.0).sample(np.array([0.0, 5.0])).accel_m_s2
+        assert np.array_equal(accel, np.tile(profiles.LEVEL_ACCEL_M_S2, (2, 1))), name
+    assert 1.0 <= defaults['temperature_rate_hz'] <= 10.0
+    assert defaults['seed'] == params.SEED_FROM_NAME and defaults['fault.type'] == 'none'
+
+
+@pytest.mark.parametrize('value,match', [
+    ([0.0, 0.0], 'is not three numbers'), ([0.0, True, 1.0], 'is not three numbers'),
+    ([0.0, 0.0, float('nan')], r'default_linear_acceleration_m_s2.z = nan is out of range'),
+    ('up', 'is not three numbers')])
+def test_a_vector_parameter_is_three_finite_numbers(value, match):
+    spec = params.NODE_SPECS['default_linear_acceleration_m_s2']
+    with pytest.raises(ValueError, match=match):
+        params.check_value(spec, value)
+    assert params.check_value(spec, [0, 0, 9]) == [0.0, 0.0, 9.0]
+
+
 def test_defaults_file_errors_name_the_problem(tmp_path):
     path = tmp_path / 'p.yaml'
     raw = params.load_params_file(os.path.join(ROOT, 'config', 'gyro_emulator.yaml'))
@@ -376,7 +399,8 @@ def _stub_launch_modules(monkeypatch):
         return make
     modules = {
         'launch': {'LaunchDescription': recorder('LaunchDescription')},
-        'launch.actions': {'DeclareLaunchArgument': recorder('DeclareLaunchArgument')},
+        'launch.actions': {'DeclareLaunchArgument': recorder('DeclareLaunchArgument'),
+                           'OpaqueFunction': recorder('OpaqueFunction')},
         'launch.substitutions': {'LaunchConfiguration': recorder('LaunchConfiguration')},
         'launch_ros': {}, 'launch_ros.actions': {'Node': recorder('Node')}}
     for name, attrs in modules.items():
@@ -386,15 +410,21 @@ def _stub_launch_modules(monkeypatch):
     return made
 
 
-def test_launch_file_starts_the_node_executable_with_the_shipped_config(monkeypatch):
+def load_launch_file(monkeypatch, name):
+    """Run ``launch/<name>`` against the stand-ins; return (what it made, the module)."""
     made = _stub_launch_modules(monkeypatch)
     monkeypatch.setenv('AMENT_PREFIX_PATH', sys.prefix)
     import importlib.util
     spec = importlib.util.spec_from_file_location(
-        'gyro_launch', os.path.join(ROOT, 'launch', 'gyro_emulator.launch.py'))
+        name.replace('.', '_'), os.path.join(ROOT, 'launch', name))
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     module.generate_launch_description()
+    return made, module
+
+
+def test_launch_file_starts_the_node_executable_with_the_shipped_config(monkeypatch):
+    made, _ = load_launch_file(monkeypatch, 'gyro_emulator.launch.py')
     (_, node_kwargs), = made['Node']
     assert node_kwargs['package'] == 'gyro_emulator' and node_kwargs['executable'] == 'node'
     declared = {args[0]: kwargs for args, kwargs in made['DeclareLaunchArgument']}
@@ -462,3 +492,34 @@ def test_raw_message_falls_back_to_the_message_when_a_slot_is_not_unique(monkeyp
     assert not raw.raw
     raw.put('value', 42.5)
     assert raw.payload() is msg and msg.temperature == 42.5
+
+
+# --- the node's fault state (ros.fault_injection) ----------------------------------
+
+def test_fault_state_moves_pending_active_ended_and_follows_a_jump_back():
+    from gyro_emulator.ros.fault_injection import FaultState
+    from gyro_emulator.sensor import faults
+    state = FaultState((8.0, 8.0, 8.0), np.random.default_rng(0))
+    assert state.state == 'none' and state.changed
+    state.changed = False
+    ms = 1_000_000
+    state.start(faults.Fault('stuck', 'x', 0.0, 0.01, 0.02), 100 * ms, (0.5, 0.0, 0.0))
+    seen = []
+    offset = 0
+    for k in range(40):
+        sample_ns = 100 * ms + k * ms + offset
+        value, published, pinned = state.apply(sample_ns, np.array([1.0 + k, 2.0, 3.0]))
+        if state.changed:
+            seen.append((state.state, state.since_ns - 100 * ms))
+            state.changed = False
+        if k == 10:
+            assert value == (10.0, 2.0, 3.0) and state.level == 2   # the sample before
+        if k == 20:
+            # A simulation reset 15 ms back: the fault's clock continues.
+            offset = -15 * ms
+            state.shift(offset)
+            value, _, _ = state.apply(sample_ns + offset, np.array([99.0, 2.0, 3.0]))
+            assert value[0] == 10.0
+    # Ends 20 ms of fault time after it began: at k = 30, on the new time line.
+    assert seen == [('pending', 0), ('active', 10 * ms), ('ended', 15 * ms)]
+    assert published and pinned is None

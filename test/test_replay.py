@@ -4,6 +4,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 
 from conftest import ROOT
 from gyro_emulator.analysis import replay
@@ -45,7 +46,11 @@ def test_simulate_out_writes_the_emulator_layout(simulated):
     time_s, profile, batch = simulate.run_simulation('paper', 'steps', 20.0, 100.0, seed=3)
     imu = reader.read_arrays(replay.IMU_TOPIC)
     np.testing.assert_array_equal(imu.field('angular_velocity'), batch.gyro_rad_s)
-    np.testing.assert_array_equal(imu.log_time_ns, np.round(time_s * 1e9).astype(np.int64))
+    # Issue 15: stamped from the start time (default: now), not from 1970.
+    start = int(reader.custom_data['start_time_ns'])
+    assert abs(start - time.time_ns()) < 600 * 10**9
+    np.testing.assert_array_equal(imu.log_time_ns - start,
+                                  np.round(time_s * 1e9).astype(np.int64))
     np.testing.assert_array_equal(
         imu.stamp_ns, imu.log_time_ns + np.round(batch.output_delay_s * 1e9).astype(np.int64))
     assert imu.field('orientation_covariance[0]')[0] == -1.0

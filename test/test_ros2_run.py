@@ -117,6 +117,30 @@ def test_ros2_run_node_publishes_imu_from_the_colcon_install(workspace, monkeypa
     assert check.stdout.strip().startswith(site)
 
 
+def test_sourcing_install_setup_sh_finds_the_package_and_its_executables(workspace, tmp_path):
+    """
+    Issue 15: colcon-core writes ``install/setup.sh`` (no ``setup.bash`` without colcon-bash).
+
+    Sourced in the dev shell's environment (``ros_env``: the venv on PATH and in
+    AMENT_PREFIX_PATH), it puts the install first, so ``ros2 run`` would find
+    ``lib/gyro_emulator/array`` and ``node``; ``node --help`` runs from there.
+    """
+    assert (workspace / 'install' / 'setup.sh').is_file()
+    env = ros_env()
+    env['PATH'] = os.path.dirname(sys.executable) + os.pathsep + env.get('PATH', '')
+    script = ('. "$WS/install/setup.sh" && python -c "from ament_index_python.packages '
+              'import get_package_prefix as p; print(p(\'gyro_emulator\'))" && '
+              '"$(python -c "from ament_index_python.packages import get_package_prefix '
+              'as p; print(p(\'gyro_emulator\'))")/lib/gyro_emulator/node" --help')
+    proc = subprocess.run(['sh', '-c', script], env=dict(env, WS=str(workspace)),
+                          cwd=str(tmp_path), capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    prefix = proc.stdout.splitlines()[0]
+    assert prefix == str(workspace / 'install' / 'gyro_emulator')
+    assert 'imu/data_raw' in proc.stdout and 'fault.type' in proc.stdout
+    assert os.access(os.path.join(prefix, 'lib', 'gyro_emulator', 'array'), os.X_OK)
+
+
 @pytest.mark.parametrize('args,message', [
     (['--ros-args', '--params-file', 'BAD'], 'cannot start ROS: failed to initialize rcl'),
     (['--ros-args', '-p', 'record_dir:=/proc/no/such/dir'],

@@ -5,6 +5,7 @@ import io
 import json
 import math
 import os
+import time
 
 from gyro_emulator import cli, units
 from gyro_emulator.analysis import simulate
@@ -252,3 +253,79 @@ def test_a_failed_simulate_leaves_nothing_behind(tmp_path, capsys, name):
     assert rc == 2
     assert 'out of range' in capsys.readouterr().err
     assert sorted(os.listdir(tmp_path)) == ['hot.yaml', 'ramp.yaml']
+
+
+def test_a_simulated_bag_starts_at_the_start_time_asked_for(tmp_path):
+    """Issue 15: a bag stamped from a settable start time (default now), not from 1970."""
+    from gyro_emulator.recording import bag
+    t0 = simulate.parse_start_time('2026-03-01T12:00:00')
+    assert t0 == simulate.parse_start_time('2026-03-01T12:00:00Z') == 1772366400 * 10**9
+    assert simulate.parse_start_time('0') == 0 and simulate.parse_start_time('1.5') == 1.5e9
+    assert abs(simulate.parse_start_time('now') - time.time_ns()) < 10**9
+    out = str(tmp_path / 'b')
+    simulate.write_record(out, 'paper', 'static', 0.1, 100.0, start_time_ns=t0)
+    reader = bag.BagReader(out)
+    assert reader.start_time_ns == t0 and reader.custom_data['start_time_ns'] == str(t0)
+    for bad in ('yesterday', '-1', '1e12'):
+        with pytest.raises(ValueError, match=f"start_time = '{bad}' is"):
+            simulate.parse_start_time(bad)
+
+
+@pytest.mark.parametrize('command', [name for name, _ in cli.COMMANDS])
+def test_help_shows_no_rst_markup(command, capsys):
+    """Issue 15: ``--help`` shows ``name``, not RST backticks or roles."""
+    with pytest.raises(SystemExit) as done:
+        cli.main([command, '--help'])
+    assert done.value.code == 0
+    text = capsys.readouterr().out
+    assert 'usage: gyro-emulator ' + command in text
+    assert '``' not in text and not any(role in text for role in (':func:', ':mod:',
+                                                                  ':class:', ':data:'))
+
+
+def test_help_of_the_installed_command_shows_no_rst_markup():
+    """The same through a real process of the command line."""
+    import subprocess
+    import sys
+    proc = subprocess.run([sys.executable, '-m', 'gyro_emulator.cli', 'simulate', '--help'],
+                          capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and '--start-time' in proc.stdout
+    assert '``' not in proc.stdout and 'gyro_emulator.analysis.replay' in proc.stdout
+
+
+def test_plain_text_keeps_the_words_of_rst_markup():
+    assert cli.plain_text('see ``--out`` and :func:`gyro_emulator.sensor.streams.spawn`, '
+                          ':class:`~a.b.GyroModel` or :mod:`the replay <x.y>`') == \
+        'see --out and gyro_emulator.sensor.streams.spawn, GyroModel or the replay'
+
+
+def test_simulate_applies_a_fault_schedule_as_the_node_does(tmp_path):
+    """Issue 15: the one fault model (sensor.faults) also drives simulate."""
+    from gyro_emulator.recording import bag
+    from gyro_emulator.sensor import faults
+    schedule_file = tmp_path / 'faults.yaml'
+    schedule_file.write_text(
+        'faults:\n'
+        '  - {type: bias_step, axis: z, magnitude: 0.02, start_s: 1.0, duration_s: 0.5}\n'
+        '  - {type: dropout, start_s: 2.0, duration_s: 0.25}\n')
+    schedule = faults.load_schedule(str(schedule_file))
+    clean = tmp_path / 'clean.csv'
+    faulty = tmp_path / 'faulty.csv'
+    for out, extra in ((clean, []), (faulty, ['--faults', str(schedule_file)])):
+        assert cli.main(['simulate', '--profile', 'static', '--duration-s', '3',
+                         '--rate-hz', '100', '--seed', '4', '--out', str(out)] + extra) == 0
+    a = csvio.read_csv(str(clean))
+    b = csvio.read_csv(str(faulty))
+    assert len(a['time_s']) == 300 and len(b['time_s']) == 275   # 25 samples dropped
+    kept = ~((a['time_s'] >= 2.0) & (a['time_s'] < 2.25))
+    assert np.array_equal(b['time_s'], a['time_s'][kept])
+    diff = b['gyro_z_rad_s'] - a['gyro_z_rad_s'][kept]
+    inside = (b['time_s'] >= 1.0) & (b['time_s'] < 1.5)
+    assert np.allclose(diff[inside], 0.02, atol=1e-9) and not diff[~inside].any()
+    path = str(tmp_path / 'bag')
+    simulate.write_record(path, 'paper', 'static', 3.0, 100.0, seed=4, faults=schedule,
+                          start_time_ns=0)
+    reader = bag.BagReader(path)
+    assert reader.topics['/imu/data_raw'].message_count == 275
+    assert reader.topics['/gyro_emulator/truth/rate'].message_count == 300
+    assert 'dropout on all' in reader.custom_data['faults']

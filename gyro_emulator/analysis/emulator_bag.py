@@ -126,7 +126,7 @@ class EmulatorBagWriter:
         for topic in extra:
             writer.add_topic(topic, VECTOR3_STAMPED)
 
-    def write(self, stamp_ns, rate_rad_s, temp_c, accel_m_s2, batch):
+    def write(self, stamp_ns, rate_rad_s, temp_c, accel_m_s2, batch, published=None):
         """
         Write one block of samples.
 
@@ -142,6 +142,9 @@ class EmulatorBagWriter:
             Specific force, m/s^2 (None: not commanded).
         batch : gyro_emulator.sensor.model.SensorBatch
             The model output of these samples.
+        published : numpy.ndarray of bool, shape (N,), optional
+            The samples with an ``imu/data_raw`` (a dropout withholds the
+            others); None: all.
 
         """
         stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
@@ -158,8 +161,10 @@ class EmulatorBagWriter:
             if accel_m_s2 is not None:
                 batches.append((ACCEL_TOPIC, cdr.encode(VECTOR3_STAMPED, stamp_ns,
                                                         accel_m_s2, frame), stamp_ns))
+        keep = slice(None) if published is None else np.asarray(published, dtype=bool)
         batches.append((IMU_TOPIC, cdr.encode(
-            IMU, imu_stamp, _imu_values(batch.gyro_rad_s, self.sigma_rad_s), frame), stamp_ns))
+            IMU, imu_stamp[keep], _imu_values(batch.gyro_rad_s[keep], self.sigma_rad_s),
+            frame), stamp_ns[keep]))
         die = np.column_stack([batch.die_temp_c, np.zeros(len(stamp_ns))])
         batches.append((DIE_TEMPERATURE_TOPIC, cdr.encode(TEMPERATURE, stamp_ns, die, frame),
                         stamp_ns))
@@ -238,7 +243,7 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
         for chunk in chunks:
             stamp_ns = start_ns + np.round(chunk.time_s * NS_PER_S).astype(np.int64)
             out.write(stamp_ns, chunk.profile.rate_rad_s, chunk.profile.temp_c,
-                      chunk.profile.accel_m_s2, chunk.batch)
+                      chunk.profile.accel_m_s2, chunk.batch, chunk.published)
             done += len(chunk.time_s)
             if progress is not None:
                 progress(done, total)

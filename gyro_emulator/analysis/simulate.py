@@ -15,14 +15,17 @@ the record is identical whatever the chunk size.
 """
 
 import contextlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+import datetime
 import functools
 import os
 import shutil
 import tempfile
+import time
 
 from gyro_emulator.analysis.emulator_bag import simulation_custom_data, write_simulation_bag
 from gyro_emulator.recording import csvio
+from gyro_emulator.sensor import faults as sensor_faults
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.model import GyroModel, SensorBatch
 from gyro_emulator.sensor.profiles import make_profile, Profile, ProfileSamples
@@ -42,11 +45,17 @@ MAX_SAMPLES = 20_000_000
 
 @dataclass(frozen=True)
 class SimulationChunk:
-    """One chunk of a simulation: times, profile inputs and the sensor output."""
+    """
+    One chunk of a simulation: times, profile inputs and the sensor output.
+
+    ``published`` (N,) is False for the samples a ``dropout`` fault withholds
+    (None: all are published); the writers leave them out of the output.
+    """
 
     time_s: np.ndarray
     profile: ProfileSamples
     batch: SensorBatch
+    published: np.ndarray = None
 
 
 def _resolve(config, profile, duration_s, rate_hz, temp_c):
@@ -70,7 +79,7 @@ def _resolve(config, profile, duration_s, rate_hz, temp_c):
 
 
 def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
-                    chunk_samples=CHUNK_SAMPLES):
+                    chunk_samples=CHUNK_SAMPLES, faults=()):
     """
     Simulate chunk by chunk.
 
@@ -90,6 +99,10 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
         Ambient temperature of the ``static`` and ``steps`` profiles, deg C.
     chunk_samples : int
         Samples per chunk.
+    faults : sequence of gyro_emulator.sensor.faults.Fault
+        A fault schedule on the record's time (``sensor.faults``), applied to
+        the output as the node applies its faults; ``noise_burst`` draws from
+        the seed's SeedSequence child after the model's streams.
 
     Yields
     ------
@@ -97,13 +110,23 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
 
     """
     config, profile, n, rate_hz = _resolve(config, profile, duration_s, rate_hz, temp_c)
-    model = GyroModel(config, rate_hz, np.random.default_rng(seed))
+    rng = np.random.default_rng(seed)
+    model = GyroModel(config, rate_hz, rng)
+    injector = sensor_faults.Injector(
+        faults, config.range_rad_s, sensor_faults.fault_generator(rng.bit_generator.seed_seq)
+    ) if faults else None
     for start in range(0, n, int(chunk_samples)):
         idx = np.arange(start, min(n, start + int(chunk_samples)))
         time_s = idx * model.sample_period_s
         samples = profile.sample(time_s)
         batch = model.run(samples.rate_rad_s, samples.temp_c, samples.accel_m_s2)
-        yield SimulationChunk(time_s, samples, batch)
+        published = None
+        if injector is not None:
+            effect = injector.apply(time_s, batch.gyro_rad_s)
+            batch = replace(batch, gyro_rad_s=effect.gyro_rad_s,
+                            saturated=batch.saturated | effect.saturated)
+            published = effect.published
+        yield SimulationChunk(time_s, samples, batch, published)
 
 
 def sample_count(duration_s, rate_hz):
@@ -146,10 +169,13 @@ def run_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
 
 
 def csv_columns(chunk):
-    """Return the :data:`CSV_COLUMNS` arrays of a chunk, in order."""
+    """Return the :data:`CSV_COLUMNS` arrays of a chunk's published samples, in order."""
     rate, gyro = chunk.profile.rate_rad_s, chunk.batch.gyro_rad_s
-    return [chunk.time_s, rate[:, 0], rate[:, 1], rate[:, 2], chunk.profile.temp_c,
-            gyro[:, 0], gyro[:, 1], gyro[:, 2]]
+    columns = [chunk.time_s, rate[:, 0], rate[:, 1], rate[:, 2], chunk.profile.temp_c,
+               gyro[:, 0], gyro[:, 1], gyro[:, 2]]
+    if chunk.published is None:
+        return columns
+    return [column[chunk.published] for column in columns]
 
 
 def write_simulation_csv(path, chunks, progress=None, total=None):
@@ -208,8 +234,37 @@ def is_csv_path(path):
     return str(path).endswith(('.csv', '.csv.gz'))
 
 
+def parse_start_time(text):
+    """
+    Return a bag start time in ns since the Unix epoch from ``now``, seconds or ISO 8601.
+
+    ``now`` (the default of ``simulate --start-time``) is the current time;
+    a number is seconds since 1970-01-01 UTC (``0``: the epoch itself); an
+    ISO 8601 date-time without a zone is UTC (``2026-03-01T12:00:00``).
+    """
+    text = str(text).strip()
+    if text == 'now':
+        return time.time_ns()
+    try:
+        seconds = float(text)
+    except ValueError:
+        try:
+            moment = datetime.datetime.fromisoformat(text.replace('Z', '+00:00'))
+        except ValueError:
+            raise ValueError(f'start_time = {text!r} is not understood: allowed now, seconds '
+                             'since the epoch, or an ISO 8601 date-time such as '
+                             '2026-03-01T12:00:00') from None
+        if moment.tzinfo is None:
+            moment = moment.replace(tzinfo=datetime.timezone.utc)
+        seconds = moment.timestamp()
+    if not (np.isfinite(seconds) and 0.0 <= seconds < 2 ** 31):
+        raise ValueError(f'start_time = {text!r} is out of range: allowed [0, 2^31) s since '
+                         'the epoch (1970 to 2038, as builtin_interfaces/Time holds it)')
+    return int(round(seconds * 1e9))
+
+
 def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
-                 overwrite=False, progress=None):
+                 overwrite=False, progress=None, start_time_ns=None, faults=()):
     """
     Simulate (:func:`iter_simulation`) and write the record, staged (:func:`staged_output`).
 
@@ -227,6 +282,13 @@ def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
         Replace an existing ``out``; without it that is an error.
     progress : callable, optional
         ``progress(done, total)`` after each chunk.
+    start_time_ns : int, optional
+        Bag time of sample 0, ns since the epoch (None: now), so that a bag
+        opens at its date in Foxglove or ``ros2 bag``; recorded in
+        ``custom_data``. The CSV's ``time_s`` counts from 0 either way.
+    faults : sequence of gyro_emulator.sensor.faults.Fault
+        A fault schedule (:func:`iter_simulation`); a dropout leaves its
+        samples out of the CSV and the bag's ``imu/data_raw``.
 
     Returns
     -------
@@ -234,15 +296,19 @@ def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
         Samples written.
 
     """
+    start_ns = time.time_ns() if start_time_ns is None else int(start_time_ns)
     sensor = config if isinstance(config, SensorConfig) else load_sensor_config(config)
     if is_csv_path(out):
         writer = write_simulation_csv
     else:
-        writer = functools.partial(
-            write_simulation_bag, config=sensor, rate_hz=rate_hz,
-            custom_data=simulation_custom_data(config, profile, duration_s, rate_hz, seed,
-                                               temp_c))
+        custom = simulation_custom_data(config, profile, duration_s, rate_hz, seed, temp_c)
+        custom['start_time_ns'] = str(start_ns)
+        if faults:
+            custom['faults'] = '; '.join(f.describe() for f in faults)
+        writer = functools.partial(write_simulation_bag, config=sensor, rate_hz=rate_hz,
+                                   custom_data=custom, start_ns=start_ns)
     total = sample_count(duration_s, rate_hz)
-    chunks = iter_simulation(sensor, profile, duration_s, rate_hz, seed=seed, temp_c=temp_c)
+    chunks = iter_simulation(sensor, profile, duration_s, rate_hz, seed=seed, temp_c=temp_c,
+                             faults=faults)
     with staged_output(out, overwrite) as partial:
         return writer(partial, chunks, progress=progress, total=total)

@@ -9,6 +9,7 @@ Command modules import their heavy dependencies inside ``run`` so that
 
 import argparse
 import importlib
+import re
 import sys
 
 #: (subcommand, module) in the order shown by ``--help``.
@@ -26,17 +27,49 @@ COMMANDS = (
 )
 
 
+#: reStructuredText roles (``:func:`x```) and literals (````x````) in docstrings.
+_ROLE = re.compile(r':[a-z]+:`~?([^`<]*?)\s*(?:<[^`>]*>)?`')
+_LITERAL = re.compile(r'``([^`]*)``')
+
+
+def plain_text(text):
+    """
+    Return docstring text as ``--help`` shows it: RST markup removed.
+
+    ````x```` becomes ``x``; a role ``:func:`name``` becomes ``name`` (with
+    ``~`` only the last part, with ``title <target>`` the title).
+    """
+    if not text:
+        return text
+
+    def role(match):
+        name = match.group(1)
+        return name.rsplit('.', 1)[-1] if match.group(0).startswith(':') and '`~' in \
+            match.group(0) else name
+    return _LITERAL.sub(r'\1', _ROLE.sub(role, text))
+
+
+class PlainParser(argparse.ArgumentParser):
+    """An ArgumentParser whose option help is shown without RST markup."""
+
+    def add_argument(self, *args, **kwargs):
+        """Add an argument as ArgumentParser does, its ``help`` as :func:`plain_text`."""
+        if isinstance(kwargs.get('help'), str):
+            kwargs['help'] = plain_text(kwargs['help'])
+        return super().add_argument(*args, **kwargs)
+
+
 def build_parser():
     """Return the argument parser with every registered subcommand."""
     parser = argparse.ArgumentParser(
         prog='gyro-emulator',
         description='A virtual MEMS vibratory gyroscope built from physics.')
-    sub = parser.add_subparsers(dest='command', metavar='COMMAND')
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND', parser_class=PlainParser)
     sub.required = True
     for name, module_name in COMMANDS:
         module = importlib.import_module(module_name)
         sub_parser = sub.add_parser(
-            name, help=module.HELP, description=module.__doc__,
+            name, help=plain_text(module.HELP), description=plain_text(module.__doc__),
             formatter_class=argparse.RawDescriptionHelpFormatter)
         module.add_arguments(sub_parser)
         sub_parser.set_defaults(run=module.run)

@@ -12,6 +12,7 @@ lives here, at process start, and a user's own setting wins.
 
 import importlib
 import os
+import signal
 import sys
 
 #: Environment variables that size the BLAS thread pools numpy may load.
@@ -27,7 +28,22 @@ def limit_blas_threads(environ=None):
 
 def _run(module_name):
     limit_blas_threads()
-    return importlib.import_module(module_name).main()
+    # A Ctrl-C while the heavy imports run (about 1 s) must stop the program,
+    # without a traceback, even if a library swallows the KeyboardInterrupt.
+    interrupted = []
+
+    def on_sigint(signum, frame):
+        interrupted.append(signum)
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGINT, on_sigint)
+    try:
+        module = importlib.import_module(module_name)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        if interrupted:
+            return 130
+        return module.main()
+    except KeyboardInterrupt:
+        return 130
 
 
 def run_cli():
@@ -55,6 +71,11 @@ def run_recorder():
 def run_replay():
     """Run the ROS replay (``ros2 run gyro_emulator replay``)."""
     return _run('gyro_emulator.ros.replay')
+
+
+def run_array():
+    """Run N emulator nodes from an array spec (``ros2 run gyro_emulator array``)."""
+    return _run('gyro_emulator.ros.gyro_array')
 
 
 if __name__ == '__main__':

@@ -7,7 +7,8 @@ from 25 to 85 C, the paper's Fig 6 conditions) or a YAML profile file (see
 ``gyro_emulator.sensor.profiles``). The CSV columns are time_s, rate_{x,y,z}_rad_s
 (true rate), temp_c (ambient) and gyro_{x,y,z}_rad_s (sensor output).
 An ``--out`` path not ending in .csv/.csv.gz is a rosbag2 MCAP bag directory
-with the node's topics (see ``gyro_emulator.analysis.replay``).
+with the node's topics (see ``gyro_emulator.analysis.replay``), stamped from
+``--start-time`` (default: now).
 """
 
 import sys
@@ -41,6 +42,14 @@ def add_arguments(parser):
                              'directory in the emulator topic layout')
     parser.add_argument('--overwrite', action='store_true',
                         help='replace an existing output (default: refuse)')
+    parser.add_argument('--faults', metavar='FILE.yaml',
+                        help='inject the faults: list of a YAML file (a scenario, a '
+                             'profile, or only faults:), times from the start of the record '
+                             '(see gyro_emulator.sensor.faults)')
+    parser.add_argument('--start-time', default='now', metavar='WHEN',
+                        help='bag time of the first sample: now, seconds since the epoch '
+                             '(0 = 1970) or an ISO 8601 date-time, UTC unless it says '
+                             'otherwise (default: %(default)s)')
 
 
 class Progress:
@@ -66,11 +75,15 @@ class Progress:
 def run(args):
     """Run the simulation and write the record."""
     from gyro_emulator.analysis import simulate
+    from gyro_emulator.sensor import faults
 
     started = time.monotonic()
+    start_ns = simulate.parse_start_time(args.start_time)
+    schedule = faults.load_schedule(args.faults) if args.faults else ()
     rows = simulate.write_record(args.out, args.config, args.profile, args.duration_s,
                                  args.rate_hz, seed=args.seed, temp_c=args.temp_c,
-                                 overwrite=args.overwrite, progress=Progress())
+                                 overwrite=args.overwrite, progress=Progress(),
+                                 start_time_ns=start_ns, faults=schedule)
     print(f'wrote {args.out}: {rows} samples at {args.rate_hz:g} Hz '
           f'({args.duration_s:g} s, profile {args.profile}, config {args.config}) in '
           f'{time.monotonic() - started:.1f} s')

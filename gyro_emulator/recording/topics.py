@@ -9,7 +9,9 @@ description (no rclpy here); :mod:`gyro_emulator.ros` turns it into a
 
 * ``sensor_data``: best effort, keep last 5, volatile (rclpy's
   ``qos_profile_sensor_data``, REP 2003 for sensor drivers);
-* ``reliable``: reliable, keep last 10, volatile (the rclpy default).
+* ``reliable``: reliable, keep last 10, volatile (the rclpy default);
+* ``latched``: reliable, keep last 1, transient local (a late subscriber
+  gets the current state at once).
 
 The node, scenario, recorder, replay and the offline readers all look topics
 up here, so a name is spelled in one place.
@@ -26,7 +28,7 @@ DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 CLOCK = 'rosgraph_msgs/msg/Clock'
 
 #: QoS kinds a topic may have (see the module docstring).
-QOS_KINDS = ('sensor_data', 'reliable')
+QOS_KINDS = ('sensor_data', 'reliable', 'latched')
 
 
 @dataclass(frozen=True)
@@ -76,6 +78,9 @@ RATE_CMD, ODOM_CMD, TEMPERATURE_CMD, ACCEL_CMD = (Topic(*row) for row in (
     ('cmd/temperature', TEMPERATURE, 'reliable', 'in', 'ambient temperature, deg C'),
     ('cmd/linear_acceleration', VECTOR3_STAMPED, 'reliable', 'in', 'specific force, m/s^2'),
 ))
+#: The ideal IMU of a simulator (``input_source: imu``), e.g. through ros_gz_bridge.
+IMU_IDEAL_IN = Topic('imu/ideal', IMU, 'sensor_data', 'in',
+                     'ideal IMU from a simulator: angular velocity rad/s, specific force m/s^2')
 IMU_OUT, DIE_TEMPERATURE_OUT, DIAGNOSTICS = (Topic(*row) for row in (
     ('imu/data_raw', IMU, 'sensor_data', 'out', 'gyro output (REP 145), rad/s'),
     ('imu/temperature', TEMPERATURE, 'sensor_data', 'out', 'die temperature, deg C'),
@@ -84,6 +89,8 @@ IMU_OUT, DIE_TEMPERATURE_OUT, DIAGNOSTICS = (Topic(*row) for row in (
 TRUTH_RATE, TRUTH_BIAS, TRUTH_SCALE_FACTOR = (
     Topic(f'~/truth/{what}', VECTOR3_STAMPED, 'sensor_data', 'out', f'true {what} per sample')
     for what in ('rate', 'bias', 'scale_factor'))
+TRUTH_FAULT = Topic('~/truth/fault', DIAGNOSTIC_ARRAY, 'latched', 'out',
+                    'the injected fault and its state, on each change')
 
 #: The node's default name; its private (``~/``) topics live under ``/<name>/``.
 NODE_NAME = 'gyro_emulator'
@@ -101,8 +108,9 @@ TRUTH_TOPICS = MappingProxyType({'rate': TRUTH_RATE, 'bias': TRUTH_BIAS,
                                  'scale_factor': TRUTH_SCALE_FACTOR})
 
 #: Every topic of the node's interface, in the order of the README's table.
-NODE_TOPICS = (RATE_CMD, ODOM_CMD, TEMPERATURE_CMD, ACCEL_CMD, IMU_OUT,
-               DIE_TEMPERATURE_OUT, TRUTH_RATE, TRUTH_BIAS, TRUTH_SCALE_FACTOR, DIAGNOSTICS)
+NODE_TOPICS = (RATE_CMD, ODOM_CMD, TEMPERATURE_CMD, ACCEL_CMD, IMU_IDEAL_IN, IMU_OUT,
+               DIE_TEMPERATURE_OUT, TRUTH_RATE, TRUTH_BIAS, TRUTH_SCALE_FACTOR, TRUTH_FAULT,
+               DIAGNOSTICS)
 
 #: What the recorder takes by default: the emulator's inputs and outputs.
 RECORDED_BY_DEFAULT = (RATE_CMD, TEMPERATURE_CMD, ACCEL_CMD, IMU_OUT,

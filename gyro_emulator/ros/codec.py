@@ -71,12 +71,15 @@ def topic_qos(topic):
     Return the rclpy ``QoSProfile`` of a topic-table entry's QoS kind.
 
     ``sensor_data`` is rclpy's ``qos_profile_sensor_data`` (best effort, keep
-    last 5, volatile); ``reliable`` is reliable, keep last 10, volatile.
+    last 5, volatile); ``reliable`` is reliable, keep last 10, volatile;
+    ``latched`` is reliable, keep last 1, transient local.
     """
-    from rclpy.qos import qos_profile_sensor_data, QoSProfile
+    from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile
 
     if topic.qos == 'sensor_data':
         return qos_profile_sensor_data
+    if topic.qos == 'latched':
+        return QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
     return QoSProfile(depth=10)
 
 

@@ -5,8 +5,11 @@ Diagnostics bookkeeping of the node and its diagnostic_msgs/DiagnosticArray.
 inputs and model errors; :meth:`DiagnosticsBook.report` turns the counts
 since the previous report and the node's current situation into one status:
 
-* ERROR: the model raised on a sample in the period (nothing published).
-* WARN: stale rate command, inputs rejected or temperatures clamped in the
+* ERROR: the model raised on a sample in the period (nothing published), or
+  an injected fault that invalidates the output is acting (stuck, dropout,
+  saturate).
+* WARN: an injected fault that degrades the output is acting (bias_step,
+  drift, spike, noise_burst), stale rate command, inputs rejected or temperatures clamped in the
   period, saturation in the period, or (wall clock only) an achieved rate
   below 90 % of ``rate_hz``.
 * OK otherwise.
@@ -84,7 +87,8 @@ class DiagnosticsBook:
             Target output rate, Hz.
         situation : dict
             Current state: ``stale`` (bool), ``rate_age_s`` (float or None),
-            ``stale_policy`` (str) and any further key/values to show.
+            ``stale_policy`` (str), ``fault_level`` (0, WARN or ERROR) with
+            ``fault`` (its description), and any further key/values to show.
         check_rate : bool
             Warn on a low achieved rate (False under use_sim_time).
 
@@ -97,6 +101,10 @@ class DiagnosticsBook:
         if errors:
             level = ERROR
             notes.append(f'model refused {errors} sample(s): {self.last_model_error}')
+        fault_level = situation.get('fault_level', 0)
+        if fault_level:
+            level = max(level, ERROR if fault_level >= ERROR else WARN)
+            notes.append(f'fault injected: {situation.get("fault", "")}')
         if situation.get('stale'):
             level = max(level, WARN)
             age = situation.get('rate_age_s')
@@ -122,7 +130,8 @@ class DiagnosticsBook:
             notes.append(f'output rate {achieved:.1f} Hz below target {rate_hz:g} Hz')
         values = [('rate_hz', rate_hz), ('achieved_rate_hz', round(achieved, 2)),
                   ('samples', self.samples)]
-        values += [(k, v) for k, v in situation.items() if k != 'stale_policy']
+        values += [(k, v) for k, v in situation.items()
+                   if k not in ('stale_policy', 'fault_level')]
         values += [('saturated_samples.' + a, n) for a, n in zip('xyz', self.saturated)]
         values += [('rejected.' + r, n) for r, n in self.rejected.items()]
         values += [('clamped.' + r, n) for r, n in self.clamped.items()]

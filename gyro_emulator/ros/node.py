@@ -1,19 +1,26 @@
 """
 ``ros2 run gyro_emulator node``: the sensor model as a ROS 2 gyro driver.
 
-A timer on the node clock (sim time under ``use_sim_time``) advances the
-error model one sample per tick, 1 / ``rate_hz`` each, with the commands in
-force at that tick, and publishes:
+With ``input_source: command`` (the default) a timer on the node clock (sim
+time under ``use_sim_time``) advances the error model one sample per tick,
+1 / ``rate_hz`` each (the part's period, with its clock drift), with the
+commands in force at that tick. With ``input_source: imu`` the node follows
+a simulator instead: one sample per ``imu/ideal`` message
+(sensor_msgs/Imu), the time step from the stamps
+(:mod:`gyro_emulator.ros.imu_input`). Either way it publishes:
 
 * ``imu/data_raw`` (sensor_msgs/Imu, REP 145/103): the gyro output in rad/s,
   ``angular_velocity_covariance`` = diag(sigma^2) of the model's white noise
   at this rate, orientation absent (``orientation_covariance[0] = -1``),
-  linear acceleration absent (``[0] = -1``) unless passed through.
-  Stamp = tick time + the model's output delay (latency, jitter, drift).
+  linear acceleration absent (``[0] = -1``) unless passed through (always
+  passed through from ``imu/ideal``). Stamp = sample instant + the model's
+  output delay (latency and jitter).
 * ``imu/temperature`` (sensor_msgs/Temperature): die temperature, deg C.
 * ``~/truth/rate``, ``~/truth/bias``, ``~/truth/scale_factor``
-  (geometry_msgs/Vector3Stamped, stamped at the tick): true rate (rad/s),
-  total bias (rad/s) and total gain (ratio) of the same sample.
+  (geometry_msgs/Vector3Stamped, stamped at the sample instant): true rate
+  (rad/s), total bias (rad/s) and total gain (ratio) of the same sample;
+  ``~/truth/fault`` (diagnostic_msgs/DiagnosticArray, latched) on each change
+  of the injected fault (:mod:`gyro_emulator.ros.fault_injection`).
 * ``/diagnostics`` (diagnostic_msgs/DiagnosticArray), see
   :mod:`gyro_emulator.ros.diagnostics`.
 
@@ -21,43 +28,79 @@ It subscribes to ``cmd/angular_velocity`` (geometry_msgs/Vector3Stamped,
 rad/s, sensor frame) or, with ``rate_source = odometry``, ``cmd/odom``
 (nav_msgs/Odometry, twist.twist.angular), to ``cmd/temperature``
 (sensor_msgs/Temperature, ambient deg C) and ``cmd/linear_acceleration``
-(geometry_msgs/Vector3Stamped, m/s^2). Input rules: :mod:`.inputs`.
+(geometry_msgs/Vector3Stamped, m/s^2), through :mod:`.intake`; input rules:
+:mod:`.inputs`. ``--help`` prints the parameters and topics and exits.
 """
 
+import functools
+import signal
 import sys
 import threading
 import time
 
 from gyro_emulator.recording import topics
-from gyro_emulator.ros import codec, diagnostics, params
-from gyro_emulator.ros.inputs import (check_acceleration, check_rate, check_temperature,
-                                      CommandStream, InputLimits, InputRejected, Throttle)
-from gyro_emulator.ros.rawmsg import RawMessage
+from gyro_emulator.ros import codec, diagnostics, node_help, params
+from gyro_emulator.ros.fault_injection import FaultState
+from gyro_emulator.ros.imu_input import InputTimeline, StampNotNewer
+from gyro_emulator.ros.inputs import (check_acceleration, check_rate, InputLimits,
+                                      InputRejected, Throttle)
+from gyro_emulator.ros.intake import INBOX_DEPTH, Intake
+from gyro_emulator.ros.outputs import fault_message, OutputStage
 from gyro_emulator.ros.spinning import close, spin_once
 from gyro_emulator.ros.stepper import BlockStepper
 from gyro_emulator.sensor import config as sensor_config
+from gyro_emulator.sensor import faults
 from gyro_emulator.sensor import model as sensor_model
+from gyro_emulator.sensor.streams import seed_from_name
 from gyro_emulator.units import NS_PER_S
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
-from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
+from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
 from rclpy.qos_overriding_options import QoSOverridingOptions
+from rclpy.time import Time
 
 ZERO3 = (0.0, 0.0, 0.0)
-#: Messages each command subscription keeps until the executor serves them.
-INPUT_DEPTH = 100
 #: Longest wait of the executor between checks for shutdown, s.
 SHUTDOWN_POLL_S = 0.25
 
 
-def _stamp_ns(header):
-    return header.stamp.sec * NS_PER_S + header.stamp.nanosec
+def _while_up(callback):
+    """
+    Wrap an executor callback: an error once the context is down is the shutdown.
+
+    A SIGINT/SIGTERM shuts the context down from rclpy's signal handler while
+    a callback may be publishing; the events executor would log that error
+    with its traceback. While the context is up, errors propagate.
+    """
+    @functools.wraps(callback)
+    def run(self, *args):
+        try:
+            return callback(self, *args)
+        except (Exception, KeyboardInterrupt):  # noqa: B902 - after shutdown: the shutdown
+            if self.context.ok():
+                raise
+            return None
+    return run
+
+
+def _warm_up():
+    """Load the compiled sensor kernel (numba's cache) before ROS takes the signals."""
+    config = sensor_config.SensorConfig()
+    sensor_model.GyroModel(config, 100.0, np.random.default_rng(0)).step(ZERO3, 25.0)
+
+
+def _appender(inbox):
+    """Return a subscription callback that appends to ``inbox`` (rclpy inspects it)."""
+    def append(msg):
+        inbox.append(msg)
+    return append
 
 
 class GyroEmulatorNode(Node):
@@ -80,26 +123,38 @@ class GyroEmulatorNode(Node):
         base = sensor_config.load_sensor_config(p['sensor_config'])
         self._declare_sensor_parameters(base)
         self._log_throttle = Throttle(1.0, time.monotonic)
-        model = sensor_model.GyroModel(self._effective_config(), self.rate_hz,
-                                       np.random.default_rng(p['seed']))
+        self.seed = p['seed']
+        if self.seed == params.SEED_FROM_NAME:
+            self.seed = seed_from_name(self.get_fully_qualified_name())
+        rng = np.random.default_rng(self.seed)
+        model = sensor_model.GyroModel(self._effective_config(), self.rate_hz, rng)
+        self._fault = FaultState(self._config.range_rad_s,
+                                 faults.fault_generator(rng.bit_generator.seed_seq))
         self._stepper = BlockStepper(model, p['block_samples'])
         self._book = diagnostics.DiagnosticsBook()
         self._limits = self._make_limits()
-        capacity = p['command_queue_size']
-        self._rate_cmd = CommandStream('rate', ZERO3, capacity)
-        self._temp_cmd = CommandStream('temperature', p['initial_temperature_c'], capacity)
-        self._accel_cmd = CommandStream('linear_acceleration', None, capacity)
+        self._imu_mode = p['input_source'] == 'imu'
+        self._intake = Intake(None if self._imu_mode else topics.RATE_INPUTS[p['rate_source']],
+                              p['initial_temperature_c'],
+                              p['default_linear_acceleration_m_s2'],
+                              p['command_queue_size'], self._reject, self._clamped)
         self._last_tick_ns = None
         self._last_sample = None
         self._ambient_c = p['initial_temperature_c']
         self._stale = False
-        self._make_publishers()
-        self._temp_every = max(1, int(round(self.rate_hz / p['temperature_rate_hz'])))
-        self._tick_count = 0
-        # The part's clock drift sets its output data rate (sample period), so
-        # the stamps stay tied to the ROS clock (issue 14).
-        self._timer = self.create_timer(self._stepper.model.sample_period_s, self._tick)
+        self._out = OutputStage(self, self.frame_id)
+        self._refresh_covariance()
+        self._set_temperature_decimation(self.rate_hz)
+        self._timeline = InputTimeline(self.rate_hz) if self._imu_mode else None
+        self._previous_input = None
+        self._rate_refused = None
+        self._timer = None
+        if not self._imu_mode:
+            # The part's clock drift sets its output data rate (sample period), so
+            # the stamps stay tied to the ROS clock (issue 14).
+            self._timer = self.create_timer(self._stepper.model.sample_period_s, self._tick)
         self._make_inputs()
+        self._set_fault(self._fault_from(p), self._now_ns())
         self._start_diagnostics()
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -108,11 +163,18 @@ class GyroEmulatorNode(Node):
         if p['record_dir']:
             from gyro_emulator.ros.self_record import SelfRecorder
             self._self_recorder = SelfRecorder(self, p['record_dir'])
+        self._log_start()
+
+    def _log_start(self):
+        p = self._p
         lo, hi = self._limits.temp_range_c
+        seed = f'seed {self.seed}' + (' (from the node name)'
+                                      if p['seed'] == params.SEED_FROM_NAME else '')
+        source = ('imu/ideal, one output per message' if self._imu_mode
+                  else f'{self.rate_hz:g} Hz, rate from {p["rate_source"]}')
         self.get_logger().info(
-            f'gyro emulator up: {self.rate_hz:g} Hz, sensor_config '
-            f'{p["sensor_config"]!r}, seed {p["seed"]}, frame {self.frame_id!r}, '
-            f'rate from {p["rate_source"]}, ambient range [{lo:g}, {hi:g}] C')
+            f'gyro emulator up: {source}, sensor_config {p["sensor_config"]!r}, {seed}, '
+            f'frame {self.frame_id!r}, ambient range [{lo:g}, {hi:g}] C')
 
     # --- parameters --------------------------------------------------------
 
@@ -123,10 +185,15 @@ class GyroEmulatorNode(Node):
             # A params file may write 200 for a double: accept it as 200.0.
             for name, value in list(overrides.items()):
                 spec = params.NODE_SPECS.get(name)
-                if spec is not None and spec.kind == 'double' and \
-                        value.type_ == Parameter.Type.INTEGER:
+                if spec is None:
+                    continue
+                if spec.kind == 'double' and value.type_ == Parameter.Type.INTEGER:
                     overrides[name] = Parameter(name, Parameter.Type.DOUBLE,
                                                 float(value.value))
+                elif spec.kind == 'double_array' and \
+                        value.type_ == Parameter.Type.INTEGER_ARRAY:
+                    overrides[name] = Parameter(name, Parameter.Type.DOUBLE_ARRAY,
+                                                [float(v) for v in value.value])
         self._p = {}
         for spec in params.NODE_PARAMS:
             value = self.declare_parameter(spec.name, defaults[spec.name],
@@ -135,6 +202,14 @@ class GyroEmulatorNode(Node):
         if self._p['temperature_rate_hz'] > self._p['rate_hz']:
             raise ValueError(f'temperature_rate_hz = {self._p["temperature_rate_hz"]!r} is '
                              f'out of range: allowed (0, rate_hz = {self._p["rate_hz"]:g}]')
+        self._fault_from(self._p)
+
+    @staticmethod
+    def _fault_from(p):
+        """Return the Fault of the ``fault.*`` parameter values (ValueError if invalid)."""
+        values = {name.split('.', 1)[1]: p[name] for name in params.FAULT_PARAMS}
+        values['kind'] = values.pop('type')
+        return faults.Fault(**values)
 
     def _declare_sensor_parameters(self, base):
         self._base_config = base
@@ -184,7 +259,8 @@ class GyroEmulatorNode(Node):
                 # Build the model's plan once to catch rate-dependent limits
                 # (e.g. an output filter at or above Nyquist).
                 sensor_model.GyroModel(self._effective_config(config, p['noise_enabled']),
-                                       self.rate_hz, np.random.default_rng(0))
+                                       self._stepper.model.sample_rate_hz,
+                                       np.random.default_rng(0))
             limits = self._make_limits(p, config)
             if p['temperature_override_enabled']:
                 low, high = limits.temp_range_c
@@ -192,9 +268,11 @@ class GyroEmulatorNode(Node):
                     raise ValueError(
                         f'temperature_override_c = {p["temperature_override_c"]!r} is out '
                         f'of range: allowed [{low:g}, {high:g}] C for this sensor')
+            fault = self._fault_from(p)
         except ValueError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
-        self._pending = (p, sensor_values, config, limits)
+        touched = any(param.name in params.FAULT_PARAMS for param in parameters)
+        self._pending = (p, sensor_values, config, limits, fault if touched else None)
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, parameters):
@@ -202,94 +280,99 @@ class GyroEmulatorNode(Node):
         if pending is None:
             return
         self._pending = None
-        p, sensor_values, config, limits = pending
+        p, sensor_values, config, limits, fault = pending
         old_noise = self._p['noise_enabled']
         changed_model = config is not self._config or p['noise_enabled'] != old_noise
         self._p, self._sensor_values, self._config, self._limits = (
             p, sensor_values, config, limits)
         if changed_model:
             self._stepper.update_config(self._effective_config())
+            self._fault.range_rad_s = np.asarray(config.range_rad_s, dtype=float)
             self._refresh_covariance()
             self._retime()
+        if fault is not None:
+            self._set_fault(fault, self._fault_clock_ns())
         self.get_logger().info('parameters set: ' + ', '.join(
             f'{q.name} = {q.value!r}' for q in parameters))
 
+    def _fault_clock_ns(self):
+        """Return "now" on the samples' time line: the last input stamp behind a simulator."""
+        if self._timeline is not None and self._timeline.last_ns is not None:
+            return self._timeline.last_ns
+        return self._now_ns()
+
+    def _set_fault(self, fault, now_ns):
+        self._fault.end(now_ns)
+        if self._fault.changed:
+            self._publish_fault(now_ns)         # the fault it replaces ends here
+        self._fault.start(fault, now_ns, self._out.last_rate)
+        if fault.kind != 'none':
+            self.get_logger().warning(f'fault set: {fault.describe()}')
+        self._publish_fault(now_ns)
+
+    def _publish_fault(self, stamp_ns):
+        state = self._fault
+        state.changed = False
+        stamp = Time(nanoseconds=int(stamp_ns)).to_msg()
+        self._out.fault_pub.publish(fault_message(
+            stamp, f'{self.get_fully_qualified_name()}: fault',
+            f'gyro_emulator/{self._p["sensor_config"]}', state.fault, state.state,
+            state.level, state.since_ns))
+
     def _retime(self):
         """Follow a new sample period (a changed clock drift) with a new timer."""
+        if self._timer is None:
+            return
         period_s = self._stepper.model.sample_period_s
         if abs(self._timer.timer_period_ns - period_s * NS_PER_S) >= 1.0:
             self.destroy_timer(self._timer)
             self._timer = self.create_timer(period_s, self._tick)
 
-    # --- publishers and subscriptions -------------------------------------
-
-    def _make_publishers(self):
-        # Each publisher's QoS event handlers (incompatible QoS / type warnings)
-        # join every executor wake-up; only imu/data_raw, the output that
-        # drivers' users subscribe to, keeps them.
-        qos_options = QoSOverridingOptions.with_default_policies
-        quiet = PublisherEventCallbacks(use_default_callbacks=False)
-        self._imu_pub = self._publisher(topics.IMU_OUT, qos_overriding_options=qos_options())
-        self._temp_pub = self._publisher(topics.DIE_TEMPERATURE_OUT, event_callbacks=quiet,
-                                         qos_overriding_options=qos_options())
-        self._truth_pubs = [
-            self._publisher(topic, qos_overriding_options=qos_options(), event_callbacks=quiet)
-            for topic in topics.TRUTH_TOPICS.values()]
-        self._diag_pub = self._publisher(topics.DIAGNOSTICS, event_callbacks=quiet)
-        imu = codec.topic_class(topics.IMU_OUT)()
-        imu.header.frame_id = self.frame_id
-        imu.orientation_covariance[0] = -1.0
-        imu.linear_acceleration_covariance[0] = -1.0
-        self._imu = RawMessage(imu, {
-            'stamp': ('header.stamp', 'time'), 'rate': ('angular_velocity', 'vector3'),
-            'cov': ('angular_velocity_covariance', ('array', 9)),
-            'accel': ('linear_acceleration', 'vector3'),
-            'accel_cov0': ('linear_acceleration_covariance', ('array', 1))})
-        self._accel_shown = False
-        self._sigma_shown = None
-        self._refresh_covariance()
-        temp = codec.topic_class(topics.DIE_TEMPERATURE_OUT)()
-        temp.header.frame_id = self.frame_id
-        self._temp_msg = RawMessage(temp, {'stamp': ('header.stamp', 'time'),
-                                           'value': ('temperature', 'double')})
-        self._truth_msgs = []
-        for topic in topics.TRUTH_TOPICS.values():
-            msg = codec.topic_class(topic)()
-            msg.header.frame_id = self.frame_id
-            self._truth_msgs.append(RawMessage(msg, {'stamp': ('header.stamp', 'time'),
-                                                     'value': ('vector', 'vector3')}))
-
-    def _publisher(self, topic, **kwargs):
-        """Return a publisher of a topic-table entry with its type and QoS."""
-        return self.create_publisher(codec.topic_class(topic), topic.name,
-                                     codec.topic_qos(topic), **kwargs)
+    # --- subscriptions -------------------------------------------------------
 
     def _make_inputs(self):
         """
-        Subscribe to the commands on the node itself (its executor serves them).
+        Subscribe to the inputs on the node itself (its executor serves them).
 
-        A command goes into its stamped queue (:class:`CommandStream`) when it
-        arrives and takes effect at the first sample at or after its stamp,
-        so the order in which the executor serves the timer and the
-        subscriptions does not change the output. Each subscription keeps the
-        last ``INPUT_DEPTH`` messages.
+        Commands go, still serialized, into the inboxes of :class:`Intake`
+        and are taken at the next sample; each takes effect at the first
+        sample at or after its stamp, so the order in which the executor
+        serves the timer and the subscriptions does not change the output.
+        ``imu/ideal`` is handled as it arrives: one output per message.
         """
-        qos = QoSProfile(history=qos_profile_sensor_data.history, depth=INPUT_DEPTH,
+        qos = QoSProfile(history=qos_profile_sensor_data.history, depth=INBOX_DEPTH,
                          reliability=qos_profile_sensor_data.reliability,
                          durability=qos_profile_sensor_data.durability)
         options = QoSOverridingOptions.with_default_policies
-        # As for the publishers: default QoS event handlers would join every
-        # executor wake-up (three waitables per subscription).
+        # Default QoS event handlers would join every executor wake-up.
         quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
-        handlers = {topics.RATE_CMD: self._on_rate, topics.ODOM_CMD: self._on_odometry,
-                    topics.TEMPERATURE_CMD: self._on_temperature,
-                    topics.ACCEL_CMD: self._on_accel}
-        inputs = (topics.RATE_INPUTS[self._p['rate_source']], topics.TEMPERATURE_CMD,
-                  topics.ACCEL_CMD)
-        self._input_subscriptions = [
-            self.create_subscription(codec.topic_class(topic), topic.name, handlers[topic], qos,
-                                     qos_overriding_options=options(), event_callbacks=quiet)
-            for topic in inputs]
+        self._input_subscriptions = []
+        for topic, inbox in self._intake.inboxes.items():
+            raw = topic.type_name != topics.ODOMETRY
+            self._input_subscriptions.append(self.create_subscription(
+                codec.topic_class(topic), topic.name, _appender(inbox), qos, raw=raw,
+                qos_overriding_options=options(), event_callbacks=quiet))
+        if self._imu_mode:
+            topic = topics.IMU_IDEAL_IN
+            self._input_subscriptions.append(self.create_subscription(
+                codec.topic_class(topic), topic.name, self._on_imu, qos,
+                qos_overriding_options=options(), event_callbacks=quiet))
+
+    def _reject(self, exc):
+        self._book.reject(exc.reason)
+        held = self._log_throttle(exc.reason)
+        if held is not None:
+            more = f' ({held} similar held back)' if held else ''
+            self.get_logger().warning(f'input rejected ({exc.reason}): {exc}{more}')
+
+    def _clamped(self, raw_c, temp_c):
+        self._book.clamp('temperature_clamped')
+        if self._log_throttle('temperature_clamped') is not None:
+            lo, hi = self._limits.temp_range_c
+            self.get_logger().warning(f'temperature {raw_c!r} C outside the model range '
+                                      f'[{lo:g}, {hi:g}] C: clamped to {temp_c:g} C')
+
+    # --- diagnostics thread and teardown -------------------------------------
 
     def _start_diagnostics(self):
         """Publish /diagnostics from a thread on the steady clock (also when paused)."""
@@ -326,93 +409,55 @@ class GyroEmulatorNode(Node):
     def _now_ns(self):
         return self.get_clock().now().nanoseconds
 
-    def _reject(self, exc):
-        self._book.reject(exc.reason)
-        held = self._log_throttle(exc.reason)
-        if held is not None:
-            more = f' ({held} similar held back)' if held else ''
-            self.get_logger().warning(f'input rejected ({exc.reason}): {exc}{more}')
-
-    def _offer(self, stream, value, stamp_ns):
-        dropped = stream.offer(value, stamp_ns, self._now_ns(),
-                               int(self._limits.max_stamp_lead_s * NS_PER_S))
-        if dropped:
-            self._reject(InputRejected(dropped, f'{stream.name}: more than '
-                                       f'{stream.capacity} commands wait for their '
-                                       'stamp: the oldest was dropped'))
-
-    def _on_rate_vector(self, vector, header):
-        try:
-            rate = check_rate((vector.x, vector.y, vector.z), self._limits)
-            self._offer(self._rate_cmd, rate, _stamp_ns(header))
-        except InputRejected as exc:
-            self._reject(exc)
-
-    def _on_rate(self, msg):
-        self._on_rate_vector(msg.vector, msg.header)
-
-    def _on_odometry(self, msg):
-        self._on_rate_vector(msg.twist.twist.angular, msg.header)
-
-    def _on_temperature(self, msg):
-        try:
-            temp, clamped = check_temperature(msg.temperature, self._limits)
-            if clamped:
-                self._book.clamp('temperature_clamped')
-                if self._log_throttle('temperature_clamped') is not None:
-                    lo, hi = self._limits.temp_range_c
-                    self.get_logger().warning(
-                        f'temperature {msg.temperature!r} C outside the model range '
-                        f'[{lo:g}, {hi:g}] C: clamped to {temp:g} C')
-            self._offer(self._temp_cmd, temp, _stamp_ns(msg.header))
-        except InputRejected as exc:
-            self._reject(exc)
-
-    def _on_accel(self, msg):
-        v = msg.vector
-        try:
-            accel = check_acceleration((v.x, v.y, v.z), self._limits)
-            self._offer(self._accel_cmd, accel, _stamp_ns(msg.header))
-        except InputRejected as exc:
-            self._reject(exc)
-
     # --- the sample loop ----------------------------------------------------
 
     def _refresh_covariance(self):
         self._sigma_version = self._stepper.sigma_version
-        sigma = self._stepper.sigma_rad_s
-        if self._sigma_shown is not None and np.array_equal(sigma, self._sigma_shown):
-            return
-        cov = np.zeros(9)
-        cov[[0, 4, 8]] = sigma * sigma
-        self._imu.put('cov', *cov.tolist())
-        self._sigma_shown = sigma
+        self._out.set_sigma(self._stepper.sigma_rad_s)
+
+    def _set_temperature_decimation(self, sample_rate_hz):
+        self._out.temp_every = max(1, int(round(sample_rate_hz / self._p['temperature_rate_hz'])))
+
+    def _restart(self, why, jump_ns=0):
+        """Restart the filters after a discontinuity of the time line; say so."""
+        self._fault.shift(jump_ns)
+        self._stepper.sync()
+        self._stepper.model.restart_filters()
+        self._intake.reset_clock()
+        self.get_logger().warning(f'{why}: command stamps forgotten, filters restarted')
 
     def _inputs(self, now_ns):
         p = self._p
-        rate = self._rate_cmd.advance(now_ns)
-        age = self._rate_cmd.age_s(now_ns)
-        temp = self._temp_cmd.advance(now_ns)
-        accel = self._accel_cmd.advance(now_ns)
+        intake = self._intake
+        intake.take(now_ns, self._limits)
+        rate = intake.rate.advance(now_ns)
+        age = intake.rate.age_s(now_ns)
+        temp = intake.temperature.advance(now_ns)
+        accel = intake.accel.advance(now_ns)
         timeout = p['command_timeout_s']
         self._stale = bool(timeout > 0.0 and age is not None and age > timeout)
         if self._stale and p['stale_rate_policy'] == 'zero':
             rate = ZERO3
-        if p['temperature_override_enabled']:
-            temp = p['temperature_override_c']
-        else:
-            low, high = self._limits.temp_range_c
-            temp = min(max(temp, low), high)
-        return rate, temp, accel
+        return rate, self._ambient(temp), accel
 
+    def _ambient(self, temp):
+        if self._p['temperature_override_enabled']:
+            return self._p['temperature_override_c']
+        low, high = self._limits.temp_range_c
+        return min(max(temp, low), high)
+
+    @_while_up
     def _tick(self):
         now_ns = self._now_ns()
         if self._last_tick_ns is not None and now_ns < self._last_tick_ns:
-            for stream in (self._rate_cmd, self._temp_cmd, self._accel_cmd):
-                stream.reset_clock()
-            self.get_logger().warning('clock jumped back: command stamps forgotten')
+            self._restart('clock jumped back', now_ns - self._last_tick_ns)
         self._last_tick_ns = now_ns
         rate, temp, accel = self._inputs(now_ns)
+        shown = accel if self._intake.accel.accepted else None
+        self._sample(rate, temp, accel, now_ns, now_ns, shown)
+
+    def _sample(self, rate, temp, accel, sample_ns, base_ns, shown_accel):
+        """Step the model once and publish; ``base_ns`` + output delay is the Imu stamp."""
         self._ambient_c = temp
         try:
             s = self._stepper.step(rate, temp, accel)
@@ -424,32 +469,70 @@ class GyroEmulatorNode(Node):
         self._last_sample = s
         if self._stepper.sigma_version != self._sigma_version:
             self._refresh_covariance()
-        imu = self._imu
+        out = self._out
+        out.set_accel(shown_accel, self._p['pass_through_linear_acceleration']
+                      or self._imu_mode)
         delay_ns = int(round(s.output_delay_s * NS_PER_S)) if s.output_delay_s else 0
-        imu.set_stamp_ns('stamp', now_ns + delay_ns)
-        imu.put('rate', *s.gyro_rad_s.tolist())
-        if self._p['pass_through_linear_acceleration'] and accel is not None:
-            imu.put('accel', *accel)
-            if not self._accel_shown:
-                imu.put('accel_cov0', 0.0)
-                self._accel_shown = True
-        elif self._accel_shown:
-            imu.put('accel', 0.0, 0.0, 0.0)
-            imu.put('accel_cov0', -1.0)
-            self._accel_shown = False
-        self._imu_pub.publish(imu.payload())
-        if self._p['publish_truth']:
-            for pub, msg, vec in zip(self._truth_pubs, self._truth_msgs,
-                                     (s.true_rate_rad_s, s.bias_rad_s, s.scale_factor)):
-                msg.set_stamp_ns('stamp', now_ns)
-                msg.put('value', *vec.tolist())
-                pub.publish(msg.payload())
-        self._tick_count += 1
-        if self._tick_count % self._temp_every == 0:
-            self._temp_msg.set_stamp_ns('stamp', now_ns)
-            self._temp_msg.put('value', float(s.die_temp_c))
-            self._temp_pub.publish(self._temp_msg.payload())
-        self._book.sample(s.saturated)
+        value, publish, pinned = self._fault.apply(sample_ns, s.gyro_rad_s)
+        out.publish(s, sample_ns, base_ns + delay_ns, value, publish,
+                    self._p['publish_truth'])
+        if self._fault.changed:
+            self._publish_fault(sample_ns)
+        self._book.sample(s.saturated if pinned is None else s.saturated | pinned)
+
+    # --- behind a simulator: one sample per imu/ideal message ----------------
+
+    @_while_up
+    def _on_imu(self, msg):
+        stamp = msg.header.stamp
+        stamp_ns = stamp.sec * NS_PER_S + stamp.nanosec
+        v, a = msg.angular_velocity, msg.linear_acceleration
+        try:
+            rate = check_rate((v.x, v.y, v.z), self._limits)
+            accel = check_acceleration((a.x, a.y, a.z), self._limits)
+            step = self._timeline.advance(stamp_ns)
+        except InputRejected as exc:
+            self._reject(exc)
+            return
+        except StampNotNewer as exc:
+            self._reject(InputRejected('out_of_order', str(exc)))
+            return
+        if step.restart:
+            why = ('the input clock jumped back' if step.restart == 'jump_back'
+                   else f'a gap of {step.dt_s:.3f} s in the input stamps')
+            self._restart(why, int(round(step.dt_s * NS_PER_S)) if step.restart ==
+                          'jump_back' else 0)
+        if step.rate_hz is not None:
+            self._replan(step.rate_hz)
+        if self._rate_refused:
+            self._book.model_error(self._rate_refused)
+        intake = self._intake
+        intake.take(stamp_ns, self._limits)
+        temp = self._ambient(intake.temperature.advance(stamp_ns))
+        held, self._previous_input = self._previous_input, (rate, accel)
+        if step.samples > 1 and held is not None:
+            # Messages lost or a sensor update skipped: the part kept sampling.
+            try:
+                for _ in range(step.samples - 1):
+                    self._stepper.step(held[0], temp, held[1])
+            except ValueError as exc:
+                self._book.model_error(str(exc))
+        self._sample(rate, temp, accel, stamp_ns, stamp_ns, accel)
+
+    def _replan(self, rate_hz):
+        """Run the model at the input's rate from now on (every discretisation follows)."""
+        try:
+            self._stepper.set_sample_rate(rate_hz)
+        except ValueError as exc:
+            # Reported as a model error with every sample until a rate fits.
+            self._rate_refused = f'input rate {rate_hz:.6g} Hz refused: {exc}'
+            self.get_logger().error(self._rate_refused)
+            return
+        self._rate_refused = None
+        self._refresh_covariance()
+        self._set_temperature_decimation(rate_hz)
+        self.get_logger().info(f'input rate {rate_hz:.6g} Hz from the imu/ideal stamps: '
+                               'model re-planned')
 
     # --- diagnostics ----------------------------------------------------------
 
@@ -458,39 +541,49 @@ class GyroEmulatorNode(Node):
         now_ns = self._now_ns()
         s = self._last_sample
         p = self._p
+        intake = self._intake
         if p['temperature_override_enabled']:
             source = 'override'
-        elif self._temp_cmd.accepted:
+        elif intake.temperature.accepted:
             source = 'command'
         else:
             source = 'initial_temperature_c'
-        return {
+        out = {
             'stale': self._stale, 'stale_policy': p['stale_rate_policy'],
-            'rate_age_s': self._rate_cmd.age_s(now_ns),
-            'rate_source': p['rate_source'],
+            'rate_age_s': intake.rate.age_s(now_ns),
+            'input_source': p['input_source'], 'rate_source': p['rate_source'],
             'ambient_temp_c': self._ambient_c,
             'temperature_source': source,
             'die_temp_c': None if s is None else float(s.die_temp_c),
             'noise_enabled': p['noise_enabled'],
-            'commands_accepted.rate': self._rate_cmd.accepted,
-            'commands_accepted.temperature': self._temp_cmd.accepted,
-            'commands_accepted.linear_acceleration': self._accel_cmd.accepted,
-            'commands_pending': sum(len(c.pending) for c in (
-                self._rate_cmd, self._temp_cmd, self._accel_cmd)),
+            'commands_accepted.rate': intake.rate.accepted,
+            'commands_accepted.temperature': intake.temperature.accepted,
+            'commands_accepted.linear_acceleration': intake.accel.accepted,
+            'commands_pending': intake.pending(),
             'output_delay_s': None if s is None else float(s.output_delay_s),
+            'sample_period_s': 1.0 / self._stepper.model.sample_rate_hz,
+            'timer_period_s': None if self._timer is None
+            else self._timer.timer_period_ns / NS_PER_S,
             'model_calls': self._stepper.model_calls,
             'model_rewinds': self._stepper.rewinds,
             'sensor_config': p['sensor_config'],
-            'seed': p['seed'],
+            'seed': self.seed,
         }
+        if self._timeline is not None:
+            out.update({'input_rate_hz': self._timeline.rate_hz,
+                        'input_restarts': self._timeline.restarts,
+                        'input_replans': self._timeline.replans,
+                        'input_gap_samples': self._timeline.filled})
+        out.update(self._fault.situation())
+        return out
 
     def _diagnose(self):
         now = time.monotonic()
         elapsed, self._diag_last = now - self._diag_last, now
         sim = self.get_parameter('use_sim_time').value
         report = self._book.report(elapsed, self.rate_hz, self.situation(),
-                                   check_rate=not sim)
-        self._diag_pub.publish(diagnostics.to_msg(
+                                   check_rate=not (sim or self._imu_mode))
+        self._out.diag_pub.publish(diagnostics.to_msg(
             report, self.get_clock().now().to_msg(), f'{self.get_fully_qualified_name()}: gyro',
             f'gyro_emulator/{self._p["sensor_config"]}'))
 
@@ -501,6 +594,10 @@ class GyroEmulatorNode(Node):
                 f'{sum(book.clamped.values())} clamped, {book.model_errors} model errors')
 
 
+def _quiet_sigint(signum, frame):
+    """Python's SIGINT handler under rclpy's: rclpy already shut the context down."""
+
+
 def _first_line(exc):
     """Return an exception's message on one line (rcl appends source locations)."""
     text = str(exc).split(', at /')[0]
@@ -509,6 +606,19 @@ def _first_line(exc):
 
 def main(args=None):
     """Run the node until SIGINT or SIGTERM; return the exit status."""
+    argv = sys.argv[1:] if args is None else list(args)
+    if node_help.wants_help(argv):
+        print(node_help.help_text())
+        return 0
+    try:
+        _warm_up()
+    except KeyboardInterrupt:
+        return 130
+    # rclpy's SIGINT handler shuts the context down, then calls the Python
+    # handler it found: with Python's default that raises KeyboardInterrupt
+    # inside whatever callback runs, which the events executor logs with its
+    # traceback. With this one the loop below just sees the context go down.
+    signal.signal(signal.SIGINT, _quiet_sigint)
     try:
         rclpy.init(args=args)
     except Exception as exc:  # noqa: B902 - rcl reports bad arguments and params files so
@@ -522,7 +632,14 @@ def main(args=None):
         except (ValueError, ParameterException, OSError) as exc:
             print(f'gyro_emulator node: error: {_first_line(exc)}', file=sys.stderr)
             return 2
-        executor = SingleThreadedExecutor()
+        except Exception:  # noqa: B902 - a SIGINT/SIGTERM while the node starts up
+            if rclpy.ok():
+                raise
+            print('[gyro_emulator] shutting down: stopped while starting', file=sys.stderr)
+            return 0
+        # The events executor serves a callback for about 1.5 us instead of the
+        # ~100 us of a SingleThreadedExecutor wait set (issue 14: command floods).
+        executor = EventsExecutor()
         executor.add_node(node)
         # rclpy's SIGINT/SIGTERM handler shuts the context down and wakes the
         # executor. Waiting at most SHUTDOWN_POLL_S re-checks the context even if

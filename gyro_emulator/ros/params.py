@@ -27,6 +27,7 @@ import math
 from gyro_emulator.recording import topics
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.sensor import config as sensor_config
+from gyro_emulator.sensor import faults
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType)
@@ -42,7 +43,14 @@ NOISE_TERMS = ('mechanical_noise', 'electronics_noise', 'bias_instability',
 #: Values of ``rate_source``: the rate inputs of the topic table.
 RATE_SOURCES = tuple(topics.RATE_INPUTS)
 STALE_RATE_POLICIES = ('zero', 'hold')
+#: Values of ``input_source``: timed commands, or one output per simulator Imu.
+INPUT_SOURCES = ('command', 'imu')
 INT64_MAX = 2 ** 63 - 1
+#: ``seed`` value meaning "derive the seed from the node's fully qualified name".
+SEED_FROM_NAME = -1
+#: The runtime fault parameters, in the order of :class:`gyro_emulator.sensor.faults.Fault`.
+FAULT_PARAMS = ('fault.type', 'fault.axis', 'fault.magnitude', 'fault.start_s',
+                'fault.duration_s')
 
 
 @dataclass(frozen=True)
@@ -55,7 +63,8 @@ class ParamSpec:
     name : str
         Parameter name.
     kind : str
-        ``double``, ``integer``, ``bool`` or ``string``.
+        ``double``, ``integer``, ``bool``, ``string`` or ``double_array``
+        (three numbers, each in [low, high]).
     description : str
         One line for ``ros2 param describe``, with the unit.
     read_only : bool
@@ -77,14 +86,21 @@ class ParamSpec:
 
 
 NODE_PARAMS = (
-    ParamSpec('rate_hz', 'double', 'Output data rate, Hz (one model sample per tick)',
+    ParamSpec('rate_hz', 'double', 'Output data rate, Hz (one model sample per tick; '
+              'with input_source imu, the rate until the input stamps give one)',
               True, 1.0, 5000.0),
     ParamSpec('frame_id', 'string', 'header.frame_id of imu/data_raw (REP 145: the '
               'sensor frame)', True),
     ParamSpec('seed', 'integer', 'Seed of the numpy random generator of every noise '
-              'term: same seed + same inputs = same output', True, 0, INT64_MAX),
+              'term: same seed + same inputs = same output; -1 = derived from the '
+              'fully qualified node name (a SeedSequence of it: independent per instance, '
+              'the same on every run)', True, SEED_FROM_NAME, INT64_MAX),
     ParamSpec('sensor_config', 'string', 'Error model: a preset name (paper, consumer, '
               'tactical) or a sensor YAML path; the sensor.* defaults come from it', True),
+    ParamSpec('input_source', 'string', 'command: a timer at rate_hz samples the '
+              'cmd/* inputs; imu: one output per imu/ideal message (sensor_msgs/Imu from a '
+              'simulator), stamped with its stamp plus the latency, dt from the stamps',
+              True, choices=INPUT_SOURCES),
     ParamSpec('rate_source', 'string', 'Where the true rate comes from: '
               'angular_velocity (cmd/angular_velocity, Vector3Stamped) or odometry '
               '(cmd/odom, nav_msgs/Odometry twist.twist.angular)', True,
@@ -115,6 +131,10 @@ NODE_PARAMS = (
               'as the ambient temperature and ignore cmd/temperature'),
     ParamSpec('temperature_override_c', 'double', 'Ambient temperature while the '
               'override is enabled, deg C', False, *MODEL_TEMP_RANGE_C),
+    ParamSpec('default_linear_acceleration_m_s2', 'double_array', 'Specific force before '
+              'the first cmd/linear_acceleration (g-sensitivity), m/s^2, sensor frame; '
+              'default: level and at rest, +1 g on z (REP 103), as simulate assumes', True,
+              -1e6, 1e6),
     ParamSpec('pass_through_linear_acceleration', 'bool', 'Copy cmd/linear_acceleration '
               'into imu/data_raw (else its covariance[0] = -1: absent)'),
     ParamSpec('publish_truth', 'bool', 'Publish ~/truth/rate, ~/truth/bias and '
@@ -128,6 +148,18 @@ NODE_PARAMS = (
               1, 1000),
     ParamSpec('record_dir', 'string', 'Record inputs, outputs and truth into an MCAP '
               'bag in this directory (gyro_emulator.ros.self_record); empty = off', True),
+    ParamSpec('fault.type', 'string', 'Injected fault (sensor.faults): none, stuck, '
+              'bias_step, drift, spike, dropout, saturate or noise_burst; shown on '
+              '~/truth/fault and /diagnostics', False, choices=faults.FAULT_TYPES),
+    ParamSpec('fault.axis', 'string', 'Axis of the fault: x, y, z or all', False,
+              choices=faults.FAULT_AXES),
+    ParamSpec('fault.magnitude', 'double', 'Size of the fault: rad/s (bias_step, spike, '
+              'noise_burst sigma), rad/s per s (drift), sign (saturate)', False,
+              -faults.MAX_ABS_MAGNITUDE, faults.MAX_ABS_MAGNITUDE),
+    ParamSpec('fault.start_s', 'double', 'Start of the fault after the fault parameters '
+              'are set, s (node clock)', False, 0.0, faults.MAX_TIME_S),
+    ParamSpec('fault.duration_s', 'double', 'Length of the fault, s; 0 = until '
+              'fault.type is set to none', False, 0.0, faults.MAX_TIME_S),
 )
 
 NODE_SPECS = {spec.name: spec for spec in NODE_PARAMS}
@@ -171,7 +203,7 @@ SENSOR_DESCRIPTIONS = {
 
 def _type_name(kind):
     return {'double': 'a number', 'integer': 'an integer', 'bool': 'true or false',
-            'string': 'a string'}[kind]
+            'string': 'a string', 'double_array': 'three numbers'}[kind]
 
 
 def check_value(spec, value):
@@ -193,6 +225,8 @@ def check_value(spec, value):
             raise ValueError(f'{spec.name} = {value!r} is not allowed: choose one of '
                              f'{", ".join(spec.choices)}')
         return value
+    if kind == 'double_array':
+        return _check_triple(spec, value)
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ValueError(f'{spec.name} = {value!r} is not {_type_name(kind)}')
     if kind == 'integer':
@@ -208,12 +242,27 @@ def check_value(spec, value):
     return value
 
 
+def _check_triple(spec, value):
+    """Return three finite numbers in [low, high] as a list of floats, or raise ValueError."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple, array.array)) \
+            or len(value) != 3 or any(isinstance(v, (bool, str)) or not isinstance(
+                v, (int, float)) for v in value):
+        raise ValueError(f'{spec.name} = {value!r} is not {_type_name(spec.kind)}')
+    out = [float(v) for v in value]
+    for axis, v in zip('xyz', out):
+        if not math.isfinite(v) or not spec.low <= v <= spec.high:
+            raise ValueError(f'{spec.name}.{axis} = {v!r} is out of range: allowed '
+                             f'[{spec.low:g}, {spec.high:g}]')
+    return out
+
+
 def descriptor(spec):
     """Return the rcl_interfaces ParameterDescriptor of a node parameter."""
     kinds = {'double': ParameterType.PARAMETER_DOUBLE,
              'integer': ParameterType.PARAMETER_INTEGER,
              'bool': ParameterType.PARAMETER_BOOL,
-             'string': ParameterType.PARAMETER_STRING}
+             'string': ParameterType.PARAMETER_STRING,
+             'double_array': ParameterType.PARAMETER_DOUBLE_ARRAY}
     desc = ParameterDescriptor(name=spec.name, type=kinds[spec.kind],
                                description=spec.description, read_only=spec.read_only)
     if spec.kind == 'double' and spec.low is not None:
@@ -224,6 +273,8 @@ def descriptor(spec):
         desc.integer_range = [IntegerRange(
             from_value=int(spec.low), to_value=int(spec.high), step=0)]
         desc.additional_constraints = f'[{int(spec.low)}, {int(spec.high)}]'
+    elif spec.kind == 'double_array':
+        desc.additional_constraints = f'3 numbers, each in [{spec.low:g}, {spec.high:g}]'
     elif spec.choices:
         desc.additional_constraints = 'one of: ' + ', '.join(spec.choices)
     return desc

@@ -24,9 +24,19 @@ Profile keys (SI unless the name says otherwise)::
     segments:                    # ... and/or explicit steps, played after
       - {duration_s: 2.0, rate_deg_s: 60.0, temp_c: 25.0, settle_s: 0.5}
     node_parameters: {}          # parameters a runner should give the node
+    faults:                      # injected while playing (sensor.faults schema)
+      - {type: bias_step, axis: z, magnitude: 0.01, start_s: 3.0, duration_s: 1.0}
 
 ``node_parameters`` is what makes a compressed profile meaningful (e.g. a
 short die thermal time constant); ``gyro_emulator.cli.main_job`` passes it on.
+``faults`` is a fault schedule, times from the start of the profile: the
+player sets the node's ``fault.*`` parameters through its parameter service
+(atomically) up to :data:`FAULT_LEAD_S` ahead, with ``fault.start_s`` the
+time left, so each fault starts on the node's clock within the latency of
+that call. A fault replaces the one before, so it is sent no earlier than
+:data:`FAULT_MARGIN_S` after that one ends (a fault that follows closer
+starts that much late). After a last fault without an end the player clears
+it.
 """
 
 import argparse
@@ -41,12 +51,16 @@ import warnings
 from gyro_emulator.recording import topics
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.ros.spinning import spin_once
-from gyro_emulator.sensor import profiles
+from gyro_emulator.sensor import faults, profiles
 from gyro_emulator.units import NS_PER_S
 
 DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
 #: How a step's label writes the unit of each rate key of the segment schema.
 RATE_LABELS = {'rate_rad_s': 'rad/s', 'rate_deg_s': 'deg/s', 'rate_rpm': 'RPM'}
+#: How far ahead of its start a scheduled fault is sent to the node, s.
+FAULT_LEAD_S = 0.5
+#: How long after the previous fault's end the next is sent (it replaces it), s.
+FAULT_MARGIN_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -88,13 +102,14 @@ class Step:
 
 @dataclass(frozen=True)
 class Profile:
-    """A parsed profile: name, unit axis, publish rate, steps, node parameters."""
+    """A parsed profile: name, unit axis, publish rate, steps, node parameters, faults."""
 
     name: str
     axis: tuple
     publish_rate_hz: float
     steps: tuple
     node_parameters: dict
+    faults: tuple = ()
 
     @property
     def duration_s(self):
@@ -175,7 +190,7 @@ def parse_profile(doc, source='profile'):
     if not isinstance(doc, dict):
         raise ValueError(f'{source}: expected a mapping, got {doc!r}')
     allowed = {'name', 'description', 'axis', 'publish_rate_hz', 'grid', 'segments',
-               'node_parameters'}
+               'node_parameters', 'faults'}
     unknown = sorted(set(doc) - allowed)
     if unknown:
         raise ValueError(f'{source}: unknown key(s) {", ".join(unknown)}; allowed: '
@@ -195,9 +210,10 @@ def parse_profile(doc, source='profile'):
     node_parameters = doc.get('node_parameters') or {}
     if not isinstance(node_parameters, dict):
         raise ValueError(f'{source}.node_parameters = {node_parameters!r} must be a mapping')
+    schedule = faults.parse_schedule(f'{source}.faults', doc.get('faults'))
     return Profile(str(doc.get('name', os.path.basename(str(source)))),
                    axis, rate_hz, tuple(steps),
-                   dict(node_parameters))
+                   dict(node_parameters), schedule)
 
 
 def default_profile_path():
@@ -338,6 +354,14 @@ class ScenarioPlayer:
             total += int(step.duration_s * 1e9)
             self._ends.append(total)
         self._timer = None
+        self.faults_sent = []
+        self.fault_errors = []
+        self._fault_next = 0
+        self._fault_futures = []
+        self._fault_client = None
+        if profile.faults:
+            from rclpy.parameter_client import AsyncParameterClient
+            self._fault_client = AsyncParameterClient(node, topics.NODE_NAME)
 
     def _on_imu(self, msg):
         v = msg.angular_velocity
@@ -349,9 +373,45 @@ class ScenarioPlayer:
         self.temps.append((s.sec * NS_PER_S + s.nanosec, msg.temperature))
 
     def connected(self):
-        """Return True once the emulator subscribes to both command topics."""
+        """Return True once the emulator subscribes to both commands (and serves parameters)."""
         return self.rate_pub.get_subscription_count() > 0 and \
-            self.temp_pub.get_subscription_count() > 0
+            self.temp_pub.get_subscription_count() > 0 and (
+                self._fault_client is None or self._fault_client.services_are_ready())
+
+    def faults_settled(self):
+        """Return True once the node has answered every fault sent."""
+        return all(future.done() for future in self._fault_futures)
+
+    def _send_faults(self, elapsed_s):
+        """Send each scheduled fault once its time has come (FAULT_LEAD_S ahead)."""
+        schedule = self.profile.faults
+        while self._fault_next < len(schedule):
+            index = self._fault_next
+            fault = schedule[index]
+            send_at = fault.start_s - FAULT_LEAD_S
+            if index:
+                send_at = max(send_at, schedule[index - 1].end_s + FAULT_MARGIN_S)
+            if elapsed_s < send_at:
+                return
+            self._set_fault(fault.kind, fault.axis, fault.magnitude,
+                            max(0.0, fault.start_s - elapsed_s), fault.duration_s)
+            self.faults_sent.append(fault)
+            self._fault_next += 1
+
+    def _set_fault(self, kind, axis, magnitude, start_s, duration_s):
+        from rclpy.parameter import Parameter
+
+        values = (('fault.type', kind), ('fault.axis', axis), ('fault.magnitude', magnitude),
+                  ('fault.start_s', start_s), ('fault.duration_s', duration_s))
+        future = self._fault_client.set_parameters_atomically(
+            [Parameter(name, value=value) for name, value in values])
+        self._fault_futures.append(future)
+
+        def check(done):
+            result = done.result()
+            if result is not None and not result.result.successful:
+                self.fault_errors.append(f'fault {kind}: {result.result.reason}')
+        future.add_done_callback(check)
 
     def start(self):
         """Begin the first step now and publish every 1 / publish_rate_hz."""
@@ -373,9 +433,14 @@ class ScenarioPlayer:
     def _publish(self):
         now_ns = self.node.get_clock().now().nanoseconds
         index = self.current_step(now_ns)
+        if self._fault_client is not None:
+            self._send_faults((now_ns - self.start_ns) / NS_PER_S)
         if index is None:
             self.done = True
             self._timer.cancel()
+            schedule = self.profile.faults
+            if schedule and schedule[-1].duration_s == 0.0:
+                self._set_fault('none', 'all', 0.0, 0.0, 0.0)
             return
         step = self.profile.steps[index]
         stamp = self.node.get_clock().now().to_msg()
@@ -435,7 +500,8 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
             if time.monotonic() > deadline:
                 raise RuntimeError(
                     f'no emulator subscribed to {topics.RATE_CMD.name} and '
-                    f'{topics.TEMPERATURE_CMD.name} within {wait_s:g} s (is '
+                    f'{topics.TEMPERATURE_CMD.name} (and served its parameters, for a '
+                    f'fault schedule) within {wait_s:g} s (is '
                     f'`ros2 run gyro_emulator node` running on '
                     f'ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")}?)')
             if not spin_once(executor, 0.05):
@@ -454,6 +520,10 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
             if progress is not None and index is not None and index != shown:
                 shown = index
                 progress(index, profile.steps[index])
+        deadline = time.monotonic() + 2.0
+        while not player.faults_settled() and time.monotonic() < deadline:
+            if not spin_once(executor, 0.05):
+                break
     except (KeyboardInterrupt, ExternalShutdownException):
         player.done = True
     finally:
@@ -504,6 +574,10 @@ def main(args=None):
     except (ValueError, RuntimeError, OSError) as exc:
         print(f'scenario: error: {exc}', file=sys.stderr)
         return 2
+    for fault in player.faults_sent:
+        print(f'  fault injected: {fault.describe()}', flush=True)
+    for error in player.fault_errors:
+        print(f'scenario: warning: the node refused {error}', file=sys.stderr)
     if opts.summary or opts.json:
         results = player.results()
         print(format_summary(results))

@@ -134,6 +134,14 @@ class BlockStepper:
         self.model.update_config(config)
         self._refresh_sigma()
 
+    def set_sample_rate(self, sample_rate_hz):
+        """Run the model at a new rate from the next tick on (``GyroModel.set_sample_rate``)."""
+        self.sync()
+        self.model.set_sample_rate(sample_rate_hz)
+        self._last_key = None
+        self._held = 0
+        self._refresh_sigma()
+
     def _refresh_sigma(self):
         self.sigma_rad_s = np.asarray(self.model.white_noise_sigma_rad_s, dtype=float)
         self.sigma_version += 1

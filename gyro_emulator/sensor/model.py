@@ -239,6 +239,40 @@ class GyroModel:
         st.kernel = state
         self._plan = plan
 
+    def set_sample_rate(self, sample_rate_hz):
+        """
+        Run at a new output data rate from the next sample on, keeping the model's states.
+
+        The plan is rebuilt at the new rate (every exact discretisation
+        follows the new dt), as :meth:`update_config` does for a new
+        configuration: die temperature and random walk carry over, a filter
+        whose coefficients change restarts from steady state at its next
+        input, and the flicker states are redrawn for the new dt.
+        """
+        rate = float(sample_rate_hz) if np.isscalar(sample_rate_hz) else float('nan')
+        if not (math.isfinite(rate) and 0.0 < rate <= 1e6):
+            raise ValueError(f'GyroModel.sample_rate_hz = {sample_rate_hz!r} is out of '
+                             'range: allowed (0, 1e6] Hz')
+        old = self.sample_rate_hz, self.dt_s
+        self.sample_rate_hz, self.dt_s = rate, 1.0 / rate
+        try:
+            self.update_config(self.config)
+        except ValueError:
+            self.sample_rate_hz, self.dt_s = old
+            raise
+
+    def restart_filters(self):
+        """
+        Restart the sense-mode and output filters from steady state at the next input.
+
+        For a discontinuity of the input's time line (a simulation reset): the
+        filters forget their past instead of ringing across the jump. Noise
+        states, random walk and die temperature carry on.
+        """
+        ints = self._state.kernel.ints
+        ints[kernel.I_DYN_READY] = 0
+        ints[kernel.I_LPF_READY] = 0
+
     @property
     def white_noise_sigma_rad_s(self):
         """

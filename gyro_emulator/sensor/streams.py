@@ -20,6 +20,8 @@ of a stream is the same whatever the block boundaries, the record split or
 the call pattern (``run`` over a record or ``step`` sample by sample).
 """
 
+import hashlib
+
 import numpy as np
 
 #: Streams (rows of :attr:`NormalStreams.buffer`): turn-on, jitter, then white,
@@ -145,3 +147,34 @@ class NormalStreams:
         twin._headroom_streams, twin._headroom = None, 0
         memo[id(self)] = twin
         return twin
+
+
+#: Largest seed :func:`seed_from_name` returns (a ROS int64 parameter holds it).
+NAME_SEED_MAX = 2 ** 63 - 1
+
+
+def seed_from_name(name):
+    """
+    Return a seed for a named instance: independent per name, the same on every run.
+
+    The name's UTF-8 bytes seed a ``numpy.random.SeedSequence`` (entropy:
+    the SHA-256 of the name, so similar names share nothing), whose first
+    63-bit word is the seed. Passed to ``numpy.random.default_rng`` like any
+    explicit seed, it reproduces the instance exactly.
+
+    Parameters
+    ----------
+    name : str
+        E.g. a node's fully qualified name, ``/robot/imu_left/gyro_emulator``.
+
+    Returns
+    -------
+    int
+        In [0, :data:`NAME_SEED_MAX`].
+
+    """
+    if not isinstance(name, str) or not name:
+        raise ValueError(f'seed_from_name: name = {name!r} is not allowed: a non-empty string')
+    entropy = int.from_bytes(hashlib.sha256(name.encode('utf-8')).digest(), 'little')
+    word = np.random.SeedSequence(entropy).generate_state(1, np.uint64)[0]
+    return int(word) >> 1

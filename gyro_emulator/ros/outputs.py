@@ -1,0 +1,172 @@
+"""
+What the node publishes per sample: Imu, die temperature, truth and fault truth.
+
+:class:`OutputStage` owns the node's publishers and the serialized templates
+(``ros/rawmsg.py``) of ``imu/data_raw``, ``imu/temperature`` and
+``~/truth/{rate,bias,scale_factor}``, and publishes one model sample after
+the fault in force has acted on it (:mod:`gyro_emulator.sensor.faults`):
+
+* ``imu/data_raw`` (REP 145/103): rad/s in the sensor frame,
+  ``angular_velocity_covariance`` = diag(sigma^2), orientation absent
+  (``orientation_covariance[0] = -1``), linear acceleration absent unless
+  passed through. A dropout publishes nothing; a stuck axis repeats the
+  float64 of the last published value bit for bit.
+* ``imu/temperature`` every ``temp_every``-th sample.
+* the truth of the same sample, stamped at the sample instant.
+* ``~/truth/fault`` (diagnostic_msgs/DiagnosticArray, latched) whenever the
+  fault state changes; :func:`fault_message` gives its encoding.
+"""
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from gyro_emulator.recording import topics
+from gyro_emulator.ros import codec
+from gyro_emulator.ros.rawmsg import RawMessage
+import numpy as np
+from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.qos_overriding_options import QoSOverridingOptions
+
+_LEVELS = {0: DiagnosticStatus.OK, 1: DiagnosticStatus.WARN, 2: DiagnosticStatus.ERROR}
+
+
+def fault_message(stamp, name, hardware_id, fault, state, level, since_ns):
+    """
+    Build the ``~/truth/fault`` message: one DiagnosticStatus in a DiagnosticArray.
+
+    Encoding: ``header.stamp`` is the sample instant of the change; the
+    status has ``level`` OK (no fault acting), WARN or ERROR (the fault's
+    severity while it acts), ``name`` = ``<node>: fault``, ``message`` = the
+    fault type, and the key/values ``type``, ``axis``, ``magnitude`` (in the
+    type's unit), ``start_s``, ``duration_s`` (as set), ``state``
+    (``none``, ``pending``, ``active`` or ``ended``) and ``since_ns`` (node
+    clock of the change, integer ns).
+    """
+    msg = DiagnosticArray()
+    msg.header.stamp = stamp
+    status = DiagnosticStatus(level=_LEVELS[level], name=name, message=fault.kind,
+                              hardware_id=hardware_id)
+    status.values = [KeyValue(key=k, value=v) for k, v in (
+        ('type', fault.kind), ('axis', fault.axis), ('magnitude', repr(fault.magnitude)),
+        ('start_s', repr(fault.start_s)), ('duration_s', repr(fault.duration_s)),
+        ('state', state), ('since_ns', str(int(since_ns))))]
+    msg.status = [status]
+    return msg
+
+
+class OutputStage:
+    """
+    The node's publishers and message templates.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The emulator node.
+    frame_id : str
+        ``header.frame_id`` of every message.
+
+    """
+
+    def __init__(self, node, frame_id):
+        # Each publisher's QoS event handlers (incompatible QoS / type warnings)
+        # join every executor wake-up; only imu/data_raw, the output that
+        # drivers' users subscribe to, keeps them.
+        options = QoSOverridingOptions.with_default_policies
+        quiet = PublisherEventCallbacks(use_default_callbacks=False)
+
+        def publisher(topic, **kwargs):
+            return node.create_publisher(codec.topic_class(topic), topic.name,
+                                         codec.topic_qos(topic), **kwargs)
+        self.imu_pub = publisher(topics.IMU_OUT, qos_overriding_options=options())
+        self.temp_pub = publisher(topics.DIE_TEMPERATURE_OUT, event_callbacks=quiet,
+                                  qos_overriding_options=options())
+        self.truth_pubs = [publisher(topic, qos_overriding_options=options(),
+                                     event_callbacks=quiet)
+                           for topic in topics.TRUTH_TOPICS.values()]
+        self.fault_pub = publisher(topics.TRUTH_FAULT, event_callbacks=quiet)
+        self.diag_pub = publisher(topics.DIAGNOSTICS, event_callbacks=quiet)
+        imu = codec.topic_class(topics.IMU_OUT)()
+        imu.header.frame_id = frame_id
+        imu.orientation_covariance[0] = -1.0
+        imu.linear_acceleration_covariance[0] = -1.0
+        self.imu = RawMessage(imu, {
+            'stamp': ('header.stamp', 'time'), 'rate': ('angular_velocity', 'vector3'),
+            'cov': ('angular_velocity_covariance', ('array', 9)),
+            'accel': ('linear_acceleration', 'vector3'),
+            'accel_cov0': ('linear_acceleration_covariance', ('array', 1))})
+        self._accel_shown = False
+        self._sigma_shown = None
+        temp = codec.topic_class(topics.DIE_TEMPERATURE_OUT)()
+        temp.header.frame_id = frame_id
+        self.temp_msg = RawMessage(temp, {'stamp': ('header.stamp', 'time'),
+                                          'value': ('temperature', 'double')})
+        self.truth_msgs = []
+        for topic in topics.TRUTH_TOPICS.values():
+            msg = codec.topic_class(topic)()
+            msg.header.frame_id = frame_id
+            self.truth_msgs.append(RawMessage(msg, {'stamp': ('header.stamp', 'time'),
+                                                    'value': ('vector', 'vector3')}))
+        self.temp_every = 1
+        self.count = 0
+        self.published = 0
+        self.last_rate = None
+
+    def set_sigma(self, sigma_rad_s):
+        """Show diag(sigma^2) as ``angular_velocity_covariance`` (rad^2/s^2)."""
+        sigma = np.asarray(sigma_rad_s, dtype=float)
+        if self._sigma_shown is not None and np.array_equal(sigma, self._sigma_shown):
+            return
+        cov = np.zeros(9)
+        cov[[0, 4, 8]] = sigma * sigma
+        self.imu.put('cov', *cov.tolist())
+        self._sigma_shown = sigma
+
+    def set_accel(self, accel, show):
+        """Pass the specific force through (covariance 0: unknown) or mark it absent."""
+        imu = self.imu
+        if show and accel is not None:
+            imu.put('accel', *accel)
+            if not self._accel_shown:
+                imu.put('accel_cov0', 0.0)
+                self._accel_shown = True
+        elif self._accel_shown:
+            imu.put('accel', 0.0, 0.0, 0.0)
+            imu.put('accel_cov0', -1.0)
+            self._accel_shown = False
+
+    def publish(self, sample, sample_ns, stamp_ns, rate, publish=True, truth=True):
+        """
+        Publish one sample.
+
+        Parameters
+        ----------
+        sample : gyro_emulator.sensor.model.SensorSample
+            The model's sample (truth and die temperature).
+        sample_ns, stamp_ns : int
+            Sample instant (truth, temperature) and Imu stamp (instant +
+            output delay), ns.
+        rate : tuple of float
+            The angular velocity to publish, rad/s (after any fault).
+        publish : bool
+            False: a dropout; neither Imu nor temperature goes out.
+        truth : bool
+            Publish ``~/truth/*``.
+
+        """
+        if publish:
+            imu = self.imu
+            imu.set_stamp_ns('stamp', stamp_ns)
+            imu.put('rate', *rate)
+            self.imu_pub.publish(imu.payload())
+            self.last_rate = rate
+            self.published += 1
+        if truth:
+            for pub, msg, vec in zip(self.truth_pubs, self.truth_msgs,
+                                     (sample.true_rate_rad_s, sample.bias_rad_s,
+                                      sample.scale_factor)):
+                msg.set_stamp_ns('stamp', sample_ns)
+                msg.put('value', *vec.tolist())
+                pub.publish(msg.payload())
+        self.count += 1
+        if publish and self.count % self.temp_every == 0:
+            self.temp_msg.set_stamp_ns('stamp', sample_ns)
+            self.temp_msg.put('value', float(sample.die_temp_c))
+            self.temp_pub.publish(self.temp_msg.payload())
