@@ -122,7 +122,8 @@ class DevicePhysics:
 
         Y_sense(T, P) / Y_sense(T, P_ref) through Eq 8-11 (Knudsen number ->
         slide-film and comb damping), tabulated once on 0.05 K x 0.5 %
-        steps of ln P (0.05 to 5 P_ref) and interpolated bilinearly;
+        steps of ln P (0.05 to 5 P_ref) and interpolated bilinearly (to
+        2e-6 of the physics);
         ``temp_c`` may be the :meth:`temp_index` of the temperatures.
         """
         if self._pressure is None:

@@ -62,7 +62,12 @@ class Model:
             if factor is not None:
                 s_bins = s_bins * factor
             delay += eff.delay_s(phi)
-        rate = frame.rate if delay == 0.0 else frame.delayed_rate(delay)
+        if delay == 0.0:
+            rate = frame.rate
+        elif frame.level == 'bins':
+            rate = cached(frame, ('delayed', float(delay)), lambda: frame.delayed_rate(delay))
+        else:
+            rate = frame.delayed_rate(delay)
         s = frame.slow(s_bins)
         return Basis(s=s, sr=s * rate)
 
@@ -162,9 +167,11 @@ def fit_model(model, ctx, frame, rows=None, fixed=None, start=None):
                 grids = [_around(g, v) for g, v in zip(grids, start)]
             if not getattr(new, 'refine', True):
                 phi = _search_grid(lambda p: solve(fixed + (p,))[1], grids[0])
+            elif len(grids) == 1:
+                phi = _search_1d(lambda p: solve(fixed + (p,))[1], *grids)
             else:
-                search = _search_1d if len(grids) == 1 else _search_2d
-                phi = search(lambda p: solve(fixed + (p,))[1], *grids)
+                phi = _search_2d(lambda p: solve(fixed + (p,))[1], *grids,
+                                 max_evals=40 if start is not None else 120)
     beta, sse = solve(fixed + (phi,))
     return Fit(beta, fixed + (phi,), sse)
 
@@ -241,7 +248,7 @@ def _search_1d(sse_of, g):
     return best_phi
 
 
-def _search_2d(sse_of, g0, g1):
+def _search_2d(sse_of, g0, g1, max_evals=120):
     """Grid search over ``g0 x g1``, then a Nelder-Mead refinement from the best point."""
     from scipy.optimize import minimize
 
@@ -254,7 +261,7 @@ def _search_2d(sse_of, g0, g1):
     start = np.array(best_phi)
     simplex = np.array([start, start + [step[0], 0], start + [0, step[1]]])
     res = minimize(lambda p: sse_of(tuple(p)), start, method='Nelder-Mead',
-                   options={'initial_simplex': simplex, 'maxfev': 120,
+                   options={'initial_simplex': simplex, 'maxfev': max_evals,
                             'xatol': 1e-3, 'fatol': 1e-9 * best_sse})
     if res.fun < best_sse:
         best_phi = tuple(float(v) for v in res.x)

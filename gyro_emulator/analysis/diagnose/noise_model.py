@@ -266,9 +266,20 @@ def simulate(noise, superbins, n_sim, rng):
 
 
 def _held_out(x_tr, w_tr, y_tr, x_ho):
-    """Fit every column of ``y_tr`` (training rows) on ``x_tr``; predict the held-out rows."""
-    sw = np.sqrt(w_tr)[:, None]
-    beta, *_ = np.linalg.lstsq(x_tr * sw, y_tr * sw, rcond=1e-10)
+    """
+    Fit every column of ``y_tr`` (training rows) on ``x_tr``; predict the held-out rows.
+
+    Weighted normal equations, scaled to a unit diagonal with a 1e-10 ridge
+    (the solver of :func:`gyro_emulator.analysis.diagnose.models.wls`).
+    Returns (predictions, training SSE per column).
+    """
+    xw = x_tr * w_tr[:, None]
+    gram = xw.T @ x_tr
+    scale = np.sqrt(np.diag(gram))
+    scale = np.where(scale > 0.0, scale, 1.0)
+    g = gram / np.outer(scale, scale)
+    g[np.diag_indices_from(g)] += 1e-10
+    beta = np.linalg.solve(g, (xw.T @ y_tr) / scale[:, None]) / scale[:, None]
     resid_tr = y_tr - x_tr @ beta
     return x_ho @ beta, np.sum(w_tr[:, None] * resid_tr ** 2, axis=0)
 

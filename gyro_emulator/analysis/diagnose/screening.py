@@ -16,7 +16,10 @@ leaves them out of every fit and every score (:func:`screen`):
 2. what is left is high-passed per sample: a leave-one-out local fit of
    a bias and the rate at the previous, same and next sample over +-2 s
    (at least +-5 samples), within each contiguous stretch, removes what
-   changes slowly or follows the rate through short dynamics;
+   changes slowly or follows the rate through short dynamics; at the
+   corners of rate steps, where that fit follows whatever the sample does,
+   a spike must stand out from the local medians on both sides instead
+   (:func:`_corner_flags`);
    it is refitted once with samples far out down-weighted, so that a
    spike does not spoil its neighbours;
 3. a sample is an outlier when this, divided by its prediction standard
@@ -166,6 +169,64 @@ def _stretches(t, dt_s):
     return list(zip(edges[:-1], edges[1:]))
 
 
+def _corners(rate, tol_rad_s=1e-3):
+    """
+    The corners of rate steps: samples where the rate changes, next to a dwell.
+
+    The rate moves between the sample's neighbours by more than ``tol`` (or
+    1 % of its range), and it holds on one side (the two samples before, or
+    the two after, are equal within ``tol``): the start or end of a ramp
+    between dwells, not a sample inside a swept sine.
+    """
+    n = len(rate)
+    if n < 5:
+        return np.zeros(n, bool)
+    tol = max(tol_rad_s, 0.01 * float(np.ptp(rate)))
+    step = np.abs(np.diff(rate))
+    moving = np.r_[step[0], np.maximum(step[:-1], step[1:]), step[-1]] > tol
+    still_before = np.r_[True, True, step[:-1] <= tol]
+    still_after = np.r_[step[1:] <= tol, True, True]
+    return moving & (still_before | still_after)
+
+
+def _corner_flags(r, rate, keep, half, threshold):
+    """
+    Flag spikes at the corners of rate steps, where the local fit cannot see them.
+
+    There a sample is unlike its neighbours, and the flexible local fit
+    follows it. A spike still stands out from both sides: the nuisance
+    residual minus the median of the ``half`` samples before it, and minus
+    the median of the ``half`` after it, are both large and of one sign (a
+    level change at the corner, such as a scale-factor misfit that jumps
+    with the rate, differs from one side only). Each is judged against its
+    robust spread over all corners (at least the record's), so a dynamic
+    response the nuisance model misses at every corner (a delay) is not
+    taken for spikes.
+    """
+    corner = np.flatnonzero(_corners(rate))
+    flag = np.zeros(len(r), bool)
+    if len(corner) < 20:
+        return flag
+    padded = np.pad(r, half, mode='edge')
+    windows = np.lib.stride_tricks.sliding_window_view(padded, half)
+    # windows[i] covers r[i - half:i]; windows[i + half + 1] covers r[i + 1:i + half + 1]
+    some = np.flatnonzero(keep)
+    some = some[::max(1, len(some) // 5000)]
+    sides = []
+    for offset in (0, half + 1):
+        stat = np.empty(len(corner))
+        for lo in range(0, len(corner), 5000):
+            idx = corner[lo:lo + 5000]
+            stat[lo:lo + 5000] = r[idx] - np.median(windows[idx + offset], axis=1)
+        typical = r[some] - np.median(windows[some + offset], axis=1)
+        sigma = max(_robust_scale(stat[keep[corner]]), _robust_scale(typical))
+        sides.append(stat / sigma)
+    left, right = sides
+    spike = (np.abs(left) > threshold) & (np.abs(right) > threshold) & (left * right > 0.0)
+    flag[corner[spike]] = True
+    return flag
+
+
 def _robust_scale(h):
     """1.4826 x the median absolute deviation (the standard deviation for Gaussian data)."""
     sigma = 1.4826 * float(np.median(np.abs(h - np.median(h))))
@@ -200,7 +261,11 @@ def _flag_pass(data, prep_all, keep, ratio_fn, threshold):
         sigma = _robust_scale(h[keep])
         u = np.abs(h) / (4.0 * sigma)
         weight = keep * np.where(u > 1.0, 1.0 / np.maximum(u, 1.0) ** 2, 1.0)
-    return np.abs(h) > threshold * sigma, sigma
+    flag = np.abs(h) > threshold * sigma
+    for lo, hi in _stretches(t, prep.dt_s):
+        flag[lo:hi] |= _corner_flags(r[lo:hi], data.rate_cmd_rad_s[lo:hi], keep[lo:hi], half,
+                                     threshold)
+    return flag, sigma
 
 
 def _segments(flag, t, dt_s):

@@ -22,8 +22,9 @@ fold test cannot tell from it (p >= ``ALPHA_TIE`` that it is better) are
 generic competitor it has (:mod:`.generic`) with p < ``ALPHA_TIE``; among
 the rest the lowest RMSE is named, except that between physical causes the
 data cannot separate the one with fewer parameters is preferred. The
-chosen cause joins the model and the next step starts; selection stops
-when no candidate is significant or ``max_causes`` are in.
+chosen cause joins the model and the next step starts (without the
+candidates that made the held-out prediction worse with p >= 0.5);
+selection stops when no candidate is significant or ``max_causes`` are in.
 
 Parameter uncertainties are delete-a-block jackknife standard deviations
 over the per-fold fits.
@@ -142,7 +143,8 @@ class Selector:
         A step: its multiplier and the group starts. A cause that changes the
         scale-factor column (viscosity, lag, pressure, mode split, delay):
         the change of that column at its full fit. Otherwise its columns,
-        one set per value of its grid (the simulations search it too).
+        one set per value of its grid, thinned to at most 10 values (the
+        simulations search it too).
         """
         b = self.cv.prep.binned
         phis = current.full.phis
@@ -156,7 +158,8 @@ class Selector:
             new = [full[1] - basis.sr] + full[2 + sum(e.n_columns for e in
                                                       current.model.effects):]
             return [np.column_stack([self.superbins.aggregate(c) for c in new])]
-        values = [()] if not grids else [(v,) for v in grids[0]]
+        # every other grid value at most 10: the simulations search a coarser grid
+        values = [()] if not grids else [(v,) for v in grids[0][::max(1, len(grids[0]) // 10)]]
         return [np.column_stack([self.superbins.aggregate(c) for c in
                                  effect.columns(self.ctx, b, phi, basis)])
                 for phi in values]
@@ -280,5 +283,10 @@ def forward_selection(selector, null, effects, max_causes=MAX_CAUSES):
         if chosen is None:
             break
         current = chosen.evaluated
-        remaining = [e for e in remaining if e is not chosen.effect]
+        # a cause that made the held-out prediction worse, with no sign of
+        # evidence, is not scored again
+        useless = {c.effect.effect_id for c in cands
+                   if c.gain_step <= 0.0 and c.p_value >= 0.5}
+        remaining = [e for e in remaining if e is not chosen.effect
+                     and e.effect_id not in useless]
     return steps, current
