@@ -63,7 +63,7 @@ def _timed(args, record):
 
 
 def _reference(data, truth, effect):
-    """The hidden effect alone on bin means and at full resolution."""
+    """Fit the hidden effect alone on bin means and at full resolution; print both."""
     only = [effect]
     t4 = time.perf_counter()
     binned = diagnose(data, effects=only)
@@ -84,7 +84,7 @@ def _reference(data, truth, effect):
 
 
 def _adversarial(args):
-    """The issue's 74 h thermal ramp with spikes: gain with and without setting them aside."""
+    """Run the issue's 74 h thermal ramp with spikes: gain with and without them set aside."""
     record, truth = make_truth('bias_temperature', args.seed, profile='thermal_ramp',
                                sample_rate_hz=1.0, duration_s=74 * 3600.0, outliers='spikes')
     print(f'record: {record.rows} rows, 74 h at 1 Hz, static part on a one-way thermal '

@@ -171,7 +171,7 @@ def _stretches(t, dt_s):
 
 def _corners(rate, tol_rad_s=1e-3):
     """
-    The corners of rate steps: samples where the rate changes, next to a dwell.
+    Return the corners of rate steps: samples where the rate changes, next to a dwell.
 
     The rate moves between the sample's neighbours by more than ``tol`` (or
     1 % of its range), and it holds on one side (the two samples before, or
