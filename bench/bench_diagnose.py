@@ -93,9 +93,10 @@ def _adversarial(args):
     data, result = _timed(args, record)
     doc = result.doc
     best = doc['best']
+    every = best['gain_all_samples']
     print(f'spikes set aside: {best["effect"]} gain {100 * best["gain"]:.1f} % '
-          f'(counted on every sample: {100 * best["gain_all_samples"]:.1f} %), residual '
-          f'{doc["residual"]["excess"]:.2f}x its floor, confounded: '
+          f'(counted on every sample: {"n/a" if every is None else f"{100 * every:.1f} %"}), '
+          f'residual {doc["residual"]["excess"]:.2f}x its floor, confounded: '
           + ', '.join(f"{c['a']}/{c['b']} r={c['correlation']:+.4f}"
                       for c in doc['confounded']))
     raw = diagnose(data, outlier_threshold=math.inf).doc

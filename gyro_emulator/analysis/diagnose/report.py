@@ -32,9 +32,10 @@ def _binned_curve(x, r, groups=25):
 
 
 def _panel(ax, x, res, title, label):
-    """One residual panel: bin means, their group-mean curve, the RMS."""
-    ax.plot(x, res, '.', ms=1.5, alpha=0.35, color='tab:blue', rasterized=True,
-            label='bin means')
+    """One residual panel: bin means (at most 3000 drawn), their group-mean curve, the RMS."""
+    every = max(1, len(x) // 3000)
+    ax.plot(x[::every], res[::every], '.', ms=1.5, alpha=0.35, color='tab:blue',
+            rasterized=True, label='bin means' + (f' (1 in {every})' if every > 1 else ''))
     cx, cy = _binned_curve(x, res)
     ax.plot(cx, cy, '-', color='tab:red', lw=1.5, label='group mean')
     ax.axhline(0.0, color='k', lw=0.6)
@@ -82,7 +83,7 @@ def plot_residuals(diagnosis, out_dir):
                     ax.axvspan(start, max(end, start + 0.5 * b.bins.dt_s), color='tab:orange',
                                alpha=0.3, lw=0)
         name = f'residuals_{key}.png'
-        plotting.save(fig, os.path.join(out_dir, name), dpi=110)
+        plotting.save(fig, os.path.join(out_dir, name), dpi=85)
         names.append(name)
     return names
 

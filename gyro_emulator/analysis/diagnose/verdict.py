@@ -46,7 +46,8 @@ REGRESSOR_OF = {
     'g_sensitivity': 'acceleration', 'time_delay': 'rate', 'pressure_drift': 'time',
     'mode_split_drift': 'temperature', 'temperature_rate_bias': 'temperature_rate',
     'scale_factor_temperature': 'temperature', 'scale_factor_time': 'time',
-    'scale_factor_step': 'time', 'bias_time': 'time', 'bias_step': 'time'}
+    'scale_factor_step': 'time', 'bias_time': 'time', 'bias_step': 'time',
+    'bias_hysteresis': 'temperature_history'}
 
 _SEPARATE = {
     frozenset({'temperature', 'time'}):
@@ -70,6 +71,15 @@ _SEPARATE = {
         'step the rate over the full range in both directions, with fast and slow changes',
     frozenset({'acceleration'}):
         'turn the part through several orientations at several times',
+    frozenset({'temperature', 'temperature_history'}):
+        'heat back up to a temperature visited while cooling and hold it: a bias that '
+        'follows temperature returns to its value, hysteresis keeps the other branch',
+    frozenset({'temperature_history', 'time'}):
+        'cycle the temperature up and down more than once: hysteresis repeats with each '
+        'cycle, a drift in time does not',
+    frozenset({'temperature_history', 'temperature_rate'}):
+        'hold long soaks after heating and after cooling: a dT/dt bias decays in the soak, '
+        'hysteresis keeps its offset',
     frozenset({'temperature_rate'}):
         'hold soaks after heating and after cooling at the same temperature, and ramp at '
         'different rates: a bias following dT/dt vanishes in a soak, hysteresis does not',
