@@ -40,7 +40,7 @@ def _noise(seed):
 
 
 def _run(profile, count, alpha):
-    """Diagnose ``count`` records of a profile; return (false causes, adjusted p-values, verdicts)."""
+    """Diagnose ``count`` records of a profile; return false causes, adjusted p, verdicts."""
     rate, extra = PROFILES[profile]
     false, pmins, verdicts = [], [], {}
     for seed in tqdm(range(count), desc=profile, unit='record'):
@@ -58,9 +58,9 @@ def _run(profile, count, alpha):
 def _line(name, false, n, pmins, alpha):
     upper = stats.beta.ppf(0.99, len(false) + 1, n - len(false)) if len(false) < n else 1.0
     fractions = ', '.join(f'{np.mean(pmins < a):.3f} below {a:g}' for a in (0.05, 0.1, 0.2))
-    print(f'{name:13s} {len(false):3d} false causes in {n:4d} records ({100 * len(false) / n:.2f} %;'
-          f' 99 % upper bound {100 * upper:.2f} %, nominal {100 * alpha:g} %); adjusted p: '
-          f'{fractions}')
+    print(f'{name:13s} {len(false):3d} false causes in {n:4d} records '
+          f'({100 * len(false) / n:.2f} %; 99 % upper bound {100 * upper:.2f} %, nominal '
+          f'{100 * alpha:g} %); adjusted p: {fractions}')
 
 
 def main():
