@@ -94,15 +94,14 @@ def base_ratio(ctx, frame):
     return cached(frame, 'base_ratio', lambda: ctx.phys.ratio(slow_temp(frame)))
 
 
-def wls(cols, y, w):
+def solve_normal(x, w, y):
     """
-    Weighted least squares on scaled normal equations; returns (beta, sse).
+    Weighted least-squares coefficients of ``y`` (one column or several) on ``x``.
 
-    The Gram matrix is scaled to a unit diagonal and solved with a 1e-10
-    ridge, so an all-zero or duplicate column gets a zero (or shared)
-    coefficient instead of an error; SSE = y'Wy - beta'X'Wy.
+    The normal equations are scaled to a unit diagonal and solved with a
+    1e-10 ridge, so an all-zero or duplicate column gets a zero (or shared)
+    coefficient instead of an error. Returns (beta, gram, rhs).
     """
-    x = np.column_stack(cols)
     xw = x * w[:, None]
     gram = xw.T @ x
     rhs = xw.T @ y
@@ -110,13 +109,55 @@ def wls(cols, y, w):
     scale = np.where(scale > 0.0, scale, 1.0)
     g = gram / np.outer(scale, scale)
     g[np.diag_indices_from(g)] += 1e-10
+    shaped = scale if np.ndim(y) == 1 else scale[:, None]
     try:
-        sol = np.linalg.solve(g, rhs / scale)
+        sol = np.linalg.solve(g, rhs / shaped)
     except np.linalg.LinAlgError:
-        sol, *_ = np.linalg.lstsq(g, rhs / scale, rcond=1e-11)
-    beta = sol / scale
+        sol, *_ = np.linalg.lstsq(g, rhs / shaped, rcond=1e-11)
+    return sol / shaped, gram, rhs
+
+
+def wls(cols, y, w):
+    """Weighted least squares of ``y`` on ``cols`` (:func:`solve_normal`); returns (beta, sse)."""
+    x = np.column_stack(cols)
+    beta, gram, rhs = solve_normal(x, w, y)
     sse = float(np.dot(w * y, y) - 2.0 * np.dot(beta, rhs) + beta @ gram @ beta)
     return beta, max(sse, 0.0)
+
+
+def step_search(x, g, w, y, margin=STEP_MARGIN):
+    """
+    Exact least-squares start of a step g H(t - t_k) added to the columns ``x``.
+
+    Rows in time order; ``y`` one column or several (one search each).
+    With r the residual of ``y`` on ``x`` and M the W-weighted residual
+    maker of ``x``, the step at row k lowers the SSE by (h'W r)^2 / (h'W M h);
+    suffix sums give h'W r, h'W h and x'W h for every k at once (O(n p^2)).
+    Starts within ``margin`` (share of the rows, at least 3) of either end
+    are not tried. Returns the row index (one per column of ``y``).
+    """
+    scale = np.sqrt(np.sum(w[:, None] * x * x, axis=0))
+    x = x / np.where(scale > 0.0, scale, 1.0)
+    inv = np.linalg.pinv((x * w[:, None]).T @ x, rcond=1e-11)
+    y2 = y if np.ndim(y) == 2 else y[:, None]
+    r = y2 - x @ (inv @ ((x * w[:, None]).T @ y2))
+    wg = w * g
+
+    def suffix(v):
+        return np.cumsum(v[::-1], axis=0)[::-1]
+
+    a = suffix(wg[:, None] * r)
+    c = suffix(wg * g)
+    d = suffix(wg[:, None] * x)
+    q = c - np.einsum('ij,jk,ik->i', d, inv, d)
+    m = len(w)
+    cut = max(3, int(margin * m))
+    ok = np.zeros(m, bool)
+    ok[cut:m - cut] = True
+    ok &= q > 1e-12 * max(float(c[0]), 1e-300)
+    gain = np.where(ok[:, None], a ** 2 / np.where(ok, q, 1.0)[:, None], -1.0)
+    k = np.argmax(gain, axis=0) if np.any(ok) else np.full(y2.shape[1], m // 2)
+    return k if np.ndim(y) == 2 else int(k[0])
 
 
 def _rows(frame, rows):
@@ -180,41 +221,15 @@ def change_point(partial, step, ctx, frame, rows, fixed):
     """
     Exact least-squares step time: the bin start that minimises the SSE.
 
-    With the other columns X (``partial``'s, fitted first: residual r) and
-    the step column h = g H(t - t0) (g = 1 or s Omega), the SSE drops by
-    (h'W r)^2 / (h'W M h), M the W-weighted residual maker of X. Suffix sums
-    over the training rows give h'W r, h'W h and X'W h for every t0 at once
-    (O(n p^2)). Steps within ``STEP_MARGIN`` of either end are not tried.
+    The columns of ``partial`` (the model without the step) and the step's
+    multiplier (1 or s Omega) on the training rows go to :func:`step_search`.
     """
     n = len(frame)
     basis = partial.basis(ctx, frame, fixed)
-    cols = [np.broadcast_to(c, (n,))[rows] for c in partial.columns(ctx, frame, fixed)]
-    x = np.column_stack(cols)
+    x = np.column_stack([np.broadcast_to(c, (n,))[rows]
+                         for c in partial.columns(ctx, frame, fixed)])
     g = np.broadcast_to(step.multiplier(frame, basis), (n,))[rows]
-    y = frame.gyro[rows]
-    w = frame.weight[rows]
-    scale = np.sqrt(np.sum(w[:, None] * x * x, axis=0))
-    x = x / np.where(scale > 0.0, scale, 1.0)
-    gram = (x * w[:, None]).T @ x
-    inv = np.linalg.pinv(gram, rcond=1e-11)
-    r = y - x @ (inv @ ((x * w[:, None]).T @ y))
-    wg = w * g
-
-    def suffix(v):
-        return np.cumsum(v[::-1], axis=0)[::-1]
-
-    a = suffix(wg * r)
-    c = suffix(wg * g)
-    d = suffix(wg[:, None] * x)
-    q = c - np.einsum('ij,jk,ik->i', d, inv, d)
-    m = len(y)
-    margin = max(3, int(STEP_MARGIN * m))
-    gain = np.zeros(m)
-    ok = np.zeros(m, bool)
-    ok[margin:m - margin] = True
-    ok &= q > 1e-12 * max(float(c[0]), 1e-300)
-    gain[ok] = a[ok] ** 2 / q[ok]
-    k = int(np.argmax(gain)) if np.any(ok) else m // 2
+    k = step_search(x, g, frame.weight[rows], frame.gyro[rows])
     return float(frame.bins.bin_start_s[np.flatnonzero(rows)[k]])
 
 

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import math
 
 from gyro_emulator.analysis import allan
+from gyro_emulator.analysis.diagnose import models
 from gyro_emulator.sensor import noise as sensor_noise
 import numpy as np
 
@@ -269,51 +270,12 @@ def _held_out(x_tr, w_tr, y_tr, x_ho):
     """
     Fit every column of ``y_tr`` (training rows) on ``x_tr``; predict the held-out rows.
 
-    Weighted normal equations, scaled to a unit diagonal with a 1e-10 ridge
-    (the solver of :func:`gyro_emulator.analysis.diagnose.models.wls`).
-    Returns (predictions, training SSE per column).
+    :func:`gyro_emulator.analysis.diagnose.models.solve_normal`. Returns
+    (predictions, training SSE per column).
     """
-    xw = x_tr * w_tr[:, None]
-    gram = xw.T @ x_tr
-    scale = np.sqrt(np.diag(gram))
-    scale = np.where(scale > 0.0, scale, 1.0)
-    g = gram / np.outer(scale, scale)
-    g[np.diag_indices_from(g)] += 1e-10
-    beta = np.linalg.solve(g, (xw.T @ y_tr) / scale[:, None]) / scale[:, None]
+    beta, _, _ = models.solve_normal(x_tr, w_tr, y_tr)
     resid_tr = y_tr - x_tr @ beta
     return x_ho @ beta, np.sum(w_tr[:, None] * resid_tr ** 2, axis=0)
-
-
-def _step_times(x, g, w, y):
-    """
-    Least-squares step start (row index) of every simulated record, on all rows.
-
-    The exact search of :func:`gyro_emulator.analysis.diagnose.models.change_point`
-    vectorised over the records: suffix sums give, for every start k, the
-    drop (h'W r)^2 / (h'W M h) of the SSE when g H(t - t_k) joins the
-    columns ``x``.
-    """
-    sw = w[:, None]
-    scale = np.sqrt(np.sum(sw * x ** 2, axis=0))
-    x = x / np.where(scale > 0.0, scale, 1.0)
-    inv = np.linalg.pinv((x * sw).T @ x, rcond=1e-11)
-    r = y - x @ (inv @ ((x * sw).T @ y))
-    wg = w * g
-
-    def suffix(v):
-        return np.cumsum(v[::-1], axis=0)[::-1]
-
-    a = suffix(wg[:, None] * r)
-    c = suffix(wg * g)
-    d = suffix(wg[:, None] * x)
-    q = c - np.einsum('ij,jk,ik->i', d, inv, d)
-    m = len(w)
-    margin = max(3, int(0.02 * m))
-    ok = np.zeros(m, bool)
-    ok[margin:m - margin] = True
-    ok &= q > 1e-12 * max(float(c[0]), 1e-300)
-    gain = np.where(ok[:, None], a ** 2 / np.where(ok, q, 1.0)[:, None], -1.0)
-    return np.argmax(gain, axis=0)
 
 
 def null_gain(current_cols, candidate, superbins, sims):
@@ -329,8 +291,9 @@ def null_gain(current_cols, candidate, superbins, sims):
         grid (a list of (groups, q) arrays: the search picks, per fold and
         simulation, the value with the least training SSE), or
         ``('step', g, start_s)``: a step multiplying ``g`` that may start
-        at any group start (located on all groups of each simulation, then
-        its size refitted per fold, as :mod:`.models` does).
+        at any group start (located on all groups of each simulation with
+        :func:`.models.step_search`, then its size refitted per fold, as
+        :mod:`.models` does).
     superbins : SuperBins
         The groups.
     sims : numpy.ndarray
@@ -348,7 +311,7 @@ def null_gain(current_cols, candidate, superbins, sims):
     out = []
     if isinstance(candidate, tuple):
         _, g, start = candidate
-        at = _step_times(current_cols, g, w, sims)
+        at = models.step_search(current_cols, g, w, sims)
         steps = g[:, None] * (start[:, None] >= start[at][None, :])
     for k in np.unique(superbins.fold):
         ho = superbins.fold == k
