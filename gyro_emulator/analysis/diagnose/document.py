@@ -120,7 +120,8 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
 
 
 def _method(cv, alpha):
-    return {'folds': len(cv.used_folds), 'alpha': alpha, 'alpha_tie': selection.ALPHA_TIE,
+    return {'folds': len(cv.used_folds), 'sub_blocks': len(cv.used_folds),
+            'alpha': alpha, 'alpha_tie': selection.ALPHA_TIE,
             'min_gain': selection.MIN_GAIN, 'delta_bic_max': selection.DELTA_BIC_MAX,
             'outlier_threshold_sigma': screening.THRESHOLD,
             'null_simulations': noise_model.N_SIM,
@@ -129,4 +130,5 @@ def _method(cv, alpha):
                     "record's own noise gives, Nadeau-Bengio corrected, Bonferroni over "
                     'the candidates of each step',
             'information_criterion': 'BIC on the effective number of independent bins',
-            'uncertainty': 'delete-a-block jackknife over the folds, 1 sigma'}
+            'uncertainty': 'delete-a-block jackknife over the folds, 1 sigma',
+            'blocks': 'the paired test counts folds (sub_blocks = folds)'}
