@@ -48,10 +48,33 @@ GOOD = [f'{i * 0.1},0,25,0.001' for i in range(30)]
 
 
 def test_missing_column_names_it(tmp_path):
-    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,gyro_rad_s',
-                [f'{i},0,0' for i in range(30)])
-    with pytest.raises(ValueError, match='missing required column.*temp_c'):
+    path = _csv(tmp_path, 'time_s,temp_c,gyro_rad_s', [f'{i},25,0' for i in range(30)])
+    with pytest.raises(ValueError, match='missing required column rate_cmd_rad_s.*--static'):
         load_csv(path)
+    path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c', [f'{i},0,25' for i in range(30)])
+    with pytest.raises(ValueError, match='missing required column gyro_rad_s'):
+        load_csv(path)
+
+
+def test_static_three_axis_log_without_temperature(tmp_path):
+    # the layout of the ADIS16405 and MPU-6050 static logs
+    path = _csv(tmp_path, 'time_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s',
+                [f'{0.01 * i},{i},{10 * i},{100 * i}' for i in range(30)])
+    with pytest.raises(ValueError, match='choose an axis.*gyro_x_rad_s, gyro_y_rad_s'):
+        load_csv(path, static=True)
+    with pytest.raises(ValueError, match='rate_cmd_rad_s'):
+        load_csv(path, axis='y')
+    rec = load_csv(path, axis='y', static=True)
+    assert not rec.has_temp and not rec.has_accel
+    np.testing.assert_array_equal(rec.gyro_rad_s, 10.0 * np.arange(30))
+    np.testing.assert_array_equal(rec.rate_cmd_rad_s, 0.0)
+    assert rec.source.endswith('(gyro_y_rad_s)')
+    with pytest.raises(ValueError, match="diagnose.axis = 'w' is not allowed"):
+        load_csv(path, axis='w', static=True)
+    # without temperature the contract round trips without the column
+    write_measured_csv(tmp_path / 'back.csv', rec)
+    back = load_csv(tmp_path / 'back.csv')
+    assert not back.has_temp and back.rows == 30
 
 
 @pytest.mark.parametrize('row,line,message', [
@@ -100,6 +123,26 @@ def test_bin_means_and_delayed_rate_match_sample_level():
         means = np.add.reduceat(samples, prep.starts) / b.weight
         np.testing.assert_allclose(prep.binned.delayed_rate(delay)[1:-1],
                                    means[1:-1], atol=1e-12)
+
+
+def test_set_aside_samples_leave_the_bins_exactly():
+    rec = _record(n=3000, dt=0.01)
+    keep = np.ones(rec.rows, bool)
+    keep[[0, 17, 18, 901, 902, 903, 2999]] = False
+    prep = Prepared(rec, max_bins=1500, keep=keep)
+    b = prep.binned
+    assert np.sum(b.weight) == keep.sum() and len(prep.samples) == keep.sum()
+    means = np.bincount(prep.sample_bin, weights=rec.gyro_rad_s[keep]) / b.weight
+    np.testing.assert_allclose(b.gyro, means, rtol=1e-12)
+    for delay in (0.0, 0.0137, -0.02):
+        samples = prep.samples.delayed_rate(delay)
+        exact = np.bincount(prep.sample_bin, weights=samples) / b.weight
+        np.testing.assert_allclose(b.delayed_rate(delay), exact, atol=1e-12)
+    # a set-aside sample alone in its bin drops the bin, not a neighbour's sum
+    alone = Prepared(rec, max_bins=rec.rows, keep=keep)
+    assert len(alone.binned) == keep.sum()
+    np.testing.assert_allclose(alone.binned.delayed_rate(0.005),
+                               alone.samples.delayed_rate(0.005), atol=1e-12)
 
 
 def test_thermal_lag_is_exact_on_a_ramp():

@@ -2,17 +2,20 @@
 Diagnose a measured record against the paper's physics.
 
   gyro-emulator diagnose FILE.csv --json OUT.json --report DIR
+  gyro-emulator diagnose static_log.csv.gz --static --axis x
   gyro-emulator diagnose BAG_DIR --gyro-topic imu/data_raw --axis z ...
 
-FILE is a CSV with columns time_s, rate_cmd_rad_s, temp_c, gyro_rad_s and
-optionally accel_x_m_s2, accel_y_m_s2, accel_z_m_s2; or a rosbag2 MCAP bag
-(directory or .mcap file), whose topics are mapped with the --*-topic
-options. The baseline is the paper's first-order model calibrated with one
-bias and one scale factor at the reference temperature; every candidate
-cause is fitted and judged on held-out blocks; the best significant one is
-named, with its parameters and the held-out gain.
+FILE is a CSV with columns time_s, rate_cmd_rad_s, temp_c (optional),
+gyro_rad_s (or gyro_x/y/z_rad_s with --axis) and optionally accel_x_m_s2,
+accel_y_m_s2, accel_z_m_s2; --static reads a log of a part at rest that has
+no rate column. A rosbag2 MCAP bag (directory or .mcap file) has its topics
+mapped with the --*-topic options. Outliers are set aside, then causes are
+added one by one while each gives a significant held-out gain; the verdict
+says whether the residual is at the record's own noise floor, what cannot
+be told apart and which experiment would separate it.
 """
 
+import math
 import sys
 
 from gyro_emulator.cli.jsonout import write_json
@@ -26,18 +29,33 @@ def add_arguments(parser):
     from gyro_emulator.physics.presets import PHYSICS_PRESETS
 
     parser.add_argument('input', metavar='FILE',
-                        help='measured CSV, or a rosbag2 MCAP bag directory / .mcap')
+                        help='measured CSV (.csv or .csv.gz), or a rosbag2 MCAP bag directory / '
+                             '.mcap')
     parser.add_argument('--json', metavar='OUT', help='write the findings as JSON')
     parser.add_argument('--report', metavar='DIR',
                         help='write report.md and residual PNGs into DIR')
+    parser.add_argument('--axis', default=None, choices=('x', 'y', 'z'),
+                        help='sense axis: the gyro_<axis>_rad_s column of a 3-axis CSV, or the '
+                             'axis of a bag (default: gyro_rad_s; z for a bag)')
+    parser.add_argument('--static', action='store_true',
+                        help='the part was at rest: a CSV without rate_cmd_rad_s has zero '
+                             'applied rate')
     parser.add_argument('--preset', default='paper', choices=sorted(PHYSICS_PRESETS),
                         help='physics preset of the baseline device (default: %(default)s)')
     parser.add_argument('--ref-temp', type=float, default=None, metavar='C',
                         help="calibration temperature, deg C (default: the device's, 25 C)")
-    parser.add_argument('--folds', type=int, default=6,
+    parser.add_argument('--folds', type=int, default=8,
                         help='contiguous cross-validation blocks (default: %(default)s)')
+    parser.add_argument('--alpha', type=float, default=0.01,
+                        help='chance that a record with no effect gets a cause, per '
+                             'selection step (default: %(default)s)')
+    parser.add_argument('--outlier-sigma', type=float, default=6.0, metavar='K',
+                        help="set aside samples beyond K robust sigma; 'inf' keeps every "
+                             'sample (default: %(default)s)')
+    parser.add_argument('--max-causes', type=int, default=4,
+                        help='most causes to add (default: %(default)s)')
     parser.add_argument('--effects', default=None, metavar='LIST',
-                        help='comma-separated catalogue entries to test (default: all)')
+                        help='comma-separated candidate causes to test (default: all)')
     bag = parser.add_argument_group('bag input (topic mapping)')
     bag.add_argument('--rate-topic', default=topics.RATE_CMD.name,
                      help='applied rate topic (default: %(default)s)')
@@ -48,42 +66,68 @@ def add_arguments(parser):
     bag.add_argument('--accel-topic', default=None,
                      help=f'acceleration topic (default: {topics.ACCEL_CMD.name} if '
                           "present; 'none' to ignore)")
-    bag.add_argument('--axis', default='z', choices=('x', 'y', 'z'),
-                     help='sense axis (default: %(default)s)')
 
 
-def run(args):
-    """Load the record, diagnose it, print the verdict, write JSON/report."""
-    from gyro_emulator.analysis.diagnose import data, diagnose, report
+def _check(args):
+    """One-line errors for out-of-range options."""
+    from gyro_emulator.validation import check_range
 
-    record = data.load_measured(args.input, rate_topic=args.rate_topic,
-                                temp_topic=args.temp_topic, gyro_topic=args.gyro_topic,
-                                accel_topic=args.accel_topic, axis=args.axis)
-    for note in record.recovery:
-        print(f'gyro-emulator diagnose: warning: {note}', file=sys.stderr)
-    effects = None if args.effects is None else [
-        e.strip() for e in args.effects.split(',') if e.strip()]
-    result = diagnose(record, preset=args.preset, ref_temp_c=args.ref_temp,
-                      folds=args.folds, effects=effects)
-    doc = result.doc
+    check_range('diagnose', 'alpha', args.alpha, 0.0, 1.0, '', high_open=True)
+    if not math.isinf(args.outlier_sigma):
+        check_range('diagnose', 'outlier_sigma', args.outlier_sigma, 3.0, 1e6, 'sigma',
+                    low_open=False)
+    check_range('diagnose', 'max_causes', args.max_causes, 1, 20, '', low_open=False)
+
+
+def _print(doc):
+    """Print the verdict on stdout."""
     best = doc['best']
-    print(f"{record.rows} samples, {doc['input']['duration_s']:.0f} s; baseline "
-          f"held-out RMSE {doc['baseline']['rmse_rad_s']:.4g} rad/s")
-    print(f"best: {best['effect']}  RMSE {best['rmse_rad_s']:.4g} rad/s  "
-          f"gain {100 * best['gain']:.1f} %")
-    if best['cause']:
-        print(f"cause: {best['cause']}")
-    for name, p in best['parameters'].items():
-        print(f"  {name} = {p['value']:.5g} +- {p['sigma']:.2g} {p['unit']}")
+    sa = doc['set_aside']
+    print(f"{doc['input']['rows']} samples, {doc['input']['duration_s']:.0f} s; baseline "
+          f"held-out RMSE {doc['baseline']['rmse_rad_s']:.4g} rad/s; set aside "
+          f"{sa['count']} samples ({100 * sa['fraction']:.3f} %)")
+    print(f"verdict: {doc['verdict']}")
+    for i, e in enumerate(doc['selected'], 1):
+        alike = (f"; cannot be told from {', '.join(e['indistinguishable_from'])}"
+                 if e['indistinguishable_from'] else '')
+        print(f"cause {i}: {e['effect']} ({e['kind']})  gain {100 * e['gain']:.1f} %  "
+              f"p {e['p_value']:.1e}{alike}")
+        for name, p in e['parameters'].items():
+            print(f"  {name} = {p['value']:.5g} +- {p['sigma']:.2g} {p['unit']}")
+    if not doc['selected']:
+        print(f"best: {best['effect']}")
     print(doc['residual']['message'])
+    for c in doc['confounded']:
+        print(f"confounded: {c['a']} and {c['b']} (r = {c['correlation']:+.4f})")
+    for text in doc['experiments']:
+        print(f'experiment: {text}')
     for f in doc['findings']:
         print(f"  {f['effect']:<26} gain {100 * f['gain']:7.2f} %  "
               f"p {f['p_value']:.1e}  dBIC {f['delta_bic']:9.0f}  "
               f"{'significant' if f['significant'] else ''}")
     for nt in doc['not_tested']:
         print(f"  {nt['effect']:<26} not tested: {nt['reason']}")
+
+
+def run(args):
+    """Load the record, diagnose it, print the verdict, write JSON/report."""
+    from gyro_emulator.analysis.diagnose import data, diagnose, report
+
+    _check(args)
+    record = data.load_measured(args.input, rate_topic=args.rate_topic,
+                                temp_topic=args.temp_topic, gyro_topic=args.gyro_topic,
+                                accel_topic=args.accel_topic, axis=args.axis,
+                                static=args.static)
+    for note in record.recovery:
+        print(f'gyro-emulator diagnose: warning: {note}', file=sys.stderr)
+    effects = None if args.effects is None else [
+        e.strip() for e in args.effects.split(',') if e.strip()]
+    result = diagnose(record, preset=args.preset, ref_temp_c=args.ref_temp,
+                      folds=args.folds, effects=effects, alpha=args.alpha,
+                      outlier_threshold=args.outlier_sigma, max_causes=args.max_causes)
+    _print(result.doc)
     if args.json:
-        write_json(args.json, doc)
+        write_json(args.json, result.doc)
     if args.report:
         print(f'wrote {report.write_report(result, args.report)}')
     return 0

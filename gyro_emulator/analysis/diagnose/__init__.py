@@ -2,16 +2,22 @@
 Model against measurement: find what the simulation gets wrong, name the cause.
 
 ``diagnose`` compares a measured record (CSV contract in :mod:`.data`) with
-the paper's first-order physics calibrated as a user would (:mod:`.baseline`),
-fits every candidate physical cause of :mod:`.effects` and judges them on
-held-out data (:mod:`.selection`). :mod:`.truth` makes simulated records with
-one hidden effect to prove it; :mod:`.report` writes the Markdown report.
+the paper's first-order physics calibrated as a user would (:mod:`.baseline`).
+It sets outliers aside (:mod:`.screening`), adds physical and generic
+causes (:mod:`.effects`, :mod:`.generic`, :mod:`.models`) by forward
+selection on held-out evidence (:mod:`.cv`, :mod:`.selection`) judged
+against the record's own noise (:mod:`.noise_model`), and states what
+remains (:mod:`.verdict`); :mod:`.pipeline` runs it and :mod:`.document`
+writes the JSON. :mod:`.truth` makes simulated records with hidden effects
+to prove it; :mod:`.report` writes the Markdown report.
 """
 
-from gyro_emulator.analysis.diagnose.data import load_csv, MeasuredData, write_measured_csv
-from gyro_emulator.analysis.diagnose.effects import CATALOGUE, EFFECT_IDS
-from gyro_emulator.analysis.diagnose.selection import diagnose, Diagnosis
+from gyro_emulator.analysis.diagnose.data import (load_csv, load_measured, MeasuredData,
+                                                  write_measured_csv)
+from gyro_emulator.analysis.diagnose.generic import CANDIDATE_IDS, CATALOGUE, EFFECT_IDS
+from gyro_emulator.analysis.diagnose.pipeline import diagnose, Diagnosis
 from gyro_emulator.analysis.diagnose.truth import make_truth, TRUTH_EFFECTS
 
-__all__ = ['CATALOGUE', 'diagnose', 'Diagnosis', 'EFFECT_IDS', 'load_csv',
-           'make_truth', 'MeasuredData', 'TRUTH_EFFECTS', 'write_measured_csv']
+__all__ = ['CANDIDATE_IDS', 'CATALOGUE', 'diagnose', 'Diagnosis', 'EFFECT_IDS', 'load_csv',
+           'load_measured', 'make_truth', 'MeasuredData', 'TRUTH_EFFECTS',
+           'write_measured_csv']

@@ -89,6 +89,7 @@ class DevicePhysics:
         self.sf_grid = first_order.sense_scale_factor_m_per_rad_s(device,
                                                                   self.grid_c)
         self._sutherland = {}
+        self._pressure = None
 
     def _interp(self, temp_c, grid_values):
         return np.interp(temp_c, self.grid_c, grid_values)
@@ -120,23 +121,52 @@ class DevicePhysics:
         Scale factor at a cavity pressure relative to the preset's pressure.
 
         Y_sense(T, P) / Y_sense(T, P_ref) through Eq 8-11 (Knudsen number ->
-        slide-film and comb damping), element by element.
+        slide-film and comb damping), tabulated once on 0.05 K x 0.5 %
+        steps of ln P (0.05 to 5 P_ref) and interpolated bilinearly (to
+        2e-6 of the physics);
+        ``temp_c`` may be the :meth:`temp_index` of the temperatures.
         """
+        if self._pressure is None:
+            self._pressure = self._pressure_table()
+        log_p, table = self._pressure
+        x = np.clip(np.log(np.asarray(pressure_ratio, dtype=float)), log_p[0], log_p[-1])
+        i = np.clip(np.searchsorted(log_p, x) - 1, 0, len(log_p) - 2)
+        f = (x - log_p[i]) / (log_p[i + 1] - log_p[i])
+        j, g = temp_c if isinstance(temp_c, tuple) else self.temp_index(temp_c)
+        lo = table[i, j] * (1.0 - g) + table[i, j + 1] * g
+        hi = table[i + 1, j] * (1.0 - g) + table[i + 1, j + 1] * g
+        return lo * (1.0 - f) + hi * f
+
+    def temp_index(self, temp_c):
+        """Return the grid cell and weight of each temperature (:meth:`pressure_factor` input)."""
+        temp = np.asarray(temp_c, dtype=float)
+        grid = self.grid_c
+        j = np.clip(np.searchsorted(grid, temp) - 1, 0, len(grid) - 2)
+        return j, np.clip((temp - grid[j]) / (grid[j + 1] - grid[j]), 0.0, 1.0)
+
+    def q_and_freq(self, temp_c):
+        """Sense quality factor Q_s(T) and sense frequency f(T), Hz (Eq 9-12)."""
+        return (self._interp(temp_c, self.q_sense_grid),
+                self._interp(temp_c, self.freq_grid_hz))
+
+    def _pressure_table(self):
+        """Y_sense(T, P) / Y_sense(T, P_ref) on the temperature grid and a ln P grid."""
+        log_p = np.linspace(np.log(0.05), np.log(5.0), 461)
         p_ref = self.device.gas.pressure_pa
-        dev = self.device.with_gas(
-            pressure_pa=p_ref * np.asarray(pressure_ratio, dtype=float))
-        return first_order.sense_scale_factor_m_per_rad_s(dev, temp_c) / \
-            self._interp(temp_c, self.sf_grid)
+        rows = [first_order.sense_scale_factor_m_per_rad_s(
+            self.device.with_gas(pressure_pa=p_ref * float(np.exp(v))), self.grid_c)
+            for v in log_p]
+        return log_p, np.asarray(rows) / self.sf_grid[None, :]
 
     def mode_split_factor(self, temp_c, split_hz):
         """
         Sense amplitude of a mode split relative to matched modes.
 
         1 / sqrt(1 + (2 Q_s df / f)^2) with Q_s and f from the physics core
-        (the exact 2-DOF steady state near resonance; docs/physics.md).
+        (the exact 2-DOF steady state near resonance; docs/physics.md);
+        ``temp_c`` may be the :meth:`q_and_freq` of the temperatures.
         """
-        q = self._interp(temp_c, self.q_sense_grid)
-        f = self._interp(temp_c, self.freq_grid_hz)
+        q, f = temp_c if isinstance(temp_c, tuple) else self.q_and_freq(temp_c)
         return 1.0 / np.sqrt(1.0 + (2.0 * q * np.asarray(split_hz) / f) ** 2)
 
 

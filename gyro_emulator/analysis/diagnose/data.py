@@ -1,11 +1,13 @@
 """
 Measured data for ``diagnose``: the CSV contract and its decimated view.
 
-The CSV has a header row. Required columns: ``time_s``, ``rate_cmd_rad_s``
-(the applied true rate, e.g. from a rate table), ``temp_c`` (the temperature
-reading) and ``gyro_rad_s`` (the measured output). Optional:
-``accel_x_m_s2``, ``accel_y_m_s2``, ``accel_z_m_s2`` (all three or none).
-Other columns are ignored.
+The CSV has a header row. Columns: ``time_s``; ``rate_cmd_rad_s`` (the
+applied true rate, e.g. from a rate table; a record of a part at rest may
+leave it out when the caller says so, ``static=True``); ``temp_c`` (the
+temperature reading; optional: without it the temperature causes are not
+testable); ``gyro_rad_s`` or, with ``axis``, ``gyro_<axis>_rad_s`` (the
+measured output). Optional: ``accel_x_m_s2``, ``accel_y_m_s2``,
+``accel_z_m_s2`` (all three or none). Other columns are ignored.
 
 Fitting runs on bin means (:class:`Frame`): the samples are grouped in
 contiguous bins of equal duration and every regressor is the mean of its
@@ -14,7 +16,8 @@ through a cumulative sum, acceleration). A least-squares fit on such means,
 weighted by the sample count, is unbiased: it drops only the within-bin
 variation of the regressors. Slow quantities (temperature, time, anything
 that depends only on them) are taken at the bin means; a 0.3 s bin changes
-the temperature by < 0.02 K on a 3 K/min ramp.
+the temperature by < 0.02 K on a 3 K/min ramp. Samples set aside (outliers,
+:mod:`.screening`) are left out of the bins and of every fit.
 """
 
 from dataclasses import dataclass
@@ -24,6 +27,7 @@ import numpy as np
 
 REQUIRED_COLUMNS = ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s')
 ACCEL_COLUMNS = ('accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')
+AXES = ('x', 'y', 'z')
 
 #: Largest number of bins fits run on (see the module docstring).
 DEFAULT_MAX_BINS = 12000
@@ -45,8 +49,8 @@ class MeasuredData:
         clock resolution, is accepted; time going back is an error).
     rate_cmd_rad_s : numpy.ndarray
         Applied (true) rate about the sense axis, rad/s.
-    temp_c : numpy.ndarray
-        Temperature reading, deg C.
+    temp_c : numpy.ndarray or None
+        Temperature reading, deg C; None when the record has none.
     gyro_rad_s : numpy.ndarray
         Measured gyro output, rad/s.
     accel_m_s2 : numpy.ndarray or None
@@ -72,6 +76,8 @@ class MeasuredData:
         arrays = {'time_s': self.time_s, 'rate_cmd_rad_s': self.rate_cmd_rad_s,
                   'temp_c': self.temp_c, 'gyro_rad_s': self.gyro_rad_s}
         for name, value in arrays.items():
+            if value is None and name == 'temp_c':
+                continue
             arr = np.asarray(value, dtype=float)
             if arr.ndim != 1 or len(arr) != n:
                 raise ValueError(
@@ -105,7 +111,7 @@ class MeasuredData:
             raise ValueError('MeasuredData.time_s spans no time: allowed '
                              'last > first')
         temp = self.temp_c
-        if np.any(temp < -60.0) or np.any(temp > 200.0):
+        if temp is not None and (np.any(temp < -60.0) or np.any(temp > 200.0)):
             raise ValueError(
                 f'MeasuredData.temp_c spans {temp.min():.2f}..{temp.max():.2f} '
                 'C: allowed [-60, 200] C (the physics model range)')
@@ -120,8 +126,13 @@ class MeasuredData:
         """Return whether acceleration columns are present."""
         return self.accel_m_s2 is not None
 
+    @property
+    def has_temp(self):
+        """Return whether a temperature reading is present."""
+        return self.temp_c is not None
 
-def load_csv(path):
+
+def load_csv(path, axis=None, static=False):
     """
     Read a measured CSV in the diagnose contract.
 
@@ -130,6 +141,12 @@ def load_csv(path):
     path : str
         CSV file (``.gz`` for gzip) with a header row (see the module
         docstring), read by :func:`gyro_emulator.recording.records.load_record`.
+    axis : str, optional
+        'x', 'y' or 'z': read ``gyro_<axis>_rad_s`` (a 3-axis log) when the
+        file has it; default ``gyro_rad_s``.
+    static : bool
+        The part was at rest: the applied rate is zero when the file has no
+        ``rate_cmd_rad_s`` column.
 
     Returns
     -------
@@ -142,46 +159,74 @@ def load_csv(path):
         or time goes back; the message names the column and the row.
 
     """
-    record = records.load_record(path, required=REQUIRED_COLUMNS, time_order='nondecreasing',
-                                 only=REQUIRED_COLUMNS + ACCEL_COLUMNS)
+    if axis is not None and axis not in AXES:
+        raise ValueError(f"diagnose.axis = {axis!r} is not allowed: choose one of 'x', 'y', 'z'")
+    gyro_names = ('gyro_rad_s',) + tuple(f'gyro_{a}_rad_s' for a in AXES)
+    record = records.load_record(path, required=('time_s',), time_order='nondecreasing',
+                                 only=REQUIRED_COLUMNS + gyro_names + ACCEL_COLUMNS)
     if record.columns is None:
         raise ValueError(f'{path} is a bag, not a CSV file')
-    return _from_columns(path, record.columns)
+    return _from_columns(path, record.columns, axis, static)
 
 
-def _from_columns(path, columns):
+def _gyro_column(path, columns, axis):
+    """Return the name of the measured-output column (see :func:`load_csv`)."""
+    if axis is not None and f'gyro_{axis}_rad_s' in columns:
+        return f'gyro_{axis}_rad_s'
+    if 'gyro_rad_s' in columns:
+        return 'gyro_rad_s'
+    per_axis = [f'gyro_{a}_rad_s' for a in AXES if f'gyro_{a}_rad_s' in columns]
+    if per_axis and axis is None:
+        raise ValueError(f'{path}: no gyro_rad_s column; choose an axis (--axis) to read one '
+                         f'of {", ".join(per_axis)}')
+    raise ValueError(f'{path}: missing required column gyro_rad_s'
+                     + (f' (or gyro_{axis}_rad_s)' if axis else '')
+                     + f'; the file has {", ".join(columns)}')
+
+
+def _from_columns(path, columns, axis=None, static=False):
     """Return the MeasuredData of CSV ``columns`` (see :func:`load_csv`)."""
+    gyro = _gyro_column(path, columns, axis)
+    if 'rate_cmd_rad_s' not in columns and not static:
+        raise ValueError(f'{path}: missing required column rate_cmd_rad_s (the applied rate); '
+                         'for a part at rest give --static')
     accel = [c for c in ACCEL_COLUMNS if c in columns]
     if accel and len(accel) != 3:
         raise ValueError(
             f'{path}: acceleration needs all of {", ".join(ACCEL_COLUMNS)}; '
             f'found only {", ".join(accel)}')
+    n = len(columns['time_s'])
     return MeasuredData(
-        time_s=columns['time_s'], rate_cmd_rad_s=columns['rate_cmd_rad_s'],
-        temp_c=columns['temp_c'], gyro_rad_s=columns['gyro_rad_s'],
+        time_s=columns['time_s'],
+        rate_cmd_rad_s=columns.get('rate_cmd_rad_s', np.zeros(n)),
+        temp_c=columns.get('temp_c'), gyro_rad_s=columns[gyro],
         accel_m_s2=np.column_stack([columns[c] for c in ACCEL_COLUMNS]) if accel else None,
-        source=str(path))
+        source=str(path) + (f' ({gyro})' if gyro != 'gyro_rad_s' else ''))
 
 
 def load_measured(path, rate_topic=None, temp_topic=None, gyro_topic=None, accel_topic=None,
-                  axis='z'):
+                  axis=None, static=False):
     """
     Read a measured record, a bag (:func:`load_bag`) or a CSV file (:func:`load_csv`).
 
     Which one is :func:`gyro_emulator.recording.records.is_bag`'s rule; the
-    topic options apply to a bag only.
+    topic options apply to a bag only (``axis`` defaults to 'z' there).
     """
     if records.is_bag(path):
         return load_bag(path, rate_topic=rate_topic, temp_topic=temp_topic,
-                        gyro_topic=gyro_topic, accel_topic=accel_topic, axis=axis)
-    return load_csv(path)
+                        gyro_topic=gyro_topic, accel_topic=accel_topic, axis=axis or 'z')
+    return load_csv(path, axis=axis, static=static)
 
 
 def write_measured_csv(path, data):
     """Write ``data`` (MeasuredData) in the diagnose contract (csvio.write_csv)."""
-    columns = dict(zip(REQUIRED_COLUMNS, (data.time_s, data.rate_cmd_rad_s, data.temp_c,
-                                          data.gyro_rad_s)))
-    fmt = ['%.6f', '%.9g', '%.5f', '%.9g']
+    columns = {'time_s': data.time_s, 'rate_cmd_rad_s': data.rate_cmd_rad_s}
+    fmt = ['%.6f', '%.9g']
+    if data.has_temp:
+        columns['temp_c'] = data.temp_c
+        fmt.append('%.5f')
+    columns['gyro_rad_s'] = data.gyro_rad_s
+    fmt.append('%.9g')
     if data.has_accel:
         columns.update(zip(ACCEL_COLUMNS, data.accel_m_s2.T))
         fmt += ['%.6g'] * 3
@@ -200,10 +245,12 @@ class Frame:
     :meth:`slow`.
     """
 
-    def __init__(self, prepared, level):
+    def __init__(self, prepared, level, index=None):
         self.record = prepared
         self.bins = prepared
         self.level = level
+        self.index = index
+        self.bin_index = None if index is None else prepared.sample_bin_all[index]
 
     def __len__(self):
         """Return the rows at this resolution."""
@@ -213,11 +260,20 @@ class Frame:
         """Map a slow quantity computed on the bins to this resolution."""
         if self.level == 'bins':
             return values_on_bins
-        return np.asarray(values_on_bins)[self.bins.sample_bin]
+        return np.asarray(values_on_bins)[self.bin_index]
 
     def delayed_rate(self, delay_s):
         """Return the applied rate delayed by ``delay_s`` (linear interpolation)."""
-        return self.record.delayed_rate(delay_s, self.level)
+        if self.level == 'bins':
+            return self.record.delayed_rate(delay_s, 'bins')
+        t = self.record.data.time_s
+        return np.interp(t[self.index] - delay_s, t, self.record.data.rate_cmd_rad_s)
+
+    def rate_derivative(self):
+        """Return d(rate)/dt, rad/s^2: per sample (central differences), or its bin means."""
+        if self.level == 'bins':
+            return self.record.bin_mean(self.record.rate_derivative_all)
+        return self.record.rate_derivative_all[self.index]
 
     def lagged_temp_c(self, tau_s):
         """Return the temperature through a first-order lag ``tau_s``."""
@@ -238,38 +294,55 @@ class Prepared:
         The record.
     max_bins : int
         Upper bound on the number of bins (see the module docstring).
+    keep : numpy.ndarray of bool, optional
+        Samples to use (False: set aside, :mod:`.screening`); all when None.
+    fill_temp_c : float
+        Temperature assumed when the record has no reading, deg C.
 
     """
 
-    def __init__(self, data, max_bins=DEFAULT_MAX_BINS):
+    def __init__(self, data, max_bins=DEFAULT_MAX_BINS, keep=None, fill_temp_c=25.0):
         self.data = data
         t = data.time_s
+        keep = np.ones(len(t), bool) if keep is None else np.asarray(keep, bool)
+        self.keep = keep
         dt = np.diff(t)
         self.dt_s = float(np.median(dt[dt > 0.0]))
         self.duration_s = float(t[-1] - t[0] + self.dt_s)
         bin_s = max(self.dt_s, self.duration_s / max_bins)
-        # contiguous bins of equal duration; empty bins (gaps) are dropped
+        # contiguous bins of equal duration over the whole record; bins with
+        # no kept sample (gaps, set-aside stretches) are dropped
         raw = np.floor((t - t[0]) / bin_s + 1e-9).astype(np.int64)
         starts = np.flatnonzero(np.r_[True, raw[1:] != raw[:-1]])
+        ends = np.r_[starts[1:], len(t)]
+        counts = np.add.reduceat(keep.astype(float), starts)
+        used = counts > 0
         self.bin_s = bin_s
-        self.starts = starts
-        self.ends = np.r_[starts[1:], len(t)]
-        self.sample_bin = np.repeat(np.arange(len(starts)),
-                                    self.ends - self.starts)
-        counts = (self.ends - self.starts).astype(float)
+        self.starts, self.ends = starts[used], ends[used]
+        self.bin_start_s = t[self.starts]
+        counts = counts[used]
+        raw_to_bin = np.cumsum(used) - 1
+        raw_of_sample = np.repeat(np.arange(len(starts)), ends - starts)
+        # set-aside samples alone in their raw bin map to the bin before (for
+        # slow quantities) but belong to no bin's sums
+        self.sample_bin_all = raw_to_bin[raw_of_sample]
+        self._in_a_bin = used[raw_of_sample]
+        self.sample_bin = self.sample_bin_all[keep]
         r = data.rate_cmd_rad_s
+        temp = data.temp_c if data.has_temp else np.full(len(t), float(fill_temp_c))
+        w = keep.astype(float)
 
         def mean(x):
-            return np.add.reduceat(x, starts, axis=0) / (
-                counts if np.ndim(x) == 1 else counts[:, None])
+            xw = x * (w if np.ndim(x) == 1 else w[:, None])
+            sums = np.add.reduceat(xw, starts, axis=0)[used]
+            return sums / (counts if np.ndim(x) == 1 else counts[:, None])
 
         self._cum_rate = np.r_[0.0, np.cumsum(r)]
-        self.samples = self._frame('samples', t, r, r * r, r ** 3,
-                                   data.temp_c, data.accel_m_s2,
-                                   data.gyro_rad_s, np.ones(len(t)))
+        self.temp_all_c = temp
+        self._rate_derivative = None
+        self.samples = self.sample_frame(np.flatnonzero(keep))
         self.binned = self._frame(
-            'bins', mean(t), mean(r), mean(r * r), mean(r ** 3),
-            mean(data.temp_c),
+            'bins', mean(t), mean(r), mean(r * r), mean(r ** 3), mean(temp),
             None if data.accel_m_s2 is None else mean(data.accel_m_s2),
             mean(data.gyro_rad_s), counts)
         # uniform grid for the temperature filters (exact on that grid)
@@ -282,8 +355,33 @@ class Prepared:
         self.temp_rate_on_bins = self._temp_rate()
         self._lag_cache = {}
 
-    def _frame(self, level, t, r, r2, r3, temp, accel, gyro, weight):
-        f = Frame(self, level)
+    @property
+    def rate_derivative_all(self):
+        """d(rate)/dt at every sample of the record (central differences), rad/s^2."""
+        if self._rate_derivative is None:
+            d = self.data
+            self._rate_derivative = np.gradient(d.rate_cmd_rad_s, d.time_s) if np.all(
+                np.diff(d.time_s) > 0.0) else np.zeros(d.rows)
+        return self._rate_derivative
+
+    def bin_mean(self, values_all):
+        """Mean over the kept samples of each bin of a per-sample array (whole record)."""
+        w = self.keep.astype(float)
+        sums = np.bincount(self.sample_bin_all, weights=values_all * w,
+                           minlength=len(self.binned.weight))
+        return sums / self.binned.weight
+
+    def sample_frame(self, index):
+        """Return a sample-level :class:`Frame` of the samples at ``index`` (kept or not)."""
+        d = self.data
+        r = d.rate_cmd_rad_s[index]
+        return self._frame('samples', d.time_s[index], r, r * r, r ** 3,
+                           self.temp_all_c[index],
+                           None if d.accel_m_s2 is None else d.accel_m_s2[index],
+                           d.gyro_rad_s[index], np.ones(len(index)), index)
+
+    def _frame(self, level, t, r, r2, r3, temp, accel, gyro, weight, index=None):
+        f = Frame(self, level, index)
         f.time_s, f.rate, f.rate2, f.rate3 = t, r, r2, r3
         f.temp_c, f.accel, f.gyro, f.weight = temp, accel, gyro, weight
         return f
@@ -331,12 +429,12 @@ class Prepared:
         Return the applied rate delayed by ``delay_s``, at a resolution.
 
         Samples: linear interpolation in time. Bins: the bin mean of the same
-        interpolant, from cumulative sums (exact for uniform sampling).
+        interpolant over the kept samples, from cumulative sums over the
+        whole record (exact for uniform sampling) less the set-aside samples.
         """
         r = self.data.rate_cmd_rad_s
         if level == 'samples':
-            t = self.data.time_s
-            return np.interp(t - delay_s, t, r)
+            return self.samples.delayed_rate(delay_s)
         shift = delay_s / self.dt_s
         m = int(np.floor(shift))
         f = shift - m
@@ -352,8 +450,14 @@ class Prepared:
             after = np.clip(hi - np.maximum(lo, n), 0, None)
             return total + before * r[0] + after * r[-1]
 
-        counts = self.binned.weight
-        return ((1.0 - f) * window_sum(m) + f * window_sum(m + 1)) / counts
+        total = (1.0 - f) * window_sum(m) + f * window_sum(m + 1)
+        dropped = np.flatnonzero(~self.keep & self._in_a_bin)
+        if len(dropped):
+            idx = np.clip(dropped - m, 0, n - 1), np.clip(dropped - m - 1, 0, n - 1)
+            values = (1.0 - f) * r[idx[0]] + f * r[idx[1]]
+            total = total - np.bincount(self.sample_bin_all[dropped], weights=values,
+                                        minlength=len(total))
+        return total / self.binned.weight
 
 
 # --- rosbag2 MCAP input ----------------------------------------------------

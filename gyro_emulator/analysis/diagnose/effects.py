@@ -1,17 +1,25 @@
 """
-The catalogue of candidate causes: each a physical mechanism with its model.
+The catalogue of candidate causes: each a mechanism with its model.
 
-Every model keeps the baseline's form and changes one physical ingredient::
+Every model keeps the baseline's form and adds to it::
 
-    gyro = b0 + s0 R(T) Omega + (the cause's term)
+    gyro = b0 + s0 s(T, t) Omega_s + (the causes' columns)
 
-``b0`` and ``s0`` are refitted with the cause's parameters, so a cause is
-judged against the baseline refitted on the same data (the *recalibrated
-baseline*, :data:`NULL`), never against a worse calibration. Parameters that
-enter linearly are solved by weighted least squares; the others (a time
-constant, a delay, a gas constant, a mode split) by variable projection: a
-grid search over them, each point solving the linear part, then a bounded
-refinement.
+with ``s = R(T)`` times the scale-factor factor of each cause
+(:meth:`Effect.sf_factor`), ``Omega_s`` the applied rate (delayed by a delay
+cause) and the columns each cause adds (:meth:`Effect.columns`). Causes
+compose, so a model is a list of causes (:mod:`.models`). ``b0`` and ``s0``
+are refitted with the causes' parameters, so a cause is judged against the
+baseline refitted on the same data (the *recalibrated baseline*,
+:data:`NULL`), never against a worse calibration.
+
+Each cause is *physical* (a mechanism of the paper's device with a model
+from the physics: viscosity, thermal lag, pressure, mode split, delay, a
+bias following dT/dt) or *generic* (a description of what changes, with the
+mechanisms that could produce it: a polynomial bias or scale factor in
+temperature or time, a step, a rate polynomial, a g-sensitivity;
+:mod:`.generic`). A physical cause lists its generic competitors: it is
+named only when it beats them on held-out data (:mod:`.selection`).
 """
 
 from dataclasses import dataclass
@@ -30,6 +38,11 @@ class Context:
     time_span_s: tuple
     duration_s: float
 
+    @property
+    def mid_time_s(self):
+        """Middle of the record, s (the origin of time polynomials)."""
+        return 0.5 * (self.time_span_s[0] + self.time_span_s[1])
+
 
 @dataclass(frozen=True)
 class Param:
@@ -40,60 +53,94 @@ class Param:
     meaning: str
 
 
-def _slow_temp(frame):
+@dataclass(frozen=True)
+class Basis:
+    """The scale-factor part of a model at one resolution: s(T, t) and s Omega_s."""
+
+    s: np.ndarray
+    sr: np.ndarray
+
+
+def slow_temp(frame):
+    """Return the bin-mean temperature reading (slow quantities are computed on bins)."""
     return frame.bins.binned.temp_c
+
+
+#: Entries a frame's cache holds before it is emptied.
+CACHE_SIZE = 2048
+
+
+def cached(frame, key, compute):
+    """
+    Return ``compute()`` for ``key``, remembered on the bins of ``frame``.
+
+    Slow quantities live on the bins, which do not change during a
+    diagnosis; a search evaluates the same ones at the same parameter
+    values for every fold.
+    """
+    store = frame.bins.__dict__.setdefault('_effect_cache', {})
+    value = store.get(key)
+    if value is None:
+        if len(store) >= CACHE_SIZE:
+            store.clear()
+        value = compute()
+        store[key] = value
+    return value
 
 
 class Effect:
     """
     One candidate cause.
 
-    Subclasses set ``effect_id``, ``cause`` (a sentence), ``needs`` (subset of
-    'rate', 'temp', 'accel'), ``params`` (reported parameters: the non-linear
-    ones first, one per grid, then the linear ones) and ``grid`` (one array
-    per non-linear parameter, empty when the model is linear). The model is
-    ``[1, s(T) Omega_s, extra...]``: subclasses change the scale-factor ratio
-    s (:meth:`ratio`), the sensed rate Omega_s (:meth:`sensed_rate`) or add
-    bias regressors (:meth:`extra_columns`).
+    Subclasses set ``effect_id``, ``cause`` (a sentence), ``kind``
+    ('physical' or 'generic'), ``needs`` (subset of 'rate', 'temp',
+    'accel'), ``params`` (reported parameters: the non-linear ones first,
+    one per grid, then the linear ones), ``grid`` (one array per non-linear
+    parameter, empty when linear), ``competitors`` (generic causes a
+    physical one must beat) and ``mechanisms`` (what could produce a generic
+    one). A cause changes the scale-factor ratio (:meth:`sf_factor`), delays
+    the sensed rate (:meth:`delay_s`) or adds columns (:meth:`columns`).
     """
 
     effect_id = ''
     cause = ''
+    kind = 'physical'
     needs = ()
     params = ()
     grid = ()
+    competitors = ()
+    mechanisms = ()
 
     def grids(self, ctx):
         """Grids of the non-linear parameters for this record."""
         return self.grid
 
-    def ratio(self, ctx, frame, phi):
-        """Return the scale-factor ratio on the bins: the baseline R(T)."""
-        return ctx.phys.ratio(_slow_temp(frame))
+    def sf_factor(self, ctx, frame, phi):
+        """Return the factor on R(T) on the bins, or None (no change)."""
+        return None
 
-    def sensed_rate(self, frame, phi):
-        """Return the rate the scale factor multiplies: the applied rate."""
-        return frame.rate
+    def delay_s(self, phi):
+        """Return the delay of the sensed rate, s (0: none)."""
+        return 0.0
 
-    def extra_columns(self, ctx, frame, phi):
-        """Return the regressors beyond bias and scale factor (none)."""
+    def columns(self, ctx, frame, phi, basis):
+        """Return the regressors this cause adds, at ``frame``'s rows."""
         return []
 
-    def columns(self, ctx, frame, phi):
-        """Regressor columns [1, scale-factor term, ...] at ``frame``'s rows."""
-        return [np.ones(len(frame)),
-                frame.slow(self.ratio(ctx, frame, phi)) * self.sensed_rate(frame, phi)
-                ] + self.extra_columns(ctx, frame, phi)
-
-    def report(self, beta, phi):
-        """Return the physical parameter values: the non-linear ones, then beta[2:]."""
-        values = list(phi) + list(beta[2:2 + len(self.params) - len(phi)])
-        return {p.name: v for p, v in zip(self.params, values)}
+    def report(self, coef, phi, s0):
+        """Return the physical parameter values: the non-linear ones, then ``coef``."""
+        values = list(phi) + list(coef[:len(self.params) - len(phi)])
+        return {p.name: float(v) for p, v in zip(self.params, values)}
 
     @property
     def n_params(self):
-        """Free parameters, b0 and s0 included."""
-        return 2 + len(self.params)
+        """Free parameters of the cause alone."""
+        return len(self.params)
+
+    @property
+    def n_columns(self):
+        """Columns the cause adds (its linear parameters)."""
+        return len(self.params) - len(self.grid)
 
 
 class Recalibrated(Effect):
@@ -116,28 +163,15 @@ class ViscosityTemperature(Effect):
                     'Sutherland constant S of mu = mu_ref (T/T_ref)^1.5 '
                     '(T_ref + S)/(T + S) (air: 110.4 K)'),)
     grid = (np.geomspace(20.0, 1000.0, 36),)
+    competitors = ('scale_factor_temperature',)
 
-    def ratio(self, ctx, frame, phi):
-        """R_S(T) from the physics at Sutherland constant S."""
-        return ctx.phys.sutherland_ratio(_slow_temp(frame), phi[0])
+    def sf_factor(self, ctx, frame, phi):
+        """R_S(T) / R(T) from the physics at Sutherland constant S."""
+        def compute():
+            temp = slow_temp(frame)
+            return ctx.phys.sutherland_ratio(temp, phi[0]) / ctx.phys.ratio(temp)
 
-
-class BiasTemperature(Effect):
-    """Zero-rate bias linear + quadratic in temperature."""
-
-    effect_id = 'bias_temperature'
-    cause = ('The zero-rate bias drifts with temperature (thermal stress and '
-             'electronics offsets), a term the paper model lacks entirely.')
-    needs = ('temp',)
-    params = (Param('bias_temp_coeff_rad_s_k', 'rad/s/K',
-                    'bias change per kelvin at T_ref'),
-              Param('bias_temp_coeff2_rad_s_k2', 'rad/s/K^2',
-                    'quadratic bias coefficient'))
-
-    def extra_columns(self, ctx, frame, phi):
-        """[dT, dT^2], dT = T - T_ref."""
-        dt = frame.slow(_slow_temp(frame) - ctx.ref_temp_c)
-        return [dt, dt * dt]
+        return cached(frame, ('sutherland', float(phi[0])), compute)
 
 
 class ThermalLag(Effect):
@@ -151,56 +185,20 @@ class ThermalLag(Effect):
     needs = ('rate', 'temp')
     params = (Param('thermal_time_constant_s', 's',
                     'first-order lag between the reading and the structure'),)
+    grid = (None,)
+    competitors = ('scale_factor_temperature',)
 
     def grids(self, ctx):
         """Time constants from 5 s to the record's length."""
         return (np.geomspace(5.0, max(50.0, min(2e4, ctx.duration_s)), 40),)
 
-    def ratio(self, ctx, frame, phi):
-        """R(T_lag), T_lag the reading through a first-order lag tau."""
-        return ctx.phys.ratio(frame.bins.lagged_temp_on_bins(phi[0]))
+    def sf_factor(self, ctx, frame, phi):
+        """R(T_lag) / R(T), T_lag the reading through a first-order lag tau."""
+        def compute():
+            lagged = frame.bins.lagged_temp_on_bins(phi[0])
+            return ctx.phys.ratio(lagged) / ctx.phys.ratio(slow_temp(frame))
 
-
-class ScaleFactorNonlinearity(Effect):
-    """Output not linear in rate: quadratic and cubic terms."""
-
-    effect_id = 'scale_factor_nonlinearity'
-    cause = ('The output is not linear in rate (sense-mode and electrostatic '
-             'nonlinearity): quadratic and cubic terms in the applied rate.')
-    needs = ('rate',)
-    params = (Param('nonlinearity_quadratic_s_rad', 's/rad',
-                    'a2 in Omega (1 + a2 Omega + a3 Omega^2)'),
-              Param('nonlinearity_cubic_s2_rad2', 's^2/rad^2',
-                    'a3 in Omega (1 + a2 Omega + a3 Omega^2)'))
-
-    def columns(self, ctx, frame, phi):
-        """[1, R Omega, R Omega^2, R Omega^3]."""
-        ratio = frame.slow(self.ratio(ctx, frame, phi))
-        return [np.ones(len(frame)), ratio * frame.rate, ratio * frame.rate2,
-                ratio * frame.rate3]
-
-    def report(self, beta, phi):
-        """a2 = c2/s0, a3 = c3/s0."""
-        s0 = beta[1] if beta[1] != 0.0 else np.nan
-        return {'nonlinearity_quadratic_s_rad': beta[2] / s0,
-                'nonlinearity_cubic_s2_rad2': beta[3] / s0}
-
-
-class GSensitivity(Effect):
-    """Bias proportional to linear acceleration."""
-
-    effect_id = 'g_sensitivity'
-    cause = ('The bias is proportional to linear acceleration (g-sensitivity: '
-             'the proof mass is pulled off its nominal position by gravity and '
-             'vibration).')
-    needs = ('accel',)
-    params = tuple(Param(f'g_sensitivity_{a}_rad_s_per_m_s2', 'rad/s per m/s^2',
-                         f'bias per unit acceleration along {a}')
-                   for a in 'xyz')
-
-    def extra_columns(self, ctx, frame, phi):
-        """[a_x, a_y, a_z]."""
-        return [frame.accel[:, k] for k in range(3)]
+        return cached(frame, ('lag', float(phi[0])), compute)
 
 
 class TimeDelay(Effect):
@@ -213,9 +211,9 @@ class TimeDelay(Effect):
     params = (Param('delay_s', 's', 'output delay behind the applied rate'),)
     grid = (np.linspace(-0.05, 0.3, 71),)
 
-    def sensed_rate(self, frame, phi):
-        """Omega(t - d)."""
-        return frame.delayed_rate(phi[0])
+    def delay_s(self, phi):
+        """Return d: the model uses Omega(t - d)."""
+        return phi[0]
 
 
 class PressureDrift(Effect):
@@ -231,18 +229,20 @@ class PressureDrift(Effect):
     params = (Param('pressure_rate_per_h', '1/h',
                     'relative cavity pressure change per hour, '
                     'P(t) = P_ref (1 + k (t - t_start))'),)
+    grid = (None,)
+    competitors = ('scale_factor_time',)
 
     def grids(self, ctx):
         """Pressure rates keeping P(t) >= 0.1 P_ref over the record."""
         hours = max(1e-6, (ctx.time_span_s[1] - ctx.time_span_s[0]) / HOUR_S)
         return (np.linspace(max(-0.9 / hours, -3.0), 3.0, 61),)
 
-    def ratio(self, ctx, frame, phi):
-        """R(T) Y(T, P(t)) / Y(T, P_ref)."""
+    def sf_factor(self, ctx, frame, phi):
+        """Y(T, P(t)) / Y(T, P_ref)."""
         b = frame.bins.binned
         pressure = 1.0 + phi[0] * (b.time_s - ctx.time_span_s[0]) / HOUR_S
-        factor = ctx.phys.pressure_factor(b.temp_c, np.maximum(pressure, 0.05))
-        return ctx.phys.ratio(b.temp_c) * factor
+        where = cached(frame, 'temp_index', lambda: ctx.phys.temp_index(b.temp_c))
+        return ctx.phys.pressure_factor(where, np.maximum(pressure, 0.05))
 
 
 class ModeSplitDrift(Effect):
@@ -260,53 +260,60 @@ class ModeSplitDrift(Effect):
     _df0 = np.array([0.0, 2.0, 5.0, 10.0, 20.0, 40.0, 70.0, 110.0, 160.0])
     grid = (np.r_[-_df0[:0:-1], _df0],
             np.array([0.0, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0]))
+    competitors = ('scale_factor_temperature',)
 
-    def ratio(self, ctx, frame, phi):
-        """R(T) m(T), m = 1/sqrt(1 + (2 Q (df0 + df1 dT)/f)^2)."""
-        temp = _slow_temp(frame)
+    def sf_factor(self, ctx, frame, phi):
+        """m(T) = 1/sqrt(1 + (2 Q (df0 + df1 dT)/f)^2)."""
+        temp = slow_temp(frame)
         split = phi[0] + phi[1] * (temp - ctx.ref_temp_c)
-        return ctx.phys.ratio(temp) * ctx.phys.mode_split_factor(temp, split)
+        qf = cached(frame, 'q_and_freq', lambda: ctx.phys.q_and_freq(temp))
+        return ctx.phys.mode_split_factor(qf, split)
 
-    def report(self, beta, phi):
+    def report(self, coef, phi, s0):
         """df0, df1 (sign chosen so df1 >= 0: the model is even in df)."""
         df0, df1 = phi
         if df1 < 0:
             df0, df1 = -df0, -df1
-        return {'mode_split_at_ref_hz': df0, 'mode_split_temp_coeff_hz_k': df1}
+        return {'mode_split_at_ref_hz': float(df0), 'mode_split_temp_coeff_hz_k': float(df1)}
 
 
 class TemperatureRateBias(Effect):
-    """Bias proportional to the rate of change of temperature."""
+    """Bias proportional to the rate of change of temperature inside the part."""
 
     effect_id = 'temperature_rate_bias'
     cause = ('The bias follows the rate of change of temperature: during '
              'ramps a thermal gradient across the die stresses the '
              'suspension (heating and cooling give opposite offsets).')
     needs = ('temp',)
-    params = (Param('bias_per_temp_rate_rad_s_per_k_s', 'rad/s per K/s',
-                    'bias per unit dT/dt'),)
+    params = (Param('gradient_time_constant_s', 's',
+                    'time constant of the body the gradient builds up in'),
+              Param('bias_per_temp_rate_rad_s_per_k_s', 'rad/s per K/s',
+                    'bias per unit dT/dt'))
+    # a gradient across a die or package settles within minutes
+    grid = (np.geomspace(2.0, 300.0, 20),)
+    competitors = ('bias_temperature', 'bias_time', 'bias_hysteresis')
 
-    def extra_columns(self, ctx, frame, phi):
-        """[dT/dt]."""
-        return [frame.temp_rate_c_s()]
+    def columns(self, ctx, frame, phi, basis):
+        """
+        [dT_b/dt], T_b the reading through a first-order lag tau.
+
+        A gradient across a body that follows the reading with time constant
+        tau is proportional to T - T_b = tau dT_b/dt (exact for the lag): the
+        reading's slope smoothed the way the body smooths it, without
+        differencing the reading's noise.
+        """
+        def compute():
+            lagged = frame.bins.lagged_temp_on_bins(phi[0])
+            return (slow_temp(frame) - lagged) / phi[0]
+
+        return [frame.slow(cached(frame, ('gradient', float(phi[0])), compute))]
 
 
 #: The reference every cause is judged against.
 NULL = Recalibrated()
 
-#: The catalogue, in the order reports list it.
-CATALOGUE = (ViscosityTemperature(), BiasTemperature(), ThermalLag(),
-             ScaleFactorNonlinearity(), GSensitivity(), TimeDelay(),
-             PressureDrift(), ModeSplitDrift(), TemperatureRateBias())
 
-#: Effect ids, plus 'none' for "no cause found".
-EFFECT_IDS = tuple(e.effect_id for e in CATALOGUE)
-
-
-def effect(effect_id):
-    """Return the catalogue entry ``effect_id``."""
-    for e in CATALOGUE:
-        if e.effect_id == effect_id:
-            return e
-    raise ValueError(f'effect {effect_id!r} is unknown: choose one of '
-                     f'{", ".join(EFFECT_IDS)}')
+def physical_causes():
+    """Return the physical causes, in the order reports list them."""
+    return (ViscosityTemperature(), ThermalLag(), TimeDelay(), PressureDrift(),
+            ModeSplitDrift(), TemperatureRateBias())

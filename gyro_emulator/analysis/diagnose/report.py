@@ -2,13 +2,18 @@
 The diagnose report: a Markdown page with PNG residual plots.
 
 Residuals (measured minus model, bin means, rad/s) are plotted against
-temperature, applied rate and time, before (the user-calibrated baseline)
-and after (the best cause's model, fitted on the whole record), with the
-fitted parameters and their jackknife uncertainty in the page.
+temperature, applied rate and time (each when the record varies it),
+before (the user-calibrated baseline) and after (the chosen causes, fitted
+on the whole record), with the stretches set aside as outliers marked on
+the time axis. The page gives the verdict, the chosen causes with their
+parameters, jackknife uncertainty and held-out gains, what could not be
+told apart, the residual against its noise floor, and every candidate of
+each selection step.
 """
 
 import os
 
+from gyro_emulator import plotting
 import numpy as np
 
 PLOTS = (('temperature', 'temp_c', 'temperature reading (C)'),
@@ -26,13 +31,30 @@ def _binned_curve(x, r, groups=25):
             np.array([np.mean(r[p]) for p in parts]))
 
 
+def _panel(ax, x, res, title, label):
+    """One residual panel: bin means (at most 3000 drawn), their group-mean curve, the RMS."""
+    every = max(1, len(x) // 3000)
+    ax.plot(x[::every], res[::every], '.', ms=1.5, alpha=0.35, color='tab:blue',
+            rasterized=True, label='bin means' + (f' (1 in {every})' if every > 1 else ''))
+    cx, cy = _binned_curve(x, res)
+    ax.plot(cx, cy, '-', color='tab:red', lw=1.5, label='group mean')
+    ax.axhline(0.0, color='k', lw=0.6)
+    rms = float(np.sqrt(np.mean(res ** 2)))
+    ax.text(0.02, 0.95, f'rms of bin means {rms:.3g} rad/s', transform=ax.transAxes,
+            fontsize=8, va='top')
+    lim = 1.15 * float(np.percentile(np.abs(res), 99.8))
+    ax.set_ylim(-lim or -1e-9, lim or 1e-9)
+    plotting.label(ax, label, 'measured - model (rad/s)', title)
+    ax.title.set_fontsize(10)
+
+
 def plot_residuals(diagnosis, out_dir):
     """
     Write residuals_<temperature|rate|time>.png; return their file names.
 
     Parameters
     ----------
-    diagnosis : gyro_emulator.analysis.diagnose.selection.Diagnosis
+    diagnosis : gyro_emulator.analysis.diagnose.pipeline.Diagnosis
         The result of :func:`gyro_emulator.analysis.diagnose.diagnose`.
     out_dir : str
         Directory for the PNG files (created if needed).
@@ -42,40 +64,26 @@ def plot_residuals(diagnosis, out_dir):
     list of str
 
     """
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
+    plt = plotting.pyplot()
     os.makedirs(out_dir, exist_ok=True)
     b = diagnosis.prepared.binned
+    doc = diagnosis.doc
     names = []
-    before, after = diagnosis.residual_before, diagnosis.residual_after
     for key, attr, label in PLOTS:
         x = getattr(b, attr)
+        if (key == 'temperature' and not doc['input']['has_temp']) or np.ptp(x) <= 0.0:
+            continue
         fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        for ax, res, title in ((axes[0], before, 'before: paper model, '
-                                'user calibration'),
-                               (axes[1], after, 'after: '
-                                + diagnosis.after_label)):
-            ax.plot(x, res, '.', ms=1.5, alpha=0.35, color='tab:blue',
-                    rasterized=True)
-            cx, cy = _binned_curve(x, res)
-            ax.plot(cx, cy, '-', color='tab:red', lw=1.5, label='group mean')
-            ax.axhline(0.0, color='k', lw=0.6)
-            ax.set_title(title, fontsize=10)
-            ax.set_xlabel(label)
-            ax.grid(True, alpha=0.3)
-            rms = float(np.sqrt(np.mean(res ** 2)))
-            ax.text(0.02, 0.95, f'rms of bin means {rms:.3g} rad/s',
-                    transform=ax.transAxes, fontsize=8, va='top')
-            lim = 1.15 * float(np.percentile(np.abs(res), 99.8))
-            ax.set_ylim(-lim or -1e-9, lim or 1e-9)
-            ax.set_ylabel('residual, measured - model (rad/s)')
-        axes[1].legend(loc='lower right', fontsize=8)
-        fig.tight_layout()
+        _panel(axes[0], x, diagnosis.residual_before, 'before: paper model, user calibration',
+               label)
+        _panel(axes[1], x, diagnosis.residual_after, 'after: ' + diagnosis.after_label, label)
+        if key == 'time':
+            for start, end, _ in doc['set_aside']['segments']:
+                for ax in axes:
+                    ax.axvspan(start, max(end, start + 0.5 * b.bins.dt_s), color='tab:orange',
+                               alpha=0.3, lw=0)
         name = f'residuals_{key}.png'
-        fig.savefig(os.path.join(out_dir, name), dpi=110)
-        plt.close(fig)
+        plotting.save(fig, os.path.join(out_dir, name), dpi=85)
         names.append(name)
     return names
 
@@ -101,8 +109,10 @@ def markdown(doc, plots=()):
 
     """
     sections = (('Verdict', _verdict_lines(doc)),
+                ('What cannot be told apart', _confound_lines(doc)),
+                ('Outliers set aside', _set_aside_lines(doc)),
                 ('Baseline', [_baseline_text(doc), '']),
-                ('Findings (ranked by held-out RMSE)', _findings_lines(doc)),
+                ('Selection, step by step', _steps_lines(doc)),
                 ('Residuals before and after',
                  [line for name in plots for line in (f'![{name}]({name})', '')]),
                 ('Method', [_method_text(doc), '']))
@@ -116,37 +126,74 @@ def markdown(doc, plots=()):
 def _summary_lines(doc):
     """Return the title and one paragraph on the record."""
     inp = doc['input']
+    temp = ('no temperature reading' if not inp['has_temp'] else
+            f"temperature {inp['temp_range_c'][0]:.1f}...{inp['temp_range_c'][1]:.1f} C")
     return [f"# Diagnosis of `{os.path.basename(inp['source']) or 'record'}`",
             '',
             f"{inp['rows']} samples over {inp['duration_s']:.0f} s "
-            f"(sample interval {inp['sample_interval_s']:.4g} s), "
-            f"temperature {inp['temp_range_c'][0]:.1f}..."
-            f"{inp['temp_range_c'][1]:.1f} C, rms applied rate "
+            f"(sample interval {inp['sample_interval_s']:.4g} s), {temp}, rms applied rate "
             f"{inp['rate_rms_rad_s']:.3g} rad/s, acceleration "
             f"{'recorded' if inp['has_accel'] else 'not recorded'}. Fits run "
             f"on {inp['bins']} bin means of {inp['bin_s']:.3g} s.", '']
 
 
+def _cause_lines(entry):
+    """One chosen cause: its sentence, gains, test and parameter table."""
+    lines = [f"### {entry['effect']} ({entry['kind']})", '', entry['cause'], '',
+             f"Held-out gain {100 * entry['gain']:.1f} % against the user-calibrated baseline "
+             f"({100 * entry['gain_step']:.1f} % over the step before); p = "
+             f"{entry['p_value']:.2g}; BIC on {entry['effective_bins']:.0f} effective bins "
+             f"{entry['delta_bic']:.0f}."]
+    if entry['indistinguishable_from']:
+        lines += ['', 'Not separable on held-out data from: '
+                  + ', '.join(f'`{e}`' for e in entry['indistinguishable_from']) + '.']
+    if entry['kind'] == 'generic' and entry.get('mechanisms'):
+        lines += ['', 'Mechanisms that could produce it: '
+                  + '; '.join(entry['mechanisms']) + '.']
+    lines += ['', '| parameter | value | 1 sigma | unit | meaning |', '|---|---|---|---|---|']
+    lines += [f"| {name} | {_fmt(p['value'])} | {_fmt(p['sigma'])} | {p['unit']} "
+              f"| {p['meaning']} |" for name, p in entry['parameters'].items()]
+    return lines + ['']
+
+
 def _verdict_lines(doc):
-    """Return the verdict: the cause, its gain, the residual message, its parameters."""
-    best = doc['best']
-    if best['effect'] == 'none':
-        lines = ['**No cause found** (`none`): no candidate improves the '
-                 'held-out fit significantly.']
-    else:
-        lines = [f"**{best['effect']}**: {best['cause']}", '',
-                 f"Held-out RMSE {doc['baseline']['rmse_rad_s']:.4g} -> "
-                 f"{best['rmse_rad_s']:.4g} rad/s: gain "
-                 f"{100 * best['gain']:.1f} % (gain = 1 - RMSE_cause / "
-                 'RMSE_baseline).']
-    lines += ['', doc['residual']['message'], '']
-    if best['parameters']:
-        lines += ['| parameter | value | 1 sigma | unit | meaning |',
-                  '|---|---|---|---|---|']
-        lines += [f"| {name} | {_fmt(p['value'])} | {_fmt(p['sigma'])} "
-                  f"| {p['unit']} | {p['meaning']} |"
-                  for name, p in best['parameters'].items()] + ['']
+    """Return the verdict, the residual message and every chosen cause."""
+    res = doc['residual']
+    lines = [f"**{doc['verdict']}**", '', res['message'], '']
+    if not doc['selected']:
+        lines += ['No cause was chosen (`none`).', '']
+    for entry in doc['selected']:
+        lines += _cause_lines(entry)
+    noise = res['noise']
+    lines += [f"Noise of the final residual: {noise['white_sigma_rad_s']:.3g} rad/s per sample; "
+              f"N = {noise['arw_rad_s_sqrt_hz']:.3g} rad/s/sqrt(Hz), B = "
+              f"{noise['bias_instability_rad_s']:.3g} rad/s, K = "
+              f"{noise['rrw_rad_s_sqrt_s']:.3g} rad/s/sqrt(s) (robust Allan deviation up to "
+              f"{noise['allan_tau_max_s']:.3g} s).", '']
     return lines
+
+
+def _confound_lines(doc):
+    lines = [f"- `{c['a']}` and `{c['b']}` move together: correlation {c['correlation']:+.4f}."
+             for c in doc['confounded']]
+    lines += [f'- {text}' for text in doc['experiments']]
+    return lines + [''] if lines else []
+
+
+def _set_aside_lines(doc):
+    sa = doc['set_aside']
+    if not sa['count']:
+        return [f"None (threshold {sa['threshold_sigma']:g} robust sigma).", '']
+    lines = [f"{sa['count']} samples ({100 * sa['fraction']:.3f} %) in "
+             f"{sa['segments_total']} stretches, beyond {sa['threshold_sigma']:g} robust sigma "
+             f"({sa['sigma_rad_s']:.3g} rad/s) of the local high-passed residual. Baseline RMSE "
+             f"with them: {sa['baseline_rmse_all_samples_rad_s']:.4g} rad/s"
+             + ('' if sa['best_gain_all_samples'] is None else
+                f"; the first cause's gain counted on every sample: "
+                f"{100 * sa['best_gain_all_samples']:.1f} %") + '.', '',
+             '| from (s) | to (s) | samples |', '|---|---|---|']
+    lines += [f'| {a:.3f} | {b:.3f} | {n} |' for a, b, n in sa['segments'][:20]]
+    return lines + ['']
 
 
 def _baseline_text(doc):
@@ -164,17 +211,19 @@ def _baseline_text(doc):
             f"{doc['recalibrated_baseline']['rmse_rad_s']:.4g} rad/s).")
 
 
-def _findings_lines(doc):
-    """Return the table of findings, then the entries not tested."""
-    rows = [f"| {f['effect']} | {f['rmse_rad_s']:.4g} | {100 * f['gain']:.2f} % "
-            f"| {100 * f['gain_over_recalibrated']:.2f} % | {f['p_value']:.2g} "
-            f"| {f['delta_bic']:.0f} | {'yes' if f['significant'] else 'no'} |"
-            for f in doc['findings']]
-    rows += [f"| {nt['effect']} | not tested: {nt['reason']} | | | | | |"
-             for nt in doc['not_tested']]
-    return ['| effect | held-out RMSE (rad/s) | gain | gain over recalibrated '
-            '| p | delta BIC | significant |',
-            '|---|---|---|---|---|---|---|'] + rows + ['']
+def _steps_lines(doc):
+    """One table per selection step, then the causes not tested."""
+    lines = []
+    for i, st in enumerate(doc['steps'], 1):
+        lines += [f"Step {i}: added `{st['added'] or 'nothing'}`.", '',
+                  '| candidate | held-out RMSE (rad/s) | gain over the step before | p | '
+                  'delta BIC | significant |', '|---|---|---|---|---|---|']
+        lines += [f"| {c['effect']} | {c['rmse_rad_s']:.4g} | {100 * c['gain_step']:.2f} % "
+                  f"| {c['p_value']:.2g} | {c['delta_bic']:.0f} | "
+                  f"{'yes' if c['significant'] else 'no'} |" for c in st['candidates']]
+        lines.append('')
+    lines += [f"- `{nt['effect']}` not tested: {nt['reason']}" for nt in doc['not_tested']]
+    return lines + ['']
 
 
 def _method_text(doc):
@@ -182,12 +231,12 @@ def _method_text(doc):
     m = doc['method']
     return (f"{m['folds']} contiguous cross-validation blocks; every model "
             'is fitted on the other blocks and predicts the held-out one '
-            'sample by sample. A cause is significant when its held-out '
-            'RMSE gain over the recalibrated baseline is >= '
-            f"{100 * m['min_gain']:.1f} %, a paired test over "
-            f"{m['sub_blocks']} sub-blocks gives p < {m['alpha']:g} and its "
-            f"BIC is lower by more than {-m['delta_bic_max']:g}. "
-            f"Uncertainties: {m['uncertainty']}.")
+            'sample by sample (a step keeps the time found on the whole record). '
+            'A cause joins the model when its held-out RMSE gain over the current '
+            f"model is >= {100 * m['min_gain']:.1f} %, p < {m['alpha']:g} / candidates "
+            f"({m['test']}) and its {m['information_criterion']} drops by more than "
+            f"{-m['delta_bic_max']:g}. A physical cause must beat its generic "
+            f"competitors (p < {m['alpha_tie']:g}). Uncertainties: {m['uncertainty']}.")
 
 
 def write_report(diagnosis, out_dir):
@@ -196,7 +245,7 @@ def write_report(diagnosis, out_dir):
 
     Parameters
     ----------
-    diagnosis : gyro_emulator.analysis.diagnose.selection.Diagnosis
+    diagnosis : gyro_emulator.analysis.diagnose.pipeline.Diagnosis
         The result of :func:`gyro_emulator.analysis.diagnose.diagnose`.
     out_dir : str
         Directory for the report (created if needed).

@@ -1,0 +1,134 @@
+"""
+The JSON document of a diagnosis.
+
+Top level: ``input``, ``device_preset``, ``calibration``, ``baseline``,
+``recalibrated_baseline``, ``set_aside``, ``best``, ``selected``,
+``verdict``, ``residual``, ``confounded``, ``experiments``, ``findings``
+(the first step's candidates, ranked), ``steps``, ``not_tested`` and
+``method``. ``best`` is the first cause chosen (``effect: 'none'`` when
+none is); every entry of ``selected`` has the same fields.
+"""
+
+import math
+
+from gyro_emulator.analysis.diagnose import baseline as base
+from gyro_emulator.analysis.diagnose import noise_model, screening, selection
+from gyro_emulator.analysis.diagnose import verdict as vd
+import numpy as np
+
+
+def _entry(cand, rmse_base, mechanisms=True):
+    """One chosen cause: the JSON fields of ``best`` and ``selected``."""
+    eff = cand.effect
+    out = {'effect': eff.effect_id, 'cause': eff.cause, 'kind': eff.kind,
+           'parameters': selection.jackknife_parameters(eff, cand.evaluated),
+           'rmse_rad_s': cand.evaluated.rmse,
+           'gain': 1.0 - cand.evaluated.rmse / rmse_base,
+           'gain_step': cand.gain_step, 'p_value': cand.p_value,
+           'delta_bic': cand.delta_bic, 'effective_bins': cand.n_eff,
+           'noise_share_of_gain': cand.null_share,
+           'indistinguishable_from': list(cand.indistinguishable)}
+    if mechanisms:
+        out['mechanisms'] = list(eff.mechanisms)
+        out['competitors'] = list(eff.competitors)
+    return out
+
+
+def _finding(cand, rmse_base, rmse_null):
+    """One candidate of the first step (the ``findings`` table)."""
+    ev = cand.evaluated
+    return {'effect': cand.effect.effect_id, 'cause': cand.effect.cause,
+            'kind': cand.effect.kind,
+            'parameters': selection.jackknife_parameters(cand.effect, ev),
+            'rmse_rad_s': ev.rmse, 'gain': 1.0 - ev.rmse / rmse_base,
+            'gain_over_recalibrated': 1.0 - ev.rmse / rmse_null,
+            'p_value': cand.p_value, 'delta_bic': cand.delta_bic,
+            'n_params': 2 + cand.effect.n_params, 'significant': cand.significant}
+
+
+def _none_entry(rmse_base):
+    return {'effect': 'none', 'cause': None, 'kind': None, 'parameters': {},
+            'rmse_rad_s': rmse_base, 'gain': 0.0, 'p_value': None,
+            'indistinguishable_from': []}
+
+
+def _input(data, cv):
+    prep = cv.prep
+    return {'source': data.source, 'rows': data.rows, 'duration_s': prep.duration_s,
+            'sample_interval_s': prep.dt_s, 'bins': cv.n_rows, 'bin_s': prep.bin_s,
+            'temp_range_c': ([float(data.temp_c.min()), float(data.temp_c.max())]
+                             if data.has_temp else None),
+            'has_temp': data.has_temp,
+            'rate_rms_rad_s': math.sqrt(float(np.mean(data.rate_cmd_rad_s ** 2))),
+            'has_accel': data.has_accel, 'recovery': list(data.recovery)}
+
+
+def _set_aside(screen, rms_all, best_gain):
+    return {'count': screen['count'], 'fraction': screen['fraction'],
+            'segments': screen['segments'][:50], 'segments_total': len(screen['segments']),
+            'threshold_sigma': screen['threshold'], 'sigma_rad_s': screen['sigma_rad_s'],
+            'baseline_rmse_all_samples_rad_s': rms_all['baseline'],
+            'best_gain_all_samples': best_gain}
+
+
+def _steps(steps):
+    return [{'added': None if chosen is None else chosen.effect.effect_id,
+             'candidates': [{'effect': c.effect.effect_id, 'rmse_rad_s': c.evaluated.rmse,
+                             'gain_step': c.gain_step, 'p_value': c.p_value,
+                             'delta_bic': c.delta_bic, 'significant': c.significant}
+                            for c in cands]}
+            for cands, chosen in steps]
+
+
+def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_tested,
+          rms_all, alpha):
+    """Return the JSON document (see the module docstring)."""
+    chosen = [c for _, c in steps if c is not None]
+    selected = [_entry(c, rmse_base) for c in chosen]
+    result = vd.verdict(selected, res['consistent'])
+    remains = result in ('partly_explained', 'unexplained')
+    best_gain = None
+    if chosen and rms_all['best'] is not None:
+        best_gain = 1.0 - rms_all['best'] / rms_all['baseline']
+    res.update({'structure_remains': remains, 'excess_over_noise': res['excess'],
+                'noise_rad_s': res['noise']['white_sigma_rad_s']})
+    res['message'] = vd.message(result, selected, res)
+    best = dict(selected[0]) if selected else _none_entry(rmse_base)
+    best['gain_all_samples'] = best_gain
+    cal_all = base.calibrate(cv.prep.binned, cv.ctx.phys)
+    return {
+        'input': _input(data, cv),
+        'device_preset': preset,
+        'calibration': cal_all.as_dict(),
+        'baseline': {'rmse_rad_s': rmse_base,
+                     'model': 'paper first-order physics (preset '
+                              f'{preset!r}), one bias and one scale factor '
+                              'calibrated at the reference temperature'},
+        'recalibrated_baseline': {'rmse_rad_s': null.rmse},
+        'set_aside': _set_aside(screen, rms_all, best_gain),
+        'best': best,
+        'selected': selected,
+        'verdict': result,
+        'residual': res,
+        'confounded': confound,
+        'experiments': vd.experiments(selected, confound, remains, res['strongest_correlate']),
+        'findings': [_finding(c, rmse_base, null.rmse) for c in steps[0][0]] if steps else [],
+        'steps': _steps(steps),
+        'not_tested': not_tested,
+        'method': _method(cv, alpha),
+    }
+
+
+def _method(cv, alpha):
+    return {'folds': len(cv.used_folds), 'sub_blocks': len(cv.used_folds),
+            'alpha': alpha, 'alpha_tie': selection.ALPHA_TIE,
+            'min_gain': selection.MIN_GAIN, 'delta_bic_max': selection.DELTA_BIC_MAX,
+            'outlier_threshold_sigma': screening.THRESHOLD,
+            'null_simulations': noise_model.N_SIM,
+            'rmse': 'held-out, every kept sample, rad/s',
+            'test': 'fold test of the held-out SSE reduction less the reduction the '
+                    "record's own noise gives, Nadeau-Bengio corrected, Bonferroni over "
+                    'the candidates of each step',
+            'information_criterion': 'BIC on the effective number of independent bins',
+            'uncertainty': 'delete-a-block jackknife over the folds, 1 sigma',
+            'blocks': 'the paired test counts folds (sub_blocks = folds)'}

@@ -1,0 +1,319 @@
+"""
+Generic causes: what changes, without saying which mechanism changes it.
+
+A generic cause is a flexible description of one observable: the bias or
+the scale factor as a polynomial in temperature or time, a step at an
+unknown time, a polynomial in the rate, a bias linear in acceleration, a
+bias with hysteresis in temperature. It
+comes with the mechanisms that could produce it (``mechanisms``). A
+physical cause (:mod:`.effects`) that describes the same observable must
+beat its generic competitor on held-out data before it is named
+(:mod:`.selection`); when the generic one wins, the report lists these
+mechanisms instead of guessing one.
+
+:data:`CATALOGUE` holds every candidate, physical and generic.
+"""
+
+from gyro_emulator.analysis.diagnose.effects import (cached, Effect, HOUR_S, NULL, Param,
+                                                     physical_causes, slow_temp)
+import numpy as np
+
+
+class BiasTemperature(Effect):
+    """Zero-rate bias linear + quadratic in temperature."""
+
+    effect_id = 'bias_temperature'
+    kind = 'generic'
+    cause = ('The zero-rate bias drifts with temperature (thermal stress and '
+             'electronics offsets), a term the paper model lacks entirely.')
+    needs = ('temp',)
+    params = (Param('bias_temp_coeff_rad_s_k', 'rad/s/K',
+                    'bias change per kelvin at T_ref'),
+              Param('bias_temp_coeff2_rad_s_k2', 'rad/s/K^2',
+                    'quadratic bias coefficient'))
+    mechanisms = ('thermal stress of the package and die',
+                  'electronics offsets that follow temperature',
+                  'on a one-way ramp: a thermal gradient (temperature_rate_bias) '
+                  'or a drift in time (bias_time)')
+
+    def columns(self, ctx, frame, phi, basis):
+        """[dT, dT^2], dT = T - T_ref."""
+        dt = frame.slow(slow_temp(frame) - ctx.ref_temp_c)
+        return [dt, dt * dt]
+
+
+class ScaleFactorNonlinearity(Effect):
+    """Output not linear in rate: quadratic and cubic terms."""
+
+    effect_id = 'scale_factor_nonlinearity'
+    kind = 'generic'
+    cause = ('The output is not linear in rate (sense-mode and electrostatic '
+             'nonlinearity): quadratic and cubic terms in the applied rate.')
+    needs = ('rate',)
+    params = (Param('nonlinearity_quadratic_s_rad', 's/rad',
+                    'a2 in Omega (1 + a2 Omega + a3 Omega^2)'),
+              Param('nonlinearity_cubic_s2_rad2', 's^2/rad^2',
+                    'a3 in Omega (1 + a2 Omega + a3 Omega^2)'))
+    mechanisms = ('sense-mode (Duffing) and electrostatic nonlinearity',
+                  'saturation of the electronics near full scale')
+
+    def columns(self, ctx, frame, phi, basis):
+        """[s Omega^2, s Omega^3]."""
+        return [basis.s * frame.rate2, basis.s * frame.rate3]
+
+    def report(self, coef, phi, s0):
+        """a2 = c2/s0, a3 = c3/s0."""
+        s0 = s0 if s0 != 0.0 else np.nan
+        return {'nonlinearity_quadratic_s_rad': float(coef[0] / s0),
+                'nonlinearity_cubic_s2_rad2': float(coef[1] / s0)}
+
+
+class GSensitivity(Effect):
+    """Bias proportional to linear acceleration."""
+
+    effect_id = 'g_sensitivity'
+    kind = 'generic'
+    cause = ('The bias is proportional to linear acceleration (g-sensitivity: '
+             'the proof mass is pulled off its nominal position by gravity and '
+             'vibration).')
+    needs = ('accel',)
+    params = tuple(Param(f'g_sensitivity_{a}_rad_s_per_m_s2', 'rad/s per m/s^2',
+                         f'bias per unit acceleration along {a}')
+                   for a in 'xyz')
+    mechanisms = ('proof-mass offset under gravity and vibration',
+                  'a mounting that flexes under load')
+
+    def columns(self, ctx, frame, phi, basis):
+        """[a_x, a_y, a_z]."""
+        return [frame.accel[:, k] for k in range(3)]
+
+
+class ScaleFactorTemperature(Effect):
+    """Scale factor a polynomial in temperature: SF(T) = s0 R(T) (1 + c1 dT + c2 dT^2)."""
+
+    effect_id = 'scale_factor_temperature'
+    kind = 'generic'
+    cause = ('The scale factor changes with temperature in a way the paper model does '
+             'not predict: SF(T) = s0 R(T) (1 + c1 dT + c2 dT^2).')
+    needs = ('rate', 'temp')
+    params = (Param('sf_temp_coeff_per_k', '1/K',
+                    'relative scale-factor change per kelvin at T_ref (1e-6 = 1 ppm/K)'),
+              Param('sf_temp_coeff2_per_k2', '1/K^2',
+                    'quadratic relative scale-factor coefficient'))
+    mechanisms = ('an electronics gain temperature coefficient',
+                  'factory temperature compensation (the part does not follow the physics)',
+                  'gas viscosity rising with temperature (viscosity_temperature)',
+                  'a drive-sense mode split drifting with temperature (mode_split_drift)',
+                  'a thermal lag of the structure (thermal_lag) on slow ramps')
+
+    def columns(self, ctx, frame, phi, basis):
+        """[s Omega dT, s Omega dT^2]."""
+        dt = frame.slow(slow_temp(frame) - ctx.ref_temp_c)
+        return [basis.sr * dt, basis.sr * dt * dt]
+
+    def report(self, coef, phi, s0):
+        """c1 = k1/s0, c2 = k2/s0."""
+        s0 = s0 if s0 != 0.0 else np.nan
+        return {'sf_temp_coeff_per_k': float(coef[0] / s0),
+                'sf_temp_coeff2_per_k2': float(coef[1] / s0)}
+
+
+def _hours_from_mid(ctx, frame):
+    """(t - t_mid) in hours at ``frame``'s rows (slow: from the bins)."""
+    return frame.slow((frame.bins.binned.time_s - ctx.mid_time_s) / HOUR_S)
+
+
+class ScaleFactorTime(Effect):
+    """Scale factor drifting in time: SF = s0 R(T) (1 + k1 t_h + k2 t_h^2)."""
+
+    effect_id = 'scale_factor_time'
+    kind = 'generic'
+    cause = 'The scale factor drifts in time during the run.'
+    needs = ('rate',)
+    params = (Param('sf_drift_per_h', '1/h',
+                    'relative scale-factor change per hour at mid-record'),
+              Param('sf_drift2_per_h2', '1/h^2', 'quadratic relative drift coefficient'))
+    mechanisms = ('a cavity pressure drift (pressure_drift)',
+                  'ageing of the electronics gain',
+                  'a temperature change confounded with time')
+
+    def columns(self, ctx, frame, phi, basis):
+        """[s Omega t_h, s Omega t_h^2], t_h in hours from mid-record."""
+        th = _hours_from_mid(ctx, frame)
+        return [basis.sr * th, basis.sr * th * th]
+
+    def report(self, coef, phi, s0):
+        """k1 = c1/s0, k2 = c2/s0."""
+        s0 = s0 if s0 != 0.0 else np.nan
+        return {'sf_drift_per_h': float(coef[0] / s0), 'sf_drift2_per_h2': float(coef[1] / s0)}
+
+
+class BiasTime(Effect):
+    """Bias drifting in time: a warm-up A exp(-(t - t0)/tau) plus a linear ageing."""
+
+    effect_id = 'bias_time'
+    kind = 'generic'
+    cause = ('The bias drifts in time: a warm-up A exp(-(t - t_start)/tau) plus a '
+             'linear ageing.')
+    needs = ()
+    params = (Param('warmup_time_constant_s', 's', 'warm-up time constant tau'),
+              Param('warmup_rad_s', 'rad/s', 'warm-up bias A at the start of the record'),
+              Param('bias_drift_rad_s_per_h', 'rad/s/h', 'linear bias drift per hour'))
+    grid = (None,)
+    mechanisms = ('warm-up after power-on', 'ageing',
+                  'a temperature change confounded with time (bias_temperature)',
+                  'bias wander slower than the record can show as noise')
+
+    def grids(self, ctx):
+        """Time constants from 1 % to 50 % of the record."""
+        return (np.geomspace(0.01, 0.5, 20) * ctx.duration_s,)
+
+    def columns(self, ctx, frame, phi, basis):
+        """[exp(-(t - t_start)/tau), t_h]."""
+        t = frame.bins.binned.time_s - ctx.time_span_s[0]
+        return [frame.slow(np.exp(-t / phi[0])), _hours_from_mid(ctx, frame)]
+
+
+def play(temp_c, width_k):
+    """
+    Play (backlash) operator of half width w: p follows T only when |T - p| > w.
+
+    p[0] = T[0]; p[n] = min(T[n] + w, max(T[n] - w, p[n-1])) (Krasnosel'skii &
+    Pokrovskii; the elementary hysteresis operator of the Preisach model).
+    """
+    p = np.empty(len(temp_c))
+    state = float(temp_c[0])
+    for i, value in enumerate(np.asarray(temp_c, dtype=float)):
+        state = min(value + width_k, max(value - width_k, state))
+        p[i] = state
+    return p
+
+
+class BiasHysteresis(Effect):
+    """Bias that depends on the direction of the last temperature change (a play operator)."""
+
+    effect_id = 'bias_hysteresis'
+    kind = 'generic'
+    cause = ('The bias depends on the thermal history: after heating and after cooling '
+             'it sits on different branches, and keeps them through a soak.')
+    needs = ('temp',)
+    params = (Param('hysteresis_width_k', 'K',
+                    'half width w of the play: the temperature change that moves the '
+                    'bias from one branch to the other'),
+              Param('bias_hysteresis_rad_s', 'rad/s',
+                    'half the bias difference between the cooling and heating branches'))
+    grid = (np.geomspace(0.3, 10.0, 20),)
+    refine = False
+    mechanisms = ('stress relaxation of the package, die attach or adhesive (hysteresis)',
+                  'a thermal gradient that settles slower than the soaks '
+                  '(temperature_rate_bias with a long time constant)',
+                  'a bias that follows the direction of the last temperature change')
+
+    def columns(self, ctx, frame, phi, basis):
+        """[(p - T) / w], p the play of the bin temperatures: -1 heating, +1 cooling."""
+        def compute():
+            temp = slow_temp(frame)
+            return (play(temp, phi[0]) - temp) / phi[0]
+
+        return [frame.slow(cached(frame, ('play', float(phi[0])), compute))]
+
+
+class _Step(Effect):
+    """A step at an unknown time (found by an exact change-point search, :mod:`.models`)."""
+
+    change_point = True
+    grid = (None,)
+
+    def grids(self, ctx):
+        """No grid: the step time is searched over every bin start."""
+        return (None,)
+
+    @staticmethod
+    def step(frame, t0):
+        """H(t - t0) at ``frame``'s rows (bins: their first sample's time)."""
+        if frame.level == 'bins':
+            return (frame.bins.bin_start_s >= t0).astype(float)
+        return (frame.time_s >= t0).astype(float)
+
+    def multiplier(self, frame, basis):
+        """Return the column the step multiplies: 1 (bias) or s Omega (scale factor)."""
+        raise NotImplementedError
+
+    def columns(self, ctx, frame, phi, basis):
+        """[g H(t - t0)]."""
+        return [self.multiplier(frame, basis) * self.step(frame, phi[0])]
+
+
+class BiasStep(_Step):
+    """A one-time bias change at time t0."""
+
+    effect_id = 'bias_step'
+    kind = 'generic'
+    cause = 'The bias changes once, abruptly, during the run.'
+    needs = ()
+    params = (Param('step_time_s', 's', 'time of the step (first sample after it)'),
+              Param('bias_step_rad_s', 'rad/s', 'bias change at the step'))
+    mechanisms = ('a mechanical shock', 'a remount or a disturbed fixture',
+                  'a power cycle or restart of the part')
+
+    def multiplier(self, frame, basis):
+        """Return 1: a bias step multiplies the constant."""
+        return np.ones(len(basis.sr))
+
+
+class ScaleFactorStep(_Step):
+    """A one-time relative scale-factor change at time t0."""
+
+    effect_id = 'scale_factor_step'
+    kind = 'generic'
+    cause = 'The scale factor changes once, abruptly, during the run.'
+    needs = ('rate',)
+    params = (Param('step_time_s', 's', 'time of the step (first sample after it)'),
+              Param('sf_step', '', 'relative scale-factor change at the step'))
+    mechanisms = ('a mechanical shock or overload', 'a range or gain switch',
+                  'a remount or restart of the part')
+
+    def multiplier(self, frame, basis):
+        """Return s Omega: a scale-factor step multiplies the rate term."""
+        return basis.sr
+
+    def report(self, coef, phi, s0):
+        """t0 and the relative step c/s0."""
+        s0 = s0 if s0 != 0.0 else np.nan
+        return {'step_time_s': float(phi[0]), 'sf_step': float(coef[0] / s0)}
+
+
+def generic_causes():
+    """Return the generic causes, in the order reports list them."""
+    return (BiasTemperature(), ScaleFactorNonlinearity(), GSensitivity(),
+            ScaleFactorTemperature(), ScaleFactorTime(), ScaleFactorStep(),
+            BiasTime(), BiasStep(), BiasHysteresis())
+
+
+def _catalogue():
+    """Return the nine causes of the first catalogue in their order, then the new ones."""
+    by_id = {e.effect_id: e for e in physical_causes() + generic_causes()}
+    first = ('viscosity_temperature', 'bias_temperature', 'thermal_lag',
+             'scale_factor_nonlinearity', 'g_sensitivity', 'time_delay', 'pressure_drift',
+             'mode_split_drift', 'temperature_rate_bias')
+    rest = tuple(k for k in by_id if k not in first)
+    return tuple(by_id[k] for k in first + rest)
+
+
+#: Every candidate cause, in the order reports list them.
+CATALOGUE = _catalogue()
+#: The nine causes of the first catalogue (kept for the truth generator and tests).
+EFFECT_IDS = tuple(e.effect_id for e in CATALOGUE[:9])
+#: Every candidate's id.
+CANDIDATE_IDS = tuple(e.effect_id for e in CATALOGUE)
+
+__all__ = ['CANDIDATE_IDS', 'CATALOGUE', 'effect', 'EFFECT_IDS', 'NULL']
+
+
+def effect(effect_id):
+    """Return the catalogue entry ``effect_id``."""
+    for e in CATALOGUE:
+        if e.effect_id == effect_id:
+            return e
+    raise ValueError(f'effect {effect_id!r} is unknown: choose one of '
+                     f'{", ".join(CANDIDATE_IDS)}')

@@ -1,0 +1,291 @@
+"""
+Models: the baseline plus a list of causes, fitted by weighted least squares.
+
+A :class:`Model` composes causes (:mod:`.effects`, :mod:`.generic`)::
+
+    gyro = b0 + s0 s Omega_s + sum of the causes' columns
+    s = R(T) prod(sf_factor),  Omega_s = Omega(t - sum(delay))
+
+Parameters that enter linearly are solved by weighted least squares on the
+bin means (weights: samples per bin). The others, one set per cause, are
+found by variable projection: a grid search, each point solving the linear
+part, then a bounded refinement (:func:`fit_model`); a step time by an
+exact search over every bin start (:func:`change_point`). When a cause is
+added to a fitted model (forward selection), the non-linear parameters of
+the causes already in it stay fixed and only the new one is searched.
+"""
+
+from dataclasses import dataclass
+
+from gyro_emulator.analysis.diagnose.effects import Basis, cached, slow_temp
+import numpy as np
+
+#: Rows kept at each end of a change-point search (share of the rows, and at least 3).
+STEP_MARGIN = 0.02
+
+
+@dataclass
+class Fit:
+    """One model fitted on a set of rows: linear coefficients, non-linear parameters, SSE."""
+
+    beta: np.ndarray
+    phis: tuple
+    sse: float
+
+
+class Model:
+    """The baseline ``[1, s Omega_s]`` plus causes; ``Model(())`` is the recalibrated baseline."""
+
+    def __init__(self, effects=()):
+        self.effects = tuple(effects)
+
+    @property
+    def ids(self):
+        """Return the causes' ids, in order."""
+        return tuple(e.effect_id for e in self.effects)
+
+    @property
+    def n_params(self):
+        """Free parameters, b0 and s0 included."""
+        return 2 + sum(e.n_params for e in self.effects)
+
+    def extend(self, effect):
+        """Return this model with ``effect`` added last."""
+        return Model(self.effects + (effect,))
+
+    def basis(self, ctx, frame, phis):
+        """Return the :class:`.effects.Basis` (s and s Omega_s) at ``frame``'s rows."""
+        s_bins = base_ratio(ctx, frame)
+        delay = 0.0
+        for eff, phi in zip(self.effects, phis):
+            factor = eff.sf_factor(ctx, frame, phi)
+            if factor is not None:
+                s_bins = s_bins * factor
+            delay += eff.delay_s(phi)
+        if delay == 0.0:
+            rate = frame.rate
+        elif frame.level == 'bins':
+            rate = cached(frame, ('delayed', float(delay)), lambda: frame.delayed_rate(delay))
+        else:
+            rate = frame.delayed_rate(delay)
+        s = frame.slow(s_bins)
+        return Basis(s=s, sr=s * rate)
+
+    def columns(self, ctx, frame, phis):
+        """Regressor columns ``[1, s Omega_s, cause columns ...]`` at ``frame``'s rows."""
+        basis = self.basis(ctx, frame, phis)
+        cols = [np.ones(len(frame)), basis.sr]
+        for eff, phi in zip(self.effects, phis):
+            cols += eff.columns(ctx, frame, phi, basis)
+        return cols
+
+    def report(self, beta, phis):
+        """Return each cause's physical parameters (a list of dicts, in order)."""
+        out, i = [], 2
+        for eff, phi in zip(self.effects, phis):
+            k = eff.n_columns
+            out.append(eff.report(np.asarray(beta[i:i + k]), phi, float(beta[1])))
+            i += k
+        return out
+
+
+def base_ratio(ctx, frame):
+    """Return the baseline's R(T) on the bins of ``frame`` (computed once per record)."""
+    return cached(frame, 'base_ratio', lambda: ctx.phys.ratio(slow_temp(frame)))
+
+
+def solve_normal(x, w, y):
+    """
+    Weighted least-squares coefficients of ``y`` (one column or several) on ``x``.
+
+    The normal equations are scaled to a unit diagonal and solved with a
+    1e-10 ridge, so an all-zero or duplicate column gets a zero (or shared)
+    coefficient instead of an error. Returns (beta, gram, rhs).
+    """
+    xw = x * w[:, None]
+    gram = xw.T @ x
+    rhs = xw.T @ y
+    scale = np.sqrt(np.diag(gram))
+    scale = np.where(scale > 0.0, scale, 1.0)
+    g = gram / np.outer(scale, scale)
+    g[np.diag_indices_from(g)] += 1e-10
+    shaped = scale if np.ndim(y) == 1 else scale[:, None]
+    try:
+        sol = np.linalg.solve(g, rhs / shaped)
+    except np.linalg.LinAlgError:
+        sol, *_ = np.linalg.lstsq(g, rhs / shaped, rcond=1e-11)
+    return sol / shaped, gram, rhs
+
+
+def wls(cols, y, w):
+    """Weighted least squares of ``y`` on ``cols`` (:func:`solve_normal`); returns (beta, sse)."""
+    x = np.column_stack(cols)
+    beta, gram, rhs = solve_normal(x, w, y)
+    sse = float(np.dot(w * y, y) - 2.0 * np.dot(beta, rhs) + beta @ gram @ beta)
+    return beta, max(sse, 0.0)
+
+
+def step_search(x, g, w, y, margin=STEP_MARGIN):
+    """
+    Exact least-squares start of a step g H(t - t_k) added to the columns ``x``.
+
+    Rows in time order; ``y`` one column or several (one search each).
+    With r the residual of ``y`` on ``x`` and M the W-weighted residual
+    maker of ``x``, the step at row k lowers the SSE by (h'W r)^2 / (h'W M h);
+    suffix sums give h'W r, h'W h and x'W h for every k at once (O(n p^2)).
+    Starts within ``margin`` (share of the rows, at least 3) of either end
+    are not tried. Returns the row index (one per column of ``y``).
+    """
+    scale = np.sqrt(np.sum(w[:, None] * x * x, axis=0))
+    x = x / np.where(scale > 0.0, scale, 1.0)
+    inv = np.linalg.pinv((x * w[:, None]).T @ x, rcond=1e-11)
+    y2 = y if np.ndim(y) == 2 else y[:, None]
+    r = y2 - x @ (inv @ ((x * w[:, None]).T @ y2))
+    wg = w * g
+
+    def suffix(v):
+        return np.cumsum(v[::-1], axis=0)[::-1]
+
+    a = suffix(wg[:, None] * r)
+    c = suffix(wg * g)
+    d = suffix(wg[:, None] * x)
+    q = c - np.einsum('ij,jk,ik->i', d, inv, d)
+    m = len(w)
+    cut = max(3, int(margin * m))
+    ok = np.zeros(m, bool)
+    ok[cut:m - cut] = True
+    ok &= q > 1e-12 * max(float(c[0]), 1e-300)
+    gain = np.where(ok[:, None], a ** 2 / np.where(ok, q, 1.0)[:, None], -1.0)
+    k = np.argmax(gain, axis=0) if np.any(ok) else np.full(y2.shape[1], m // 2)
+    return k if np.ndim(y) == 2 else int(k[0])
+
+
+def _rows(frame, rows):
+    return np.ones(len(frame), bool) if rows is None else rows
+
+
+def fit_model(model, ctx, frame, rows=None, fixed=None, start=None):
+    """
+    Fit ``model`` on a binned frame; return a :class:`Fit`.
+
+    Variable projection: the linear coefficients are solved in closed form
+    (:func:`wls`) for each value of the non-linear parameters of the LAST
+    cause, which a grid search and a bounded refinement choose
+    (:func:`_search_1d`, :func:`_search_2d`) or, for a step, the exact
+    search :func:`change_point`. The other causes' non-linear parameters
+    are ``fixed`` (a tuple, one entry per cause but the last; default: the
+    model has at most one cause). ``rows`` are the training rows (all when
+    None). With ``start`` (the last cause's parameters fitted on all rows)
+    the search is local: between the grid points two steps either side of
+    it, or a Nelder-Mead simplex of one grid step around it; a step keeps
+    the time found on all rows (it is an event of the record: a step in a
+    held-out block cannot be located from the other blocks) and only its
+    size is refitted.
+    """
+    rows = _rows(frame, rows)
+    y = frame.gyro[rows]
+    w = frame.weight[rows]
+    fixed = tuple(fixed or ())
+    n = len(frame)
+
+    def solve(phis):
+        cols = [np.broadcast_to(c, (n,))[rows] for c in model.columns(ctx, frame, phis)]
+        return wls(cols, y, w)
+
+    if len(fixed) == len(model.effects):
+        beta, sse = solve(fixed)
+        return Fit(beta, fixed, sse)
+    new = model.effects[-1]
+    if getattr(new, 'change_point', False):
+        phi = tuple(start) if start is not None else (
+            change_point(Model(model.effects[:-1]), new, ctx, frame, rows, fixed),)
+    else:
+        grids = new.grids(ctx)
+        if not grids:
+            phi = ()
+        else:
+            if start is not None:
+                grids = [_around(g, v) for g, v in zip(grids, start)]
+            if not getattr(new, 'refine', True):
+                phi = _search_grid(lambda p: solve(fixed + (p,))[1], grids[0])
+            elif len(grids) == 1:
+                phi = _search_1d(lambda p: solve(fixed + (p,))[1], *grids)
+            else:
+                phi = _search_2d(lambda p: solve(fixed + (p,))[1], *grids,
+                                 max_evals=40 if start is not None else 120)
+    beta, sse = solve(fixed + (phi,))
+    return Fit(beta, fixed + (phi,), sse)
+
+
+def change_point(partial, step, ctx, frame, rows, fixed):
+    """
+    Exact least-squares step time: the bin start that minimises the SSE.
+
+    The columns of ``partial`` (the model without the step) and the step's
+    multiplier (1 or s Omega) on the training rows go to :func:`step_search`.
+    """
+    n = len(frame)
+    basis = partial.basis(ctx, frame, fixed)
+    x = np.column_stack([np.broadcast_to(c, (n,))[rows]
+                         for c in partial.columns(ctx, frame, fixed)])
+    g = np.broadcast_to(step.multiplier(frame, basis), (n,))[rows]
+    k = step_search(x, g, frame.weight[rows], frame.gyro[rows])
+    return float(frame.bins.bin_start_s[np.flatnonzero(rows)[k]])
+
+
+def _around(grid, value, steps=2):
+    """Return the grid points within ``steps`` of ``value`` (and ``value``), sorted."""
+    g = np.asarray(grid, dtype=float)
+    i = int(np.searchsorted(g, value))
+    near = g[max(i - steps, 0):min(i + steps, len(g))]
+    return np.unique(np.r_[near, value])
+
+
+def _search_grid(sse_of, g):
+    """Return the grid point with the least SSE (no refinement: a costly parameter)."""
+    sses = [sse_of((float(v),)) for v in g]
+    return (float(g[int(np.argmin(sses))]),)
+
+
+def _search_1d(sse_of, g):
+    """Grid search over ``g``, then bounded refinement between the best point's neighbours."""
+    from scipy.optimize import minimize_scalar
+
+    sses = np.array([sse_of((v,)) for v in g])
+    i = int(np.argmin(sses))
+    lo, hi = g[max(i - 1, 0)], g[min(i + 1, len(g) - 1)]
+    best_phi, best_sse = (float(g[i]),), sses[i]
+    if hi > lo:
+        res = minimize_scalar(lambda v: sse_of((v,)), bounds=(lo, hi),
+                              method='bounded', options={'xatol': 1e-3 * (hi - lo)})
+        if res.fun < best_sse:
+            best_phi = (float(res.x),)
+    return best_phi
+
+
+def _search_2d(sse_of, g0, g1, max_evals=120):
+    """Grid search over ``g0 x g1``, then a Nelder-Mead refinement from the best point."""
+    from scipy.optimize import minimize
+
+    sses = np.array([[sse_of((a, b)) for b in g1] for a in g0])
+    i, j = np.unravel_index(int(np.argmin(sses)), sses.shape)
+    best_phi, best_sse = (float(g0[i]), float(g1[j])), sses[i, j]
+    step = np.array([
+        max(np.diff(g0).min(), 0.5 * (g0[min(i + 1, len(g0) - 1)] - g0[max(i - 1, 0)])),
+        max(np.diff(g1).min(), 0.5 * (g1[min(j + 1, len(g1) - 1)] - g1[max(j - 1, 0)]))])
+    start = np.array(best_phi)
+    simplex = np.array([start, start + [step[0], 0], start + [0, step[1]]])
+    res = minimize(lambda p: sse_of(tuple(p)), start, method='Nelder-Mead',
+                   options={'initial_simplex': simplex, 'maxfev': max_evals,
+                            'xatol': 1e-3, 'fatol': 1e-9 * best_sse})
+    if res.fun < best_sse:
+        best_phi = tuple(float(v) for v in res.x)
+    return best_phi
+
+
+def predict(model, ctx, frame, fit):
+    """Prediction of a fitted model at every row of ``frame``, rad/s."""
+    out = np.zeros(len(frame))
+    for c, b in zip(model.columns(ctx, frame, fit.phis), fit.beta):
+        out = out + b * np.asarray(c)
+    return out

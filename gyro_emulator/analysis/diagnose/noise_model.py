@@ -1,0 +1,365 @@
+"""
+The record's own noise: white noise plus correlated bias wander, and what it can fake.
+
+A residual that is only noise still has structure in time: bias instability
+(flicker) and rate random walk wander slowly, and a cause that depends on
+time (a drift, a step) or on anything that changes slowly (temperature on a
+one-way ramp, the tilt of a table) can fit part of that wander and predict
+held-out blocks a little better than the baseline. ``diagnose`` measures
+the wander and asks how much held-out gain it alone would give:
+
+1. :func:`fit_noise`: the short-term per-sample spread of a residual
+   (about a 1 s moving average) and its Allan deviation, made robust to
+   the minority of windows that still hold structure (:func:`robust_adev`:
+   the median of the squared second differences), fitted with N, B, K
+   (:func:`gyro_emulator.analysis.allan.fit_noise_terms`, IEEE Std 952) for
+   averaging times up to a tenth of the record. The residual is that of
+   the model with the cause under test (what is left if the cause is
+   real); for the tail bound of the test, the wider of that and the
+   current model's (:meth:`NoiseModel.wider`).
+2. :func:`simulate`: Gaussian noise with those terms at the mean times of
+   *super-bins* (a few hundred groups of bins, each inside one fold): white
+   noise averaged over the group, flicker as a sum of Gauss-Markov terms one
+   per decade from the group length to ten record lengths
+   (:func:`gyro_emulator.sensor.noise.flicker_unit_variance`), and a random
+   walk, each exactly discretised at the (irregular) group times.
+3. :func:`null_gain`: the cross-validation of :mod:`.cv` run on the
+   simulations (same folds, same columns averaged over the groups, the
+   cause's own search per fold) gives the held-out SSE reduction the noise
+   alone produces, fold by fold. :mod:`.selection` subtracts it before the
+   fold test. :func:`held_out_floor` gives the held-out RMS a correct model
+   would leave: the noise floor of the verdict.
+"""
+
+from dataclasses import dataclass
+import math
+
+from gyro_emulator.analysis import allan
+from gyro_emulator.analysis.diagnose import models
+from gyro_emulator.sensor import noise as sensor_noise
+import numpy as np
+
+#: Super-bins per fold in the simulations.
+SUPER_PER_FOLD = 60
+#: Simulated records per null estimate.
+N_SIM = 64
+#: The Allan fit uses averaging times up to this share of the record.
+TAU_MAX_SHARE = 0.1
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """White noise per sample and the IEEE Std 952 terms of the correlated wander."""
+
+    white_sigma_rad_s: float
+    arw_rad_s_sqrt_hz: float
+    bias_instability_rad_s: float
+    rrw_rad_s_sqrt_s: float
+    tau_max_s: float
+
+    def wider(self, other):
+        """Return this model with the larger bias instability and random walk of the two."""
+        from dataclasses import replace
+
+        return replace(self, bias_instability_rad_s=max(self.bias_instability_rad_s,
+                                                        other.bias_instability_rad_s),
+                       rrw_rad_s_sqrt_s=max(self.rrw_rad_s_sqrt_s, other.rrw_rad_s_sqrt_s),
+                       tau_max_s=min(self.tau_max_s, other.tau_max_s))
+
+    def as_dict(self):
+        """JSON-ready form."""
+        return {'white_sigma_rad_s': self.white_sigma_rad_s,
+                'arw_rad_s_sqrt_hz': self.arw_rad_s_sqrt_hz,
+                'bias_instability_rad_s': self.bias_instability_rad_s,
+                'rrw_rad_s_sqrt_s': self.rrw_rad_s_sqrt_s,
+                'allan_tau_max_s': self.tau_max_s}
+
+
+def _segments(time_s, values, dt_s):
+    """Contiguous stretches (a step longer than 3 dt starts a new one) of at least 8 samples."""
+    cuts = np.flatnonzero(np.diff(time_s) > 3.0 * dt_s) + 1
+    parts = np.split(values, cuts)
+    return [p for p in parts if len(p) >= 8]
+
+
+#: Median of a chi-square variable with one degree of freedom (median of z^2).
+CHI2_1_MEDIAN = 0.454936423
+
+
+def robust_adev(parts, rate_hz, taus=None):
+    """
+    Allan deviation from the median of the squared second differences.
+
+    The overlapping estimator of :func:`gyro_emulator.analysis.allan.overlapping_adev`
+    (its averaging times, degrees of freedom and confidence intervals kept)
+    with AVAR(tau) = median(d^2) / (2 tau^2 x 0.4549) instead of the mean:
+    the same value for Gaussian noise, but a minority of windows that hold
+    unmodelled structure (a step, a short misfit) does not raise it.
+    """
+    from dataclasses import replace
+
+    result = allan.overlapping_adev(parts if len(parts) > 1 else parts[0], rate_hz, taus)
+    dt = 1.0 / rate_hz
+    phases = [np.concatenate([[0.0], np.cumsum((p - p.mean()) * dt)]) for p in parts]
+    adev = np.empty(len(result.taus_s))
+    for i, tau in enumerate(result.taus_s):
+        m = int(round(tau * rate_hz))
+        d = [ph[2 * m:] - 2.0 * ph[m:len(ph) - m] + ph[:len(ph) - 2 * m]
+             for ph in phases if len(ph) > 2 * m]
+        d2 = np.concatenate(d) ** 2
+        adev[i] = math.sqrt(float(np.median(d2)) / (2.0 * tau ** 2 * CHI2_1_MEDIAN))
+    scale = adev / np.maximum(result.adev, 1e-300)
+    return replace(result, adev=adev, adev_lo=result.adev_lo * scale,
+                   adev_hi=result.adev_hi * scale)
+
+
+def _short_term_sigma(parts, dt_s):
+    """
+    Per-sample standard deviation of the noise faster than about a second.
+
+    The mean square of each stretch about its moving average over M samples
+    (M = 1 s, 10 to 200 samples), times M / (M - 1): the per-sample variance
+    for white noise, and for noise a part's own filter has correlated from
+    sample to sample too (sample-to-sample differences would under-read it
+    by the factor 1 - rho_1).
+    """
+    m = int(min(200, max(10, round(1.0 / dt_s))))
+    total, count = 0.0, 0
+    for p in parts:
+        k = min(m, max(2, len(p) // 2))
+        c = np.concatenate([[0.0], np.cumsum(p)])
+        mean = (c[k:] - c[:-k]) / k
+        centre = p[k // 2:k // 2 + len(mean)]
+        total += float(np.sum((centre - mean) ** 2)) * k / (k - 1)
+        count += len(mean)
+    return math.sqrt(max(total / max(count, 1), 1e-300))
+
+
+def fit_noise(resid, time_s, dt_s, duration_s, resid_bins=None, time_bins=None, bin_s=None):
+    """
+    Fit the noise of a residual: short-term sigma per sample and N, B, K.
+
+    Parameters
+    ----------
+    resid : numpy.ndarray
+        Residual at the kept samples, rad/s.
+    time_s : numpy.ndarray
+        Their times, s (set-aside samples and logging gaps split stretches).
+    dt_s : float
+        Sample interval, s.
+    duration_s : float
+        Length of the record, s.
+    resid_bins, time_bins : numpy.ndarray, optional
+        The residual's bin means and the bins' times: the Allan deviation is
+        computed on them (the same values for averaging times of whole
+        bins, and far fewer points); default the samples.
+    bin_s : float, optional
+        Bin length, s.
+
+    Returns
+    -------
+    NoiseModel
+        The short-term per-sample sigma (:func:`_short_term_sigma`); N, B
+        and K fitted to the robust Allan deviation (:func:`robust_adev`) up
+        to a tenth of the record. B and K are 0 when the stretches are too
+        short for three averaging times.
+
+    """
+    parts = _segments(time_s, resid, dt_s) or [resid]
+    white = _short_term_sigma(parts, dt_s)
+    step, bins = dt_s, resid_bins is not None and bin_s is not None and bin_s > 1.5 * dt_s
+    if bins:
+        parts = _segments(time_bins, resid_bins, bin_s) or [resid_bins]
+        step = bin_s
+    tau_max = TAU_MAX_SHARE * duration_s
+    arw, b, k = white * math.sqrt(dt_s), 0.0, 0.0
+    try:
+        fit = allan.fit_noise_terms(robust_adev(parts, 1.0 / step), (0.5 * step, tau_max))
+        arw, b, k = fit.arw_rad_s_sqrt_hz, fit.bias_instability_rad_s, fit.rrw_rad_s_sqrt_s
+        tau_max = min(tau_max, float(fit.taus_s[-1]))
+    except ValueError:
+        tau_max = 0.0
+    return NoiseModel(white_sigma_rad_s=white, arw_rad_s_sqrt_hz=float(arw),
+                      bias_instability_rad_s=float(b), rrw_rad_s_sqrt_s=float(k),
+                      tau_max_s=float(tau_max))
+
+
+class SuperBins:
+    """
+    Groups of contiguous bins, each inside one fold: the resolution of the simulations.
+
+    Parameters
+    ----------
+    binned : gyro_emulator.analysis.diagnose.data.Frame
+        The bin means.
+    fold_of_bin : numpy.ndarray of int
+        Fold of every bin.
+    dt_s : float
+        Sample interval, s.
+    per_fold : int
+        Groups per fold (fewer when a fold has fewer bins).
+
+    """
+
+    def __init__(self, binned, fold_of_bin, dt_s, per_fold=SUPER_PER_FOLD):
+        self.dt_s = float(dt_s)
+        group = np.empty(len(binned), dtype=np.int64)
+        base = 0
+        folds = []
+        for k in np.unique(fold_of_bin):
+            idx = np.flatnonzero(fold_of_bin == k)
+            m = min(per_fold, len(idx))
+            group[idx] = base + (np.arange(len(idx)) * m) // len(idx)
+            folds += [k] * m
+            base += m
+        self.group = group
+        self.fold = np.asarray(folds)
+        self._bin_weight = binned.weight
+        self.weight = np.bincount(group, weights=binned.weight)
+        self.time_s = self.aggregate(binned.time_s)
+        starts = np.flatnonzero(np.r_[True, group[1:] != group[:-1]])
+        self.start_s = binned.bins.bin_start_s[starts]
+
+    def __len__(self):
+        """Return the number of groups."""
+        return len(self.weight)
+
+    def aggregate(self, values_on_bins):
+        """Return the sample-weighted group means of a column given on the bins."""
+        values = np.broadcast_to(values_on_bins, self.group.shape)
+        return np.bincount(self.group, weights=values * self._bin_weight) / self.weight
+
+
+def simulate(noise, superbins, n_sim, rng):
+    """
+    Noise records at the super-bin times: white averaged per group, flicker, random walk.
+
+    Returns an array (groups, n_sim) of group means, rad/s: white noise of
+    density N averaged over each group (variance N^2 / (n dt)). Exact
+    discretisation at irregular times: a random walk adds K sqrt(dt_i) z; a
+    Gauss-Markov term of variance q and correlation time T moves by
+    x_i = phi_i x_{i-1} + sqrt(q (1 - phi_i^2)) z, phi_i = exp(-dt_i / T),
+    from its stationary law.
+    """
+    t = superbins.time_s
+    n = len(t)
+    out = rng.standard_normal((n, n_sim)) * (
+        noise.arw_rad_s_sqrt_hz / np.sqrt(superbins.weight * superbins.dt_s))[:, None]
+    gaps = np.diff(t, prepend=t[0])
+    if noise.rrw_rad_s_sqrt_s > 0.0:
+        out += np.cumsum(rng.standard_normal((n, n_sim)) * np.sqrt(gaps)[:, None],
+                         axis=0) * noise.rrw_rad_s_sqrt_s
+    if noise.bias_instability_rad_s > 0.0:
+        span = max(float(t[-1] - t[0]), 1e-9)
+        shortest = max(float(np.median(gaps[1:])) if n > 1 else span, 1e-6)
+        taus = sensor_noise.flicker_corr_times_s((shortest, 10.0 * span))
+        var = sensor_noise.flicker_unit_variance(taus) * noise.bias_instability_rad_s ** 2
+        for tau, q in zip(taus, var):
+            phi = np.exp(-gaps / tau)
+            kick = np.sqrt(q * (1.0 - phi ** 2))
+            z = rng.standard_normal((n, n_sim))
+            x = np.empty((n, n_sim))
+            x[0] = math.sqrt(q) * z[0]
+            for i in range(1, n):
+                x[i] = phi[i] * x[i - 1] + kick[i] * z[i]
+            out += x
+    return out
+
+
+def _held_out(x_tr, w_tr, y_tr, x_ho):
+    """
+    Fit every column of ``y_tr`` (training rows) on ``x_tr``; predict the held-out rows.
+
+    :func:`gyro_emulator.analysis.diagnose.models.solve_normal`. Returns
+    (predictions, training SSE per column).
+    """
+    beta, _, _ = models.solve_normal(x_tr, w_tr, y_tr)
+    resid_tr = y_tr - x_tr @ beta
+    return x_ho @ beta, np.sum(w_tr[:, None] * resid_tr ** 2, axis=0)
+
+
+def null_gain(current_cols, candidate, superbins, sims):
+    """
+    Held-out SSE reductions that noise alone gives a candidate, per fold and simulation.
+
+    Parameters
+    ----------
+    current_cols : numpy.ndarray
+        The current model's columns on the groups, (groups, p).
+    candidate : list
+        The candidate's added columns on the groups for each value of its
+        grid (a list of (groups, q) arrays: the search picks, per fold and
+        simulation, the value with the least training SSE), or
+        ``('step', g, start_s)``: a step multiplying ``g`` that may start
+        at any group start (located on all groups of each simulation with
+        :func:`.models.step_search`, then its size refitted per fold, as
+        :mod:`.models` does).
+    superbins : SuperBins
+        The groups.
+    sims : numpy.ndarray
+        Simulated noise, (groups, n_sim).
+
+    Returns
+    -------
+    numpy.ndarray
+        SSE_current - SSE_candidate on each fold's held-out rows, weighted
+        by samples: (folds in the order of ``numpy.unique(superbins.fold)``,
+        simulations).
+
+    """
+    w = superbins.weight
+    out = []
+    if isinstance(candidate, tuple):
+        _, g, start = candidate
+        at = models.step_search(current_cols, g, w, sims)
+        steps = g[:, None] * (start[:, None] >= start[at][None, :])
+    for k in np.unique(superbins.fold):
+        ho = superbins.fold == k
+        tr = ~ho
+        pred0, _ = _held_out(current_cols[tr], w[tr], sims[tr], current_cols[ho])
+        sse0 = np.sum(w[ho, None] * (sims[ho] - pred0) ** 2, axis=0)
+        if isinstance(candidate, tuple):
+            pred1 = np.empty((int(ho.sum()), sims.shape[1]))
+            for j in range(sims.shape[1]):
+                x = np.column_stack([current_cols, steps[:, j]])
+                pred1[:, j] = _held_out(x[tr], w[tr], sims[tr, j:j + 1], x[ho])[0][:, 0]
+        else:
+            best = np.full(sims.shape[1], np.inf)
+            pred1 = np.zeros((int(ho.sum()), sims.shape[1]))
+            for cols in candidate:
+                x = np.column_stack([current_cols, cols])
+                pred, sse_tr = _held_out(x[tr], w[tr], sims[tr], x[ho])
+                better = sse_tr < best
+                best = np.where(better, sse_tr, best)
+                pred1[:, better] = pred[:, better]
+        sse1 = np.sum(w[ho, None] * (sims[ho] - pred1) ** 2, axis=0)
+        out.append(sse0 - sse1)
+    return np.asarray(out)
+
+
+def held_out_floor(noise, cols, superbins, sims, n_kept):
+    """
+    Held-out residual a correct model leaves on noise alone: the noise floor.
+
+    The simulations are fitted with the model's columns averaged over the
+    groups and predicted fold by fold, as the cross-validation does; the
+    within-group noise, (n_g - 1) sigma^2 per group (sigma the short-term
+    per-sample spread), is added for the per-sample RMS.
+
+    Returns
+    -------
+    (float, numpy.ndarray, numpy.ndarray)
+        The floor of the per-sample RMS, rad/s; each simulation's per-sample
+        RMS; each simulation's mean square of the held-out group means
+        (weighted by samples), (rad/s)^2.
+
+    """
+    w = superbins.weight
+    sse = np.zeros(sims.shape[1])
+    for k in np.unique(superbins.fold):
+        ho = superbins.fold == k
+        pred, _ = _held_out(cols[~ho], w[~ho], sims[~ho], cols[ho])
+        sse += np.sum(w[ho, None] * (sims[ho] - pred) ** 2, axis=0)
+    within = float(np.sum(np.maximum(w - 1.0, 0.0))) * noise.white_sigma_rad_s ** 2
+    rms = np.sqrt((sse + within) / n_kept)
+    return float(np.sqrt(np.mean(rms ** 2))), rms, sse / float(np.sum(w))

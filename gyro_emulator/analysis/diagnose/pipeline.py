@@ -1,0 +1,159 @@
+"""
+``diagnose``: a measured record against the paper's physics, end to end.
+
+1. Outliers are set aside (:mod:`.screening`).
+2. The record is binned and cut into contiguous folds (:mod:`.data`,
+   :mod:`.cv`); the user-calibrated baseline (:mod:`.baseline`) is scored
+   on held-out data.
+3. Causes are added by forward selection while one gives a significant
+   held-out gain (:mod:`.selection`).
+4. What remains is compared with the record's own noise floor and the
+   verdict is written (:mod:`.verdict`, :mod:`.document`).
+"""
+
+from dataclasses import dataclass
+import math
+
+from gyro_emulator.analysis.diagnose import baseline as base
+from gyro_emulator.analysis.diagnose import document, generic, models, screening, selection
+from gyro_emulator.analysis.diagnose import verdict as vd
+from gyro_emulator.analysis.diagnose.cv import CrossValidation
+from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, Prepared
+from gyro_emulator.analysis.diagnose.effects import Context
+from gyro_emulator.analysis.diagnose.noise_model import SuperBins
+from gyro_emulator.physics.presets import physics_preset
+from gyro_emulator.validation import check_range
+import numpy as np
+
+DEFAULT_FOLDS = 8
+
+
+@dataclass
+class Diagnosis:
+    """Everything ``diagnose`` found: the JSON document and plot data."""
+
+    doc: dict
+    prepared: Prepared = None
+    residual_before: np.ndarray = None
+    residual_after: np.ndarray = None
+    after_label: str = ''
+
+
+def _setup(data, preset, ref_temp_c, folds, max_bins, outlier_threshold):
+    """Screen, bin and cut the folds; return (cv, screening result)."""
+    check_range('diagnose', 'folds', folds, 3, 50, '', low_open=False)
+    device = physics_preset(preset)
+    tref = device.calibration_temp_c if ref_temp_c is None else float(ref_temp_c)
+    temps = data.temp_c if data.has_temp else np.array([tref])
+    phys = base.DevicePhysics(device, tref, float(temps.min()), float(temps.max()))
+    screen = screening.screen(data, phys.ratio, outlier_threshold)
+    prep = Prepared(data, max_bins=max_bins, keep=screen['keep'], fill_temp_c=tref)
+    ctx = Context(phys=phys, ref_temp_c=tref,
+                  time_span_s=(float(data.time_s[0]), float(data.time_s[-1])),
+                  duration_s=prep.duration_s)
+    return CrossValidation(prep, ctx, int(folds)), screen
+
+
+def _baseline_rmse(cv):
+    """Held-out RMSE of the user-calibrated baseline, recalibrated on each fold's training rows."""
+    prep, phys = cv.prep, cv.ctx.phys
+    cals = {k: base.calibrate(prep.binned, phys, rows=cv.fold_of_bin != k)
+            for k in cv.used_folds}
+    _, sse = cv.held_out(lambda k: base.baseline_prediction(prep.samples, phys, cals[k]))
+    return math.sqrt(float(np.sum(sse)) / len(cv.y)), cals
+
+
+def _all_samples_rms(cv, kept_rmse, predict_at):
+    """RMS over every sample, set-aside ones included, of a held-out prediction."""
+    prep = cv.prep
+    dropped = np.flatnonzero(~prep.keep)
+    sse = kept_rmse ** 2 * len(cv.y)
+    if len(dropped):
+        frame = prep.sample_frame(dropped)
+        fold = cv.fold_of_bin[frame.bin_index]
+        for k in cv.used_folds:
+            m = fold == k
+            if np.any(m):
+                sse += float(np.sum((frame.gyro[m] - predict_at(k, frame)[m]) ** 2))
+    return math.sqrt(sse / prep.data.rows)
+
+
+def _testable(catalogue, have, data):
+    """Split the catalogue into the causes the record can show and the others (with reasons)."""
+    testable, not_tested = [], []
+    for eff in catalogue:
+        missing = [need for need in eff.needs if need not in have]
+        if missing:
+            not_tested.append({'effect': eff.effect_id,
+                               'reason': selection.not_testable_reason(missing[0], data)})
+        else:
+            testable.append(eff)
+    return testable, not_tested
+
+
+def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
+             max_bins=DEFAULT_MAX_BINS, effects=None, alpha=selection.ALPHA,
+             outlier_threshold=screening.THRESHOLD, max_causes=selection.MAX_CAUSES, seed=0):
+    """
+    Diagnose a measured record against the paper's physics.
+
+    Parameters
+    ----------
+    data : gyro_emulator.analysis.diagnose.data.MeasuredData
+        The record.
+    preset : str
+        Physics preset of the baseline device (``presets.physics_preset``).
+    ref_temp_c : float, optional
+        Calibration (reference) temperature, deg C; default the device's.
+    folds : int
+        Contiguous cross-validation blocks, [3, 50].
+    max_bins : int
+        Largest number of bins the fits run on.
+    effects : sequence of str, optional
+        Catalogue entries to test (default: all).
+    alpha : float
+        Family-wise false-alarm level of each selection step, (0, 1).
+    outlier_threshold : float
+        Robust standard deviations beyond which samples are set aside
+        (``math.inf``: none).
+    max_causes : int
+        Most causes forward selection adds.
+    seed : int
+        Seed of the noise simulations (the result is deterministic).
+
+    Returns
+    -------
+    Diagnosis
+
+    """
+    check_range('diagnose', 'alpha', alpha, 0.0, 1.0, '', high_open=True)
+    catalogue = generic.CATALOGUE if effects is None else tuple(
+        generic.effect(e) for e in effects)
+    cv, screen = _setup(data, preset, ref_temp_c, folds, max_bins, outlier_threshold)
+    prep, ctx = cv.prep, cv.ctx
+    rmse_base, cals = _baseline_rmse(cv)
+    null = cv.evaluate(models.Model(()))
+    have = selection.excitation(prep, data)
+    testable, not_tested = _testable(catalogue, have, data)
+    superbins = SuperBins(prep.binned, cv.fold_of_bin, prep.dt_s)
+    selector = selection.Selector(cv, superbins, alpha, seed)
+    steps, final = selection.forward_selection(selector, null, testable, max_causes)
+    chosen = [c for _, c in steps if c is not None]
+    res = vd.residual_floor(selector, final)
+    res['r2'], res['strongest_correlate'] = vd.correlates(prep, final.resid, have)
+    confound = vd.confounded(prep, have)
+    rms_all = {
+        'baseline': _all_samples_rms(cv, rmse_base, lambda k, f: base.baseline_prediction(
+            f, ctx.phys, cals[k])),
+        'best': None if not chosen else _all_samples_rms(
+            cv, chosen[0].evaluated.rmse, lambda k, f: models.predict(
+                chosen[0].evaluated.model, ctx, f, chosen[0].evaluated.fits[k]))}
+    doc = document.build(data, preset, cv, screen, rmse_base, null, steps, res, confound,
+                         not_tested, rms_all, alpha)
+    b = prep.binned
+    cal_all = base.calibrate(b, ctx.phys)
+    before = b.gyro - base.baseline_prediction(b, ctx.phys, cal_all)
+    after = b.gyro - models.predict(final.model, ctx, b, final.full)
+    label = ' + '.join(final.model.ids) or 'recalibrated baseline (no cause found)'
+    return Diagnosis(doc=doc, prepared=prep, residual_before=before, residual_after=after,
+                     after_label=label)

@@ -1,0 +1,247 @@
+"""
+What remains after the chosen causes, and what to say about it.
+
+- :func:`residual_floor`: the held-out RMS of the final model against the
+  held-out RMS a correct model would leave on the record's own noise
+  (white noise plus the correlated wander of its Allan deviation,
+  :mod:`.noise_model`). ``excess = rms / floor``, and the same for means
+  over about a sixtieth of a fold (``excess_slow``); the residual is
+  *consistent with 1* when both are below the 99 % point of the same
+  ratios over the simulated noise records (2 % always allowed per sample).
+- :func:`correlates`: the share of the held-out residual (bin means)
+  explained by quantile-group means of each regressor; the strongest is
+  named when structure remains.
+- :func:`confounded`: pairs of regressors that move together
+  (|correlation| >= 0.9 over the bins), which no fit can separate.
+- :func:`experiments`: what measurement would separate the candidates or
+  the confounded regressors, or show what the remaining structure is.
+- :func:`verdict`: ``no_mismatch`` (nothing chosen, residual at its
+  floor), ``explained`` (causes chosen, residual at its floor),
+  ``partly_explained`` (causes chosen, excess above the floor) or
+  ``unexplained`` (nothing chosen, excess above the floor).
+"""
+
+import math
+
+from gyro_emulator.analysis.diagnose import noise_model
+import numpy as np
+
+#: |correlation| from which two regressors are reported as confounded.
+CONFOUNDED_R = 0.9
+#: Quantile of the simulated excess that "consistent with 1" allows.
+EXCESS_QUANTILE_Z = 2.33
+#: Relative excess of the per-sample RMS always allowed: the floor is an estimate.
+MODEL_TOLERANCE = 0.02
+
+_CORRELATE_TEXT = {
+    'temperature': 'temperature', 'temperature_rate': 'the rate of change of '
+    'temperature (dT/dt)', 'rate': 'the applied rate',
+    'rate_squared': 'the applied rate squared', 'time': 'time',
+    'acceleration': 'acceleration'}
+
+#: The regressor each cause follows (for experiments that separate two causes).
+REGRESSOR_OF = {
+    'viscosity_temperature': 'temperature', 'bias_temperature': 'temperature',
+    'thermal_lag': 'temperature_rate', 'scale_factor_nonlinearity': 'rate',
+    'g_sensitivity': 'acceleration', 'time_delay': 'rate', 'pressure_drift': 'time',
+    'mode_split_drift': 'temperature', 'temperature_rate_bias': 'temperature_rate',
+    'scale_factor_temperature': 'temperature', 'scale_factor_time': 'time',
+    'scale_factor_step': 'time', 'bias_time': 'time', 'bias_step': 'time',
+    'bias_hysteresis': 'temperature_history'}
+
+_SEPARATE = {
+    frozenset({'temperature', 'time'}):
+        'cool back down (or heat back up) to the starting temperature, or hold a long '
+        'soak: a temperature cause returns with the temperature, a drift in time does not',
+    frozenset({'temperature', 'temperature_rate'}):
+        'hold soaks long enough to settle at each temperature and ramp at two different '
+        'rates: a dT/dt cause vanishes in a soak, a temperature cause does not',
+    frozenset({'temperature_rate', 'time'}):
+        'ramp up and down at different rates: a dT/dt cause changes sign with the ramp, '
+        'a drift in time does not',
+    frozenset({'rate', 'rate_squared'}):
+        'apply the rate in both directions: odd and even rate terms then separate',
+    frozenset({'temperature'}):
+        'measure at more temperatures over a wider span: the candidate laws differ in '
+        'curvature, which a narrow span hides',
+    frozenset({'time'}):
+        'repeat the run: a step or drift that is a property of the part comes back, '
+        'wander does not',
+    frozenset({'rate'}):
+        'step the rate over the full range in both directions, with fast and slow changes',
+    frozenset({'acceleration'}):
+        'turn the part through several orientations at several times',
+    frozenset({'temperature', 'temperature_history'}):
+        'heat back up to a temperature visited while cooling and hold it: a bias that '
+        'follows temperature returns to its value, hysteresis keeps the other branch',
+    frozenset({'temperature_history', 'time'}):
+        'cycle the temperature up and down more than once: hysteresis repeats with each '
+        'cycle, a drift in time does not',
+    frozenset({'temperature_history', 'temperature_rate'}):
+        'hold long soaks after heating and after cooling: a dT/dt bias decays in the soak, '
+        'hysteresis keeps its offset',
+    frozenset({'temperature_rate'}):
+        'hold soaks after heating and after cooling at the same temperature, and ramp at '
+        'different rates: a bias following dT/dt vanishes in a soak, hysteresis does not',
+}
+
+
+def _limit(ratio):
+    """Return the 99 % point of a simulated ratio (mean excess plus 2.33 sigma)."""
+    return 1.0 + max(float(np.mean(ratio) - 1.0), 0.0) + \
+        EXCESS_QUANTILE_Z * float(np.std(ratio, ddof=1))
+
+
+def residual_floor(selector, final):
+    """
+    Held-out residual of ``final`` against its noise floor, per sample and averaged.
+
+    Per sample: ``excess = rms / floor``, the floor the expected held-out RMS
+    of a correct model on the record's noise. Averaged over super-bins
+    (``averaging_s``, about a sixtieth of a fold): ``excess_slow``, the same
+    ratio for the held-out group means, where white noise is averaged down
+    and slow structure stands out whatever the sample rate. The residual is
+    *consistent* with its floor when both are within their simulated 99 %
+    points, the per-sample one allowing ``MODEL_TOLERANCE`` (the floor is an
+    estimate itself).
+    """
+    noise = selector.noise_of(final)
+    sb = selector.superbins
+    cols = selector.group_columns(final.model, final.full.phis)
+    prep = selector.cv.prep
+    n_kept = len(selector.cv.y)
+    floor, rms_sims, ms_sims = noise_model.held_out_floor(
+        noise, cols, sb, selector.sims_of(noise), n_kept)
+    group = sb.group[prep.sample_bin]
+    means = np.bincount(group, weights=final.resid, minlength=len(sb)) / sb.weight
+    ms_obs = float(np.sum(sb.weight * means ** 2) / np.sum(sb.weight))
+    slow_floor = float(np.sqrt(np.mean(ms_sims)))
+    excess, excess_slow = final.rmse / floor, math.sqrt(ms_obs) / slow_floor
+    limit = max(_limit(rms_sims / floor), 1.0 + MODEL_TOLERANCE)
+    limit_slow = _limit(np.sqrt(ms_sims) / slow_floor)
+    return {'rms_rad_s': final.rmse, 'floor_rad_s': floor, 'excess': excess,
+            'excess_limit': limit, 'averaging_s': float(np.median(np.diff(sb.time_s))),
+            'excess_slow': excess_slow, 'excess_slow_limit': limit_slow,
+            'consistent': bool(excess <= limit and excess_slow <= limit_slow),
+            'wander_measured_to_s': noise.tau_max_s, 'noise': noise.as_dict()}
+
+
+def _group_r2(x, r, w, groups=10):
+    """Share of the weighted variance of r explained by quantile groups of x."""
+    if np.ptp(x) <= 0.0:
+        return 0.0
+    edges = np.unique(np.quantile(x, np.linspace(0, 1, groups + 1)[1:-1]))
+    g = np.searchsorted(edges, x, side='right')
+    sw = np.bincount(g, weights=w)
+    sm = np.bincount(g, weights=w * r)
+    mean_all = np.sum(w * r) / np.sum(w)
+    ok = sw > 0
+    between = np.sum((sm[ok] / sw[ok] - mean_all) ** 2 * sw[ok])
+    total = np.sum(w * (r - mean_all) ** 2)
+    return float(between / total) if total > 0 else 0.0
+
+
+def regressors(prep, have):
+    """Return the regressors on the bins that the record varies: name -> array."""
+    b = prep.binned
+    out = {'time': b.time_s}
+    if 'temp' in have:
+        out['temperature'] = b.temp_c
+        out['temperature_rate'] = prep.temp_rate_on_bins
+    if 'rate' in have:
+        out['rate'] = b.rate
+        out['rate_squared'] = b.rate2
+    if 'accel' in have and b.accel is not None:
+        for k, axis in enumerate('xyz'):
+            if np.ptp(b.accel[:, k]) > 0.0:
+                out[f'acceleration_{axis}'] = b.accel[:, k]
+    return out
+
+
+def correlates(prep, resid_samples, have):
+    """Group R^2 of the held-out bin residual against each regressor; returns (r2, strongest)."""
+    b = prep.binned
+    rb = np.bincount(prep.sample_bin, weights=resid_samples, minlength=len(b)) / b.weight
+    r2 = {}
+    for name, x in regressors(prep, have).items():
+        key = 'acceleration' if name.startswith('acceleration') else name
+        r2[key] = max(r2.get(key, 0.0), _group_r2(x, rb, b.weight))
+    strongest = max(r2, key=r2.get)
+    return r2, strongest
+
+
+def confounded(prep, have):
+    """Pairs of regressors with |weighted correlation| >= CONFOUNDED_R: [{a, b, correlation}]."""
+    w = prep.binned.weight
+    regs = regressors(prep, have)
+    names = list(regs)
+    out = []
+    for i, a in enumerate(names):
+        for b in names[i + 1:]:
+            xa, xb = regs[a] - np.average(regs[a], weights=w), regs[b] - np.average(
+                regs[b], weights=w)
+            den = math.sqrt(float(np.sum(w * xa * xa) * np.sum(w * xb * xb)))
+            if den <= 0.0:
+                continue
+            r = float(np.sum(w * xa * xb)) / den
+            if abs(r) >= CONFOUNDED_R:
+                out.append({'a': a, 'b': b, 'correlation': r})
+    return out
+
+
+def _kind(name):
+    return 'acceleration' if name.startswith('acceleration') else name
+
+
+def experiments(selected, confound, remains, strongest):
+    """Return sentences: what would separate the candidates, regressors or what remains."""
+    out = []
+    for pair in confound:
+        key = frozenset({_kind(pair['a']), _kind(pair['b'])})
+        if key in _SEPARATE:
+            out.append(f"{pair['a']} and {pair['b']} are confounded "
+                       f"(r = {pair['correlation']:+.4f}): {_SEPARATE[key]}.")
+    for entry in selected:
+        for other in entry['indistinguishable_from']:
+            key = frozenset({REGRESSOR_OF.get(entry['effect'], 'time'),
+                             REGRESSOR_OF.get(other, 'time')})
+            text = _SEPARATE.get(key)
+            if text:
+                out.append(f"{entry['effect']} cannot be told from {other}: {text}.")
+    if remains:
+        text = _SEPARATE.get(frozenset({strongest}))
+        if text:
+            out.append(f'The remaining structure follows {_CORRELATE_TEXT[strongest]}: '
+                       f'{text}.')
+    return list(dict.fromkeys(out))
+
+
+def verdict(selected, consistent):
+    """Return the verdict: no_mismatch, explained, partly_explained or unexplained."""
+    if selected:
+        return 'explained' if consistent else 'partly_explained'
+    return 'no_mismatch' if consistent else 'unexplained'
+
+
+def message(result, selected, res):
+    """One paragraph on the verdict, the residual and what remains."""
+    names = ', '.join(e['effect'] for e in selected)
+    what = _CORRELATE_TEXT[res['strongest_correlate']]
+    share = res['r2'][res['strongest_correlate']]
+    level = (f"the held-out residual is {res['excess']:.3f}x its noise floor "
+             f"({res['rms_rad_s']:.3g} vs {res['floor_rad_s']:.3g} rad/s; noise alone "
+             f"reaches {res['excess_limit']:.3f}x), {res['excess_slow']:.2f}x in "
+             f"{res['averaging_s']:.3g} s means (noise alone: "
+             f"{res['excess_slow_limit']:.2f}x)")
+    if res['wander_measured_to_s'] < res['averaging_s']:
+        level += ('; the record is too short or gappy to measure its slow wander, so '
+                  'the floor holds its fast noise only')
+    if result == 'no_mismatch':
+        return ('No cause improves the held-out fit significantly and ' + level
+                + ': the baseline explains the data.')
+    if result == 'explained':
+        return f'Explained by {names}: ' + level + '.'
+    lead = (f'Partly explained by {names}' if result == 'partly_explained' else
+            'No cause in the catalogue explains the mismatch')
+    return (f'{lead}: {level}; structure remains, and its strongest correlate is '
+            f'{what} (R^2 = {share:.2f}).')
