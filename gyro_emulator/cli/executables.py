@@ -12,8 +12,9 @@ lives here, at process start, and a user's own setting wins.
 
 import importlib
 import os
-import signal
 import sys
+
+from gyro_emulator.interrupts import INTERRUPTED_STATUS, StartupInterrupt
 
 #: Environment variables that size the BLAS thread pools numpy may load.
 BLAS_THREAD_VARIABLES = ('OPENBLAS_NUM_THREADS',)
@@ -28,22 +29,16 @@ def limit_blas_threads(environ=None):
 
 def _run(module_name):
     limit_blas_threads()
-    # A Ctrl-C while the heavy imports run (about 1 s) must stop the program,
-    # without a traceback, even if a library swallows the KeyboardInterrupt.
-    interrupted = []
-
-    def on_sigint(signum, frame):
-        interrupted.append(signum)
-        raise KeyboardInterrupt
-    signal.signal(signal.SIGINT, on_sigint)
-    try:
+    # A Ctrl-C while the heavy imports run (about 1 s) is deferred to their
+    # end: no library is cut half way, and the program stops without a traceback.
+    with StartupInterrupt() as startup:
         module = importlib.import_module(module_name)
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        if interrupted:
-            return 130
+    if startup.interrupted:
+        return INTERRUPTED_STATUS
+    try:
         return module.main()
     except KeyboardInterrupt:
-        return 130
+        return INTERRUPTED_STATUS
 
 
 def run_cli():

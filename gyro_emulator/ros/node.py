@@ -38,6 +38,7 @@ import sys
 import threading
 import time
 
+from gyro_emulator.interrupts import INTERRUPTED_STATUS, StartupInterrupt
 from gyro_emulator.recording import topics
 from gyro_emulator.ros import codec, diagnostics, node_help, params
 from gyro_emulator.ros.fault_injection import FaultState
@@ -610,10 +611,12 @@ def main(args=None):
     if node_help.wants_help(argv):
         print(node_help.help_text())
         return 0
-    try:
+    # numba loads its cache through ctypes callbacks that swallow a
+    # KeyboardInterrupt (and may be left half done): a Ctrl-C is deferred.
+    with StartupInterrupt() as startup:
         _warm_up()
-    except KeyboardInterrupt:
-        return 130
+    if startup.interrupted:
+        return INTERRUPTED_STATUS
     # rclpy's SIGINT handler shuts the context down, then calls the Python
     # handler it found: with Python's default that raises KeyboardInterrupt
     # inside whatever callback runs, which the events executor logs with its
