@@ -301,3 +301,24 @@ def test_adis16405_z_has_a_bias_instability():
     read = info['bias_instability_min_deg_h']
     assert 0.3 * read < fit.bias_instability_deg_h < read
     assert fit.band.tau_min_s > 0.1                       # its spectral line and roll-off
+
+
+def test_a_log_with_some_axes_is_read_by_axis(tmp_path):
+    """A CSV with only gyro_y_rad_s and gyro_z_rad_s: the axes it has, and a clear error."""
+    from gyro_emulator.analysis.allan import record as allan_record
+    from gyro_emulator.recording import csvio
+
+    rng = np.random.default_rng(5)
+    path = tmp_path / 'yz.csv'
+    y, z = rng.standard_normal((2, 400)) * 1e-3
+    csvio.write_csv(path, {'time_s': np.arange(400) / 100.0, 'gyro_y_rad_s': y,
+                           'gyro_z_rad_s': z})
+    record = allan.read_gyro_record(str(path))
+    assert set(record.rates) == {'y', 'z'}
+    rate, column = allan_record.axis_of(record, 'z')
+    assert column == 'gyro_z_rad_s'
+    np.testing.assert_allclose(rate, z, rtol=1e-9)
+    assert allan_record.axis_of(record, None)[1] == 'gyro_y_rad_s'
+    with pytest.raises(ValueError, match="no gyro column for axis 'x'; the file has "
+                                         'gyro_y_rad_s, gyro_z_rad_s'):
+        allan_record.axis_of(record, 'x')

@@ -192,7 +192,8 @@ def _write(path, text):
 
 
 @pytest.mark.parametrize('text,match', [
-    ('time_s,gyro_x_rad_s\n0,1\n', r'no gyro columns: need gyro_rad_s or gyro_x_rad_s'),
+    ('time_s,accel_x_m_s2\n0,1\n', r'no gyro columns: need gyro_rad_s or one or more of '
+     r'gyro_x_rad_s'),
     ('time_s,gyro_rad_s\n0,1\n0.01,abc\n', r"row 3, column gyro_rad_s: 'abc' is not a number"),
     ('time_s,gyro_rad_s\n0,1\n0.02,2\n0.01,3\n',
      r'time_s does not increase at data row 3: 0.01 after 0.02'),

@@ -161,17 +161,38 @@ def check_increasing(time_s, what='time_s', strict=True):
 
 def gyro_columns(columns, path=''):
     """
-    Return the gyro column names present: ``[gyro_rad_s]`` or the three axes.
+    Return ``{axis: column}`` of the gyro columns present, in x, y, z order.
 
-    Raises ValueError naming the accepted layouts when neither is complete.
+    A single-axis file's ``gyro_rad_s`` counts as axis x; otherwise every
+    ``gyro_<axis>_rad_s`` present (one, two or three of them). Raises
+    ValueError naming the accepted columns when there is none.
     """
     if GYRO_SINGLE in columns:
-        return [GYRO_SINGLE]
-    present = [c for c in GYRO_AXES if c in columns]
-    if len(present) == 3:
-        return list(GYRO_AXES)
-    raise ValueError(f'{path}: no gyro columns: need {GYRO_SINGLE} or '
+        return {'x': GYRO_SINGLE}
+    present = {a: c for a, c in zip(AXIS_NAMES, GYRO_AXES) if c in columns}
+    if present:
+        return present
+    raise ValueError(f'{path}: no gyro columns: need {GYRO_SINGLE} or one or more of '
                      f'{", ".join(GYRO_AXES)}; the file has {", ".join(columns)}')
+
+
+def gyro_column_of(found, axis, path=''):
+    """
+    Return the column of ``axis`` among ``found`` (:func:`gyro_columns`).
+
+    ``axis`` None picks the first present; a single-axis file's ``gyro_rad_s``
+    is returned whatever the axis. Raises ValueError for an unknown axis or
+    one the file does not have.
+    """
+    if GYRO_SINGLE in found.values():
+        return GYRO_SINGLE
+    axis = next(iter(found)) if axis is None else axis
+    if axis not in AXIS_NAMES:
+        raise ValueError(f'axis = {axis!r} is not allowed: choose x, y or z')
+    if axis not in found:
+        raise ValueError(f'{path}: no gyro column for axis {axis!r}; the file has '
+                         f'{", ".join(found.values())}')
+    return found[axis]
 
 
 def read_gyro_csv(path, axis=None, time_order='increasing'):
@@ -181,10 +202,10 @@ def read_gyro_csv(path, axis=None, time_order='increasing'):
     Parameters
     ----------
     path : str or os.PathLike
-        CSV with ``time_s`` and ``gyro_rad_s`` or ``gyro_{x,y,z}_rad_s``.
+        CSV with ``time_s`` and ``gyro_rad_s`` or any of ``gyro_{x,y,z}_rad_s``.
     axis : str, optional
-        ``'x'``, ``'y'`` or ``'z'`` for a 3-axis file (default ``'x'``);
-        ignored for a single-axis file.
+        ``'x'``, ``'y'`` or ``'z'`` (default: the first axis the file has);
+        ignored for a single-axis ``gyro_rad_s`` file.
     time_order : str
         See :func:`read_csv`.
 
@@ -199,13 +220,7 @@ def read_gyro_csv(path, axis=None, time_order='increasing'):
 
     """
     columns = read_csv(path, required=('time_s',), time_order=time_order)
-    names = gyro_columns(columns, path)
-    if len(names) == 1:
-        return columns['time_s'], columns[names[0]], names[0]
-    axis = 'x' if axis is None else axis
-    if axis not in AXIS_NAMES:
-        raise ValueError(f'axis = {axis!r} is not allowed: choose x, y or z')
-    name = GYRO_AXES[AXIS_NAMES.index(axis)]
+    name = gyro_column_of(gyro_columns(columns, path), axis, path)
     return columns['time_s'], columns[name], name
 
 

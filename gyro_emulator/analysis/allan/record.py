@@ -33,8 +33,8 @@ class GyroRecord:
     time_s : numpy.ndarray
         Sample times from the first, s (non-decreasing).
     rates : dict
-        Axis ('x', 'y', 'z') -> rate samples, rad/s (one entry for a
-        single-axis CSV: its column is taken as axis 'x').
+        Axis ('x', 'y', 'z') -> rate samples, rad/s: the axes the record
+        has (a single-axis CSV's ``gyro_rad_s`` is taken as axis 'x').
     columns : dict
         Axis -> the column or topic field it came from.
     recovery : tuple of str
@@ -73,23 +73,16 @@ def read_gyro_record(path, topic=None):
                           {a: f'{name} angular_velocity.{a}' for a in AXES},
                           tuple(rec.recovery))
     rec = records.load_record(path, required=('time_s',), time_order='nondecreasing')
-    names = csvio.gyro_columns(rec.columns, path)
-    if len(names) == 1:
-        return GyroRecord(path, rec.columns['time_s'], {'x': rec.columns[names[0]]},
-                          {'x': names[0]})
+    found = csvio.gyro_columns(rec.columns, path)
     return GyroRecord(path, rec.columns['time_s'],
-                      {a: rec.columns[n] for a, n in zip(AXES, names)}, dict(zip(AXES, names)))
+                      {a: rec.columns[name] for a, name in found.items()}, found)
 
 
 def axis_of(record, axis):
-    """Return (rate, column) of ``axis`` (None: x); a one-column record has only x."""
-    axis = 'x' if axis is None else axis
-    if axis not in AXES:
-        raise ValueError(f'axis = {axis!r} is not allowed: choose x, y or z')
-    if axis not in record.rates:
-        raise ValueError(f'{record.path}: has one gyro column ({record.columns["x"]}): '
-                         f'there is no axis {axis!r}; leave --axis out')
-    return record.rates[axis], record.columns[axis]
+    """Return (rate, column) of ``axis`` (None: the record's first axis)."""
+    column = csvio.gyro_column_of(record.columns, axis, record.path)
+    axis = next(a for a, c in record.columns.items() if c == column)
+    return record.rates[axis], column
 
 
 def segments_of(time_s, rate, gap_factor=3.0):

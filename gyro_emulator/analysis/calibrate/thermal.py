@@ -97,11 +97,13 @@ def read_thermal_log(paths, topic=None, temperature_topic=None):
             raise ValueError(f'{path}: a bag must be the only thermal log given')
         cols = records.load_record(path, required=('time_s', 'temp_c'),
                                    time_order='nondecreasing').columns
-        names = csvio.gyro_columns(cols, path)
-        if len(names) == 3 and len(paths) > 1:
-            raise ValueError(f'{path}: has three gyro axes: give it alone')
-        for j, name in enumerate(names):
-            axis = AXES[i] if len(names) == 1 else AXES[j]
+        found = csvio.gyro_columns(cols, path)
+        if len(found) > 1 and len(paths) > 1:
+            raise ValueError(f'{path}: has {len(found)} gyro axes: give it alone')
+        for named, name in found.items():
+            axis = AXES[i] if name == csvio.GYRO_SINGLE else named
+            if axis in axes:
+                raise ValueError(f'{path}: axis {axis} is given twice ({columns[axis]})')
             axes[axis] = (cols['time_s'], cols['temp_c'], cols[name])
             columns[axis] = f'{path}:{name}'
     return ThermalLog(tuple(paths), axes, columns)
