@@ -67,6 +67,27 @@ def _in_process(job, tasks, bar):
     return [engine.run_task(job, blocks, progress=bar.update) for blocks in tasks]
 
 
+def local_cluster(workers):
+    """
+    Start the ``local`` scheduler's ``dask.distributed.LocalCluster``.
+
+    ``workers`` single-threaded worker processes with :data:`WORKER_ENVIRON`
+    and Dask's profiler off, on free ports, quiet below errors. The caller
+    closes it. A fleet can also run on it by address (``cluster.scheduler_address``),
+    as on any existing cluster.
+    """
+    import logging
+
+    import dask
+    from dask.distributed import LocalCluster
+
+    with dask.config.set({'distributed.nanny.pre-spawn-environ': WORKER_ENVIRON,
+                          'distributed.worker.profile.enabled': False}):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            scheduler_port=0, dashboard_address=':0',
+                            silence_logs=logging.ERROR)
+
+
 class _DaskRun:
     """
     A Dask run whose cluster starts and stops while this process works.
@@ -87,18 +108,11 @@ class _DaskRun:
         self.starter.start()
 
     def _start(self):
-        import logging
-
-        import dask
-        from dask.distributed import Client, LocalCluster
+        from dask.distributed import Client
 
         try:
             if self.scheduler == 'local':
-                with dask.config.set({'distributed.nanny.pre-spawn-environ': WORKER_ENVIRON,
-                                      'distributed.worker.profile.enabled': False}):
-                    self.cluster = LocalCluster(
-                        n_workers=self.workers, threads_per_worker=1, processes=True,
-                        scheduler_port=0, dashboard_address=':0', silence_logs=logging.ERROR)
+                self.cluster = local_cluster(self.workers)
                 self.client = Client(self.cluster)
             else:
                 self.client = Client(self.scheduler, timeout='20s')
