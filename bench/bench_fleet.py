@@ -103,7 +103,7 @@ def keep_best(fig, name, n, wall, cpu, summary):
 
 def running_clusters(fig, cfg, n, scratch, repeats):
     """
-    The same fleet on a LocalCluster already running (1, then 2 workers), by address.
+    Run the same fleet on a LocalCluster already running (1, then 2 workers), by address.
 
     This is the ``tcp://HOST:PORT`` path of a user's own cluster: worker start-up
     (about 1.5 CPU-s a process, importing numpy, pyarrow and the package) is not
