@@ -110,6 +110,24 @@ def test_fit_recovers_an_exact_model_curve(q, r):
     assert fit.misfit == pytest.approx(0.0, abs=1e-6)
 
 
+def test_a_fit_restricted_to_some_terms_holds_the_others_at_zero():
+    """``terms``: a curve with a rate ramp fitted with N, B, K only puts nothing in R."""
+    n, b, k, r = 3e-4, 2e-5, 4e-6, 3e-7
+    taus = np.logspace(-2, 3, 40)
+    adev = allan.model_adev(taus, n, b, k, 0.0, r)
+    res = allan.AllanResult(taus_s=taus, adev=adev, adev_lo=adev, adev_hi=adev,
+                            edf=np.full(40, 1e9), alpha=np.zeros(40), n_terms=np.ones(40),
+                            rate_hz=100.0, n_samples=10 ** 13, ci=0.683)
+    full = allan.fit_noise_terms(res)
+    nbk = allan.fit_noise_terms(res, terms=('arw', 'bias_instability', 'rrw'))
+    assert full.rate_ramp_rad_s2 == pytest.approx(r, rel=1e-4)
+    assert nbk.rate_ramp_rad_s2 == 0.0 and nbk.quantization_rad == 0.0
+    # the ramp's rise has to go somewhere: the random walk takes it
+    assert nbk.rrw_rad_s_sqrt_s > 1.5 * k
+    with pytest.raises(ValueError, match="terms = .*'drift'.* is not allowed"):
+        allan.fit_noise_terms(res, terms=('arw', 'drift'))
+
+
 def test_self_check_two_hours_at_200_hz():
     """
     Simulate 2 h at 200 Hz with configured N, B, K; the Allan fit recovers them.

@@ -362,6 +362,8 @@ def _unsupported(a, slopes, edf, log_avar, var, theta, intervals, columns):
     out = []
     for term in OPTIONAL_TERMS:
         j = TERMS.index(term)
+        if j not in columns:
+            continue
         visible = term != 'rate_ramp' or bool(np.any(slopes[precise] >= VISIBLE_SLOPE))
         if not (intervals[term].resolved and np.max(share[:, j]) >= MIN_SHARE and visible):
             out.append(j)
@@ -375,7 +377,18 @@ def _unsupported(a, slopes, edf, log_avar, var, theta, intervals, columns):
     return out
 
 
-def fit_noise_terms(result, tau_range_s=None, ci=None):
+def _columns(terms):
+    """Return the model columns of ``terms`` (None: all five); ValueError for a bad name."""
+    if terms is None:
+        return list(range(len(TERMS)))
+    unknown = [t for t in terms if t not in TERMS]
+    if unknown or not terms:
+        raise ValueError(f'fit_noise_terms: terms = {tuple(terms)!r} is not allowed: a '
+                         f'non-empty subset of {", ".join(TERMS)}')
+    return sorted({TERMS.index(t) for t in terms})
+
+
+def fit_noise_terms(result, tau_range_s=None, ci=None, terms=None):
     """
     Fit Q, N, B, K and R to an Allan deviation (IEEE Std 952; module docstring).
 
@@ -388,6 +401,12 @@ def fit_noise_terms(result, tau_range_s=None, ci=None):
         of :mod:`gyro_emulator.analysis.allan.band`).
     ci : float, optional
         Level of the term intervals (default :data:`TERM_CI`, 95 %).
+    terms : sequence of str, optional
+        Fit only these terms (names of :data:`TERMS`), the others held at
+        zero: e.g. N, B and K for a caller that models only white noise,
+        flicker and random walk and must not see part of the curve go into
+        a term it ignores. Default all five (Q and R kept only when the
+        data support them).
 
     Returns
     -------
@@ -396,11 +415,11 @@ def fit_noise_terms(result, tau_range_s=None, ci=None):
         rad/s^2 (datasheet units via its properties), with intervals.
 
     """
+    columns = _columns(terms)
     sel = _select(result, tau_range_s)
     taus = np.asarray(result.taus_s, dtype=float)[sel]
     avar = np.asarray(result.adev, dtype=float)[sel] ** 2
     a = design(taus)
-    columns = list(range(len(TERMS)))
     edf = np.asarray(result.edf, dtype=float)[sel]
     for _ in range(3):
         # the degrees of freedom follow the noise type the model says dominates

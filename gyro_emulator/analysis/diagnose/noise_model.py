@@ -45,6 +45,9 @@ SUPER_PER_FOLD = 60
 N_SIM = 64
 #: The Allan fit uses averaging times up to this share of the record.
 TAU_MAX_SHARE = 0.1
+#: The terms :func:`simulate` draws, and so the only ones fitted: a share of
+#: the curve given to quantization or rate ramp would be lost to the null.
+NOISE_TERMS = ('arw', 'bias_instability', 'rrw')
 
 
 @dataclass(frozen=True)
@@ -174,7 +177,8 @@ def fit_noise(resid, time_s, dt_s, duration_s, resid_bins=None, time_bins=None, 
     tau_max = TAU_MAX_SHARE * duration_s
     arw, b, k = white * math.sqrt(dt_s), 0.0, 0.0
     try:
-        fit = allan.fit_noise_terms(robust_adev(parts, 1.0 / step), (0.5 * step, tau_max))
+        fit = allan.fit_noise_terms(robust_adev(parts, 1.0 / step), (0.5 * step, tau_max),
+                                     terms=NOISE_TERMS)
         arw, b, k = fit.arw_rad_s_sqrt_hz, fit.bias_instability_rad_s, fit.rrw_rad_s_sqrt_s
         tau_max = min(tau_max, float(fit.taus_s[-1]))
     except ValueError:
