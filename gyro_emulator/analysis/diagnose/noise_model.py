@@ -178,7 +178,7 @@ def fit_noise(resid, time_s, dt_s, duration_s, resid_bins=None, time_bins=None, 
     arw, b, k = white * math.sqrt(dt_s), 0.0, 0.0
     try:
         fit = allan.fit_noise_terms(robust_adev(parts, 1.0 / step), (0.5 * step, tau_max),
-                                     terms=NOISE_TERMS)
+                                    terms=NOISE_TERMS)
         arw, b, k = fit.arw_rad_s_sqrt_hz, fit.bias_instability_rad_s, fit.rrw_rad_s_sqrt_s
         tau_max = min(tau_max, float(fit.taus_s[-1]))
     except ValueError:
