@@ -52,6 +52,24 @@ def add_arguments(parser):
     parser.add_argument('--max-tau-fraction', type=float, default=0.25, metavar='F',
                         help='longest tau as a fraction of the longest segment '
                              '(default: %(default)s)')
+    add_outlier_arguments(parser)
+
+
+def add_outlier_arguments(parser):
+    """Register ``--keep-outliers`` (``allan`` and every ``calibrate`` command)."""
+    parser.add_argument('--keep-outliers', action='store_true',
+                        help='keep every sample (default: spikes and motion beyond 6 robust '
+                             'sigma of their neighbours are set aside, and the output says '
+                             'how many and when)')
+
+
+def outlier_threshold(args):
+    """Return the screening threshold the options ask for (``math.inf``: --keep-outliers)."""
+    import math
+
+    from gyro_emulator.analysis import outliers
+
+    return math.inf if args.keep_outliers else outliers.THRESHOLD
 
 
 def print_terms(info, out=None, indent='  '):
@@ -82,13 +100,15 @@ def run(args):
     from gyro_emulator.analysis import allan
 
     info, result, fit = allan.analyse_record(args.file, args.axis, args.topic,
-                                             args.max_tau_fraction, args.gap_factor)
+                                             args.max_tau_fraction, args.gap_factor,
+                                             outlier_threshold=outlier_threshold(args))
     for note in info['recovery']:
         print(f'gyro-emulator allan: warning: {note}', file=sys.stderr)
     print(f'{info["file"]} [{info["column"]}]: {info["n_samples"]} samples at '
           f'{info["sample_rate_hz"]:.4g} Hz, {info["duration_s"]:.1f} s, '
           f'{info["segments"]} segment(s), {info["repeated_timestamps"]} repeated '
           'timestamp(s)')
+    print(f'  {info["set_aside"]["description"]}')
     print(f'  band limit: {fit.band.note}')
     print_terms(info)
     for warning in fit.warnings:

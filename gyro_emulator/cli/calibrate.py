@@ -55,6 +55,9 @@ def _common_log(parser, many=False):
     parser.add_argument('--topic', default=None, help='Imu topic of a bag')
     parser.add_argument('--json', metavar='OUT', help='write the results as JSON')
     parser.add_argument('--plot', metavar='PNG', help='write a plot')
+    from gyro_emulator.cli.allan import add_outlier_arguments
+
+    add_outlier_arguments(parser)
 
 
 def add_arguments(parser):
@@ -106,11 +109,18 @@ def _write(path, text):
     print(f'wrote {path}')
 
 
+def _threshold(args):
+    from gyro_emulator.cli.allan import outlier_threshold
+
+    return outlier_threshold(args)
+
+
 def _calibrate(args):
     from gyro_emulator.analysis.calibrate import noise
 
     axes = None if args.axis == 'all' else (args.axis,)
-    cal = noise.calibrate_noise(args.log, axes, args.topic)
+    cal = noise.calibrate_noise(args.log, axes, args.topic,
+                                outlier_threshold=_threshold(args))
     for note in cal.recovery:
         print(f'gyro-emulator calibrate: warning: {note}', file=sys.stderr)
     return cal
@@ -123,6 +133,7 @@ def _print_noise(cal):
     print(f'{cal.source}: {cal.rate_hz:.6g} Hz, {cal.duration_s:.1f} s')
     for item in cal.axes:
         print(f' axis {item.axis} ({item.column}): {item.fit.band.note}')
+        print(f'   {item.set_aside["description"]}')
         print_terms({'fit': summary(item.fit)}, indent='   ')
         for warning in item.fit.warnings:
             print(f'gyro-emulator calibrate: warning: axis {item.axis}: {warning}',
@@ -149,6 +160,7 @@ def run_noise(args):
         write_json(args.json, {'source': cal.source, 'rate_hz': cal.rate_hz,
                                'duration_s': cal.duration_s, 'lsb_rad_s': cal.lsb_rad_s,
                                'axes': {a.axis: summary(a.fit) for a in cal.axes},
+                               'set_aside': {a.axis: a.set_aside for a in cal.axes},
                                'exported': {'arw_rad_s_sqrt_hz': chosen.arw_rad_s_sqrt_hz,
                                             'rrw_rad_s_sqrt_s': chosen.rrw_rad_s_sqrt_s,
                                             'rrw_is_bound': chosen.rrw_is_bound,
@@ -171,7 +183,8 @@ def _thermal(args):
     from gyro_emulator.analysis.calibrate import thermal
 
     log = thermal.read_thermal_log(args.log, args.topic, args.temperature_topic)
-    fit = thermal.fit_thermal(log, getattr(args, 'order', 3), args.window_s, args.gyro_scale)
+    fit = thermal.fit_thermal(log, getattr(args, 'order', 3), args.window_s, args.gyro_scale,
+                              _threshold(args))
     return log, fit
 
 
@@ -202,7 +215,9 @@ def _thermal_doc(fit):
             'coefficients_rad_s_per_k': {a: list(map(float, c))
                                          for a, c in fit.coefficients.items()},
             'errors_rad_s_per_k': {a: list(map(float, c)) for a, c in fit.errors.items()},
-            'residual_rms_rad_s': fit.residual_rms, 'group_noise_rad_s': fit.group_noise}
+            'residual_rms_rad_s': fit.residual_rms, 'group_noise_rad_s': fit.group_noise,
+            'set_aside': {a: dict(v.as_dict(), description=v.describe())
+                          for a, v in fit.set_aside.items()}}
 
 
 def run_thermal(args):

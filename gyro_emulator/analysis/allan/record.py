@@ -14,11 +14,15 @@ and returns the JSON summary.
 from dataclasses import dataclass, replace
 
 from gyro_emulator import units
+from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import adev, band, fit as fitting
 from gyro_emulator.recording import csvio, records, topics
 import numpy as np
 
 AXES = ('x', 'y', 'z')
+#: A stretch set aside no longer than this is filled with its neighbours' mean,
+#: a longer one splits the record, s.
+FILL_MAX_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -94,6 +98,46 @@ def segments_of(time_s, rate, gap_factor=3.0):
     return rate_hz, segments
 
 
+def screened_segments(time_s, rate, gap_factor=3.0, threshold=outliers.THRESHOLD):
+    """
+    Set a static record's spikes and motion aside, then split it at gaps.
+
+    The stretches :func:`gyro_emulator.analysis.outliers.screen_at_rest`
+    finds are filled with the mean of the kept samples within
+    :data:`gyro_emulator.analysis.outliers.LOCAL_HALF_S` of them when they
+    last at most :data:`FILL_MAX_S` (the angle is interpolated straight
+    across: the long averaging times survive, and the short ones lose at
+    most the filled share of their variance), and cut out otherwise (the
+    record splits there, as at a logging gap).
+
+    Returns
+    -------
+    (float, list of numpy.ndarray, SetAside, dict)
+        As :func:`segments_of`, what was set aside, and
+        ``{'filled': samples, 'cut': samples}``.
+
+    """
+    time_s = np.asarray(time_s, dtype=float)
+    rate = np.asarray(rate, dtype=float)
+    rate_hz, _ = csvio.sample_rate_and_segments(time_s, gap_factor)
+    screened = outliers.screen_at_rest(time_s, rate, 1.0 / rate_hz, threshold)
+    filled = rate.copy()
+    cut = np.zeros(len(rate), bool)
+    n_filled = 0
+    for lo, hi, _ in screened.spans:
+        inside = (time_s >= lo) & (time_s <= hi)
+        around = (screened.keep & (time_s >= lo - outliers.LOCAL_HALF_S)
+                  & (time_s <= hi + outliers.LOCAL_HALF_S))
+        if hi - lo <= FILL_MAX_S and np.any(around):
+            filled[inside] = np.mean(rate[around])
+            n_filled += int(np.count_nonzero(inside))
+        else:
+            cut |= inside
+    rate_hz, segments = segments_of(time_s[~cut], filled[~cut], gap_factor)
+    return rate_hz, segments, screened, {'filled': n_filled,
+                                         'cut': int(np.count_nonzero(cut))}
+
+
 def identify(segments, rate_hz, max_tau_fraction=0.25, ci=0.683):
     """
     IEEE Std 952 noise identification of one axis.
@@ -154,18 +198,26 @@ def summary(fit):
                 'note': limit.note}}
 
 
+def set_aside_summary(screened, handled):
+    """JSON form of what :func:`screened_segments` set aside, with the filled and cut counts."""
+    return dict(screened.as_dict(), **handled, description=screened.describe())
+
+
 def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_factor=3.0,
-                   record=None):
+                   record=None, outlier_threshold=outliers.THRESHOLD):
     """
     Analyse one axis of a record (CSV or bag) as ``gyro-emulator allan`` does.
 
     Returns ``(JSON-ready dict, AllanResult, NoiseFit)``; ``record`` (a
-    :class:`GyroRecord`) skips reading the file again.
+    :class:`GyroRecord`) skips reading the file again. Spikes and motion
+    are set aside first (:func:`screened_segments`; ``outlier_threshold``
+    ``math.inf`` keeps every sample) and ``set_aside`` says what went.
     """
     record = read_gyro_record(path, topic) if record is None else record
     rate, column = axis_of(record, axis)
     try:
-        rate_hz, segments = segments_of(record.time_s, rate, gap_factor)
+        rate_hz, segments, screened, handled = screened_segments(
+            record.time_s, rate, gap_factor, outlier_threshold)
     except ValueError as exc:
         raise ValueError(f'{path}: {exc}') from None
     result, found = identify(segments, rate_hz, max_tau_fraction)
@@ -173,6 +225,7 @@ def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_facto
     info = {
         'file': str(path), 'column': column, 'sample_rate_hz': rate_hz,
         'recovery': list(record.recovery),
+        'set_aside': set_aside_summary(screened, handled),
         'n_samples': result.n_samples, 'segments': len(segments),
         'repeated_timestamps': int(np.sum(np.diff(time_s) == 0.0)),
         'duration_s': float(time_s[-1] - time_s[0]),

@@ -20,7 +20,7 @@ units: N in rad/s/sqrt(Hz), K in rad/s^2/sqrt(Hz) = rad/s/sqrt(s)):
 
 from dataclasses import dataclass
 
-from gyro_emulator.analysis import allan
+from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.allan import record as allan_record
 import numpy as np
 
@@ -30,7 +30,12 @@ GRID_TOLERANCE = 0.02
 
 @dataclass(frozen=True)
 class AxisNoise:
-    """The identification of one axis: its Allan deviation, fit, mean (rad/s) and segments."""
+    """
+    The identification of one axis: its Allan deviation, fit, mean (rad/s) and segments.
+
+    ``set_aside`` is the JSON form of the spikes and motion left out
+    (:func:`gyro_emulator.analysis.allan.record.set_aside_summary`).
+    """
 
     axis: str
     column: str
@@ -38,6 +43,7 @@ class AxisNoise:
     fit: object
     mean_rad_s: float
     segments: tuple = ()
+    set_aside: dict = None
 
 
 @dataclass(frozen=True)
@@ -113,7 +119,7 @@ def detect_lsb(rate, max_unique=200_000):
 
 
 def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fraction=0.25,
-                    record=None):
+                    record=None, outlier_threshold=outliers.THRESHOLD):
     """
     Identify the noise terms of each axis of a static log.
 
@@ -129,6 +135,11 @@ def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fractio
         As for ``gyro-emulator allan``.
     record : GyroRecord, optional
         Already read.
+    outlier_threshold : float
+        Spikes and motion beyond this many robust standard deviations of
+        their neighbours are set aside before the Allan deviation
+        (:func:`gyro_emulator.analysis.allan.screened_segments`; ``math.inf``:
+        keep every sample).
 
     Returns
     -------
@@ -141,12 +152,14 @@ def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fractio
     for name in axes:
         rate, column = allan_record.axis_of(record, name)
         try:
-            rate_hz, segments = allan.segments_of(record.time_s, rate, gap_factor)
+            rate_hz, segments, screened, handled = allan.screened_segments(
+                record.time_s, rate, gap_factor, outlier_threshold)
         except ValueError as exc:
             raise ValueError(f'{path}: {exc}') from None
         result, fit = allan.identify(segments, rate_hz, max_tau_fraction)
-        found.append(AxisNoise(name, column, result, fit, float(np.mean(rate)),
-                               tuple(segments)))
+        found.append(AxisNoise(name, column, result, fit,
+                               float(np.mean(rate[screened.keep])), tuple(segments),
+                               allan_record.set_aside_summary(screened, handled)))
         steps.append(detect_lsb(rate))
     lsb = float(np.median(steps)) if all(s > 0.0 for s in steps) else 0.0
     return NoiseCalibration(source=str(path), rate_hz=float(rate_hz),

@@ -49,6 +49,8 @@ def noise_lines(calibration, exported, tool, convention):
             f', B {_term(fit, "bias_instability", units.rad_s_to_deg_h, "deg/h")}'
             f', K {_term(fit, "rrw", units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h, "deg/h/sqrt(h)")}'
             f' ({100 * fit.ci:.0f} % intervals, IEEE Std 952)')
+        if item.set_aside is not None:
+            lines.append(f'  {item.set_aside["description"]}')
         for warning in fit.warnings:
             lines.append(f'  warning: {warning}')
     lines.append(f'Convention: {convention}')

@@ -27,8 +27,9 @@ groups) a drift in time cannot be told from a temperature effect, and the
 fit says so.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
+from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import record as allan_record
 from gyro_emulator.recording import csvio, records, topics
 import numpy as np
@@ -122,12 +123,14 @@ class Groups:
     how: str
 
 
-def group_means(time_s, temp_c, rate, window_s=60.0, gap_factor=3.0):
+def group_means(time_s, temp_c, rate, window_s=60.0, gap_factor=3.0, keep=None):
     """
     Average a static log in groups: its bursts (3 or more), or windows of ``window_s``.
 
-    The standard error of each mean is the sample standard deviation over
-    sqrt(count): it treats the samples within a group as independent.
+    Only the samples ``keep`` marks (default all) count; a group with fewer
+    than 3 of them is left out. The standard error of each mean is the
+    sample standard deviation over sqrt(count): it treats the samples
+    within a group as independent.
     """
     _, bounds = csvio.sample_rate_and_segments(time_s, gap_factor)
     bounds = [(a, b) for a, b in bounds if b - a >= 3]
@@ -137,12 +140,21 @@ def group_means(time_s, temp_c, rate, window_s=60.0, gap_factor=3.0):
         idx = np.searchsorted(time_s, edges)
         bounds = [(int(a), int(b)) for a, b in zip(idx[:-1], idx[1:]) if b - a >= 3]
         how = f'{len(bounds)} windows of {window_s:g} s'
-    stats = np.array([(np.mean(time_s[a:b]), np.mean(temp_c[a:b]), np.mean(rate[a:b]),
-                       np.std(rate[a:b], ddof=1) / np.sqrt(b - a), b - a) for a, b in bounds])
-    if len(stats) == 0:
+    keep = np.ones(len(rate), bool) if keep is None else np.asarray(keep, bool)
+    rows, used = [], []
+    for a, b in bounds:
+        k = keep[a:b]
+        if np.count_nonzero(k) < 3:
+            continue
+        r = rate[a:b][k]
+        rows.append((np.mean(time_s[a:b][k]), np.mean(temp_c[a:b][k]), np.mean(r),
+                     np.std(r, ddof=1) / np.sqrt(len(r)), len(r)))
+        used.append((a, b))
+    if not rows:
         raise ValueError('thermal log: no group of 3 or more samples')
+    stats = np.array(rows)
     return Groups(stats[:, 0], stats[:, 1], stats[:, 2], stats[:, 3],
-                  stats[:, 4].astype(int), tuple(bounds), how)
+                  stats[:, 4].astype(int), tuple(used), how)
 
 
 def distinct_temperatures(temps_c, resolution_k=DISTINCT_K):
@@ -184,7 +196,9 @@ class ThermalFit:
     ``coefficients[axis]`` ascending powers (order + 1 values), ``errors``
     their standard errors, ``groups[axis]`` the group means, ``residual_rms``
     the scatter of the group means about the fit and ``group_noise`` their
-    typical standard error (rad/s); ``notes`` what a user must know.
+    typical standard error (rad/s); ``notes`` what a user must know;
+    ``set_aside[axis]`` the spikes and motion left out of the group means
+    (:class:`gyro_emulator.analysis.outliers.SetAside`).
     """
 
     sources: tuple
@@ -205,6 +219,7 @@ class ThermalFit:
     grouping: str
     gyro_scale: float
     notes: tuple
+    set_aside: dict = field(default_factory=dict)
 
     @property
     def groups_temp_c(self):
@@ -231,7 +246,17 @@ def _order_for(groups, temp_ref, order):
     return 1, []
 
 
-def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0):
+def _screen(log, gyro_scale, threshold):
+    """Spikes and motion of each axis (:func:`gyro_emulator.analysis.outliers.screen_at_rest`)."""
+    out = {}
+    for axis, (t, _, rate) in log.axes.items():
+        rate_hz, _ = csvio.sample_rate_and_segments(t)
+        out[axis] = outliers.screen_at_rest(t, rate * gyro_scale, 1.0 / rate_hz, threshold)
+    return out
+
+
+def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
+                outlier_threshold=outliers.THRESHOLD):
     """
     Fit bias against temperature for every axis of ``log`` (module docstring).
 
@@ -245,6 +270,10 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0):
         Group length of a log without gaps, s.
     gyro_scale : float
         Factor applied to the logged rates first (a known scale error).
+    outlier_threshold : float
+        Spikes and motion beyond this many robust standard deviations of
+        their neighbours are left out of the group means (``math.inf``: keep
+        every sample).
 
     Returns
     -------
@@ -257,7 +286,8 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0):
         raise ValueError(f'window_s = {window_s!r} is out of range: allowed [1, 86400] s')
     if not (np.isfinite(gyro_scale) and 0.01 <= gyro_scale <= 100.0):
         raise ValueError(f'gyro_scale = {gyro_scale!r} is out of range: allowed [0.01, 100]')
-    groups = {a: group_means(t, temp, rate * gyro_scale, window_s)
+    screened = _screen(log, gyro_scale, outlier_threshold)
+    groups = {a: group_means(t, temp, rate * gyro_scale, window_s, keep=screened[a].keep)
               for a, (t, temp, rate) in log.axes.items()}
     temps = np.concatenate([temp for _, temp, _ in log.axes.values()])
     t_min, t_max = float(np.min(temps)), float(np.max(temps))
@@ -280,12 +310,13 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0):
         noise[axis] = float(np.sqrt(np.mean(g.sem_rad_s ** 2)))
     corr = float(np.corrcoef(first.temp_c, first.time_s)[0, 1]) if span > 0 else 0.0
     notes = _notes(coefs, errs, rms, noise, corr, chosen, significant, gyro_scale)
+    notes += [f'axis {a}: {v.describe()}' for a, v in screened.items() if v.count or v.note]
     return ThermalFit(sources=log.sources, columns=log.columns, temp_ref_c=temp_ref,
                       temp_min_c=t_min, temp_max_c=t_max, order=chosen, order_reason=reason,
                       coefficients=coefs, errors=errs, groups=groups, residual_rms=rms,
                       group_noise=noise, span_k=span, distinct_temps=distinct,
                       correlation=corr, grouping=first.how, gyro_scale=float(gyro_scale),
-                      notes=tuple(notes))
+                      notes=tuple(notes), set_aside=screened)
 
 
 def _notes(coefs, errs, rms, noise, corr, order, significant, gyro_scale):
@@ -361,6 +392,7 @@ def compensation_check(fit, params, axis):
 def white_noise_of(log, axis, gyro_scale=1.0, gap_factor=3.0):
     """(N of one axis from its samples, rad/s/sqrt(Hz); sample rate, Hz): IEEE Std 952 fit."""
     time_s, _, rate = log.axes[axis]
-    rate_hz, segments = allan_record.segments_of(time_s, rate * gyro_scale, gap_factor)
+    rate_hz, segments, _, _ = allan_record.screened_segments(time_s, rate * gyro_scale,
+                                                             gap_factor)
     _, found = allan_record.identify(segments, rate_hz)
     return found.arw_rad_s_sqrt_hz, rate_hz

@@ -13,7 +13,8 @@ leaves them out of every fit and every score (:func:`screen`):
    derivative (a short delay) and, against anything else slow, a bias and
    a scale factor piecewise linear in time (16 pieces). It follows every
    catalogue cause and most others;
-2. what is left is high-passed per sample: a leave-one-out local fit of
+2. what is left is high-passed per sample
+   (:func:`gyro_emulator.analysis.outliers.high_pass_flags`): a leave-one-out local fit of
    a bias and the rate at the previous, same and next sample over +-2 s
    (at least +-5 samples), within each contiguous stretch, removes what
    changes slowly or follows the rate through short dynamics; at the
@@ -35,16 +36,12 @@ nothing. The report says how many samples were set aside, and when.
 
 import math
 
+from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.diagnose.data import Prepared
 import numpy as np
 
-#: Robust standard deviations beyond which a sample is an outlier.
-THRESHOLD = 6.0
-#: Half width of the local high-pass window, s (at least LOCAL_MIN_SAMPLES).
-LOCAL_HALF_S = 2.0
-LOCAL_MIN_SAMPLES = 5
-#: Flags closer than this are one segment; a segment is widened by it, s.
-MERGE_S = 1.0
+#: Robust standard deviations beyond which a sample is an outlier (the shared default).
+THRESHOLD = outliers.THRESHOLD
 HATS = 16
 HUBER_K = 2.0
 
@@ -124,51 +121,6 @@ def nuisance_residual(prep, ratio_fn, hats=0):
     return s.gyro - pred
 
 
-def _moving_sum(v, half):
-    """Sum over i-half..i+half (clipped to the array) of v, along axis 0."""
-    c = np.concatenate([np.zeros((1,) + v.shape[1:]), np.cumsum(v, axis=0)])
-    n = len(v)
-    idx = np.arange(n)
-    return c[np.minimum(idx + half + 1, n)] - c[np.maximum(idx - half, 0)]
-
-
-def _local_high_pass(r, rate, weight, half):
-    """
-    Leave-one-out local least squares of ``r`` on [1, rate[i-1], rate[i], rate[i+1]].
-
-    Over +-half samples: a bias, a scale factor and any short linear
-    dynamics (a delay or a filter within a sample) that hold locally.
-    Moving sums of the weighted cross products give each sample's normal
-    equations without the sample itself; a small ridge keeps a window of
-    constant rate solvable (a ridge of 1e-6 of the diagonal). The
-    prediction error is divided by sqrt(1 + x' G^-1 x), its standard
-    deviation in units of the noise: a sample unlike its neighbours (the
-    corner of a rate step) is predicted less well, and that is not an
-    outlier.
-    """
-    prev = np.r_[rate[:1], rate[:-1]]
-    nxt = np.r_[rate[1:], rate[-1:]]
-    basis = np.column_stack([np.ones(len(r)), prev, rate, nxt])
-    p = basis.shape[1]
-    bw = basis * weight[:, None]
-    gram = _moving_sum(bw[:, :, None] * basis[:, None, :], half)
-    gram -= bw[:, :, None] * basis[:, None, :]
-    rhs = _moving_sum(bw * r[:, None], half) - bw * r[:, None]
-    diag = np.einsum('nii->ni', gram)
-    ridge = 1e-6 * diag + 1e-9 * np.max(diag, axis=1, keepdims=True) + 1e-300
-    gram[:, np.arange(p), np.arange(p)] += ridge
-    coef = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
-    lev = np.sum(basis * np.linalg.solve(gram, basis[:, :, None])[:, :, 0], axis=1)
-    return (r - np.sum(basis * coef, axis=1)) / np.sqrt(1.0 + np.maximum(lev, 0.0))
-
-
-def _stretches(t, dt_s):
-    """Start and stop indices of the contiguous stretches (a gap > 3 dt splits)."""
-    cuts = np.flatnonzero(np.diff(t) > 3.0 * dt_s) + 1
-    edges = np.r_[0, cuts, len(t)]
-    return list(zip(edges[:-1], edges[1:]))
-
-
 def _corners(rate, tol_rad_s=1e-3):
     """
     Return the corners of rate steps: samples where the rate changes, next to a dwell.
@@ -219,7 +171,7 @@ def _corner_flags(r, rate, keep, half, threshold):
             idx = corner[lo:lo + 5000]
             stat[lo:lo + 5000] = r[idx] - np.median(windows[idx + offset], axis=1)
         typical = r[some] - np.median(windows[some + offset], axis=1)
-        sigma = max(_robust_scale(stat[keep[corner]]), _robust_scale(typical))
+        sigma = max(outliers.robust_scale(stat[keep[corner]]), outliers.robust_scale(typical))
         sides.append(stat / sigma)
     left, right = sides
     spike = (np.abs(left) > threshold) & (np.abs(right) > threshold) & (left * right > 0.0)
@@ -227,19 +179,14 @@ def _corner_flags(r, rate, keep, half, threshold):
     return flag
 
 
-def _robust_scale(h):
-    """1.4826 x the median absolute deviation (the standard deviation for Gaussian data)."""
-    sigma = 1.4826 * float(np.median(np.abs(h - np.median(h))))
-    return sigma if sigma > 0.0 else (float(np.std(h)) or 1e-300)
-
-
 def _flag_pass(data, prep_all, keep, ratio_fn, threshold):
     """
     One pass: nuisance fit on the kept samples, local high-pass, robust threshold.
 
-    The local fit is run twice: the second time every sample beyond 4
-    robust sigma of the first is down-weighted by (4 sigma / |h|)^2, so a
-    spike does not drag its neighbours' predictions (and get them flagged).
+    The local fit (:func:`gyro_emulator.analysis.outliers.high_pass_flags`)
+    is run twice: the second time every sample beyond 4 robust sigma of the
+    first is down-weighted by (4 sigma / |h|)^2, so a spike does not drag its
+    neighbours' predictions (and get them flagged).
     """
     prep = Prepared(data, max_bins=min(4000, len(data.time_s)), keep=keep)
     ratio = ratio_fn(prep.binned.temp_c)
@@ -251,42 +198,13 @@ def _flag_pass(data, prep_all, keep, ratio_fn, threshold):
         pred += coef * col
     r = full.gyro - pred
     t = data.time_s
-    half = max(LOCAL_MIN_SAMPLES, int(round(LOCAL_HALF_S / prep.dt_s)))
-    weight = keep.astype(float)
-    h = np.zeros(len(r))
-    for _ in range(2):
-        for lo, hi in _stretches(t, prep.dt_s):
-            h[lo:hi] = _local_high_pass(r[lo:hi], data.rate_cmd_rad_s[lo:hi],
-                                        weight[lo:hi], half)
-        sigma = _robust_scale(h[keep])
-        u = np.abs(h) / (4.0 * sigma)
-        weight = keep * np.where(u > 1.0, 1.0 / np.maximum(u, 1.0) ** 2, 1.0)
-    flag = np.abs(h) > threshold * sigma
-    for lo, hi in _stretches(t, prep.dt_s):
+    half = max(outliers.LOCAL_MIN_SAMPLES, int(round(outliers.LOCAL_HALF_S / prep.dt_s)))
+    flag, sigma, _ = outliers.high_pass_flags(r, data.rate_cmd_rad_s, keep, t, prep.dt_s,
+                                              threshold)
+    for lo, hi in outliers.stretches(t, prep.dt_s):
         flag[lo:hi] |= _corner_flags(r[lo:hi], data.rate_cmd_rad_s[lo:hi], keep[lo:hi], half,
                                      threshold)
     return flag, sigma
-
-
-def _segments(flag, t, dt_s):
-    """Group flags into segments; widen multi-sample ones. Returns (set-aside mask, spans)."""
-    idx = np.flatnonzero(flag)
-    out = np.zeros(len(t), bool)
-    spans = []
-    if not len(idx):
-        return out, spans
-    breaks = np.flatnonzero(np.diff(t[idx]) > MERGE_S) + 1
-    for group in np.split(idx, breaks):
-        lo, hi = t[group[0]], t[group[-1]]
-        if len(group) > 1:
-            lo, hi = lo - MERGE_S, hi + MERGE_S + 0.5 * dt_s
-            sel = (t >= lo) & (t <= hi)
-        else:
-            sel = np.zeros(len(t), bool)
-            sel[group[0]] = True
-        out |= sel
-        spans.append((float(t[sel][0]), float(t[sel][-1]), int(sel.sum())))
-    return out, spans
 
 
 def screen(data, ratio_fn, threshold=THRESHOLD):
@@ -321,8 +239,8 @@ def screen(data, ratio_fn, threshold=THRESHOLD):
         for _ in range(2):
             new, sigma = _flag_pass(data, prep_all, ~flag, ratio_fn, threshold)
             flag |= new
-            drop, spans = _segments(flag, data.time_s, prep_all.dt_s)
-            if drop.sum() > 0.5 * n:
+            drop, spans = outliers.flag_segments(flag, data.time_s, prep_all.dt_s)
+            if drop.sum() > outliers.MAX_FRACTION * n:
                 drop, spans = np.zeros(n, bool), []
             keep = ~drop
     else:

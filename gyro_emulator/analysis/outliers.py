@@ -1,0 +1,303 @@
+"""
+Outliers in a rate record: logger spikes and handling motion, found and set aside.
+
+A few samples no model should explain (a logger glitch, a bump of the
+bench) can outweigh hours of data in a mean, a least-squares fit or an
+Allan deviation. The pieces here find them in a residual (``diagnose``'s
+nuisance residual, or a static log's rate itself):
+
+1. :func:`local_high_pass`: a leave-one-out local least-squares fit over
+   +-``half`` samples (a bias, and when a commanded rate is given, the rate
+   at the previous, same and next sample) removes whatever changes slowly
+   (bias instability, random walk, temperature) or follows the rate through
+   short dynamics; the prediction error is divided by its standard error;
+2. :func:`high_pass_flags`: that fit run twice, the second time with the
+   samples beyond 4 robust sigma of the first down-weighted, so that a
+   spike does not drag its neighbours' predictions; a sample is flagged
+   beyond ``threshold`` robust standard deviations (:func:`robust_scale`:
+   1.4826 x the median absolute deviation);
+3. :func:`flag_segments`: flags closer than :data:`MERGE_S` are one
+   stretch; a stretch of two or more samples (motion) is widened by
+   :data:`MERGE_S` each side to cover its settling.
+
+:func:`screen_at_rest` does all three, twice, on a record taken at rest
+(``allan``, ``calibrate noise``, ``calibrate thermal``). Gaussian noise
+crosses 6 sigma once in 5e8 samples, so a clean record loses nothing.
+"""
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+#: Robust standard deviations beyond which a sample is an outlier.
+THRESHOLD = 6.0
+#: Half width of the local high-pass window, s (at least LOCAL_MIN_SAMPLES).
+LOCAL_HALF_S = 2.0
+LOCAL_MIN_SAMPLES = 5
+#: Flags closer than this are one stretch; a motion stretch is widened by it, s.
+MERGE_S = 1.0
+#: More than this share set aside: the record is not at rest, nothing is set aside.
+MAX_FRACTION = 0.5
+
+
+def moving_sum(v, half):
+    """Sum over i-half..i+half (clipped to the array) of v, along axis 0."""
+    c = np.concatenate([np.zeros((1,) + v.shape[1:]), np.cumsum(v, axis=0)])
+    n = len(v)
+    idx = np.arange(n)
+    return c[np.minimum(idx + half + 1, n)] - c[np.maximum(idx - half, 0)]
+
+
+def local_high_pass(r, rate, weight, half):
+    """
+    Leave-one-out local least squares of ``r`` on [1, rate[i-1], rate[i], rate[i+1]].
+
+    Over +-half samples: a bias, a scale factor and any short linear
+    dynamics (a delay or a filter within a sample) that hold locally; with
+    ``rate`` None, the bias only (a record at rest). Moving sums of the
+    weighted cross products give each sample's normal equations without the
+    sample itself; a small ridge keeps a window of constant rate solvable (a
+    ridge of 1e-6 of the diagonal). The prediction error is divided by
+    sqrt(1 + x' G^-1 x), its standard deviation in units of the noise: a
+    sample unlike its neighbours (the corner of a rate step) is predicted
+    less well, and that is not an outlier.
+    """
+    if rate is None:
+        total = moving_sum(weight, half) - weight
+        level = (moving_sum(weight * r, half) - weight * r) / np.maximum(total, 1e-300)
+        return (r - level) / np.sqrt(1.0 + 1.0 / np.maximum(total, 1e-300))
+    prev = np.r_[rate[:1], rate[:-1]]
+    nxt = np.r_[rate[1:], rate[-1:]]
+    basis = np.column_stack([np.ones(len(r)), prev, rate, nxt])
+    p = basis.shape[1]
+    bw = basis * weight[:, None]
+    gram = moving_sum(bw[:, :, None] * basis[:, None, :], half)
+    gram -= bw[:, :, None] * basis[:, None, :]
+    rhs = moving_sum(bw * r[:, None], half) - bw * r[:, None]
+    diag = np.einsum('nii->ni', gram)
+    ridge = 1e-6 * diag + 1e-9 * np.max(diag, axis=1, keepdims=True) + 1e-300
+    gram[:, np.arange(p), np.arange(p)] += ridge
+    coef = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
+    lev = np.sum(basis * np.linalg.solve(gram, basis[:, :, None])[:, :, 0], axis=1)
+    return (r - np.sum(basis * coef, axis=1)) / np.sqrt(1.0 + np.maximum(lev, 0.0))
+
+
+def stretches(t, dt_s):
+    """Return start and stop indices of the contiguous runs (a gap over 3 dt splits)."""
+    cuts = np.flatnonzero(np.diff(t) > 3.0 * dt_s) + 1
+    edges = np.r_[0, cuts, len(t)]
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def robust_scale(h):
+    """1.4826 x the median absolute deviation (the standard deviation for Gaussian data)."""
+    sigma = 1.4826 * float(np.median(np.abs(h - np.median(h))))
+    return sigma if sigma > 0.0 else (float(np.std(h)) or 1e-300)
+
+
+def quantisation_step(values):
+    """
+    Return the output step of a quantised record (its LSB), or 0 for a continuous one.
+
+    The smallest gap between distinct values, when at most one value in
+    four is distinct (a quantised output repeats its levels; a continuous
+    one does not).
+    """
+    levels = np.unique(values)
+    if len(levels) < 2 or len(levels) > 0.25 * len(values):
+        return 0.0
+    return float(np.min(np.diff(levels)))
+
+
+def clipped_scale(h, threshold=THRESHOLD, iterations=10):
+    """
+    Return the standard deviation of ``h`` without the values beyond ``threshold`` of it.
+
+    Iterated until it no longer falls.
+
+    For a quantised output, whose few levels make the median absolute
+    deviation jump with the noise-to-LSB ratio, this is the consistent
+    scale (Gaussian noise loses 2e-9 of its values at 6 sigma).
+    """
+    centre = float(np.median(h))
+    sigma = float(np.std(h))
+    for _ in range(iterations):
+        inner = h[np.abs(h - centre) <= threshold * sigma]
+        if len(inner) < 2:
+            break
+        new = float(np.std(inner))
+        if new >= sigma * (1.0 - 1e-6):
+            break
+        sigma = new
+    return sigma
+
+
+def high_pass_flags(r, rate, keep, t, dt_s, threshold=THRESHOLD, floor=0.0):
+    """
+    Flag the samples of ``r`` that stand out from their neighbours (module docstring, 1-2).
+
+    Parameters
+    ----------
+    r : numpy.ndarray
+        The residual (or a rate at rest), per sample.
+    rate : numpy.ndarray or None
+        The commanded rate per sample (None: a bias-only local fit).
+    keep : numpy.ndarray of bool
+        Samples that may inform the local fits and the scale.
+    t : numpy.ndarray
+        Sample times, s (a gap of more than 3 dt splits the local fits).
+    dt_s : float
+        Sample interval, s.
+    threshold : float
+        Robust standard deviations.
+    floor : float
+        Least scale (for a quantised output: see :func:`screen_at_rest`).
+
+    Returns
+    -------
+    (numpy.ndarray of bool, float, numpy.ndarray)
+        The flags, the robust scale of the high-passed residual, and that
+        residual (each stretch's own local fit).
+
+    """
+    half = max(LOCAL_MIN_SAMPLES, int(round(LOCAL_HALF_S / dt_s)))
+    weight = keep.astype(float)
+    h = np.zeros(len(r))
+    for _ in range(2):
+        for lo, hi in stretches(t, dt_s):
+            h[lo:hi] = local_high_pass(r[lo:hi], None if rate is None else rate[lo:hi],
+                                       weight[lo:hi], half)
+        sigma = max(robust_scale(h[keep]), floor)
+        u = np.abs(h) / (4.0 * sigma)
+        weight = keep * np.where(u > 1.0, 1.0 / np.maximum(u, 1.0) ** 2, 1.0)
+    return np.abs(h) > threshold * sigma, sigma, h
+
+
+def flag_segments(flag, t, dt_s):
+    """Group flags into stretches; widen multi-sample ones. Returns (set-aside mask, spans)."""
+    idx = np.flatnonzero(flag)
+    out = np.zeros(len(t), bool)
+    spans = []
+    if not len(idx):
+        return out, spans
+    breaks = np.flatnonzero(np.diff(t[idx]) > MERGE_S) + 1
+    for group in np.split(idx, breaks):
+        lo, hi = t[group[0]], t[group[-1]]
+        if len(group) > 1:
+            lo, hi = lo - MERGE_S, hi + MERGE_S + 0.5 * dt_s
+            sel = (t >= lo) & (t <= hi)
+        else:
+            sel = np.zeros(len(t), bool)
+            sel[group[0]] = True
+        out |= sel
+        spans.append((float(t[sel][0]), float(t[sel][-1]), int(sel.sum())))
+    return out, spans
+
+
+@dataclass(frozen=True)
+class SetAside:
+    """
+    What :func:`screen_at_rest` set aside.
+
+    ``keep`` is True for the samples kept; ``spans`` lists each stretch set
+    aside as (start_s, end_s, samples); ``sigma_rad_s`` is the robust scale
+    of the high-passed rate; ``threshold`` the robust standard deviations
+    (``math.inf``: screening off); ``note`` is set when nothing was set
+    aside because too much would have been.
+    """
+
+    keep: np.ndarray
+    spans: tuple
+    sigma_rad_s: float
+    threshold: float
+    note: str = ''
+
+    @property
+    def count(self):
+        """Return the number of samples set aside."""
+        return int(len(self.keep) - np.count_nonzero(self.keep))
+
+    @property
+    def fraction(self):
+        """Return the share of the samples set aside."""
+        return self.count / max(len(self.keep), 1)
+
+    def as_dict(self, max_spans=50):
+        """JSON-ready form (the first ``max_spans`` stretches)."""
+        return {'count': self.count, 'fraction': self.fraction,
+                'stretches': len(self.spans),
+                'spans': [list(s) for s in self.spans[:max_spans]],
+                'sigma_rad_s': self.sigma_rad_s,
+                'threshold_sigma': None if math.isinf(self.threshold) else self.threshold,
+                'note': self.note}
+
+    def describe(self):
+        """One line for a report: how many samples, in how many stretches, and when."""
+        if math.isinf(self.threshold):
+            return 'outlier screening off: every sample kept'
+        if not self.count:
+            return (f'no sample beyond {self.threshold:g} robust sigma of its neighbours: '
+                    f'nothing set aside{"; " + self.note if self.note else ""}')
+        first = ', '.join(f'{lo:.1f}-{hi:.1f} s' if n > 1 else f'{lo:.2f} s'
+                          for lo, hi, n in self.spans[:4])
+        more = f' and {len(self.spans) - 4} more' if len(self.spans) > 4 else ''
+        return (f'set aside {self.count} samples ({100 * self.fraction:.3g} %) in '
+                f'{len(self.spans)} stretches beyond {self.threshold:g} robust sigma of '
+                f'their neighbours (spikes, motion): {first}{more}')
+
+
+def _quantised_floor(rate, time_s, dt_s, threshold):
+    """Least scale of a quantised record (:func:`screen_at_rest`); 0 for a continuous one."""
+    step = quantisation_step(rate)
+    if step <= 0.0:
+        return 0.0
+    _, _, h = high_pass_flags(rate, None, np.ones(len(rate), bool), time_s, dt_s, threshold)
+    return max(step / math.sqrt(12.0), clipped_scale(h, threshold))
+
+
+def screen_at_rest(time_s, rate_rad_s, dt_s, threshold=THRESHOLD):
+    """
+    Find the spikes and motion of a record taken at rest (module docstring).
+
+    Two passes of :func:`high_pass_flags` (the second without the first's
+    flags in its fits and scale), then :func:`flag_segments`. A quantised
+    output (:func:`quantisation_step`) takes as its scale at least the
+    clipped standard deviation of its high-passed rate
+    (:func:`clipped_scale`) and the quantisation noise LSB / sqrt(12): a part
+    whose noise is about its LSB moves by whole LSBs, and that is no outlier. When more
+    than :data:`MAX_FRACTION` of the record would go, it is not at rest:
+    nothing is set aside and ``note`` says so.
+
+    Parameters
+    ----------
+    time_s, rate_rad_s : numpy.ndarray
+        Sample times (s) and rates (rad/s).
+    dt_s : float
+        Sample interval, s.
+    threshold : float
+        Robust standard deviations (``math.inf``: set nothing aside).
+
+    Returns
+    -------
+    SetAside
+
+    """
+    time_s = np.asarray(time_s, dtype=float)
+    rate = np.asarray(rate_rad_s, dtype=float)
+    n = len(rate)
+    keep = np.ones(n, bool)
+    if not math.isfinite(threshold) or n < 2 * LOCAL_MIN_SAMPLES + 1:
+        return SetAside(keep, (), float('nan'), threshold)
+    flag = np.zeros(n, bool)
+    sigma = float('nan')
+    floor = _quantised_floor(rate, time_s, dt_s, threshold)
+    for _ in range(2):
+        new, sigma, _ = high_pass_flags(rate, None, ~flag, time_s, dt_s, threshold, floor)
+        flag |= new
+    drop, spans = flag_segments(flag, time_s, dt_s)
+    if drop.sum() > MAX_FRACTION * n:
+        note = (f'{100 * drop.mean():.0f} % of the samples stand out from their neighbours: '
+                'the record is not at rest, so nothing was set aside')
+        return SetAside(keep, (), sigma, threshold, note)
+    return SetAside(~drop, tuple(spans), sigma, threshold)

@@ -1,0 +1,160 @@
+"""Spikes and motion set aside in records at rest: allan, calibrate noise and thermal."""
+
+import math
+
+from gyro_emulator import cli
+from gyro_emulator.analysis import allan, outliers
+from gyro_emulator.analysis.calibrate import noise as cal_noise, thermal
+from gyro_emulator.analysis.diagnose import make_truth
+import numpy as np
+import pytest
+from scipy import signal
+
+RATE_HZ = 100.0
+
+
+def _static_noise(rng, n, sigma=1e-3, rho=0.0, walk=2e-6, flicker=2e-4):
+    """White (optionally AR(1)-filtered), a random walk and a slow Gauss-Markov wander, rad/s."""
+    white = rng.standard_normal(n) * sigma
+    if rho:
+        white = signal.lfilter([math.sqrt(1 - rho ** 2)], [1.0, -rho], white)
+    walk = np.cumsum(rng.standard_normal(n)) * walk
+    phi = math.exp(-1.0 / (RATE_HZ * 300.0))
+    wander = signal.lfilter([flicker * math.sqrt(1 - phi ** 2)], [1.0, -phi],
+                            rng.standard_normal(n))
+    return white + walk + wander + 0.01
+
+
+def _bump(rng, n_samples, peak_rad_s):
+    """Return a handling bump: band-limited motion under a half-sine window."""
+    b, a = signal.butter(2, 3.0 / (0.5 * RATE_HZ))
+    motion = signal.lfilter(b, a, rng.standard_normal(n_samples + 100))[100:]
+    motion *= peak_rad_s / np.max(np.abs(motion))
+    return motion * np.sin(np.pi * np.arange(n_samples) / n_samples)
+
+
+@pytest.mark.parametrize('rho', [0.0, 0.6])
+def test_clean_records_lose_nothing(rho):
+    """False alarms: 40 seeded records of 50 000 samples at rest, white or filtered noise."""
+    t = np.arange(50_000) / RATE_HZ
+    lost = 0
+    for seed in range(40):
+        x = _static_noise(np.random.default_rng(seed), len(t), rho=rho)
+        lost += outliers.screen_at_rest(t, x, 1.0 / RATE_HZ).count
+    # 2e6 samples x 2e-9 (two-sided 6 sigma): 0.004 expected
+    assert lost == 0
+
+
+@pytest.mark.parametrize('noise_lsb', [0.2, 0.5, 1.0, 3.0])
+def test_a_quantised_output_moving_by_whole_lsbs_is_not_an_outlier(noise_lsb):
+    t = np.arange(100_000) / RATE_HZ
+    lsb = 1e-3
+    x = np.round(np.random.default_rng(7).standard_normal(len(t)) * noise_lsb) * lsb
+    assert outliers.quantisation_step(x) == pytest.approx(lsb)
+    assert outliers.screen_at_rest(t, x, 1.0 / RATE_HZ).count == 0
+    # a real spike on the same grid still stands out
+    x[5000] += 40 * lsb * max(noise_lsb, 1.0)
+    found = outliers.screen_at_rest(t, x, 1.0 / RATE_HZ)
+    assert found.count == 1 and found.spans[0][0] == pytest.approx(t[5000])
+
+
+def test_spikes_and_a_bump_are_found_and_reported():
+    rng = np.random.default_rng(11)
+    t = np.arange(200_000) / RATE_HZ
+    x = _static_noise(rng, len(t))
+    where = rng.choice(np.arange(1000, len(t) - 1000), 60, replace=False)
+    x[where] += rng.choice([-1, 1], 60) * rng.uniform(0.015, 0.3, 60)   # 15 to 300 sigma
+    start = 120_000
+    x[start:start + 400] += _bump(rng, 400, 0.2)                       # a 4 s bump
+    found = outliers.screen_at_rest(t, x, 1.0 / RATE_HZ)
+    assert np.all(~found.keep[where])
+    # (two spikes less than 1 s apart also make a stretch: about 2 such pairs expected)
+    bump = [s for s in found.spans if s[0] <= t[start + 200] <= s[1]]
+    assert len(bump) == 1
+    lo, hi, _ = bump[0]
+    # the bump's visible part is inside the stretch, widened by 1 s for its settling
+    assert lo <= t[start + 60] and hi >= t[start + 340]
+    assert hi - lo < 4.0 + 2 * outliers.MERGE_S + 0.5
+    assert found.fraction < 0.01          # 60 spikes, a 6 s stretch, a pair or two: not more
+    line = found.describe()
+    assert line.startswith(f'set aside {found.count} samples') and 'stretches' in line
+
+
+def test_a_record_that_is_not_at_rest_is_left_alone_and_says_so():
+    t = np.arange(20_000) / RATE_HZ
+    rng = np.random.default_rng(3)
+    x = _static_noise(rng, len(t)) + np.where(rng.random(len(t)) < 0.3, 0.5, 0.0)
+    found = outliers.screen_at_rest(t, x, 1.0 / RATE_HZ)
+    assert found.count == 0 and 'not at rest' in found.note
+
+
+def test_the_noise_fit_survives_spikes_and_handling_motion():
+    """The truth generator's lab outliers: N and B as on the clean record, 10x off without."""
+    clean, _ = make_truth('none', 5, profile='static', sample_rate_hz=RATE_HZ,
+                          duration_s=3600.0)
+    dirty, truth = make_truth('none', 5, profile='static', sample_rate_hz=RATE_HZ,
+                              duration_s=3600.0, outliers='spikes+motion')
+    assert truth['outliers']['spikes'] > 0 and truth['outliers']['motion_s']
+    fits = {}
+    for name, rec, threshold in (('clean', clean, outliers.THRESHOLD),
+                                 ('screened', dirty, outliers.THRESHOLD),
+                                 ('kept', dirty, math.inf)):
+        rate_hz, segments, found, handled = allan.screened_segments(
+            rec.time_s, rec.gyro_rad_s, threshold=threshold)
+        fits[name] = (allan.identify(segments, rate_hz)[1], found, handled)
+    n_clean = fits['clean'][0].intervals['arw']
+    n = fits['screened'][0].arw_rad_s_sqrt_hz
+    assert fits['clean'][1].count == 0
+    # the screened N inside the clean fit's 95 % interval, widened by the filled share
+    share = fits['screened'][1].fraction
+    assert n_clean.low * (1 - share) <= n <= n_clean.high
+    assert fits['kept'][0].arw_rad_s_sqrt_hz > 3 * n
+    spikes = truth['outliers']['spike_times_s']
+    kept = fits['screened'][1].keep
+    idx = np.searchsorted(dirty.time_s, spikes)
+    assert np.mean(~kept[idx]) >= 0.9
+    assert fits['screened'][2]['filled'] + fits['screened'][2]['cut'] == fits['screened'][1].count
+
+
+def _thermal_log(path, outliers_kind):
+    rec, truth = make_truth('bias_temperature', 4, profile='thermal_cycle', sample_rate_hz=10.0,
+                            duration_s=20000.0, outliers=outliers_kind)
+    with open(path, 'w', encoding='utf-8') as handle:
+        handle.write('time_s,temp_c,gyro_rad_s\n')
+        for row in zip(rec.time_s, rec.temp_c, rec.gyro_rad_s):
+            handle.write('%.3f,%.5f,%.9g\n' % row)
+    return str(path), truth
+
+
+def test_thermal_fit_survives_spikes_and_motion(tmp_path):
+    clean, _ = _thermal_log(tmp_path / 'clean.csv', None)
+    dirty, truth = _thermal_log(tmp_path / 'dirty.csv', 'spikes+motion')
+    ref = thermal.fit_thermal(thermal.read_thermal_log([clean]))
+    fit = thermal.fit_thermal(thermal.read_thermal_log([dirty]))
+    kept = thermal.fit_thermal(thermal.read_thermal_log([dirty]), outlier_threshold=math.inf)
+    slope, err = ref.coefficients['x'][1], ref.errors['x'][1]
+    assert fit.order == ref.order
+    assert abs(fit.coefficients['x'][1] - slope) < 3 * err
+    assert fit.set_aside['x'].count >= truth['outliers']['spikes']
+    assert any('set aside' in note for note in fit.notes)
+    # every sample kept: the spikes swamp the group noise
+    assert kept.group_noise['x'] > 5 * fit.group_noise['x']
+
+
+def test_cli_reports_and_can_keep_every_sample(tmp_path, capsys):
+    t = np.arange(60_000) / RATE_HZ
+    x = _static_noise(np.random.default_rng(2), len(t))
+    x[[1000, 20000, 40000]] += 0.2
+    path = tmp_path / 'static.csv'
+    np.savetxt(path, np.column_stack([t, x]), delimiter=',', header='time_s,gyro_rad_s',
+               comments='', fmt='%.9g')
+    assert cli.main(['allan', str(path), '--json', str(tmp_path / 'a.json')]) == 0
+    assert 'set aside 3 samples' in capsys.readouterr().out
+    assert cli.main(['allan', str(path), '--keep-outliers']) == 0
+    assert 'outlier screening off' in capsys.readouterr().out
+    out = tmp_path / 'imu.yaml'
+    assert cli.main(['calibrate', 'noise', str(path), '--format', 'kalibr', '-o',
+                     str(out)]) == 0
+    assert '#   set aside 3 samples' in out.read_text()
+    cal = cal_noise.calibrate_noise(str(path))
+    assert cal.axes[0].set_aside['count'] == 3 and cal.axes[0].set_aside['filled'] == 3
