@@ -245,6 +245,30 @@ def test_no_false_alarms_on_plain_noise(population):
     assert sum(bool(f.warnings) for _, f in population) <= 1
 
 
+@pytest.mark.parametrize('fs,fc', [(1000.0, 30.0), (400.0, 10.0), (200.0, 50.0)])
+def test_a_low_pass_output_drops_only_its_own_short_taus(fs, fc):
+    """
+    A 2nd-order output filter: the dropped region ends near 20 / fc, not at long taus.
+
+    Before, the Welch grid sampled the Allan kernel's ripple at long taus
+    (on its zeros when tau df was whole) and a few isolated long taus
+    dropped almost the whole curve: N was exported as 0.
+    """
+    rng = np.random.default_rng(1)
+    n = int(1800 * fs)
+    n_true = float(units.arw_deg_sqrt_h_to_rad_s_sqrt_hz(0.5))
+    y = rng.standard_normal(n) * n_true * math.sqrt(fs)
+    y += np.cumsum(rng.standard_normal(n)) * 1.6e-6 / math.sqrt(fs)     # K 20 deg/h/sqrt(h)
+    b, a = signal.butter(2, fc / (fs / 2))
+    y = signal.lfilter(b, a, y)
+    res, fit = allan.identify([y], fs)
+    assert fit.band.method in ('psd', 'slope')
+    assert 2.0 / fc <= fit.band.tau_min_s <= 25.0 / fc
+    # the band rule allows 1 % in variance (0.5 % in deviation) at the edge
+    low, high = fit.intervals['arw'].low, fit.intervals['arw'].high
+    assert low * 0.99 <= n_true <= high * 1.01
+
+
 def test_white_noise_has_no_band_limit_over_seeds():
     rng = np.random.default_rng(12)
     flagged = 0

@@ -90,9 +90,14 @@ def test_the_schedule_reached_the_node_and_each_fault_was_reported(played):
     assert 'refused' not in output
     found = windows(got['fault'])
     assert set(found) == {kind for kind, _, _ in SCHEDULE}
+    truth_ns = np.sort([stamp_ns(m.header) for m in got['truth']])
     for kind, (start, end) in found.items():
-        # 0.4 s on the node clock, to the sample (5 ms) it was checked at.
-        assert (end - start) * 1e-9 == pytest.approx(0.4, abs=0.011), kind
+        # 0.4 s on the node clock, to the sample (5 ms) it was checked at; a
+        # machine stall the node caught up from shows as a longer gap between
+        # its truth stamps and can shorten or lengthen the window by as much
+        near = truth_ns[(truth_ns >= start - 100_000_000) & (truth_ns <= end + 100_000_000)]
+        stall_s = max(0.0, float(np.max(np.diff(near), initial=0)) * 1e-9 - 0.005)
+        assert (end - start) * 1e-9 == pytest.approx(0.4, abs=0.011 + stall_s), kind
     levels = {}
     for array in got['diag']:
         status = array.status[0]

@@ -19,8 +19,11 @@ the effects are plain:
 
        d(tau) = sum_f r(f) |H(f)|^2 df / sum_f |H(f)|^2 df
 
-   The band-limited region is every tau where |d| > 1 % (0.5 % in deviation)
-   and more than four times its own scatter (the PSD is an estimate).
+   The band-limited region is every tau up to the last where |d| > 1 %
+   (0.5 % in deviation) and more than four times its own scatter (the PSD
+   is an estimate): a spectral line's effect ripples with tau (zero where
+   tau is a whole number of its periods), so the region does not end at
+   the first tau that looks clean.
 
 A PSD that rises toward Nyquist (above the white level by more than 10 %,
 log-log slope >= +0.3 over the top octave) is the signature of quantisation
@@ -146,24 +149,40 @@ def _white_run(centres, levels):
     return wide[-1] if wide else None
 
 
+#: A Welch grid resolves the Allan kernel's ripple (period 1 / tau in f) when
+#: tau df is at most this; beyond it the ripple is averaged (sin^4 -> 3/8).
+RESOLVED_TAU_DF = 0.25
+
+
 def variance_change(freq, psd, white_level, edge_hz, taus_s, windows=None, white_bins=None):
     """
     Relative change d(tau) of the Allan variance caused by the PSD above ``edge_hz``.
 
-    d = sum r(f) |H_tau(f)|^2 / sum |H_tau(f)|^2 over the Welch grid, with
+    d = integral r(f) |H_tau(f)|^2 df / integral |H_tau(f)|^2 df, with
     r = S / S_w - 1 above the edge and 0 below, |H_tau(f)|^2 =
-    2 sin^4(pi f tau) / (pi f tau)^2 (NIST SP 1065 Eq 65). With ``windows``
+    2 sin^4(pi f tau) / (pi f tau)^2 (NIST SP 1065 Eq 65). Where the Welch
+    grid (spacing df) resolves the kernel's ripple (tau df <=
+    :data:`RESOLVED_TAU_DF`) both integrals are sums over the grid; at longer
+    taus the grid would sample the ripple at arbitrary phases (on its zeros
+    when tau df is a whole number), so the numerator uses the ripple's
+    mean, 3 / (4 (pi f tau)^2), and the denominator its exact value from 0
+    to Nyquist, 1 / (2 tau) less the tail above Nyquist. With ``windows``
     (Welch averages) and ``white_bins`` (grid bins behind S_w) it also
     returns the standard deviation of d from the scatter of the estimate
     (relative variance 1 / windows per bin, 1 / (windows white_bins) for S_w).
     """
     f = np.asarray(freq[1:], dtype=float)
+    df = float(freq[1] - freq[0])
     above = f > edge_hz
     r = np.where(above, psd[1:] / white_level - 1.0, 0.0)
     taus = np.asarray(taus_s, dtype=float)[:, np.newaxis]
     x = np.pi * f[np.newaxis, :] * taus
-    kernel = 2.0 * np.sin(x) ** 4 / x ** 2
-    total = kernel.sum(axis=1)
+    resolved = taus[:, 0] * df <= RESOLVED_TAU_DF
+    kernel = np.where(resolved[:, np.newaxis], 2.0 * np.sin(x) ** 4 / x ** 2,
+                      0.75 / x ** 2) * df
+    nyquist = float(freq[-1]) + 0.5 * df
+    exact = 0.5 / taus[:, 0] - 0.75 / (np.pi ** 2 * taus[:, 0] ** 2 * nyquist)
+    total = np.where(resolved, kernel.sum(axis=1), exact)
     change = (kernel @ r) / total
     if windows is None:
         return change
