@@ -6,6 +6,7 @@ from gyro_emulator import cli
 from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.calibrate import noise as cal_noise, thermal
 from gyro_emulator.analysis.diagnose import make_truth
+from gyro_emulator.recording import csvio
 import numpy as np
 import pytest
 from scipy import signal
@@ -158,3 +159,89 @@ def test_cli_reports_and_can_keep_every_sample(tmp_path, capsys):
     assert '#   set aside 3 samples' in out.read_text()
     cal = cal_noise.calibrate_noise(str(path))
     assert cal.axes[0].set_aside['count'] == 3 and cal.axes[0].set_aside['filled'] == 3
+
+
+def test_a_stuck_or_saturated_axis_is_left_out_and_named(tmp_path):
+    """A dead z axis (all 0) or one pinned at full scale: x and y calibrated, z named."""
+    t = np.arange(120_000) / RATE_HZ
+    rng = np.random.default_rng(4)
+    x, y = _static_noise(rng, len(t)), _static_noise(rng, len(t))
+    for name, z in (('dead', np.zeros(len(t))), ('pinned', np.full(len(t), 34.906585))):
+        path = tmp_path / f'{name}.csv'
+        temp = 20.0 + 20.0 * t / t[-1]
+        np.savetxt(path, np.column_stack([t, x, y, z, temp]), delimiter=',', comments='',
+                   header='time_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,temp_c', fmt='%.10g')
+        cal = cal_noise.calibrate_noise(str(path))
+        assert [a.axis for a in cal.axes] == ['x', 'y']
+        assert len(cal.skipped) == 1 and cal.skipped[0].startswith('axis z holds one value')
+        with pytest.raises(ValueError, match='axis z holds one value'):
+            cal_noise.calibrate_noise(str(path), axes=('z',))
+        fit = thermal.fit_thermal(thermal.read_thermal_log([str(path)]))
+        assert set(fit.coefficients) == {'x', 'y'}
+        assert any('axis z holds one value' in note for note in fit.notes)
+    # a noisy quantised output repeats a value for a few samples, never for a second
+    q = np.round(np.random.default_rng(5).standard_normal(len(t)) * 0.4)
+    assert outliers.held_share(q, RATE_HZ)[0] == 0.0
+
+
+@pytest.mark.parametrize('stamping', ['milliseconds', 'fifo'])
+def test_coarse_or_shared_timestamps_give_the_true_rate(stamping):
+    """A 416.7 Hz part stamped in whole ms (steps 2 and 3 ms), or a FIFO of 3 per stamp."""
+    rate_hz = 1000.0 / 2.4 if stamping == 'milliseconds' else 100.0
+    n = 400_000 if stamping == 'milliseconds' else 60_000
+    true_t = np.arange(n) / rate_hz
+    t = (np.floor(true_t * 1000.0) / 1000.0 if stamping == 'milliseconds'
+         else np.repeat(true_t[::3], 3)[:n])
+    x = np.random.default_rng(6).standard_normal(n) * 1e-3
+    got, segments = csvio.sample_rate_and_segments(t)
+    assert got == pytest.approx(rate_hz, rel=1e-3) and len(segments) == 1
+    _, fit = allan.identify([x], got)
+    density = 1e-3 / math.sqrt(rate_hz)
+    assert fit.intervals['arw'].low <= density <= fit.intervals['arw'].high
+
+
+def test_a_shock_that_moves_the_bias_splits_the_record():
+    """A 3 s bump after which the bias sits about 14 sigma (of 10 s means) higher: cut."""
+    rng = np.random.default_rng(8)
+    t = np.arange(360_000) / RATE_HZ
+    x = _static_noise(rng, len(t), flicker=0.0)
+    x[180_000:] += 1e-3
+    x[179_800:180_100] += _bump(rng, 300, 0.3)
+    rate_hz, segments, found, handled = allan.screened_segments(t, x)
+    assert len(handled['level_shifts']) == 1
+    assert handled['level_shifts'][0]['shift_rad_s'] == pytest.approx(1e-3, rel=0.3)
+    assert len(segments) == 2 and handled['filled'] == 0
+    # the same bump without the step is filled: one segment
+    y = _static_noise(np.random.default_rng(8), len(t), flicker=0.0)
+    y[179_800:180_100] += _bump(np.random.default_rng(9), 300, 0.3)
+    _, segments, _, handled = allan.screened_segments(t, y)
+    assert handled['level_shifts'] == [] and len(segments) == 1
+
+
+def test_thermal_range_and_windows_survive_glitches_and_logging_gaps(tmp_path):
+    """Three -40 C temperature reads and three logging gaps in a 10 -> 50 C ramp."""
+    t = np.arange(0.0, 7200.0, 0.1)
+    temp = 10.0 + 40.0 * t / t[-1]
+    temp[[1000, 30000, 60000]] = -40.0
+    rate = 0.003 + 1e-4 * (temp - 30.0) + np.random.default_rng(3).standard_normal(len(t)) * 1e-3
+    keep = ~(((t > 1800) & (t < 1830)) | ((t > 3600) & (t < 3630)) | ((t > 5400) & (t < 5430)))
+    path = tmp_path / 'ramp.csv'
+    np.savetxt(path, np.column_stack([t[keep], temp[keep], rate[keep]]), delimiter=',',
+               header='time_s,temp_c,gyro_rad_s', comments='', fmt='%.10g')
+    fit = thermal.fit_thermal(thermal.read_thermal_log([str(path)]))
+    assert 'windows of 60 s in 4 stretches' in fit.grouping
+    assert 10.0 <= fit.temp_min_c < 11.0 and 49.0 < fit.temp_max_c <= 50.0
+    assert fit.span_k > 38.0
+
+
+def test_a_warm_up_at_the_start_is_warned_and_clean_records_are_not():
+    """A bias settling by 0.05 deg/s (300 s) in a 2 h log; 300 records without one stay quiet."""
+    rng = np.random.default_rng(12)
+    t = np.arange(720_000) / RATE_HZ
+    x = _static_noise(rng, len(t), walk=2e-7, flicker=0.0) + 8.7e-4 * np.exp(-t / 300.0)
+    _, fit = allan.identify([x], RATE_HZ)
+    assert any('warm-up' in w for w in fit.warnings)
+    warned = sum(allan.start_transient(_static_noise(np.random.default_rng(s), 60_000,
+                                                     walk=(2e-6, 2e-5)[s % 2]), RATE_HZ)
+                 is not None for s in range(300))
+    assert warned == 0

@@ -195,6 +195,88 @@ def flag_segments(flag, t, dt_s):
     return out, spans
 
 
+#: Identical consecutive samples over this long (s, and at least STUCK_MIN_SAMPLES)
+#: make a held stretch: a stuck or saturated output, not noise.
+STUCK_MIN_S = 1.0
+STUCK_MIN_SAMPLES = 100
+#: Share of the record in held stretches beyond which an axis is not usable.
+STUCK_SHARE = 0.01
+
+
+def held_share(values, rate_hz):
+    """
+    Return (share of samples in held stretches, the longest stretch's value).
+
+    A held stretch is a run of identical consecutive samples of at least
+    :data:`STUCK_MIN_S` and :data:`STUCK_MIN_SAMPLES`: a stuck or saturated
+    output (a quantised output whose noise is about its LSB repeats a value
+    for a handful of samples, never a hundred: 0.7^100 = 3e-16).
+    """
+    values = np.asarray(values, dtype=float)
+    if len(values) < 2:
+        return 0.0, float('nan')
+    change = np.flatnonzero(values[1:] != values[:-1]) + 1
+    starts = np.r_[0, change]
+    lengths = np.diff(np.r_[starts, len(values)])
+    held = lengths >= max(STUCK_MIN_SAMPLES, int(math.ceil(STUCK_MIN_S * rate_hz)))
+    if not np.any(held):
+        return 0.0, float('nan')
+    longest = int(np.argmax(lengths))
+    return float(np.sum(lengths[held])) / len(values), float(values[starts[longest]])
+
+
+def check_not_held(values, rate_hz, what):
+    """Raise ValueError naming ``what`` when its output is stuck or saturated (held_share)."""
+    share, value = held_share(values, rate_hz)
+    if share > STUCK_SHARE:
+        whole = 'holds one value' if share >= 1.0 else (
+            f'holds one value for {100 * share:.3g} % of its samples')
+        raise ValueError(f'{what} {whole} ({value:.9g}): a stuck, saturated or dead output '
+                         'has no noise to identify; cut those samples or leave the axis out')
+
+
+#: Window each side of a stretch set aside over which the levels are compared, s.
+SHIFT_WINDOW_S = 10.0
+
+
+def _window_means(time_s, values, keep, window_s):
+    """Means of the kept samples in consecutive windows of ``window_s`` (empty ones left out)."""
+    index = np.floor((time_s - time_s[0]) / window_s).astype(np.int64)[keep]
+    sums = np.bincount(index, weights=values[keep])
+    counts = np.bincount(index)
+    full = counts >= max(10, 0.5 * np.max(counts, initial=0))
+    return sums[full] / counts[full]
+
+
+def level_shifts(time_s, values, keep, spans, threshold=THRESHOLD, window_s=SHIFT_WINDOW_S):
+    """
+    Return the stretches across which the level steps: [(start_s, end_s, shift)].
+
+    The mean of the kept samples within ``window_s`` after a stretch minus
+    the mean within ``window_s`` before it (a shock that moved the bias, the
+    bump itself set aside), judged against the robust spread of the
+    differences of adjacent ``window_s`` means over the whole record (the
+    record's own wander over that time, white noise included): beyond
+    ``threshold`` of it, the level stepped.
+    """
+    time_s = np.asarray(time_s, dtype=float)
+    values = np.asarray(values, dtype=float)
+    means = _window_means(time_s, values, keep, window_s)
+    if len(means) < 8:
+        return []
+    scale = robust_scale(np.diff(means))
+    out = []
+    for lo, hi, _ in spans:
+        before = keep & (time_s >= lo - window_s) & (time_s < lo)
+        after = keep & (time_s > hi) & (time_s <= hi + window_s)
+        if np.count_nonzero(before) < 10 or np.count_nonzero(after) < 10:
+            continue
+        shift = float(np.mean(values[after]) - np.mean(values[before]))
+        if abs(shift) > threshold * scale:
+            out.append((lo, hi, shift))
+    return out
+
+
 @dataclass(frozen=True)
 class SetAside:
     """

@@ -121,7 +121,7 @@ def _calibrate(args):
     axes = None if args.axis == 'all' else (args.axis,)
     cal = noise.calibrate_noise(args.log, axes, args.topic,
                                 outlier_threshold=_threshold(args))
-    for note in cal.recovery:
+    for note in cal.recovery + cal.skipped:
         print(f'gyro-emulator calibrate: warning: {note}', file=sys.stderr)
     return cal
 

@@ -224,12 +224,20 @@ def read_gyro_csv(path, axis=None, time_order='increasing'):
     return columns['time_s'], columns[name], name
 
 
+#: Median and mean time step agreeing within this share: the median is the step.
+STEP_AGREEMENT = 1e-3
+
+
 def sample_rate_and_segments(time_s, gap_factor=3.0):
     """
     Nominal sample rate and the contiguous segments of a record.
 
-    The rate is 1 / median(diff(time_s)); a step longer than ``gap_factor``
-    times the median starts a new segment (a gap in the record).
+    A step longer than ``gap_factor`` times the median positive step
+    starts a new segment (a gap in the record). The rate is 1 / that median,
+    or 1 / the mean step within the segments when the two differ by more
+    than :data:`STEP_AGREEMENT`: stamps rounded to a coarse clock (a 416.7 Hz
+    part stamped in whole milliseconds steps 2 and 3 ms, median 2) or shared
+    by a FIFO batch (steps 0, 0, 3 dt) have the right mean, not median.
 
     Returns
     -------
@@ -243,11 +251,17 @@ def sample_rate_and_segments(time_s, gap_factor=3.0):
     if len(t) < 2:
         raise ValueError(f'time_s has {len(t)} samples: need >= 2')
     step = np.diff(t)
-    dt = float(np.median(step))
-    if not dt > 0.0:
-        raise ValueError('time_s: the median time step is not positive')
-    cuts = np.flatnonzero(step > gap_factor * dt) + 1
+    positive = step[step > 0.0]
+    if not len(positive):
+        raise ValueError('time_s: no time step is positive')
+    dt = float(np.median(positive))
+    gap = step > gap_factor * dt
+    cuts = np.flatnonzero(gap) + 1
     edges = np.concatenate(([0], cuts, [len(t)]))
+    within = step[~gap]
+    mean = float(np.mean(within)) if len(within) else dt
+    if mean > 0.0 and abs(mean / dt - 1.0) > STEP_AGREEMENT:
+        dt = mean
     return 1.0 / dt, [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
 
 

@@ -516,17 +516,28 @@ def compare_readings(fit, result, found):
     interval (its own statistics, not widened by the model discrepancy: the
     question is whether the curve the fit draws passes through the point).
     99 %, not 95 %: the minimum of a curve is its lowest point by selection.
+    At every read-off, identified or not, a fitted term whose own deviation
+    alone is above that interval is a contradiction (each term is at most
+    the total): the fit is pulled by structure the terms do not describe.
     """
     taus = np.asarray(result.taus_s, dtype=float)
     out = []
     for term, reading in found.items():
-        if not reading.identified:
-            continue
         i = int(np.argmin(np.abs(taus - reading.tau_s)))
         measured, fitted = float(result.adev[i]), float(fit.adev(taus[i:i + 1])[0])
         edf = max(float(result.edf[i]), 1.0)
         lo = measured * np.sqrt(edf / stats.chi2.ppf(0.995, edf))
         hi = measured * np.sqrt(edf / stats.chi2.ppf(0.005, edf))
+        own = float(fit.term_adev(term, taus[i:i + 1])[0])
+        if own > hi:
+            out.append(f'the fitted {term} alone is {100 * (own / measured - 1):+.0f} % above '
+                       f'the measured deviation at tau = {taus[i]:.3g} s, outside its 99 % '
+                       'interval: the curve bends below the model there, so the fit is pulled '
+                       'by something else (a warm-up or other trend, a step): check the start '
+                       'of the log, trim it, and fit again')
+            continue
+        if not reading.identified:
+            continue
         if abs(fitted / measured - 1.0) > READING_DISAGREEMENT and not lo <= fitted <= hi:
             out.append(f'fit and read-off disagree for {term} at tau = {taus[i]:.3g} s: the '
                        f'measured deviation is {100 * (measured / fitted - 1):+.0f} % from '

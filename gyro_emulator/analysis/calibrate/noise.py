@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.allan import record as allan_record
+from gyro_emulator.recording import csvio
 import numpy as np
 
 #: A grid is a quantisation step when every sample lies on it within this fraction.
@@ -65,6 +66,8 @@ class NoiseCalibration:
         The grid the samples lie on (0: none found), rad/s.
     recovery : tuple of str
         What a damaged bag lost.
+    skipped : tuple of str
+        Axes left out, and why (a stuck, saturated or dead output).
 
     """
 
@@ -74,6 +77,7 @@ class NoiseCalibration:
     axes: tuple
     lsb_rad_s: float = 0.0
     recovery: tuple = ()
+    skipped: tuple = ()
 
     def axis(self, name):
         """Return the :class:`AxisNoise` of axis ``name``."""
@@ -149,8 +153,17 @@ def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fractio
     record = allan.read_gyro_record(path, topic) if record is None else record
     axes = tuple(record.rates) if axes is None else tuple(axes)
     found, rate_hz, steps = [], None, []
+    skipped = []
     for name in axes:
         rate, column = allan_record.axis_of(record, name)
+        try:
+            outliers.check_not_held(rate, csvio.sample_rate_and_segments(record.time_s)[0],
+                                    f'axis {name}')
+        except ValueError as exc:
+            if len(axes) == 1:
+                raise ValueError(f'{path}: {exc}') from None
+            skipped.append(f'{exc}: left out')
+            continue
         try:
             rate_hz, segments, screened, handled = allan.screened_segments(
                 record.time_s, rate, gap_factor, outlier_threshold)
@@ -161,10 +174,13 @@ def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fractio
                                float(np.mean(rate[screened.keep])), tuple(segments),
                                allan_record.set_aside_summary(screened, handled)))
         steps.append(detect_lsb(rate))
+    if not found:
+        raise ValueError(f'{path}: no axis to calibrate: ' + '; '.join(skipped))
     lsb = float(np.median(steps)) if all(s > 0.0 for s in steps) else 0.0
     return NoiseCalibration(source=str(path), rate_hz=float(rate_hz),
                             duration_s=float(record.time_s[-1] - record.time_s[0]),
-                            axes=tuple(found), lsb_rad_s=lsb, recovery=record.recovery)
+                            axes=tuple(found), lsb_rad_s=lsb, recovery=record.recovery,
+                            skipped=tuple(skipped))
 
 
 @dataclass(frozen=True)

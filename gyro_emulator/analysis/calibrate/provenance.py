@@ -53,6 +53,8 @@ def noise_lines(calibration, exported, tool, convention):
             lines.append(f'  {item.set_aside["description"]}')
         for warning in fit.warnings:
             lines.append(f'  warning: {warning}')
+    for note in calibration.skipped:
+        lines.append(f'Axis left out: {note}')
     lines.append(f'Convention: {convention}')
     if exported is not None:
         lines.append(f'Chosen: {exported.note or "the fitted values"}.')

@@ -123,9 +123,20 @@ class Groups:
     how: str
 
 
+def _windows(time_s, a, b, window_s):
+    """Index bounds of the windows of ``window_s`` over samples a..b (3 or more samples each)."""
+    edges = np.arange(time_s[a], time_s[b - 1] + window_s, window_s)
+    idx = a + np.searchsorted(time_s[a:b], edges)
+    return [(int(lo), int(hi)) for lo, hi in zip(idx[:-1], idx[1:]) if hi - lo >= 3]
+
+
 def group_means(time_s, temp_c, rate, window_s=60.0, gap_factor=3.0, keep=None):
     """
-    Average a static log in groups: its bursts (3 or more), or windows of ``window_s``.
+    Average a static log in groups: its bursts, or windows of ``window_s``.
+
+    Bursts (3 or more, none longer than two windows) are the groups of a
+    log taken in bursts; otherwise each contiguous stretch is cut into
+    windows (a continuous log, or one with a few logging gaps).
 
     Only the samples ``keep`` marks (default all) count; a group with fewer
     than 3 of them is left out. The standard error of each mean is the
@@ -135,11 +146,13 @@ def group_means(time_s, temp_c, rate, window_s=60.0, gap_factor=3.0, keep=None):
     _, bounds = csvio.sample_rate_and_segments(time_s, gap_factor)
     bounds = [(a, b) for a, b in bounds if b - a >= 3]
     how = f'{len(bounds)} bursts'
-    if len(bounds) < 3:
-        edges = np.arange(time_s[0], time_s[-1] + window_s, window_s)
-        idx = np.searchsorted(time_s, edges)
-        bounds = [(int(a), int(b)) for a, b in zip(idx[:-1], idx[1:]) if b - a >= 3]
-        how = f'{len(bounds)} windows of {window_s:g} s'
+    long = [time_s[b - 1] - time_s[a] > 2.0 * window_s for a, b in bounds]
+    if len(bounds) < 3 or any(long):
+        # a continuous log, or one with logging gaps: windows within each stretch
+        stretches = len(bounds)
+        bounds = [w for a, b in bounds for w in _windows(time_s, a, b, window_s)]
+        how = f'{len(bounds)} windows of {window_s:g} s' + (
+            f' in {stretches} stretches' if stretches > 1 else '')
     keep = np.ones(len(rate), bool) if keep is None else np.asarray(keep, bool)
     rows, used = [], []
     for a, b in bounds:
@@ -246,6 +259,23 @@ def _order_for(groups, temp_ref, order):
     return 1, []
 
 
+def _usable_axes(log):
+    """Return (the log without its stuck or saturated axes, notes on them); none left: error."""
+    from dataclasses import replace
+
+    keep, notes = {}, []
+    for axis, (t, temp, rate) in log.axes.items():
+        try:
+            outliers.check_not_held(rate, csvio.sample_rate_and_segments(t)[0], f'axis {axis}')
+        except ValueError as exc:
+            notes.append(f'{exc}: left out')
+            continue
+        keep[axis] = (t, temp, rate)
+    if not keep:
+        raise ValueError('thermal log: no axis to fit: ' + '; '.join(notes))
+    return replace(log, axes=keep, columns={a: log.columns[a] for a in keep}), notes
+
+
 def _screen(log, gyro_scale, threshold):
     """Spikes and motion of each axis (:func:`gyro_emulator.analysis.outliers.screen_at_rest`)."""
     out = {}
@@ -286,10 +316,13 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
         raise ValueError(f'window_s = {window_s!r} is out of range: allowed [1, 86400] s')
     if not (np.isfinite(gyro_scale) and 0.01 <= gyro_scale <= 100.0):
         raise ValueError(f'gyro_scale = {gyro_scale!r} is out of range: allowed [0.01, 100]')
+    log, skipped = _usable_axes(log)
     screened = _screen(log, gyro_scale, outlier_threshold)
     groups = {a: group_means(t, temp, rate * gyro_scale, window_s, keep=screened[a].keep)
               for a, (t, temp, rate) in log.axes.items()}
-    temps = np.concatenate([temp for _, temp, _ in log.axes.values()])
+    # the range the fit covers: group means (a glitch in the temperature column
+    # moves one group's mean a little, not TMIN or TMAX)
+    temps = np.concatenate([g.temp_c for g in groups.values()])
     t_min, t_max = float(np.min(temps)), float(np.max(temps))
     first = next(iter(groups.values()))
     span = float(np.ptp(first.temp_c))
@@ -311,6 +344,7 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
     corr = float(np.corrcoef(first.temp_c, first.time_s)[0, 1]) if span > 0 else 0.0
     notes = _notes(coefs, errs, rms, noise, corr, chosen, significant, gyro_scale)
     notes += [f'axis {a}: {v.describe()}' for a, v in screened.items() if v.count or v.note]
+    notes += skipped
     return ThermalFit(sources=log.sources, columns=log.columns, temp_ref_c=temp_ref,
                       temp_min_c=t_min, temp_max_c=t_max, order=chosen, order_reason=reason,
                       coefficients=coefs, errors=errs, groups=groups, residual_rms=rms,
