@@ -190,15 +190,37 @@ def allowed_order(span_k, distinct, requested=MAX_ORDER):
                      f'(need, for {needs})')
 
 
+def newey_west_lags(count):
+    """Newey-West lag count for ``count`` observations: floor(4 (count / 100)^(2/9))."""
+    return int(np.floor(4.0 * (count / 100.0) ** (2.0 / 9.0)))
+
+
 def polyfit_stats(dtemp, values, order):
-    """Least squares in ascending powers of dtemp: (coefficients, standard errors, residuals)."""
+    """
+    Least squares in ascending powers of dtemp: (coefficients, standard errors, residuals).
+
+    The group means follow each other in time and their residuals share
+    the part's slow wander (bias instability, random walk), so they are not
+    independent: each standard error is the larger of the ordinary one and
+    the Newey-West (HAC) one (statsmodels, Bartlett kernel,
+    :func:`newey_west_lags` lags, small-sample correction), the groups taken
+    in the order given (time).
+    """
     design = np.vander(np.asarray(dtemp, dtype=float), order + 1, increasing=True)
+    values = np.asarray(values, dtype=float)
     coef, _, _, _ = np.linalg.lstsq(design, values, rcond=None)
     resid = values - design @ coef
     dof = max(len(values) - order - 1, 1)
     scale = float(np.sum(resid ** 2) / dof)
-    cov = scale * np.linalg.pinv(design.T @ design)
-    return coef, np.sqrt(np.maximum(np.diag(cov), 0.0)), resid
+    err = np.sqrt(np.maximum(np.diag(scale * np.linalg.pinv(design.T @ design)), 0.0))
+    lags = newey_west_lags(len(values))
+    if lags >= 1 and dof >= 3:
+        import statsmodels.api as sm
+
+        hac = sm.OLS(values, design).fit(cov_type='HAC', cov_kwds={
+            'maxlags': lags, 'use_correction': True})
+        err = np.maximum(err, np.asarray(hac.bse, dtype=float))
+    return coef, err, resid
 
 
 @dataclass(frozen=True)
