@@ -211,3 +211,31 @@ def test_real_adis16405_static_log_gives_no_false_cause():
     assert not record.has_temp and doc['set_aside']['fraction'] < 1e-3
     # its output is filtered (sample-to-sample correlation); the floor reads it
     assert doc['residual']['excess'] == pytest.approx(1.0, abs=0.02)
+
+
+def test_a_bias_that_follows_the_sign_of_rotation_is_not_called_explained():
+    """Outside the catalogue: an offset of 2e-3 rad/s x sign(rate); the residual still follows rate."""
+    import dataclasses
+
+    import numpy as np
+
+    record, _ = make_truth('none', 4, sample_rate_hz=2.0, levels=3)
+    signed = dataclasses.replace(
+        record, gyro_rad_s=record.gyro_rad_s + 2e-3 * np.sign(record.rate_cmd_rad_s))
+    doc = diagnose(signed).doc
+    assert doc['verdict'] in ('partly_explained', 'unexplained')
+    assert doc['residual']['structure_remains']
+    assert doc['residual']['follows']['regressor'] in ('rate', 'rate_squared')
+
+
+def test_a_large_but_unproven_gain_is_not_a_mismatch_free_record():
+    """The rule that turns "no mismatch" into "unexplained, suggestive": its conditions."""
+    from gyro_emulator.analysis.diagnose import verdict as vd
+
+    cands = [('bias_temperature', 0.48, 0.016), ('bias_step', 0.22, 1.0)]
+    assert vd.suggestive(cands, [])[0] == 'bias_temperature'
+    # temperature moving with time: wander follows it by chance
+    assert vd.suggestive(cands, [{'a': 'time', 'b': 'temperature', 'correlation': 0.99}]) is None
+    assert vd.suggestive([('bias_temperature', 0.2, 0.016)], []) is None
+    assert vd.suggestive([('bias_temperature', 0.48, 0.2)], []) is None
+    assert vd.suggestive([('bias_time', 0.9, 1e-3), ('bias_hysteresis', 0.4, 0.01)], []) is None

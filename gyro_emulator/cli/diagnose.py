@@ -81,6 +81,8 @@ def _check(args):
 
 def _print(doc):
     """Print the verdict on stdout."""
+    from gyro_emulator.analysis.diagnose import report
+
     best = doc['best']
     sa = doc['set_aside']
     print(f"{doc['input']['rows']} samples, {doc['input']['duration_s']:.0f} s; baseline "
@@ -102,7 +104,7 @@ def _print(doc):
     for text in doc['experiments']:
         print(f'experiment: {text}')
     for f in doc['findings']:
-        print(f"  {f['effect']:<26} gain {100 * f['gain']:7.2f} %  "
+        print(f"  {f['effect']:<26} gain {report.gain_text(f['gain']):>9}  "
               f"p {f['p_value']:.1e}  dBIC {f['delta_bic']:9.0f}  "
               f"{'significant' if f['significant'] else ''}")
     for nt in doc['not_tested']:

@@ -86,6 +86,13 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
     chosen = [c for _, c in steps if c is not None]
     selected = [_entry(c, rmse_base) for c in chosen]
     result = vd.verdict(selected, res['consistent'])
+    hint = None
+    if steps and steps[-1][1] is None:
+        # the step that added nothing: a large gain it could not establish
+        hint = vd.suggestive([(c.effect.effect_id, c.gain_step, c.p_value)
+                              for c in steps[-1][0]], confound)
+        if hint is not None:
+            result = 'partly_explained' if selected else 'unexplained'
     remains = result in ('partly_explained', 'unexplained')
     best_gain = None
     if chosen and rms_all['best'] is not None:
@@ -93,6 +100,17 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
     res.update({'structure_remains': remains, 'excess_over_noise': res['excess'],
                 'noise_rad_s': res['noise']['white_sigma_rad_s']})
     res['message'] = vd.message(result, selected, res)
+    res['suggestive'] = None
+    if hint is not None:
+        effect, gain, p = hint
+        n = len(steps[-1][0])
+        res['suggestive'] = {'effect': effect, 'gain': gain, 'p_value': p}
+        res['message'] += (
+            f' {effect} removes {100 * gain:.0f} % of the held-out error (p = {p:.2g} before '
+            f'the correction for the {n} candidates; the bar is {alpha / n:.2g}): suggestive, '
+            'not established. The wander measured from a residual that still holds such an '
+            'effect is inflated by it, and with it the bar: a longer run, or more '
+            'temperature cycles, would settle it.')
     best = dict(selected[0]) if selected else _none_entry(rmse_base)
     best['gain_all_samples'] = best_gain
     cal_all = base.calibrate(cv.prep.binned, cv.ctx.phys)

@@ -341,14 +341,29 @@ def null_gain(current_cols, candidate, superbins, sims):
     return np.asarray(out)
 
 
+def held_out_residuals(cols, superbins, sims):
+    """
+    Held-out residuals of the simulations under a model: (groups, simulations).
+
+    The simulations are fitted with the model's columns averaged over the
+    groups and predicted fold by fold, as the cross-validation does.
+    """
+    w = superbins.weight
+    out = np.empty_like(sims)
+    for k in np.unique(superbins.fold):
+        ho = superbins.fold == k
+        pred, _ = _held_out(cols[~ho], w[~ho], sims[~ho], cols[ho])
+        out[ho] = sims[ho] - pred
+    return out
+
+
 def held_out_floor(noise, cols, superbins, sims, n_kept):
     """
     Held-out residual a correct model leaves on noise alone: the noise floor.
 
-    The simulations are fitted with the model's columns averaged over the
-    groups and predicted fold by fold, as the cross-validation does; the
-    within-group noise, (n_g - 1) sigma^2 per group (sigma the short-term
-    per-sample spread), is added for the per-sample RMS.
+    The held-out residuals of the simulations (:func:`held_out_residuals`);
+    the within-group noise, (n_g - 1) sigma^2 per group (sigma the
+    short-term per-sample spread), is added for the per-sample RMS.
 
     Returns
     -------
@@ -359,11 +374,8 @@ def held_out_floor(noise, cols, superbins, sims, n_kept):
 
     """
     w = superbins.weight
-    sse = np.zeros(sims.shape[1])
-    for k in np.unique(superbins.fold):
-        ho = superbins.fold == k
-        pred, _ = _held_out(cols[~ho], w[~ho], sims[~ho], cols[ho])
-        sse += np.sum(w[ho, None] * (sims[ho] - pred) ** 2, axis=0)
+    resid = held_out_residuals(cols, superbins, sims)
+    sse = np.sum(w[:, None] * resid ** 2, axis=0)
     within = float(np.sum(np.maximum(w - 1.0, 0.0))) * noise.white_sigma_rad_s ** 2
     rms = np.sqrt((sse + within) / n_kept)
     return float(np.sqrt(np.mean(rms ** 2))), rms, sse / float(np.sum(w))

@@ -139,7 +139,7 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     selector = selection.Selector(cv, superbins, alpha, seed)
     steps, final = selection.forward_selection(selector, null, testable, max_causes)
     chosen = [c for _, c in steps if c is not None]
-    res = vd.residual_floor(selector, final)
+    res = vd.residual_floor(selector, final, have)
     res['r2'], res['strongest_correlate'] = vd.correlates(prep, final.resid, have)
     confound = vd.confounded(prep, have)
     rms_all = {

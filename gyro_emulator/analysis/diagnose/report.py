@@ -21,6 +21,19 @@ PLOTS = (('temperature', 'temp_c', 'temperature reading (C)'),
          ('time', 'time_s', 'time (s)'))
 
 
+def gain_text(gain):
+    """
+    Return a held-out gain for a table: percent, or how many times worse.
+
+    A candidate whose fit blows up on the held-out folds (a law extrapolated
+    beyond the temperatures it was fitted on) can be hundreds of times worse
+    than the baseline; -36162 % says that badly.
+    """
+    if gain < -1.0:
+        return f'worse: {1.0 - gain:.3g}x the RMSE'
+    return f'{100 * gain:.2f} %'
+
+
 def _binned_curve(x, r, groups=25):
     """Mean residual in equal-count groups of x, for a trend line."""
     if np.ptp(x) <= 0.0:
@@ -218,7 +231,7 @@ def _steps_lines(doc):
         lines += [f"Step {i}: added `{st['added'] or 'nothing'}`.", '',
                   '| candidate | held-out RMSE (rad/s) | gain over the step before | p | '
                   'delta BIC | significant |', '|---|---|---|---|---|---|']
-        lines += [f"| {c['effect']} | {c['rmse_rad_s']:.4g} | {100 * c['gain_step']:.2f} % "
+        lines += [f"| {c['effect']} | {c['rmse_rad_s']:.4g} | {gain_text(c['gain_step'])} "
                   f"| {c['p_value']:.2g} | {c['delta_bic']:.0f} | "
                   f"{'yes' if c['significant'] else 'no'} |" for c in st['candidates']]
         lines.append('')

@@ -283,10 +283,8 @@ def forward_selection(selector, null, effects, max_causes=MAX_CAUSES):
         if chosen is None:
             break
         current = chosen.evaluated
-        # a cause that made the held-out prediction worse, with no sign of
-        # evidence, is not scored again
-        useless = {c.effect.effect_id for c in cands
-                   if c.gain_step <= 0.0 and c.p_value >= 0.5}
-        remaining = [e for e in remaining if e is not chosen.effect
-                     and e.effect_id not in useless]
+        # every other cause is scored again: one that made the prediction
+        # worse alone can help once another has joined (a bias tempco beside
+        # a scale-factor tempco, a dT/dt bias beside a thermal lag)
+        remaining = [e for e in remaining if e is not chosen.effect]
     return steps, current

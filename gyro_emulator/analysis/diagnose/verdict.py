@@ -25,6 +25,7 @@ import math
 
 from gyro_emulator.analysis.diagnose import noise_model
 import numpy as np
+from scipy import stats
 
 #: |correlation| from which two regressors are reported as confounded.
 CONFOUNDED_R = 0.9
@@ -32,6 +33,12 @@ CONFOUNDED_R = 0.9
 EXCESS_QUANTILE_Z = 2.33
 #: Relative excess of the per-sample RMS always allowed: the floor is an estimate.
 MODEL_TOLERANCE = 0.02
+#: A residual holds structure when it follows a regressor past its noise-alone
+#: limit by this share of what the limit leaves: (R^2 - limit) / (1 - limit).
+#: A share, not a test: the limit is a normal approximation from 64 simulations
+#: (a bare "R^2 > limit" flagged 7 of 150 records without an effect, all by
+#: less than 0.1; a sign-dependent bias went past it by 0.6).
+STRUCTURE_MARGIN = 0.25
 
 _CORRELATE_TEXT = {
     'temperature': 'temperature', 'temperature_rate': 'the rate of change of '
@@ -92,7 +99,44 @@ def _limit(ratio):
         EXCESS_QUANTILE_Z * float(np.std(ratio, ddof=1))
 
 
-def residual_floor(selector, final):
+def structure_limit(selector, final, noise, have):
+    """
+    Group R^2 of the held-out residual against the regressors, beside noise alone.
+
+    The strongest share of the residual's super-bin means that quantile
+    groups of one regressor explain (:func:`_group_r2`), for the record and
+    for each simulated noise record under the same model
+    (:func:`.noise_model.held_out_residuals`). Wander can follow time (or
+    anything slow) by chance, and the simulations say how far; a residual
+    that follows a regressor beyond the simulations' point for that
+    regressor (mean plus z sigma, z for 1 % Bonferroni-shared over the
+    regressors) holds structure, whatever its RMS says: an effect left in
+    the residual also inflates the wander measured from it, and with it the
+    floor. Returns (observed R^2, its limit, regressor, margin) of the
+    regressor that passes its limit by most (or comes closest), the margin
+    (R^2 - limit) / (1 - limit); :data:`STRUCTURE_MARGIN` decides.
+    """
+    sb = selector.superbins
+    prep = selector.cv.prep
+    group = sb.group[prep.sample_bin]
+    means = np.bincount(group, weights=final.resid, minlength=len(sb)) / sb.weight
+    sims = noise_model.held_out_residuals(selector.group_columns(final.model, final.full.phis),
+                                          sb, selector.sims_of(noise))
+    found = regressors(prep, have)
+    z = stats.norm.isf(0.01 / len(found))                 # 1 % over the regressors
+    best = (0.0, 0.0, 1.0, None)
+    for key, x in found.items():
+        xg = sb.aggregate(x)
+        r2 = _group_r2(xg, means, sb.weight)
+        null = np.array([_group_r2(xg, sims[:, j], sb.weight) for j in range(sims.shape[1])])
+        limit = min(1.0, float(np.mean(null)) + z * float(np.std(null, ddof=1)))
+        margin = (r2 - limit) / max(1.0 - limit, 1e-9)
+        if best[3] is None or margin > best[0]:
+            best = (margin, r2, limit, key)
+    return best[1], best[2], best[3], best[0]
+
+
+def residual_floor(selector, final, have=None):
     """
     Held-out residual of ``final`` against its noise floor, per sample and averaged.
 
@@ -103,7 +147,9 @@ def residual_floor(selector, final):
     and slow structure stands out whatever the sample rate. The residual is
     *consistent* with its floor when both are within their simulated 99 %
     points, the per-sample one allowing ``MODEL_TOLERANCE`` (the floor is an
-    estimate itself).
+    estimate itself), and (given ``have``, the regressors the record
+    varies) when it follows no regressor beyond what its noise does
+    (:func:`structure_limit`).
     """
     noise = selector.noise_of(final)
     sb = selector.superbins
@@ -119,10 +165,15 @@ def residual_floor(selector, final):
     excess, excess_slow = final.rmse / floor, math.sqrt(ms_obs) / slow_floor
     limit = max(_limit(rms_sims / floor), 1.0 + MODEL_TOLERANCE)
     limit_slow = _limit(np.sqrt(ms_sims) / slow_floor)
+    r2, r2_limit, follows, margin = (structure_limit(selector, final, noise, have)
+                                     if have is not None else (0.0, 1.0, None, 0.0))
     return {'rms_rad_s': final.rmse, 'floor_rad_s': floor, 'excess': excess,
             'excess_limit': limit, 'averaging_s': float(np.median(np.diff(sb.time_s))),
             'excess_slow': excess_slow, 'excess_slow_limit': limit_slow,
-            'consistent': bool(excess <= limit and excess_slow <= limit_slow),
+            'follows': {'regressor': follows, 'r2': r2, 'r2_limit': r2_limit,
+                        'margin': margin},
+            'consistent': bool(excess <= limit and excess_slow <= limit_slow
+                               and margin < STRUCTURE_MARGIN),
             'wander_measured_to_s': noise.tau_max_s, 'noise': noise.as_dict()}
 
 
@@ -216,6 +267,40 @@ def experiments(selected, confound, remains, strongest):
     return list(dict.fromkeys(out))
 
 
+#: A candidate that follows one of these regressors (not time, which wander
+#: follows by chance) and gains this much held-out with p below SUGGESTIVE_P
+#: before the correction over the candidates makes "no mismatch" untrue.
+SUGGESTIVE_REGRESSORS = ('temperature', 'temperature_rate', 'rate', 'acceleration')
+SUGGESTIVE_GAIN = 0.25
+SUGGESTIVE_P = 0.05
+
+
+def suggestive(candidates, confound):
+    """
+    Return the last step's strongest candidate that is suggestive but not established.
+
+    ``candidates``: (effect id, held-out gain over the step before,
+    uncorrected p) of the step that added nothing; ``confound``: the
+    confounded pairs. A candidate counts when its
+    regressor (:data:`REGRESSOR_OF`) is one of :data:`SUGGESTIVE_REGRESSORS`
+    and not confounded with time, its gain is at least
+    :data:`SUGGESTIVE_GAIN` and its p below :data:`SUGGESTIVE_P`. In 150
+    seeded records without an effect (thermal ramps, static runs, lab runs,
+    four noise colours) none did; a bias tempco over a chamber cycle whose
+    wander estimate it inflated did (gain 48 %, p = 0.016).
+    """
+    with_time = {c['a'] if c['b'] == 'time' else c['b'] for c in confound
+                 if 'time' in (c['a'], c['b'])}
+    found = None
+    for effect, gain, p in candidates:
+        regressor = REGRESSOR_OF.get(effect)
+        if (regressor in SUGGESTIVE_REGRESSORS and regressor not in with_time
+                and gain >= SUGGESTIVE_GAIN and p < SUGGESTIVE_P
+                and (found is None or gain > found[1])):
+            found = (effect, gain, p)
+    return found
+
+
 def verdict(selected, consistent):
     """Return the verdict: no_mismatch, explained, partly_explained or unexplained."""
     if selected:
@@ -243,5 +328,8 @@ def message(result, selected, res):
         return f'Explained by {names}: ' + level + '.'
     lead = (f'Partly explained by {names}' if result == 'partly_explained' else
             'No cause in the catalogue explains the mismatch')
+    if share < 0.1:
+        return (f'{lead}: {level}; structure remains, and no regressor of the record '
+                f'explains it (the largest share is {share:.2f}, {what}).')
     return (f'{lead}: {level}; structure remains, and its strongest correlate is '
             f'{what} (R^2 = {share:.2f}).')
