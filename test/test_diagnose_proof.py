@@ -214,7 +214,7 @@ def test_real_adis16405_static_log_gives_no_false_cause():
 
 
 def test_a_bias_that_follows_the_sign_of_rotation_is_not_called_explained():
-    """Outside the catalogue: an offset of 2e-3 rad/s x sign(rate); the residual still follows rate."""
+    """Outside the catalogue: 2e-3 rad/s x sign(rate); the residual still follows the rate."""
     import dataclasses
 
     import numpy as np
