@@ -105,6 +105,8 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
         effect, gain, p = hint
         n = len(steps[-1][0])
         res['suggestive'] = {'effect': effect, 'gain': gain, 'p_value': p}
+        res['message'] = res['message'].replace(
+            'No cause in the catalogue explains the mismatch', 'No cause is established')
         res['message'] += (
             f' {effect} removes {100 * gain:.0f} % of the held-out error (p = {p:.2g} before '
             f'the correction for the {n} candidates; the bar is {alpha / n:.2g}): suggestive, '

@@ -130,7 +130,7 @@ def structure_limit(selector, final, noise, have):
         r2 = _group_r2(xg, means, sb.weight)
         null = np.array([_group_r2(xg, sims[:, j], sb.weight) for j in range(sims.shape[1])])
         limit = min(1.0, float(np.mean(null)) + z * float(np.std(null, ddof=1)))
-        margin = (r2 - limit) / max(1.0 - limit, 1e-9)
+        margin = max(-1.0, (r2 - limit) / max(1.0 - limit, 1e-9))
         if best[3] is None or margin > best[0]:
             best = (margin, r2, limit, key)
     return best[1], best[2], best[3], best[0]
