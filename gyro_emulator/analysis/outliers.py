@@ -225,13 +225,17 @@ def held_share(values, rate_hz):
     return float(np.sum(lengths[held])) / len(values), float(values[starts[longest]])
 
 
+class HeldOutput(ValueError):
+    """An output stuck, saturated or dead (:func:`check_not_held`): a part to leave out."""
+
+
 def check_not_held(values, rate_hz, what):
-    """Raise ValueError naming ``what`` when its output is stuck or saturated (held_share)."""
+    """Raise HeldOutput naming ``what`` when its output is stuck or saturated (held_share)."""
     share, value = held_share(values, rate_hz)
     if share > STUCK_SHARE:
         whole = 'holds one value' if share >= 1.0 else (
             f'holds one value for {100 * share:.3g} % of its samples')
-        raise ValueError(f'{what} {whole} ({value:.9g}): a stuck, saturated or dead output '
+        raise HeldOutput(f'{what} {whole} ({value:.9g}): a stuck, saturated or dead output '
                          'has no noise to identify; cut those samples or leave the axis out')
 
 

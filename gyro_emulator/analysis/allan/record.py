@@ -98,7 +98,8 @@ def segments_of(time_s, rate, gap_factor=3.0):
     return rate_hz, segments
 
 
-def screened_segments(time_s, rate, gap_factor=3.0, threshold=outliers.THRESHOLD):
+def screened_segments(time_s, rate, gap_factor=3.0, threshold=outliers.THRESHOLD,
+                      what='the axis'):
     """
     Set a static record's spikes and motion aside, then split it at gaps.
 
@@ -118,15 +119,15 @@ def screened_segments(time_s, rate, gap_factor=3.0, threshold=outliers.THRESHOLD
 
     Raises
     ------
-    ValueError
-        When the output is stuck or saturated
-        (:func:`gyro_emulator.analysis.outliers.check_not_held`).
+    gyro_emulator.analysis.outliers.HeldOutput
+        When the output is stuck or saturated (named as ``what``,
+        :func:`gyro_emulator.analysis.outliers.check_not_held`).
 
     """
     time_s = np.asarray(time_s, dtype=float)
     rate = np.asarray(rate, dtype=float)
     rate_hz, _ = csvio.sample_rate_and_segments(time_s, gap_factor)
-    outliers.check_not_held(rate, rate_hz, 'the axis')
+    outliers.check_not_held(rate, rate_hz, what)
     screened = outliers.screen_at_rest(time_s, rate, 1.0 / rate_hz, threshold)
     filled = rate.copy()
     cut = np.zeros(len(rate), bool)

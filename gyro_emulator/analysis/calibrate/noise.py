@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.allan import record as allan_record
-from gyro_emulator.recording import csvio
 import numpy as np
 
 #: A grid is a quantisation step when every sample lies on it within this fraction.
@@ -157,16 +156,13 @@ def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fractio
     for name in axes:
         rate, column = allan_record.axis_of(record, name)
         try:
-            outliers.check_not_held(rate, csvio.sample_rate_and_segments(record.time_s)[0],
-                                    f'axis {name}')
-        except ValueError as exc:
+            rate_hz, segments, screened, handled = allan.screened_segments(
+                record.time_s, rate, gap_factor, outlier_threshold, f'axis {name}')
+        except outliers.HeldOutput as exc:
             if len(axes) == 1:
                 raise ValueError(f'{path}: {exc}') from None
             skipped.append(f'{exc}: left out')
             continue
-        try:
-            rate_hz, segments, screened, handled = allan.screened_segments(
-                record.time_s, rate, gap_factor, outlier_threshold)
         except ValueError as exc:
             raise ValueError(f'{path}: {exc}') from None
         result, fit = allan.identify(segments, rate_hz, max_tau_fraction)

@@ -281,30 +281,30 @@ def _order_for(groups, temp_ref, order):
     return 1, []
 
 
-def _usable_axes(log):
-    """Return (the log without its stuck or saturated axes, notes on them); none left: error."""
+def _screen(log, gyro_scale, threshold):
+    """
+    Leave out stuck axes, and find each other axis's spikes and motion.
+
+    Returns (the log without its stuck or saturated axes, their
+    :class:`gyro_emulator.analysis.outliers.SetAside` per axis, notes on the
+    axes left out); with no axis left, ValueError.
+    """
     from dataclasses import replace
 
-    keep, notes = {}, []
-    for axis, (t, temp, rate) in log.axes.items():
-        try:
-            outliers.check_not_held(rate, csvio.sample_rate_and_segments(t)[0], f'axis {axis}')
-        except ValueError as exc:
-            notes.append(f'{exc}: left out')
-            continue
-        keep[axis] = (t, temp, rate)
-    if not keep:
-        raise ValueError('thermal log: no axis to fit: ' + '; '.join(notes))
-    return replace(log, axes=keep, columns={a: log.columns[a] for a in keep}), notes
-
-
-def _screen(log, gyro_scale, threshold):
-    """Spikes and motion of each axis (:func:`gyro_emulator.analysis.outliers.screen_at_rest`)."""
-    out = {}
+    screened, notes = {}, []
     for axis, (t, _, rate) in log.axes.items():
         rate_hz, _ = csvio.sample_rate_and_segments(t)
-        out[axis] = outliers.screen_at_rest(t, rate * gyro_scale, 1.0 / rate_hz, threshold)
-    return out
+        try:
+            outliers.check_not_held(rate, rate_hz, f'axis {axis}')
+        except outliers.HeldOutput as exc:
+            notes.append(f'{exc}: left out')
+            continue
+        screened[axis] = outliers.screen_at_rest(t, rate * gyro_scale, 1.0 / rate_hz, threshold)
+    if not screened:
+        raise ValueError('thermal log: no axis to fit: ' + '; '.join(notes))
+    kept = replace(log, axes={a: log.axes[a] for a in screened},
+                   columns={a: log.columns[a] for a in screened})
+    return kept, screened, notes
 
 
 def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
@@ -338,8 +338,7 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
         raise ValueError(f'window_s = {window_s!r} is out of range: allowed [1, 86400] s')
     if not (np.isfinite(gyro_scale) and 0.01 <= gyro_scale <= 100.0):
         raise ValueError(f'gyro_scale = {gyro_scale!r} is out of range: allowed [0.01, 100]')
-    log, skipped = _usable_axes(log)
-    screened = _screen(log, gyro_scale, outlier_threshold)
+    log, screened, skipped = _screen(log, gyro_scale, outlier_threshold)
     groups = {a: group_means(t, temp, rate * gyro_scale, window_s, keep=screened[a].keep)
               for a, (t, temp, rate) in log.axes.items()}
     # the range the fit covers: group means (a glitch in the temperature column

@@ -357,13 +357,14 @@ def held_out_residuals(cols, superbins, sims):
     return out
 
 
-def held_out_floor(noise, cols, superbins, sims, n_kept):
+def held_out_floor(noise, resid, superbins, n_kept):
     """
     Held-out residual a correct model leaves on noise alone: the noise floor.
 
-    The held-out residuals of the simulations (:func:`held_out_residuals`);
-    the within-group noise, (n_g - 1) sigma^2 per group (sigma the
-    short-term per-sample spread), is added for the per-sample RMS.
+    ``resid`` are the held-out residuals of the simulations under the model
+    (:func:`held_out_residuals`, groups x simulations); the within-group
+    noise, (n_g - 1) sigma^2 per group (sigma the short-term per-sample
+    spread), is added for the per-sample RMS.
 
     Returns
     -------
@@ -374,7 +375,6 @@ def held_out_floor(noise, cols, superbins, sims, n_kept):
 
     """
     w = superbins.weight
-    resid = held_out_residuals(cols, superbins, sims)
     sse = np.sum(w[:, None] * resid ** 2, axis=0)
     within = float(np.sum(np.maximum(w - 1.0, 0.0))) * noise.white_sigma_rad_s ** 2
     rms = np.sqrt((sse + within) / n_kept)

@@ -99,10 +99,13 @@ def _limit(ratio):
         EXCESS_QUANTILE_Z * float(np.std(ratio, ddof=1))
 
 
-def structure_limit(selector, final, noise, have):
+def structure_limit(prep, superbins, means, sims, have):
     """
     Group R^2 of the held-out residual against the regressors, beside noise alone.
 
+    ``means`` are the held-out residual's super-bin means and ``sims`` the
+    simulated noise records' held-out residuals under the same model
+    (:func:`.noise_model.held_out_residuals`), groups x simulations.
     The strongest share of the residual's super-bin means that quantile
     groups of one regressor explain (:func:`_group_r2`), for the record and
     for each simulated noise record under the same model
@@ -116,12 +119,7 @@ def structure_limit(selector, final, noise, have):
     regressor that passes its limit by most (or comes closest), the margin
     (R^2 - limit) / (1 - limit); :data:`STRUCTURE_MARGIN` decides.
     """
-    sb = selector.superbins
-    prep = selector.cv.prep
-    group = sb.group[prep.sample_bin]
-    means = np.bincount(group, weights=final.resid, minlength=len(sb)) / sb.weight
-    sims = noise_model.held_out_residuals(selector.group_columns(final.model, final.full.phis),
-                                          sb, selector.sims_of(noise))
+    sb = superbins
     found = regressors(prep, have)
     z = stats.norm.isf(0.01 / len(found))                 # 1 % over the regressors
     best = (0.0, 0.0, 1.0, None)
@@ -156,8 +154,8 @@ def residual_floor(selector, final, have=None):
     cols = selector.group_columns(final.model, final.full.phis)
     prep = selector.cv.prep
     n_kept = len(selector.cv.y)
-    floor, rms_sims, ms_sims = noise_model.held_out_floor(
-        noise, cols, sb, selector.sims_of(noise), n_kept)
+    resid_sims = noise_model.held_out_residuals(cols, sb, selector.sims_of(noise))
+    floor, rms_sims, ms_sims = noise_model.held_out_floor(noise, resid_sims, sb, n_kept)
     group = sb.group[prep.sample_bin]
     means = np.bincount(group, weights=final.resid, minlength=len(sb)) / sb.weight
     ms_obs = float(np.sum(sb.weight * means ** 2) / np.sum(sb.weight))
@@ -165,7 +163,7 @@ def residual_floor(selector, final, have=None):
     excess, excess_slow = final.rmse / floor, math.sqrt(ms_obs) / slow_floor
     limit = max(_limit(rms_sims / floor), 1.0 + MODEL_TOLERANCE)
     limit_slow = _limit(np.sqrt(ms_sims) / slow_floor)
-    r2, r2_limit, follows, margin = (structure_limit(selector, final, noise, have)
+    r2, r2_limit, follows, margin = (structure_limit(prep, sb, means, resid_sims, have)
                                      if have is not None else (0.0, 1.0, None, 0.0))
     return {'rms_rad_s': final.rmse, 'floor_rad_s': floor, 'excess': excess,
             'excess_limit': limit, 'averaging_s': float(np.median(np.diff(sb.time_s))),
