@@ -12,9 +12,18 @@ temperature ramp and prints 3-axis samples per second for
   building blocks (tables, filters, flicker plan), drawing its random numbers
   per sample,
 
-and the ratios, the cost of drawing the kernel's 10 standard normals per sample
-alone (numpy ``Generator.standard_normal(out=...)`` on SFC64 streams, the
-RNG floor), and the start-up time of a fresh process (import, model, first sample)
+and the ratios, two references for the kernel's 10 standard normals per
+sample drawn alone on its SFC64 streams:
+
+* the RNG floor: numpy's ``Generator.standard_normal(out=...)`` (the target's
+  reference);
+* the compiled draw: the same numbers, bit for bit, drawn by
+  :func:`gyro_emulator.sensor.streams.fill_standard_normal` (numba's supported
+  numpy ``Generator`` API), which is how the model draws them; this is the
+  kernel's own random-number cost, so batch / compiled draw is the share of
+  the time the error terms leave to the draws,
+
+and the start-up time of a fresh process (import, model, first sample)
 with an empty numba cache (JIT compile) and with the cache filled. Targets
 (issue 16): >= 7.5 million 3-axis samples per CPU-second in batch, and at
 least 0.7 of the RNG floor measured in the same run.
@@ -214,6 +223,8 @@ def main():
     generators = streams.spawn_generators(np.random.default_rng(1), draws)
     buffer = np.empty(args.samples)
     t_rng = best_of(3, lambda: [g.standard_normal(out=buffer) for g in generators])
+    t_compiled = best_of(3, lambda: [streams.fill_standard_normal(g, buffer)
+                                     for g in generators])
     with tempfile.TemporaryDirectory() as cache:
         cold = startup_s(cache)
         warm = min(startup_s(cache) for _ in range(2))
@@ -233,6 +244,11 @@ def main():
           f'{args.samples / t_rng[1]:,.0f} samples per CPU-second '
           f'({100 * t_rng[1] / t_batch[1]:.0f} % of the batch time)')
     floor_cpu = args.samples / t_rng[1]
+    compiled_cpu = args.samples / t_compiled[1]
+    print(f'compiled draw: the same {draws} normals per sample through '
+          f'streams.fill_standard_normal (how the model draws them): {compiled_cpu:,.0f} '
+          f'samples per CPU-second ({compiled_cpu / floor_cpu:.2f}x the RNG floor; '
+          f'{100 * t_compiled[1] / t_batch[1]:.0f} % of the batch time)')
     print(f'batch / streaming step: {batch_cpu / (n / t_step[1]):.0f}x; batch target '
           f'7,500,000 samples/s: {"met" if batch_cpu >= 7.5e6 else "NOT met"} '
           f'({batch_cpu / 7.5e6:.2f} of target per CPU-second); batch / RNG floor '
@@ -248,6 +264,8 @@ def main():
         figures['batch_samples_per_s'] = batch_cpu
         figures['rng_floor_samples_per_s'] = floor_cpu
         figures['batch_over_rng_floor'] = batch_cpu / floor_cpu
+        figures['compiled_draw_samples_per_s'] = compiled_cpu
+        figures['batch_over_compiled_draw'] = batch_cpu / compiled_cpu
         figures['startup_cold_s'] = list(cold)
         figures['startup_cached_s'] = list(warm)
         with open(args.json, 'w', encoding='utf-8') as handle:

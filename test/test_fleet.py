@@ -6,7 +6,7 @@ import json
 import os
 
 from gyro_emulator.analysis.fleet import config as fleet_config
-from gyro_emulator.analysis.fleet import evaluate, run, sampling
+from gyro_emulator.analysis.fleet import engine, evaluate, run, sampling
 from gyro_emulator.cli import main
 from gyro_emulator.physics import first_order
 from gyro_emulator.sensor import noise
@@ -167,15 +167,30 @@ def test_output_is_the_same_in_process_and_on_a_two_worker_local_cluster(tmp_pat
                       dashboard_address=':0', silence_logs=logging.ERROR) as cluster:
         c = run.run_fleet(cfg, n, 9, str(tmp_path / 'c'), scheduler=cluster.scheduler_address,
                           blocks_per_task=1)
+        e = run.run_fleet(cfg, n, 9, str(tmp_path / 'e'), scheduler=cluster.scheduler_address,
+                          blocks_per_task=3)
     assert c['run']['tasks'] == 3 and c['run']['tasks_here'] < 3
     rows = _rows(tmp_path / 'a')
     assert rows.num_rows == n
     assert np.array_equal(rows['device_id'].to_numpy(), np.arange(n))
-    for other in ('b', 'c'):
+    for other in ('b', 'c', 'e'):
         assert rows.equals(_rows(tmp_path / other)), other
-    assert _without_run(a) == _without_run(b) == _without_run(c)
+    assert _without_run(a) == _without_run(b) == _without_run(c) == _without_run(e)
     d = run.run_fleet(cfg, n, 10, str(tmp_path / 'd'), scheduler='in-process', write=False)
     assert _without_run(d) != _without_run(a)                   # the seed matters
+
+
+@pytest.mark.parametrize('blocks', [1, 7, 8, 9, 100, 1530])
+@pytest.mark.parametrize('workers', [1, 2, 16])
+def test_guided_tasks_cover_every_block_once_and_shrink(blocks, workers):
+    """Each block once and in order; sizes never grow, stay in 1..16, end at one block."""
+    tasks = engine.guided_tasks(blocks * sampling.BLOCK_DEVICES - 5, workers)
+    assert [b for task in tasks for b in task] == list(range(blocks))
+    sizes = [len(task) for task in tasks]
+    assert all(1 <= s <= engine.MAX_BLOCKS_PER_TASK for s in sizes)
+    assert sizes == sorted(sizes, reverse=True) and sizes[-1] == 1
+    if blocks >= 4 * workers * engine.MAX_BLOCKS_PER_TASK:
+        assert sizes[0] == engine.MAX_BLOCKS_PER_TASK
 
 
 def test_the_local_scheduler_starts_and_stops_its_own_cluster(tmp_path):

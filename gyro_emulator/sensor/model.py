@@ -46,9 +46,10 @@ Random numbers: every noise term and axis has its own stream (turn-on bias,
 timestamp jitter, white x3, flicker x3, rate random walk x3), a
 ``numpy.random.Generator(numpy.random.SFC64(child))`` on a child
 ``SeedSequence`` spawned from the injected ``numpy.random.Generator``
-(:mod:`gyro_emulator.sensor.streams`). The streams are drawn in blocks with
-``Generator.standard_normal`` and the kernel reads the blocks in order; a
-stream is used only while its term is on.
+(:mod:`gyro_emulator.sensor.streams`). The streams are drawn in blocks (each
+generator's ``standard_normal`` compiled by numba: numpy's numbers, bit for
+bit) and the kernel reads the blocks in order; a stream is used only while
+its term is on.
 """
 
 import copy

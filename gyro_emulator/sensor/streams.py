@@ -13,15 +13,21 @@ timestamp jitter, then white noise, flicker and rate random walk for the
 axes x, y, z.
 
 :class:`NormalStreams` draws each stream in blocks (up to :data:`BLOCK`,
-as many as a call needs) with ``Generator.standard_normal(out=...)`` into a
-buffer row that the compiled kernel reads in order. numpy's normal stream
-does not depend on how the draws are split into calls, so the k-th normal
-of a stream is the same whatever the block boundaries, the record split or
-the call pattern (``run`` over a record or ``step`` sample by sample).
+as many as a call needs) into a buffer row that the compiled kernel reads in
+order. A block is drawn by :func:`fill_standard_normal`: the generator's own
+``standard_normal`` through numba's supported numpy ``Generator`` API, the
+same numbers as ``Generator.standard_normal(out=...)`` bit for bit (numpy's
+ziggurat on the same bit generator state; tested) at about 2.5x the speed,
+because the draw is compiled into the loop instead of called per element.
+numpy's normal stream does not depend on how the draws are split into calls,
+so the k-th normal of a stream is the same whatever the block boundaries, the
+record split or the call pattern (``run`` over a record or ``step`` sample by
+sample).
 """
 
 import hashlib
 
+import numba
 import numpy as np
 
 #: Streams (rows of :attr:`NormalStreams.buffer`): turn-on, jitter, then white,
@@ -35,6 +41,27 @@ BLOCK = 16384
 #: Fewest normals drawn per refill (a streaming caller asking for a few
 #: samples at a time refills little and often, not a whole row at once).
 MIN_REFILL = 1024
+
+
+@numba.njit(cache=True)
+def fill_standard_normal(generator, out):
+    """
+    Fill ``out`` with the next standard normals of ``generator``, in order.
+
+    numba's supported ``numpy.random.Generator.standard_normal`` (numpy's
+    ziggurat on the generator's own bit generator, whose state it advances):
+    the numbers of ``generator.standard_normal(out=out)``, bit for bit.
+
+    Parameters
+    ----------
+    generator : numpy.random.Generator
+        The stream's generator.
+    out : numpy.ndarray
+        1-d float64 array to fill.
+
+    """
+    for i in range(out.shape[0]):
+        out[i] = generator.standard_normal()
 
 
 def spawn_generators(rng, count=STREAM_COUNT):
@@ -134,7 +161,7 @@ class NormalStreams:
         unread = end - pos
         row[:unread] = row[pos:end]
         stop = min(BLOCK, unread + max(need, MIN_REFILL))
-        self.generators[stream].standard_normal(out=row[unread:stop])
+        fill_standard_normal(self.generators[stream], row[unread:stop])
         self.pos[stream], self.end[stream] = 0, stop
 
     def __deepcopy__(self, memo):

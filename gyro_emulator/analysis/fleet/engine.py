@@ -170,9 +170,15 @@ def _writer(job, first_block, schema):
     import pyarrow.parquet as pq
 
     path = os.path.join(job.out_dir, 'devices', f'part-{first_block:06d}.parquet')
-    # LZ4 (as small as snappy here, 8 % faster to write); no dictionary
-    # encoding: it cannot shrink continuous values and costs 5x the time.
-    return pq.ParquetWriter(path, schema, compression='lz4', use_dictionary=False)
+    # Drawn values and metrics are continuous float32 whose mantissas do not
+    # compress: LZ4 saved 5 % of the bytes for 35 % more write time (21 ->
+    # 14 ms a block), dictionary encoding saves nothing and costs 5x, and
+    # min/max statistics of unordered columns prune no row group. So: no
+    # compression, no dictionary, statistics only on device_id (ordered),
+    # and device_id delta-encoded (consecutive integers: a few bytes a block).
+    return pq.ParquetWriter(path, schema, compression='none', use_dictionary=False,
+                            write_statistics=['device_id'],
+                            column_encoding={'device_id': 'DELTA_BINARY_PACKED'})
 
 
 def tasks_of(n_devices, blocks_per_task):
@@ -186,3 +192,23 @@ def default_blocks_per_task(n_devices, workers):
     """About four tasks per worker, one block at least, :data:`MAX_BLOCKS_PER_TASK` at most."""
     count = sampling.block_count(n_devices)
     return int(min(MAX_BLOCKS_PER_TASK, max(1, count // (4 * max(1, workers)))))
+
+
+def guided_tasks(n_devices, workers):
+    """
+    Group the blocks into tasks that shrink towards the end of the fleet (guided).
+
+    Each task takes a ``4 * workers``-th of the blocks still unassigned (one
+    at least, :data:`MAX_BLOCKS_PER_TASK` at most), so the workers start on
+    large tasks (little overhead per device) and finish on small ones: the
+    last worker to finish waits for others by one small task at most
+    instead of a large one (with ten 16-block tasks on 2 workers, the tail
+    alone cost 10 % of the wall time).
+    """
+    count, share = sampling.block_count(n_devices), 4 * max(1, workers)
+    tasks, start = [], 0
+    while start < count:
+        size = min(MAX_BLOCKS_PER_TASK, max(1, -(-(count - start) // share)))
+        tasks.append(list(range(start, min(start + size, count))))
+        start += size
+    return tasks

@@ -156,7 +156,9 @@ def plot_histogram(config, sample, metric, path, title, driver=None):
                              figsize=(10 if column is not None else 6, 4), squeeze=False)
     values = sample[metric]
     ax = axes[0, 0]
-    ax.hist(values[np.isfinite(values)], bins=100, alpha=0.8, label=f'{values.size} parts')
+    counts, edges = np.histogram(values[np.isfinite(values)], bins=100)
+    # One artist, not 100 bars: the legend's 'best' placement tests each (2x faster).
+    ax.stairs(counts, edges, fill=True, alpha=0.8, label=f'{values.size} parts')
     _limits(ax, _spec(config, metric))
     plotting.label(ax, metric, 'parts', title)
     if column is not None:

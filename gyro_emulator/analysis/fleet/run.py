@@ -120,14 +120,23 @@ class _DaskRun:
             self.error = exc
 
     def run(self, job, tasks, bar):
-        """Run the tasks, a few in flight per worker; return the results in task order."""
+        """
+        Run the tasks, a few in flight per worker; return the results in block order.
+
+        Until the cluster is up, this process runs the first blocks itself, one
+        block at a time (a block is about 50 ms), and hands the rest of a task
+        it has begun to the cluster: a whole task here would keep the workers
+        of a cluster that is already running idle for as long as it takes.
+        """
         from dask.distributed import as_completed
 
         results = {}
         queue = list(enumerate(tasks))
         while queue and self.starter.is_alive():
-            _, blocks = queue.pop(0)
-            results[blocks[0]] = engine.run_task(job, blocks, progress=bar.update)
+            index, blocks = queue.pop(0)
+            results[blocks[0]] = engine.run_task(job, blocks[:1], progress=bar.update)
+            if len(blocks) > 1:
+                queue.insert(0, (index, blocks[1:]))
         self.here = len(results)
         self.starter.join()
         if self.error is not None:
@@ -147,7 +156,7 @@ class _DaskRun:
                 index, blocks = queue.pop(0)
                 pending.add(client.submit(engine.run_task, shared, blocks,
                                           key=f'fleet-{index}'))
-        return [results[blocks[0]] for blocks in tasks]
+        return [results[first] for first in sorted(results)]
 
     def close(self):
         """Close the client and the cluster in a thread."""
@@ -199,8 +208,9 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
     workers : int, optional
         Workers of a ``local`` cluster (default: one per core).
     blocks_per_task : int, optional
-        Blocks of 65 536 devices per task (default: about four tasks per
-        worker, at most 16 blocks). It changes no result.
+        Blocks of 65 536 devices per task (default in-process: about four
+        tasks, at most 16 blocks; on Dask: tasks of at most 16 blocks that
+        shrink towards the end of the fleet). It changes no result.
     progress : bool
         Show a progress bar (tqdm) on stderr.
     overwrite : bool
@@ -220,11 +230,9 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
     if scheduler == 'in-process':
         workers = 1
     workers = _whole('workers', workers or os.cpu_count() or 1, 1, 1024)
-    blocks_per_task = _whole('blocks_per_task', blocks_per_task or engine.default_blocks_per_task(
-        n_devices, workers), 1, 1 << 20)
+    tasks = _tasks(n_devices, workers, blocks_per_task, scheduler)
     _prepare(out_dir, overwrite)
     job = engine.Job(config, seed, n_devices, os.path.abspath(out_dir), write)
-    tasks = engine.tasks_of(n_devices, blocks_per_task)
     bar = _bar(n_devices) if progress else _NoBar()
     start = time.perf_counter()
     dask_run = None if scheduler == 'in-process' else _DaskRun(scheduler, workers)
@@ -239,8 +247,9 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
             if dask_run is not None:
                 dask_run.close()
         wall = time.perf_counter() - start
-        run = {'scheduler': scheduler, 'workers': workers, 'blocks_per_task': blocks_per_task,
-               'tasks': len(tasks), 'tasks_here': len(tasks) if dask_run is None else
+        run = {'scheduler': scheduler, 'workers': workers,
+               'blocks_per_task': max(len(blocks) for blocks in tasks),
+               'tasks': len(results), 'tasks_here': len(results) if dask_run is None else
                dask_run.here, 'wall_s': wall}
         summary = report.summary(job, results, run)
         with open(os.path.join(out_dir, 'summary.json'), 'w', encoding='utf-8') as handle:
@@ -250,6 +259,23 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
         if dask_run is not None:
             dask_run.join()
     return summary
+
+
+def _tasks(n_devices, workers, blocks_per_task, scheduler):
+    """
+    Return the tasks (lists of blocks) of a run.
+
+    ``blocks_per_task`` given: tasks of that many blocks. Otherwise
+    in-process: :func:`engine.default_blocks_per_task`; on Dask: guided
+    tasks that shrink towards the end (:func:`engine.guided_tasks`).
+    """
+    if blocks_per_task is not None:
+        size = _whole('blocks_per_task', blocks_per_task, 1, 1 << 20)
+    elif scheduler == 'in-process':
+        size = engine.default_blocks_per_task(n_devices, workers)
+    else:
+        return engine.guided_tasks(n_devices, workers)
+    return engine.tasks_of(n_devices, size)
 
 
 def _whole(name, value, low, high):
