@@ -94,9 +94,10 @@ def loop_rate(cfg, m):
 
 def keep_best(fig, name, n, wall, cpu, summary):
     """Keep the shortest wall and CPU time of run ``name`` in ``fig``."""
-    best = fig.setdefault(name, {'devices': n, 'wall_s': np.inf, 'cpu_s': np.inf})
+    best = fig.setdefault(name, {'devices': n, 'wall_s': np.inf, 'cpu_s': None})
     best['wall_s'] = min(best['wall_s'], wall)
-    best['cpu_s'] = min(best['cpu_s'], cpu)
+    if cpu is not None:             # None: not measurable here (a running cluster's workers)
+        best['cpu_s'] = cpu if best['cpu_s'] is None else min(best['cpu_s'], cpu)
     best['tasks'] = summary['run']['tasks']
     best.setdefault('peak_rss_mb', peak_rss_mb())
 
@@ -117,7 +118,7 @@ def running_clusters(fig, cfg, n, scratch, repeats):
             timed(cfg, sampling.BLOCK_DEVICES, scratch, scheduler=address)   # warm up
             for _ in range(repeats):
                 wall, _, summary = timed(cfg, n, scratch, scheduler=address)
-                keep_best(fig, f'running_{workers}', n, wall, np.nan, summary)
+                keep_best(fig, f'running_{workers}', n, wall, None, summary)
         finally:
             cluster.close()
 

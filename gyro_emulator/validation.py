@@ -45,6 +45,8 @@ def check_range(owner, name, value, low, high, unit='',
     except (TypeError, ValueError):
         raise ValueError(
             f'{owner}.{name} = {value!r} is not a number') from None
+    if _all_inside(arr, low, high, low_open, high_open):
+        return float(arr) if arr.ndim == 0 else arr
     bad = ~np.isfinite(arr)
     if low is not None:
         bad |= (arr <= low) if low_open else (arr < low)
@@ -61,6 +63,24 @@ def check_range(owner, name, value, low, high, unit='',
             f'{owner}.{name} = {first!r}{where} is out of range: allowed '
             f'{bracket}{" " + unit if unit else ""}')
     return float(arr) if arr.ndim == 0 else arr
+
+
+def _all_inside(arr, low, high, low_open, high_open):
+    """
+    Whether every element is finite and inside the bounds, from its min and max.
+
+    Two reductions instead of an element mask (the common, passing case of
+    large parameter arrays); NaN propagates through min and max, so it
+    fails here and the mask in :func:`check_range` finds it.
+    """
+    if arr.size == 0:
+        return True
+    lo_v, hi_v = float(arr.min()), float(arr.max())
+    if not (np.isfinite(lo_v) and np.isfinite(hi_v)):
+        return False
+    if low is not None and (lo_v <= low if low_open else lo_v < low):
+        return False
+    return high is None or not (hi_v >= high if high_open else hi_v > high)
 
 
 def check_choice(owner, name, value, choices):
