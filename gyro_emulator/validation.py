@@ -47,11 +47,7 @@ def check_range(owner, name, value, low, high, unit='',
             f'{owner}.{name} = {value!r} is not a number') from None
     if _all_inside(arr, low, high, low_open, high_open):
         return float(arr) if arr.ndim == 0 else arr
-    bad = ~np.isfinite(arr)
-    if low is not None:
-        bad |= (arr <= low) if low_open else (arr < low)
-    if high is not None:
-        bad |= (arr >= high) if high_open else (arr > high)
+    bad = outside(arr, low, high, low_open, high_open)
     if np.any(bad):
         first = float(arr[bad].flat[0]) if arr.ndim else float(arr)
         lo = '-inf' if low is None else repr(low)
@@ -63,6 +59,21 @@ def check_range(owner, name, value, low, high, unit='',
             f'{owner}.{name} = {first!r}{where} is out of range: allowed '
             f'{bracket}{" " + unit if unit else ""}')
     return float(arr) if arr.ndim == 0 else arr
+
+
+def outside(arr, low, high, low_open=True, high_open=False):
+    """
+    Mask of the elements of ``arr`` outside the range; NaN and inf are outside.
+
+    ``low`` / ``high``: bounds, ``None`` for unbounded; ``low_open`` /
+    ``high_open``: whether the bound itself is excluded.
+    """
+    bad = ~np.isfinite(arr)
+    if low is not None:
+        bad |= (arr <= low) if low_open else (arr < low)
+    if high is not None:
+        bad |= (arr >= high) if high_open else (arr > high)
+    return bad
 
 
 def _all_inside(arr, low, high, low_open, high_open):

@@ -87,3 +87,35 @@ def test_the_smallest_lsb_quantises():
     batch, _ = _run(replace(BASE, lsb_rad_s=(lsb,) * 3))
     steps = batch.gyro_rad_s / lsb
     assert np.allclose(steps, np.round(steps), atol=1e-3)
+
+
+@pytest.mark.parametrize('low_open', [True, False])
+@pytest.mark.parametrize('high_open', [True, False])
+@pytest.mark.parametrize('seed', range(4))
+def test_check_range_refuses_exactly_the_arrays_with_an_element_outside(seed, low_open,
+                                                                        high_open):
+    """The min/max fast path and the element mask agree: bounds, NaN, inf, empty, scalars."""
+    from gyro_emulator.validation import check_range, outside
+
+    edges = np.array([0.0, 1.0, np.nan, np.inf, 0.5])
+    assert outside(edges, 0.0, 1.0, True, False).tolist() == [True, False, True, True, False]
+    assert outside(edges, 0.0, 1.0, False, True).tolist() == [False, True, True, True, False]
+    assert outside(edges, None, None).tolist() == [False, False, True, True, False]
+    rng = np.random.default_rng(seed)
+    specials = np.array([0.0, 1.0, np.nextafter(0.0, 1.0), np.nextafter(1.0, 0.0),
+                         -1e-300, np.nan, np.inf, -np.inf, 0.5])
+    for trial in range(300):
+        size = int(rng.integers(0, 6))
+        arr = np.where(rng.random(size) < 0.3, rng.choice(specials, size),
+                       rng.uniform(-0.2, 1.2, size))
+        if trial % 7 == 0 and size:
+            arr = arr[:1].reshape(())                   # a 0-d value
+        low, high = [(0.0, 1.0), (None, 1.0), (0.0, None), (None, None)][trial % 4]
+        expect_bad = bool(np.any(outside(arr, low, high, low_open, high_open)))
+        try:
+            check_range('T', 'x', arr, low, high, 'm', low_open, high_open)
+            refused = False
+        except ValueError as exc:
+            refused = True
+            assert str(exc).startswith('T.x = ') and '\n' not in str(exc)
+        assert refused == expect_bad, (arr, low, high, low_open, high_open)

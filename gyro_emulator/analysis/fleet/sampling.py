@@ -20,6 +20,7 @@ break a cross-field rule are rejected.
 
 from dataclasses import dataclass, replace
 
+from gyro_emulator import validation
 from gyro_emulator.analysis.fleet.config import DEVICE_GROUPS, MISMATCH
 import numpy as np
 
@@ -100,12 +101,7 @@ def _unit(rng, dist, n):
 
 def _outside(param, values):
     """Mask of values outside the parameter's range (NaN counts as outside)."""
-    bad = ~np.isfinite(values)
-    if param.low is not None:
-        bad |= (values <= param.low) if param.low_open else (values < param.low)
-    if param.high is not None:
-        bad |= values > param.high
-    return bad
+    return validation.outside(values, param.low, param.high, param.low_open)
 
 
 def _clip(param, values):
