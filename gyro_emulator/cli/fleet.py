@@ -56,15 +56,39 @@ def run(args):
           f'{run_info["wall_s"]:.1f} s ({run_info["devices_per_s"]:.3g} parts/s, '
           f'{run_info["scheduler"]}, {run_info["workers"]} worker(s))')
     for metric, spec in summary['specs'].items():
-        print(f'  {metric:22s} yield {100 * spec["yield"]:6.2f} %')
-    print(f'  {"all specs":22s} yield {100 * summary["yield"]:6.2f} %'
+        print(f'  {metric:22s} yield {_yield(spec)}')
+    print(f'  {"all specs":22s} yield {_yield(summary)}'
           + (f'; fails most: {summary["fails_most"]}' if summary['fails_most'] else ''))
-    attribution = summary['attribution']
-    if attribution and attribution['drives_the_yield']:
-        top = attribution['drives_the_yield']
-        gain = attribution['sources'][top]['gain']
-        print(f'  drives the yield: {top} (without it: +{100 * gain:.1f} points, on '
-              f'{attribution["devices"]} parts)')
+    if summary['attribution']:
+        print('  ' + _driver_line(summary['attribution']))
     print(f'wrote {args.out}/summary.json, {args.out}/plots/'
           + ('' if args.no_parquet else f', {args.out}/devices/'))
     return 0
+
+
+def _yield(entry):
+    """Format a yield and its 95 % interval, in %."""
+    low, high = entry['yield_ci95']
+    return f'{100 * entry["yield"]:6.2f} % [{100 * low:.2f}, {100 * high:.2f}]'
+
+
+def _gain(source):
+    """Format a source's gain in yield points, +- the half-width of its 95 % interval."""
+    low, high = source['gain_ci95']
+    return f'{100 * source["gain"]:+.1f} +- {100 * (high - low) / 2:.1f} points'
+
+
+def _driver_line(attribution):
+    """Say which source drives the yield and its rivals, or that none is shown to."""
+    sources, n = attribution['sources'], attribution['devices']
+    top = attribution['drives_the_yield']
+    if top is None:
+        best = attribution['ranking'][0] if attribution['ranking'] else None
+        return ('no source is shown to drive the yield on ' + f'{n} parts'
+                + (f' (largest: {best}, {_gain(sources[best])})' if best else ''))
+    line = f'drives the yield: {top} (without it: {_gain(sources[top])}, on {n} parts)'
+    rivals = attribution['indistinguishable_from']
+    if rivals:
+        line += '; cannot be told apart from ' + ', '.join(
+            f'{s} ({_gain(sources[s])})' for s in rivals)
+    return line

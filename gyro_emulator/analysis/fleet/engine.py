@@ -105,7 +105,10 @@ def attribution(config, draw):
     evaluated again with one source (a tolerance, or a factor) removed; a
     source whose removal turns many failing parts into passing ones drives
     the yield. Returns counts: ``all`` (nothing removed) and one entry per
-    source, each {'pass': n, 'spec_pass': {metric: n}}.
+    source, each {'pass': n, 'spec_pass': {metric: n}}; a source's entry
+    also counts the parts whose verdict its removal changes, either way
+    (``flips``, and ``spec_flips`` per spec): the paired comparison's
+    discordant parts, from which the gain's uncertainty follows.
     """
     n = min(config.attribution_devices, draw.n)
     if n == 0 or not config.specs:
@@ -113,11 +116,18 @@ def attribution(config, draw):
     head = sampling.Draw(n, draw.nominal, {src: {k: v[:n] for k, v in parts.items()}
                                            for src, parts in draw.contributions.items()})
     out = {'devices': n}
+    base = None
     for source in (None,) + config.sources():
         _, invalid, _, _, per_spec, ok = fleet_eval.evaluate_draw(config, head, source)
-        out['all' if source is None else source] = {
-            'pass': int(ok.sum()), 'invalid': int(invalid.sum()),
-            'spec_pass': {m: int(f.sum()) for m, f in per_spec.items()}}
+        entry = {'pass': int(ok.sum()), 'invalid': int(invalid.sum()),
+                 'spec_pass': {m: int(f.sum()) for m, f in per_spec.items()}}
+        if base is None:
+            base = ok, per_spec
+        else:
+            entry['flips'] = int(np.count_nonzero(ok != base[0]))
+            entry['spec_flips'] = {m: int(np.count_nonzero(f != base[1][m]))
+                                   for m, f in per_spec.items()}
+        out['all' if source is None else source] = entry
     return out
 
 

@@ -5,10 +5,16 @@ Yields count every part: a part that fails to be a valid device counts as
 failing. Quantiles come from the first 131 072 parts (a random sample of
 the fleet: the parts are independent draws), so they are the same for any
 scheduler; at that size a 5 % quantile is known to about +-0.06 % in level.
-The attribution (which tolerance drives the yield) compares, on the first
-``attribution_devices`` parts, the pass count with each variation source
-left at its nominal against the pass count with all of them.
+Each yield comes with its 95 % Wilson interval (the pass count is
+binomial). The attribution (which tolerance drives the yield) compares, on
+the first ``attribution_devices`` parts, the pass count with each variation
+source left at its nominal against the pass count with all of them: a
+paired comparison whose gain has a 95 % interval; a source is named only
+when its interval lies above zero, beside the sources it cannot be told
+apart from.
 """
+
+import math
 
 from gyro_emulator import plotting
 from gyro_emulator.analysis.fleet.engine import add_counts, metric_names, temperature_label
@@ -50,27 +56,104 @@ def _quantiles(config, sample):
     return out
 
 
+#: Two-sided 95 % quantile of the standard normal.
+Z95 = 1.959963984540054
+
+
+def wilson_interval(passed, n):
+    """
+    95 % Wilson score interval [low, high] of a yield ``passed / n`` (Wilson 1927).
+
+    (p + z^2/2n -+ z sqrt(p (1 - p) / n + z^2 / 4n^2)) / (1 + z^2 / n): it
+    keeps its coverage near 95 % for small fleets and yields near 0 or 1,
+    where p +- z sqrt(p (1 - p) / n) does not (Brown, Cai and DasGupta 2001).
+    The parts are independent draws, so the pass count is binomial. Tested
+    against statsmodels' ``proportion_confint(method='wilson')``, which is
+    not imported here (1.5 s of import on a run's serial tail).
+    """
+    if n <= 0:
+        return [None, None]
+    p, z2 = passed / n, Z95 * Z95
+    centre = (p + z2 / (2.0 * n)) / (1.0 + z2 / n)
+    half = Z95 * math.sqrt(p * (1.0 - p) / n + z2 / (4.0 * n * n)) / (1.0 + z2 / n)
+    # It holds p; at p = 0 or 1 an end equals p, which rounding must not move past.
+    return [max(0.0, min(p, centre - half)), min(1.0, max(p, centre + half))]
+
+
+def paired_gain(diff, flips, n):
+    """
+    Return a paired gain ``diff / n`` and the half-width of its 95 % interval.
+
+    Removing a source changes each of the n parts' verdicts by d_i in
+    {-1, 0, +1}; ``flips`` parts change. The gain g = mean(d_i) has variance
+    (flips / n - g^2) / n (the paired, McNemar-type comparison: the parts
+    are the same draws with and without the source). The half-width is at
+    least 3 / n: no change in n parts still allows a rate of 3 / n at 95 %
+    (the rule of three), where the normal approximation says 0.
+    """
+    gain = diff / n
+    std_err = math.sqrt(max(flips / n - gain * gain, 0.0) / n)
+    return gain, max(Z95 * std_err, 3.0 / n)
+
+
+def _leader(order, gain_of):
+    """
+    Return the first source of ``order`` if its gain is established, and its rivals.
+
+    Established: the 95 % interval of its gain lies above zero. Rivals: the
+    sources whose gain it does not beat by more than the two half-widths
+    together (at least as wide as the paired difference's interval), so
+    these parts cannot tell them apart from it.
+    """
+    if not order:
+        return None, []
+    gain, (low, _) = gain_of(order[0])
+    if low <= 0.0:
+        return None, []
+    rivals = []
+    for source in order[1:]:
+        other, (_, high) = gain_of(source)
+        if gain - other <= (gain - low) + (high - other):
+            rivals.append(source)
+    return order[0], rivals
+
+
+def _source_gains(entry, base, n):
+    """Gain and 95 % interval of one source's removal, overall and per spec."""
+    gain, half = paired_gain(entry['pass'] - base['pass'], entry['flips'], n)
+    per_spec = {m: paired_gain(entry['spec_pass'][m] - base['spec_pass'][m],
+                               entry['spec_flips'][m], n) for m in base['spec_pass']}
+    return {'yield_without': entry['pass'] / n,
+            'gain': gain, 'gain_ci95': [gain - half, gain + half],
+            'spec_gain': {m: g for m, (g, _) in per_spec.items()},
+            'spec_gain_ci95': {m: [g - h, g + h] for m, (g, h) in per_spec.items()}}
+
+
 def _attribution(config, attribution):
+    """
+    Rank the sources by the yield their removal gains, with 95 % intervals.
+
+    A source is named (``drives_the_yield``, ``spec_driver``) only when its
+    gain's interval lies above zero, and with the sources these parts
+    cannot tell apart from it (``indistinguishable_from``,
+    ``spec_driver_indistinguishable_from``).
+    """
     if attribution is None:
         return None
     n = attribution['devices']
     base = attribution['all']
-    sources = {}
-    for source in config.sources():
-        entry = attribution[source]
-        sources[source] = {
-            'yield_without': entry['pass'] / n,
-            'gain': (entry['pass'] - base['pass']) / n,
-            'spec_gain': {m: (entry['spec_pass'][m] - base['spec_pass'][m]) / n
-                          for m in base['spec_pass']}}
+    sources = {s: _source_gains(attribution[s], base, n) for s in config.sources()}
     ranked = sorted(sources, key=lambda s: -sources[s]['gain'])
-    drivers = {}
+    top, rivals = _leader(ranked, lambda s: (sources[s]['gain'], sources[s]['gain_ci95']))
+    drivers, spec_rivals = {}, {}
     for metric in base['spec_pass']:
-        best = max(sources, key=lambda s: sources[s]['spec_gain'][metric], default=None)
-        drivers[metric] = best if best and sources[best]['spec_gain'][metric] > 0 else None
-    top = ranked[0] if ranked and sources[ranked[0]]['gain'] > 0 else None
+        order = sorted(sources, key=lambda s: -sources[s]['spec_gain'][metric])
+        drivers[metric], spec_rivals[metric] = _leader(
+            order, lambda s: (sources[s]['spec_gain'][metric],
+                              sources[s]['spec_gain_ci95'][metric]))
     return {'devices': n, 'yield_all': base['pass'] / n, 'sources': sources,
-            'ranking': ranked, 'drives_the_yield': top, 'spec_driver': drivers}
+            'ranking': ranked, 'drives_the_yield': top, 'indistinguishable_from': rivals,
+            'spec_driver': drivers, 'spec_driver_indistinguishable_from': spec_rivals}
 
 
 def summary(job, results, run):
@@ -84,7 +167,8 @@ def summary(job, results, run):
         specs[spec.metric] = {'limits': {'min': None if spec.absolute else _finite(spec.low),
                                          'max': _finite(spec.high),
                                          'absolute': spec.absolute},
-                              'pass': passed, 'yield': passed / n}
+                              'pass': passed, 'yield': passed / n,
+                              'yield_ci95': wilson_interval(passed, n)}
     worst = min(specs, key=lambda m: specs[m]['pass']) if specs else None
     attribution = next((r['attribution'] for r in results if r['attribution']), None)
     sample = sample_of(results)
@@ -96,7 +180,8 @@ def summary(job, results, run):
         'varied': list(config.varied), 'invalid_policy': config.invalid,
         'valid': n - counts['invalid'], 'invalid': counts['invalid'],
         'clipped': counts['clipped'],
-        'yield': counts['pass'] / n, 'pass': counts['pass'], 'specs': specs,
+        'yield': counts['pass'] / n, 'yield_ci95': wilson_interval(counts['pass'], n),
+        'pass': counts['pass'], 'specs': specs,
         'fails_most': worst,
         'quantile_devices': int(sample['f_drive_hz'].size) if sample else 0,
         'quantiles': _quantiles(config, sample) if sample else {},
@@ -144,6 +229,24 @@ def plot_envelope(config, sample, path):
     plotting.save(fig, path)
 
 
+def _histogram_bins(values, bins=100):
+    """
+    Return (values, bins, range) for ``np.histogram``.
+
+    A metric the fleet does not move (a spec blind to every tolerance) is
+    equal to rounding: its range is too narrow for 100 finite bins, so it
+    gets one bin on a range widened around its value.
+    """
+    if values.size == 0:
+        return values, bins, None
+    low, high = float(values.min()), float(values.max())
+    scale = max(abs(low), abs(high))
+    if high - low > 1e-9 * scale and high - low > 1e-300:
+        return values, bins, None
+    pad = max(1e-6 * scale, 1e-12)
+    return values, 1, (low - pad, high + pad)
+
+
 def plot_histogram(config, sample, metric, path, title, driver=None):
     """
     Histogram of a metric over the sample, with the spec limits.
@@ -156,7 +259,7 @@ def plot_histogram(config, sample, metric, path, title, driver=None):
                              figsize=(10 if column is not None else 6, 4), squeeze=False)
     values = sample[metric]
     ax = axes[0, 0]
-    counts, edges = np.histogram(values[np.isfinite(values)], bins=100)
+    counts, edges = np.histogram(*_histogram_bins(values[np.isfinite(values)]))
     # One artist, not 100 bars: the legend's 'best' placement tests each (2x faster).
     ax.stairs(counts, edges, fill=True, alpha=0.8, label=f'{values.size} parts')
     _limits(ax, _spec(config, metric))
@@ -173,10 +276,13 @@ def plot_yield(summary, path):
     """Yield per spec and overall."""
     plt = plotting.pyplot()
     names = list(summary['specs']) + ['all specs']
-    values = [summary['specs'][m]['yield'] for m in summary['specs']] + [summary['yield']]
+    entries = list(summary['specs'].values()) + [summary]
+    values = [e['yield'] for e in entries]
+    spread = np.array([[e['yield'] - e['yield_ci95'][0], e['yield_ci95'][1] - e['yield']]
+                       for e in entries]).T
     fig, ax = plt.subplots(figsize=(6, 0.5 * len(names) + 1.5))
     ax.barh(names, [100.0 * v for v in values], color=['C0'] * (len(names) - 1) + ['C1'],
-            label='yield')
+            xerr=100.0 * spread, capsize=3, label='yield (95 % interval)')
     for y, v in enumerate(values):
         ax.text(100.0 * v, y, f' {100.0 * v:.1f} %', va='center', fontsize=8)
     ax.set_xlim(0, 110)
