@@ -200,6 +200,61 @@ def test_coarse_or_shared_timestamps_give_the_true_rate(stamping):
     assert fit.intervals['arw'].low <= density <= fit.intervals['arw'].high
 
 
+@pytest.mark.parametrize('share', [0.001, 0.01, 0.05, 0.2])
+def test_dropped_samples_keep_the_nominal_rate_and_are_counted(share):
+    """
+    A 100 Hz part that lost a share of its samples at random (the helper's case).
+
+    The mean step reads 83 Hz at 20 % loss, which put N 10 % high with a
+    0.3 % interval: the rate stays 100 Hz and the samples missing inside the
+    segments (1 or 2 in a row; 3 or more make a gap) are counted.
+    """
+    rng = np.random.default_rng(int(share * 1000))
+    n = 200_000
+    t = np.arange(n) / RATE_HZ + 7.0
+    keep = rng.random(n) >= share
+    rate_hz, bounds = csvio.sample_rate_and_segments(t[keep])
+    assert rate_hz == pytest.approx(RATE_HZ, rel=1e-9)
+    index = np.flatnonzero(keep)
+    steps = np.diff(index)
+    # a step of exactly 3 periods sits on the gap threshold: either side is right
+    missing = csvio.missing_samples(t[keep])
+    assert np.sum(steps[steps <= 2] - 1) <= missing <= np.sum(steps[steps <= 3] - 1)
+    assert 1 + np.sum(steps > 3) <= len(bounds) <= 1 + np.sum(steps > 2)
+
+
+@pytest.mark.parametrize('rate_hz', [1200.0, 990.0, 900.0, 700.0, 1000.0 / 2.4, 333.3, 250.3])
+def test_a_faster_part_on_a_millisecond_clock_is_not_read_as_dropped_samples(rate_hz):
+    """Steps of 1 and 2 ms at a fixed beat (or 0 and 1, 2 and 3 ms): true rate, none missing."""
+    t = np.floor(np.arange(300_000) / rate_hz * 1000.0) / 1000.0
+    got, _ = csvio.sample_rate_and_segments(t)
+    assert got == pytest.approx(rate_hz, rel=2e-3)
+    assert csvio.missing_samples(t) == 0
+
+
+def test_calibrate_noise_on_a_log_with_dropped_samples_gets_n_and_says_what_is_missing(
+        tmp_path, capsys):
+    """5 % of a 100 Hz log lost: N within its interval of the truth, and a timing warning."""
+    rng = np.random.default_rng(41)
+    n = 180_000
+    t = np.arange(n) / RATE_HZ
+    x = _static_noise(rng, n, flicker=0.0)
+    keep = rng.random(n) >= 0.05
+    path = tmp_path / 'lossy.csv'
+    np.savetxt(path, np.column_stack([t[keep], x[keep]]), delimiter=',',
+               header='time_s,gyro_x_rad_s', comments='', fmt='%.10g')
+    cal = cal_noise.calibrate_noise(str(path))
+    assert cal.rate_hz == pytest.approx(RATE_HZ)
+    arw = cal.axes[0].fit.intervals['arw']
+    truth = 1e-3 / math.sqrt(RATE_HZ)
+    assert arw.low <= truth <= arw.high
+    assert len(cal.timing) == 1 and 'missing between stamps' in cal.timing[0]
+    clean = tmp_path / 'clean.csv'
+    np.savetxt(clean, np.column_stack([t, x]), delimiter=',', header='time_s,gyro_x_rad_s',
+               comments='', fmt='%.10g')
+    assert cal_noise.calibrate_noise(str(clean)).timing == ()
+
+
 def test_a_shock_that_moves_the_bias_splits_the_record():
     """A 3 s bump after which the bias sits about 14 sigma (of 10 s means) higher: cut."""
     rng = np.random.default_rng(8)

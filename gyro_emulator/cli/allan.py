@@ -102,7 +102,7 @@ def run(args):
     info, result, fit = allan.analyse_record(args.file, args.axis, args.topic,
                                              args.max_tau_fraction, args.gap_factor,
                                              outlier_threshold=outlier_threshold(args))
-    for note in info['recovery']:
+    for note in info['recovery'] + info['timing']:
         print(f'gyro-emulator allan: warning: {note}', file=sys.stderr)
     print(f'{info["file"]} [{info["column"]}]: {info["n_samples"]} samples at '
           f'{info["sample_rate_hz"]:.4g} Hz, {info["duration_s"]:.1f} s, '

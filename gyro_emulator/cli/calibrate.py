@@ -121,7 +121,7 @@ def _calibrate(args):
     axes = None if args.axis == 'all' else (args.axis,)
     cal = noise.calibrate_noise(args.log, axes, args.topic,
                                 outlier_threshold=_threshold(args))
-    for note in cal.recovery + cal.skipped:
+    for note in cal.recovery + cal.skipped + cal.timing:
         print(f'gyro-emulator calibrate: warning: {note}', file=sys.stderr)
     return cal
 
@@ -161,6 +161,7 @@ def run_noise(args):
                                'duration_s': cal.duration_s, 'lsb_rad_s': cal.lsb_rad_s,
                                'axes': {a.axis: summary(a.fit) for a in cal.axes},
                                'set_aside': {a.axis: a.set_aside for a in cal.axes},
+                               'timing': list(cal.timing),
                                'exported': {'arw_rad_s_sqrt_hz': chosen.arw_rad_s_sqrt_hz,
                                             'rrw_rad_s_sqrt_s': chosen.rrw_rad_s_sqrt_s,
                                             'rrw_is_bound': chosen.rrw_is_bound,

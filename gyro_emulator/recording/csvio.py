@@ -261,8 +261,70 @@ def sample_rate_and_segments(time_s, gap_factor=3.0):
     within = step[~gap]
     mean = float(np.mean(within)) if len(within) else dt
     if mean > 0.0 and abs(mean / dt - 1.0) > STEP_AGREEMENT:
-        dt = mean
+        lost = dropped_samples(within, dt)
+        dt = mean if lost is None else lost[1]
     return 1.0 / dt, [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
+
+
+#: Long steps off a whole number of nominal steps by more than this (median): not drops.
+WHOLE_STEP_TOLERANCE = 0.25
+#: More long steps than this share of all: a slower clock, not dropped samples.
+MAX_LONG_STEP_SHARE = 0.5
+#: Long steps whose spacings take two values this often recur at a beat (a coarse clock).
+BEAT_SHARE = 0.9
+
+
+def dropped_samples(step, dt):
+    """
+    Read steps as whole numbers of the nominal step with samples missing, or None.
+
+    Samples lost on the way (a serial link, a USB buffer) leave steps of k
+    whole nominal steps (k >= 2, k = the step / ``dt`` rounded) scattered
+    among single ones. A faster part stamped by a coarse clock (900 Hz in
+    whole milliseconds: steps of 1 and 2 ms) leaves the same two lengths,
+    but its long steps recur at a beat: nearly all their spacings take one
+    or two values. So the steps read as drops when none rounds to zero (a
+    FIFO sharing a stamp is not a drop), at most
+    :data:`MAX_LONG_STEP_SHARE` are long, the long ones lie within
+    :data:`WHOLE_STEP_TOLERANCE` of whole numbers (median; stamps rounded to
+    a clock leave 1.5 steps), and, when there are ten or more, fewer than
+    :data:`BEAT_SHARE` of their spacings take the two commonest values
+    (random losses spread them geometrically).
+
+    Returns
+    -------
+    (int, float) or None
+        The samples missing, sum(k - 1), and the step, sum(step) / sum(k);
+        None when the steps are not drops.
+
+    """
+    step = np.asarray(step, dtype=float)
+    whole = np.rint(step / dt)
+    if not len(step) or np.any(whole < 1.0):
+        return None
+    long = np.flatnonzero(whole >= 2.0)
+    if len(long) > MAX_LONG_STEP_SHARE * len(step):
+        return None
+    if len(long) and np.median(np.abs(step[long] / dt - whole[long])) > WHOLE_STEP_TOLERANCE:
+        return None
+    if len(long) >= 10:
+        counts = np.sort(np.unique(np.diff(long), return_counts=True)[1])
+        if np.sum(counts[-2:]) >= BEAT_SHARE * (len(long) - 1):
+            return None
+    return int(np.sum(whole - 1.0)), float(np.sum(step) / np.sum(whole))
+
+
+def missing_samples(time_s, gap_factor=3.0):
+    """
+    Return the samples missing inside the segments of a record (0 when none read as drops).
+
+    The segments and the nominal step are those of
+    :func:`sample_rate_and_segments`; see :func:`dropped_samples`.
+    """
+    rate_hz, bounds = sample_rate_and_segments(time_s, gap_factor)
+    step = np.concatenate([np.diff(np.asarray(time_s[a:b], dtype=float)) for a, b in bounds])
+    lost = dropped_samples(step, 1.0 / rate_hz)
+    return 0 if lost is None else lost[0]
 
 
 class CsvWriter:

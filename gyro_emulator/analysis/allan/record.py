@@ -256,6 +256,27 @@ def set_aside_summary(screened, handled):
     return dict(screened.as_dict(), **handled, description=line)
 
 
+def missing_note(time_s, gap_factor=3.0):
+    """
+    Say how many samples are missing between the stamps, and what that does (or nothing).
+
+    The rate is the nominal one (:func:`gyro_emulator.recording.csvio.dropped_samples`)
+    and the Allan deviation joins the samples on either side of a missing
+    one: the white noise N is right (its per-sample spread and the sample
+    period are), but the correlated terms see a share p of their time
+    removed, so a random walk reads 1 / sqrt(1 - p) high in K; B, a
+    scale-free term, hardly moves.
+    """
+    missing = csvio.missing_samples(time_s, gap_factor)
+    if not missing:
+        return ()
+    share = missing / (len(time_s) + missing)
+    return (f'{missing} samples ({100 * share:.2g} %) are missing between stamps (steps of '
+            f'2 or more sample periods, not a slower clock): N is unaffected; the Allan '
+            f'deviation joins the samples around each, so K may read up to '
+            f'{100 * (1 / np.sqrt(1 - share) - 1):.2g} % high',)
+
+
 def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_factor=3.0,
                    record=None, outlier_threshold=outliers.THRESHOLD):
     """
@@ -278,6 +299,7 @@ def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_facto
     info = {
         'file': str(path), 'column': column, 'sample_rate_hz': rate_hz,
         'recovery': list(record.recovery),
+        'timing': list(missing_note(time_s, gap_factor)),
         'set_aside': set_aside_summary(screened, handled),
         'n_samples': result.n_samples, 'segments': len(segments),
         'repeated_timestamps': int(np.sum(np.diff(time_s) == 0.0)),

@@ -67,6 +67,8 @@ class NoiseCalibration:
         What a damaged bag lost.
     skipped : tuple of str
         Axes left out, and why (a stuck, saturated or dead output).
+    timing : tuple of str
+        What the stamps say about the record (samples missing between them).
 
     """
 
@@ -77,6 +79,7 @@ class NoiseCalibration:
     lsb_rad_s: float = 0.0
     recovery: tuple = ()
     skipped: tuple = ()
+    timing: tuple = ()
 
     def axis(self, name):
         """Return the :class:`AxisNoise` of axis ``name``."""
@@ -176,7 +179,8 @@ def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fractio
     return NoiseCalibration(source=str(path), rate_hz=float(rate_hz),
                             duration_s=float(record.time_s[-1] - record.time_s[0]),
                             axes=tuple(found), lsb_rad_s=lsb, recovery=record.recovery,
-                            skipped=tuple(skipped))
+                            skipped=tuple(skipped),
+                            timing=allan_record.missing_note(record.time_s, gap_factor))
 
 
 @dataclass(frozen=True)

@@ -55,6 +55,8 @@ def noise_lines(calibration, exported, tool, convention):
             lines.append(f'  warning: {warning}')
     for note in calibration.skipped:
         lines.append(f'Axis left out: {note}')
+    for note in calibration.timing:
+        lines.append(f'Timing: {note}')
     lines.append(f'Convention: {convention}')
     if exported is not None:
         lines.append(f'Chosen: {exported.note or "the fitted values"}.')
