@@ -200,6 +200,26 @@ def test_lsb_grid_detection():
     assert noise.detect_lsb(rng.standard_normal(10_000)) == 0.0
 
 
+def test_a_grid_coarser_than_the_noise_is_warned(tmp_path):
+    """
+    An LSB of 2.5 sigma (at 4 sigma a review read N 25 % high, silently): a warning.
+
+    A grid of half sigma is the part's LSB and gets no warning.
+    """
+    rng = np.random.default_rng(12)
+    n = 120_000
+    t = np.arange(n) / 100.0
+    x = 1e-3 * rng.standard_normal(n) + np.cumsum(2e-6 * rng.standard_normal(n))
+    for lsb, warned in ((2.5e-3, True), (5e-4, False)):
+        path = tmp_path / f'q{lsb:g}.csv'
+        np.savetxt(path, np.column_stack([t, np.round(x / lsb) * lsb]), delimiter=',',
+                   header='time_s,gyro_x_rad_s', comments='', fmt='%.10g')
+        cal = noise.calibrate_noise(str(path))
+        notes = [w for w in cal.axes[0].fit.warnings if 'coarser than half' in w]
+        assert bool(notes) == warned, (lsb, cal.axes[0].fit.warnings)
+        assert cal.lsb_rad_s == (0.0 if warned else pytest.approx(lsb, rel=1e-6))
+
+
 # --- thermal ---------------------------------------------------------------
 
 C1_RAD_S_K = float(units.deg_s_to_rad_s(0.02))

@@ -236,7 +236,8 @@ def check_not_held(values, rate_hz, what):
         whole = 'holds one value' if share >= 1.0 else (
             f'holds one value for {100 * share:.3g} % of its samples')
         raise HeldOutput(f'{what} {whole} ({value:.9g}): a stuck, saturated or dead output '
-                         'has no noise to identify; cut those samples or leave the axis out')
+                         '(or one quantised far more coarsely than its noise) has no noise to '
+                         'identify; cut those samples or leave the axis out')
 
 
 #: Window each side of a stretch set aside over which the levels are compared, s.

@@ -18,7 +18,7 @@ units: N in rad/s/sqrt(Hz), K in rad/s^2/sqrt(Hz) = rad/s/sqrt(s)):
 * ``inflate`` multiplies N, B and K (and is written into every file).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.allan import record as allan_record
@@ -96,19 +96,17 @@ class NoiseCalibration:
         return min(lows), max(highs)
 
 
-def detect_lsb(rate, max_unique=200_000):
+def grid_step(rate, max_unique=200_000, min_unique=8):
     """
-    Quantisation step of a log: the grid its samples lie on, or 0.
+    Return the grid a log's samples lie on, whatever its size, or 0.
 
     The smallest gap between distinct values, refined over all gaps, is a
-    grid when every sample is on it within 2 % of a step, there are at least
-    8 distinct values and the step is below half the samples' standard
-    deviation. It is the part's LSB or the precision the log was written
-    with; either way the log's values are quantised to it.
+    grid when every sample is on it within 2 % of a step and there are
+    ``min_unique`` distinct values or more.
     """
     values = np.asarray(rate, dtype=float)
     unique = np.unique(values)
-    if len(unique) < 8 or len(unique) > max_unique:
+    if len(unique) < min_unique or len(unique) > max_unique:
         return 0.0
     gaps = np.diff(unique)
     smallest = float(np.min(gaps))
@@ -119,9 +117,39 @@ def detect_lsb(rate, max_unique=200_000):
     offsets = (unique - unique[0]) / step
     if np.max(np.abs(offsets - np.round(offsets))) > GRID_TOLERANCE:
         return 0.0
-    if step > 0.5 * float(np.std(values)):
-        return 0.0
     return step
+
+
+def detect_lsb(rate, max_unique=200_000):
+    """
+    Quantisation step of a log: the grid its samples lie on, or 0.
+
+    The grid of :func:`grid_step` when it is below half the samples'
+    standard deviation. It is the part's LSB or the precision the log was
+    written with; either way the log's values are quantised to it. A
+    coarser grid is not an LSB the noise terms sit on top of
+    (:func:`coarse_grid_note`).
+    """
+    step = grid_step(rate, max_unique)
+    return step if step <= 0.5 * float(np.std(rate)) else 0.0
+
+
+def coarse_grid_note(rate):
+    """
+    Return a warning when the samples lie on a grid coarser than half their spread, else None.
+
+    The output is then quantised more coarsely than its noise: rounding
+    adds about LSB^2 / 12 per sample and, at this size, is not independent
+    of the signal, so N describes the quantised output, not the sensor
+    behind it (an LSB of 4 sigma read N 25 % high in a review).
+    """
+    step = grid_step(rate, min_unique=2)     # a few values in a whole log: quantised
+    spread = float(np.std(rate))
+    if step <= 0.5 * spread:
+        return None
+    return (f'the samples lie on a grid of {step:.4g} rad/s, coarser than half their '
+            f'spread ({spread:.4g} rad/s): the noise terms describe the quantised output, '
+            'not the sensor behind it (N can read well above the sensor)')
 
 
 def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fraction=0.25,
@@ -169,6 +197,9 @@ def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fractio
         except ValueError as exc:
             raise ValueError(f'{path}: {exc}') from None
         result, fit = allan.identify(segments, rate_hz, max_tau_fraction)
+        coarse = coarse_grid_note(rate)
+        if coarse:
+            fit = replace(fit, warnings=fit.warnings + (coarse,))
         found.append(AxisNoise(name, column, result, fit,
                                float(np.mean(rate[screened.keep])), tuple(segments),
                                allan_record.set_aside_summary(screened, handled)))
