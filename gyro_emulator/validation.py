@@ -80,18 +80,15 @@ def _all_inside(arr, low, high, low_open, high_open):
     """
     Whether every element is finite and inside the bounds, from its min and max.
 
-    Two reductions instead of an element mask (the common, passing case of
-    large parameter arrays); NaN propagates through min and max, so it
-    fails here and the mask in :func:`check_range` finds it.
+    Two reductions, then :func:`outside` on those two values, instead of an
+    element mask (the common, passing case of large parameter arrays); NaN
+    propagates through min and max, so it fails here and the mask in
+    :func:`check_range` finds it.
     """
     if arr.size == 0:
         return True
-    lo_v, hi_v = float(arr.min()), float(arr.max())
-    if not (np.isfinite(lo_v) and np.isfinite(hi_v)):
-        return False
-    if low is not None and (lo_v <= low if low_open else lo_v < low):
-        return False
-    return high is None or not (hi_v >= high if high_open else hi_v > high)
+    ends = np.array([arr.min(), arr.max()], dtype=float)
+    return not np.any(outside(ends, low, high, low_open, high_open))
 
 
 def check_choice(owner, name, value, choices):

@@ -247,6 +247,16 @@ def sample_rate_and_segments(time_s, gap_factor=3.0):
         Start and stop index of each segment.
 
     """
+    dt, within, bounds = _median_step_and_segments(time_s, gap_factor)
+    mean = float(np.mean(within)) if len(within) else dt
+    if mean > 0.0 and abs(mean / dt - 1.0) > STEP_AGREEMENT:
+        lost = dropped_samples(within, dt)
+        dt = mean if lost is None else lost[1]
+    return 1.0 / dt, bounds
+
+
+def _median_step_and_segments(time_s, gap_factor):
+    """Return the median positive step, the steps within segments, and the segments."""
     t = np.asarray(time_s, dtype=float)
     if len(t) < 2:
         raise ValueError(f'time_s has {len(t)} samples: need >= 2')
@@ -258,12 +268,7 @@ def sample_rate_and_segments(time_s, gap_factor=3.0):
     gap = step > gap_factor * dt
     cuts = np.flatnonzero(gap) + 1
     edges = np.concatenate(([0], cuts, [len(t)]))
-    within = step[~gap]
-    mean = float(np.mean(within)) if len(within) else dt
-    if mean > 0.0 and abs(mean / dt - 1.0) > STEP_AGREEMENT:
-        lost = dropped_samples(within, dt)
-        dt = mean if lost is None else lost[1]
-    return 1.0 / dt, [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
+    return dt, step[~gap], [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
 
 
 #: Long steps off a whole number of nominal steps by more than this (median): not drops.
@@ -318,12 +323,12 @@ def missing_samples(time_s, gap_factor=3.0):
     """
     Return the samples missing inside the segments of a record (0 when none read as drops).
 
-    The segments and the nominal step are those of
-    :func:`sample_rate_and_segments`; see :func:`dropped_samples`.
+    The segments and the median step are those of
+    :func:`sample_rate_and_segments`; see :func:`dropped_samples` (counted
+    even when so few are missing that the mean step agrees with the median).
     """
-    rate_hz, bounds = sample_rate_and_segments(time_s, gap_factor)
-    step = np.concatenate([np.diff(np.asarray(time_s[a:b], dtype=float)) for a, b in bounds])
-    lost = dropped_samples(step, 1.0 / rate_hz)
+    dt, within, _ = _median_step_and_segments(time_s, gap_factor)
+    lost = dropped_samples(within, dt)
     return 0 if lost is None else lost[0]
 
 

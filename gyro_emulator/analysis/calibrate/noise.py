@@ -96,60 +96,56 @@ class NoiseCalibration:
         return min(lows), max(highs)
 
 
-def grid_step(rate, max_unique=200_000, min_unique=8):
+def grid_step(rate, max_unique=200_000):
     """
-    Return the grid a log's samples lie on, whatever its size, or 0.
+    Return the grid a log's samples lie on, whatever its size, or 0, and their distinct values.
 
     The smallest gap between distinct values, refined over all gaps, is a
-    grid when every sample is on it within 2 % of a step and there are
-    ``min_unique`` distinct values or more.
+    grid when every sample is on it within 2 % of a step and there are 2 to
+    ``max_unique`` distinct values.
     """
     values = np.asarray(rate, dtype=float)
     unique = np.unique(values)
-    if len(unique) < min_unique or len(unique) > max_unique:
-        return 0.0
+    if len(unique) < 2 or len(unique) > max_unique:
+        return 0.0, len(unique)
     gaps = np.diff(unique)
     smallest = float(np.min(gaps))
     if not smallest > 0.0:
-        return 0.0
+        return 0.0, len(unique)
     counts = np.round(gaps / smallest)
     step = float(np.sum(gaps) / np.sum(counts))
     offsets = (unique - unique[0]) / step
     if np.max(np.abs(offsets - np.round(offsets))) > GRID_TOLERANCE:
-        return 0.0
-    return step
+        return 0.0, len(unique)
+    return step, len(unique)
+
+
+def quantisation(rate, max_unique=200_000):
+    """
+    Return an axis's LSB (or 0) and a warning when its grid is coarser than its noise (or None).
+
+    The grid of :func:`grid_step` is the LSB when it is below half the
+    samples' standard deviation and there are at least 8 distinct values:
+    the part's LSB or the precision the log was written with; either way
+    the log's values are quantised to it. A coarser grid (any number of
+    values: a few in a whole log is quantisation) is no LSB the noise sits
+    on: the output is quantised more coarsely than its noise, rounding adds
+    about LSB^2 / 12 per sample and, at this size, is not independent of
+    the signal, so N describes the quantised output, not the sensor behind
+    it (an LSB of 4 sigma read N 25 % high in a review).
+    """
+    step, distinct = grid_step(rate, max_unique)
+    spread = float(np.std(rate))
+    if step <= 0.5 * spread:
+        return (step if distinct >= 8 else 0.0), None
+    return 0.0, (f'the samples lie on a grid of {step:.4g} rad/s, coarser than half their '
+                 f'spread ({spread:.4g} rad/s): the noise terms describe the quantised '
+                 'output, not the sensor behind it (N can read well above the sensor)')
 
 
 def detect_lsb(rate, max_unique=200_000):
-    """
-    Quantisation step of a log: the grid its samples lie on, or 0.
-
-    The grid of :func:`grid_step` when it is below half the samples'
-    standard deviation. It is the part's LSB or the precision the log was
-    written with; either way the log's values are quantised to it. A
-    coarser grid is not an LSB the noise terms sit on top of
-    (:func:`coarse_grid_note`).
-    """
-    step = grid_step(rate, max_unique)
-    return step if step <= 0.5 * float(np.std(rate)) else 0.0
-
-
-def coarse_grid_note(rate):
-    """
-    Return a warning when the samples lie on a grid coarser than half their spread, else None.
-
-    The output is then quantised more coarsely than its noise: rounding
-    adds about LSB^2 / 12 per sample and, at this size, is not independent
-    of the signal, so N describes the quantised output, not the sensor
-    behind it (an LSB of 4 sigma read N 25 % high in a review).
-    """
-    step = grid_step(rate, min_unique=2)     # a few values in a whole log: quantised
-    spread = float(np.std(rate))
-    if step <= 0.5 * spread:
-        return None
-    return (f'the samples lie on a grid of {step:.4g} rad/s, coarser than half their '
-            f'spread ({spread:.4g} rad/s): the noise terms describe the quantised output, '
-            'not the sensor behind it (N can read well above the sensor)')
+    """Quantisation step of a log: the grid its samples lie on, or 0 (:func:`quantisation`)."""
+    return quantisation(rate, max_unique)[0]
 
 
 def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fraction=0.25,
@@ -197,13 +193,13 @@ def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fractio
         except ValueError as exc:
             raise ValueError(f'{path}: {exc}') from None
         result, fit = allan.identify(segments, rate_hz, max_tau_fraction)
-        coarse = coarse_grid_note(rate)
+        axis_lsb, coarse = quantisation(rate)
         if coarse:
             fit = replace(fit, warnings=fit.warnings + (coarse,))
         found.append(AxisNoise(name, column, result, fit,
                                float(np.mean(rate[screened.keep])), tuple(segments),
                                allan_record.set_aside_summary(screened, handled)))
-        steps.append(detect_lsb(rate))
+        steps.append(axis_lsb)
     if not found:
         raise ValueError(f'{path}: no axis to calibrate: ' + '; '.join(skipped))
     lsb = float(np.median(steps)) if all(s > 0.0 for s in steps) else 0.0
