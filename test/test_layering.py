@@ -23,14 +23,17 @@ LAYERS = {
     'gyro_emulator.sensor': 2,
     # bags, CDR, CSV, the topic table
     'gyro_emulator.recording': 3,
-    # offline runs and analysis: simulate, replay, Allan, diagnose
-    'gyro_emulator.analysis': 4,
+    # running the emulator: input profiles, offline runs, streaming inputs,
+    # synthetic measured records
+    'gyro_emulator.emulation': 4,
+    # analysis: replay comparison, Allan, calibrate, diagnose, fleet
+    'gyro_emulator.analysis': 5,
     # ROS edge: the only modules that import rclpy or message packages
-    'gyro_emulator.ros': 5,
+    'gyro_emulator.ros': 6,
     # the command line and the console-script entry points
-    'gyro_emulator.cli': 6,
+    'gyro_emulator.cli': 7,
 }
-ROS_EDGE = 5
+ROS_EDGE = 6
 ROS_MODULE_PREFIXES = ('rclpy', 'launch', 'launch_ros', 'rosidl', 'rcl_interfaces',
                        'builtin_interfaces', 'ament_index_python')
 ROS_MODULE_SUFFIXES = ('_msgs', '_srvs', '_interfaces')
