@@ -107,7 +107,7 @@ def test_simulated_noise_has_the_fitted_allan_deviation():
         weight = np.full(4000, 50.0)
         dt_s = 0.1
 
-    sims = noise_model.simulate(noise, Groups, 8, np.random.default_rng(2))
+    sims = noise_model.draw_noise_records(noise, Groups, 8, np.random.default_rng(2))
     taus = np.array([50.0, 500.0, 2000.0])
     got = np.sqrt(np.mean([allan.overlapping_adev(sims[:, j], 0.2, taus).adev ** 2
                            for j in range(8)], axis=0))

@@ -1,7 +1,7 @@
-"""The time line of a simulator's ideal IMU (ros.imu_input) and the model's rate changes."""
+"""A simulator's ideal-IMU time line (emulation.imu_timeline) and the model's rate changes."""
 
-from gyro_emulator.ros.imu_input import InputTimeline, MAX_GAP_S, StampNotNewer
-from gyro_emulator.ros.stepper import BlockStepper
+from gyro_emulator.emulation.block_stepper import BlockStepper
+from gyro_emulator.emulation.imu_timeline import InputTimeline, MAX_GAP_S, StampNotNewer
 from gyro_emulator.sensor.config import SensorConfig
 from gyro_emulator.sensor.model import GyroModel
 import numpy as np

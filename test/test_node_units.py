@@ -6,8 +6,9 @@ import os
 import sys
 import types
 
-from gyro_emulator.ros import inputs, params, scenario
-from gyro_emulator.ros.stepper import BlockStepper
+from gyro_emulator.emulation import commands
+from gyro_emulator.emulation.block_stepper import BlockStepper
+from gyro_emulator.ros import params, scenario
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
 from gyro_emulator.sensor import profiles
@@ -31,10 +32,10 @@ def rich_config():
     return sensor_config.SensorConfig(**RICH)
 
 
-# --- inputs -------------------------------------------------------------------
+# --- commands -----------------------------------------------------------------
 
-LIMITS = inputs.InputLimits(max_abs_rate_rad_s=10.0, max_abs_accel_m_s2=100.0,
-                            temp_range_c=(-40.0, 120.0))
+LIMITS = commands.InputLimits(max_abs_rate_rad_s=10.0, max_abs_accel_m_s2=100.0,
+                              temp_range_c=(-40.0, 120.0))
 
 
 @pytest.mark.parametrize('values,reason', [
@@ -43,54 +44,54 @@ LIMITS = inputs.InputLimits(max_abs_rate_rad_s=10.0, max_abs_accel_m_s2=100.0,
     ((0.0, 0.0, -10.5), 'rate_too_large'),
 ])
 def test_bad_rates_are_rejected_with_their_reason(values, reason):
-    with pytest.raises(inputs.InputRejected) as err:
-        inputs.check_rate(values, LIMITS)
+    with pytest.raises(commands.InputRejected) as err:
+        commands.check_rate(values, LIMITS)
     assert err.value.reason == reason
     assert 'angular_velocity.' in str(err.value)
 
 
 def test_good_rate_passes_unchanged():
-    assert inputs.check_rate((1.0, -2.0, 10.0), LIMITS) == (1.0, -2.0, 10.0)
+    assert commands.check_rate((1.0, -2.0, 10.0), LIMITS) == (1.0, -2.0, 10.0)
 
 
 @pytest.mark.parametrize('temp,reason', [
     (float('nan'), 'non_finite_temperature'), (float('-inf'), 'non_finite_temperature'),
     (-273.15, 'below_absolute_zero'), (-500.0, 'below_absolute_zero')])
 def test_impossible_temperatures_are_rejected(temp, reason):
-    with pytest.raises(inputs.InputRejected) as err:
-        inputs.check_temperature(temp, LIMITS)
+    with pytest.raises(commands.InputRejected) as err:
+        commands.check_temperature(temp, LIMITS)
     assert err.value.reason == reason
 
 
 def test_temperature_outside_model_range_is_clamped_or_rejected_by_policy():
-    assert inputs.check_temperature(150.0, LIMITS) == (120.0, True)
-    assert inputs.check_temperature(-100.0, LIMITS) == (-40.0, True)
-    assert inputs.check_temperature(20.0, LIMITS) == (20.0, False)
-    strict = inputs.InputLimits(temp_range_c=(-40.0, 120.0), temperature_policy='reject')
-    with pytest.raises(inputs.InputRejected) as err:
-        inputs.check_temperature(150.0, strict)
+    assert commands.check_temperature(150.0, LIMITS) == (120.0, True)
+    assert commands.check_temperature(-100.0, LIMITS) == (-40.0, True)
+    assert commands.check_temperature(20.0, LIMITS) == (20.0, False)
+    strict = commands.InputLimits(temp_range_c=(-40.0, 120.0), temperature_policy='reject')
+    with pytest.raises(commands.InputRejected) as err:
+        commands.check_temperature(150.0, strict)
     assert err.value.reason == 'temperature_out_of_range'
     assert '[-40, 120] C' in str(err.value)
 
 
 def test_acceleration_limits():
-    assert inputs.check_acceleration((0.0, 0.0, 9.8), LIMITS) == (0.0, 0.0, 9.8)
+    assert commands.check_acceleration((0.0, 0.0, 9.8), LIMITS) == (0.0, 0.0, 9.8)
     for values, reason in (((float('nan'),) * 3, 'non_finite_acceleration'),
                            ((0.0, 200.0, 0.0), 'acceleration_too_large')):
-        with pytest.raises(inputs.InputRejected) as err:
-            inputs.check_acceleration(values, LIMITS)
+        with pytest.raises(commands.InputRejected) as err:
+            commands.check_acceleration(values, LIMITS)
         assert err.value.reason == reason
 
 
 def test_limits_are_validated():
     with pytest.raises(ValueError, match='temperature_policy'):
-        inputs.InputLimits(temperature_policy='ignore')
+        commands.InputLimits(temperature_policy='ignore')
     with pytest.raises(ValueError, match='max_abs_rate_rad_s'):
-        inputs.InputLimits(max_abs_rate_rad_s=-1.0)
+        commands.InputLimits(max_abs_rate_rad_s=-1.0)
 
 
 def test_command_applies_at_its_stamp_and_zero_stamp_means_on_receipt():
-    stream = inputs.CommandStream('rate', initial=0)
+    stream = commands.CommandStream('rate', initial=0)
     lead = 10**9
     stream.offer(1, 200, now_ns=100, max_lead_ns=lead)
     assert stream.advance(150) == 0
@@ -102,14 +103,14 @@ def test_command_applies_at_its_stamp_and_zero_stamp_means_on_receipt():
 
 
 def test_out_of_order_and_future_stamps_are_rejected():
-    stream = inputs.CommandStream('rate', initial=0)
+    stream = commands.CommandStream('rate', initial=0)
     stream.offer(1, 500, now_ns=400, max_lead_ns=1000)
-    with pytest.raises(inputs.InputRejected) as err:
+    with pytest.raises(commands.InputRejected) as err:
         stream.offer(3, 5000, now_ns=420, max_lead_ns=1000)
     assert err.value.reason == 'future_stamp'
     assert stream.advance(10**6) == 1
     # older than the command in force: out of order
-    with pytest.raises(inputs.InputRejected) as err:
+    with pytest.raises(commands.InputRejected) as err:
         stream.offer(2, 499, now_ns=10**6, max_lead_ns=1000)
     assert err.value.reason == 'out_of_order'
     assert stream.accepted == 1
@@ -119,19 +120,19 @@ def test_out_of_order_and_future_stamps_are_rejected():
 
 def test_a_future_stamped_command_does_not_block_the_stream():
     """Issue 14: one command stamped 0.45 s ahead once blocked all others for 0.45 s."""
-    stream = inputs.CommandStream('rate', initial=0)
+    stream = commands.CommandStream('rate', initial=0)
     ms = 10**6
     stream.offer('ahead', 450 * ms, now_ns=0, max_lead_ns=1000 * ms)
     for k in range(1, 5):                       # the regular 10 ms stream goes on
         stream.offer(k, 10 * k * ms, now_ns=10 * k * ms, max_lead_ns=1000 * ms)
         assert stream.advance(10 * k * ms) == k
     assert stream.advance(449 * ms) == 4 and stream.advance(450 * ms) == 'ahead'
-    with pytest.raises(inputs.InputRejected, match='older than the command in force'):
+    with pytest.raises(commands.InputRejected, match='older than the command in force'):
         stream.offer(5, 440 * ms, now_ns=450 * ms, max_lead_ns=1000 * ms)
 
 
 def test_queue_overflow_drops_the_oldest():
-    stream = inputs.CommandStream('rate', initial=0, capacity=3)
+    stream = commands.CommandStream('rate', initial=0, capacity=3)
     dropped = [stream.offer(v, 100 + v, now_ns=0, max_lead_ns=10**6) for v in range(5)]
     assert dropped == [None, None, None, 'queue_overflow', 'queue_overflow']
     assert [v for _, v in stream.pending] == [2, 3, 4]
@@ -139,7 +140,7 @@ def test_queue_overflow_drops_the_oldest():
 
 def test_throttle_lets_one_line_per_period_and_counts_the_rest():
     now = [0.0]
-    throttle = inputs.Throttle(1.0, lambda: now[0])
+    throttle = commands.Throttle(1.0, lambda: now[0])
     assert throttle('a') == 0
     assert throttle('a') is None and throttle('a') is None
     assert throttle('b') == 0
@@ -494,10 +495,10 @@ def test_raw_message_falls_back_to_the_message_when_a_slot_is_not_unique(monkeyp
     assert raw.payload() is msg and msg.temperature == 42.5
 
 
-# --- the node's fault state (ros.fault_injection) ----------------------------------
+# --- the node's fault state (emulation.fault_state) --------------------------------
 
 def test_fault_state_moves_pending_active_ended_and_follows_a_jump_back():
-    from gyro_emulator.ros.fault_injection import FaultState
+    from gyro_emulator.emulation.fault_state import FaultState
     from gyro_emulator.sensor import faults
     state = FaultState((8.0, 8.0, 8.0), np.random.default_rng(0))
     assert state.state == 'none' and state.changed

@@ -21,7 +21,7 @@ what happened in the last period.
 from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from gyro_emulator.ros.inputs import CLAMP_REASONS, REJECT_REASONS
+from gyro_emulator.emulation.commands import CLAMP_REASONS, REJECT_REASONS
 
 OK, WARN, ERROR = 0, 1, 2
 _LEVEL_BYTES = {OK: DiagnosticStatus.OK, WARN: DiagnosticStatus.WARN,

@@ -7,23 +7,21 @@ under a flood the newest messages stay and memory is bounded. At each sample
 :meth:`Intake.take` decodes every inbox in one vectorised call
 (:func:`gyro_emulator.recording.cdr.decode`; rclpy's deserialiser for the
 types without a fixed layout, and as a fallback), validates each command
-(:mod:`gyro_emulator.ros.inputs`) and queues it in its stamped
-:class:`~gyro_emulator.ros.inputs.CommandStream`. A zero stamp means "on
-receipt": the sample that takes it.
+(:mod:`gyro_emulator.emulation.commands`) and queues it in its stamped
+:class:`~gyro_emulator.emulation.commands.CommandStream`. A zero stamp means
+"on receipt": the sample that takes it.
 
-Why (issue 14): one Python callback per message through rclpy's
-``SingleThreadedExecutor`` cost about 100 us (a wait set rebuilt each time),
-so a 10 kHz command flood took more than a core and stalled the 1 kHz
-output. With the events executor and raw callbacks a message costs about
-1.5 us, and a flood of N messages per sample costs one decode.
+Raw callbacks and one decode per sample keep a command flood from stalling
+the output: about 1.5 us a message, not ~100 us (issue 14).
 """
 
 from collections import deque
 
+from gyro_emulator.emulation.commands import (check_acceleration, check_rate,
+                                              check_temperature, CommandStream,
+                                              InputRejected)
 from gyro_emulator.recording import cdr, topics
 from gyro_emulator.ros import codec
-from gyro_emulator.ros.inputs import (check_acceleration, check_rate, check_temperature,
-                                      CommandStream, InputRejected)
 from gyro_emulator.units import NS_PER_S
 from rclpy.serialization import deserialize_message
 

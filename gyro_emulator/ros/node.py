@@ -7,7 +7,7 @@ time under ``use_sim_time``) advances the error model one sample per tick,
 commands in force at that tick. With ``input_source: imu`` the node follows
 a simulator instead: one sample per ``imu/ideal`` message
 (sensor_msgs/Imu), the time step from the stamps
-(:mod:`gyro_emulator.ros.imu_input`). Either way it publishes:
+(:mod:`gyro_emulator.emulation.imu_timeline`). Either way it publishes:
 
 * ``imu/data_raw`` (sensor_msgs/Imu, REP 145/103): the gyro output in rad/s,
   ``angular_velocity_covariance`` = diag(sigma^2) of the model's white noise
@@ -20,7 +20,7 @@ a simulator instead: one sample per ``imu/ideal`` message
   (geometry_msgs/Vector3Stamped, stamped at the sample instant): true rate
   (rad/s), total bias (rad/s) and total gain (ratio) of the same sample;
   ``~/truth/fault`` (diagnostic_msgs/DiagnosticArray, latched) on each change
-  of the injected fault (:mod:`gyro_emulator.ros.fault_injection`).
+  of the injected fault (:mod:`gyro_emulator.emulation.fault_state`).
 * ``/diagnostics`` (diagnostic_msgs/DiagnosticArray), see
   :mod:`gyro_emulator.ros.diagnostics`.
 
@@ -29,26 +29,24 @@ rad/s, sensor frame) or, with ``rate_source = odometry``, ``cmd/odom``
 (nav_msgs/Odometry, twist.twist.angular), to ``cmd/temperature``
 (sensor_msgs/Temperature, ambient deg C) and ``cmd/linear_acceleration``
 (geometry_msgs/Vector3Stamped, m/s^2), through :mod:`.intake`; input rules:
-:mod:`.inputs`. ``--help`` prints the parameters and topics and exits.
+:mod:`gyro_emulator.emulation.commands`. ``--help`` prints the parameters and
+topics and exits.
 """
 
 import functools
-import signal
 import sys
 import threading
 import time
 
-from gyro_emulator.interrupts import INTERRUPTED_STATUS, StartupInterrupt
+from gyro_emulator.emulation.block_stepper import BlockStepper
+from gyro_emulator.emulation.commands import (check_acceleration, check_rate, InputLimits,
+                                              InputRejected, Throttle)
+from gyro_emulator.emulation.fault_state import FaultState
+from gyro_emulator.emulation.imu_timeline import InputTimeline, StampNotNewer
 from gyro_emulator.recording import topics
-from gyro_emulator.ros import codec, diagnostics, node_help, params
-from gyro_emulator.ros.fault_injection import FaultState
-from gyro_emulator.ros.imu_input import InputTimeline, StampNotNewer
-from gyro_emulator.ros.inputs import (check_acceleration, check_rate, InputLimits,
-                                      InputRejected, Throttle)
+from gyro_emulator.ros import codec, diagnostics, node_help, params, spinning
 from gyro_emulator.ros.intake import INBOX_DEPTH, Intake
 from gyro_emulator.ros.outputs import fault_message, OutputStage
-from gyro_emulator.ros.spinning import close, spin_once
-from gyro_emulator.ros.stepper import BlockStepper
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import faults
 from gyro_emulator.sensor import model as sensor_model
@@ -56,11 +54,7 @@ from gyro_emulator.sensor.streams import seed_from_name
 from gyro_emulator.units import NS_PER_S
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-import rclpy
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.exceptions import ParameterException
-from rclpy.executors import ExternalShutdownException
-from rclpy.experimental.events_executor import EventsExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data, QoSProfile
@@ -68,8 +62,6 @@ from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.time import Time
 
 ZERO3 = (0.0, 0.0, 0.0)
-#: Longest wait of the executor between checks for shutdown, s.
-SHUTDOWN_POLL_S = 0.25
 
 
 def _while_up(callback):
@@ -595,72 +587,13 @@ class GyroEmulatorNode(Node):
                 f'{sum(book.clamped.values())} clamped, {book.model_errors} model errors')
 
 
-def _quiet_sigint(signum, frame):
-    """Python's SIGINT handler under rclpy's: rclpy already shut the context down."""
-
-
-def _first_line(exc):
-    """Return an exception's message on one line (rcl appends source locations)."""
-    text = str(exc).split(', at /')[0]
-    return ' '.join(text.split())
-
-
 def main(args=None):
     """Run the node until SIGINT or SIGTERM; return the exit status."""
     argv = sys.argv[1:] if args is None else list(args)
     if node_help.wants_help(argv):
         print(node_help.help_text())
         return 0
-    # numba loads its cache through ctypes callbacks that swallow a
-    # KeyboardInterrupt (and may be left half done): a Ctrl-C is deferred.
-    with StartupInterrupt() as startup:
-        _warm_up()
-    if startup.interrupted:
-        return INTERRUPTED_STATUS
-    # rclpy's SIGINT handler shuts the context down, then calls the Python
-    # handler it found: with Python's default that raises KeyboardInterrupt
-    # inside whatever callback runs, which the events executor logs with its
-    # traceback. With this one the loop below just sees the context go down.
-    signal.signal(signal.SIGINT, _quiet_sigint)
-    try:
-        rclpy.init(args=args)
-    except Exception as exc:  # noqa: B902 - rcl reports bad arguments and params files so
-        print(f'gyro_emulator node: error: cannot start ROS: {_first_line(exc)}',
-              file=sys.stderr)
-        return 2
-    node = None
-    try:
-        try:
-            node = GyroEmulatorNode()
-        except (ValueError, ParameterException, OSError) as exc:
-            print(f'gyro_emulator node: error: {_first_line(exc)}', file=sys.stderr)
-            return 2
-        except Exception:  # noqa: B902 - a SIGINT/SIGTERM while the node starts up
-            if rclpy.ok():
-                raise
-            print('[gyro_emulator] shutting down: stopped while starting', file=sys.stderr)
-            return 0
-        # The events executor serves a callback for about 1.5 us instead of the
-        # ~100 us of a SingleThreadedExecutor wait set (issue 14: command floods).
-        executor = EventsExecutor()
-        executor.add_node(node)
-        # rclpy's SIGINT/SIGTERM handler shuts the context down and wakes the
-        # executor. Waiting at most SHUTDOWN_POLL_S re-checks the context even if
-        # that wake-up is missed while nothing else is due (a paused /clock).
-        while spin_once(executor, SHUTDOWN_POLL_S):
-            pass
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            line = f'shutting down: {node.summary()}'
-            if rclpy.ok():
-                node.get_logger().info(line)
-            else:
-                # The signal handler already shut the context down: no rosout.
-                print(f'[gyro_emulator] {line}', file=sys.stderr)
-        close(node)
-    return 0
+    return spinning.run_node(GyroEmulatorNode, args, 'gyro_emulator node', warm_up=_warm_up)
 
 
 if __name__ == '__main__':

@@ -10,12 +10,9 @@ rclpy down (:class:`Run`).
 
 import sys
 
-from gyro_emulator.ros.spinning import close
+from gyro_emulator.ros.spinning import close, ERROR_STATUS
 import rclpy
 from rclpy.executors import ExternalShutdownException
-
-#: Exit status of a run stopped by bad input.
-ERROR_STATUS = 2
 
 
 def parse_arguments(parser, program, args=None):
@@ -55,8 +52,9 @@ class Run:
     exists and register clean-ups with :meth:`on_exit`. On leaving the block,
     SIGINT/SIGTERM (``KeyboardInterrupt``, ``ExternalShutdownException``)
     end the run quietly, a ``ValueError`` or ``OSError`` is printed as one
-    line and sets :attr:`status` to :data:`ERROR_STATUS`; then the clean-ups
-    run in order, the node is destroyed and rclpy is shut down.
+    line and sets :attr:`status` to
+    :data:`~gyro_emulator.ros.spinning.ERROR_STATUS`; then the clean-ups run
+    in order, the node is destroyed and rclpy is shut down.
 
     Parameters
     ----------

@@ -141,7 +141,7 @@ class Fault:
 
 
 @dataclass(frozen=True)
-class Effect:
+class FaultEffect:
     """What a fault did to a block: output (N, 3), published (N,), saturated (N, 3), active."""
 
     gyro_rad_s: np.ndarray
@@ -177,7 +177,7 @@ def apply_block(fault, t_s, gyro_rad_s, range_rad_s, rng=None, held_rad_s=None,
 
     Returns
     -------
-    Effect
+    FaultEffect
 
     """
     t = np.asarray(t_s, dtype=float)
@@ -186,7 +186,7 @@ def apply_block(fault, t_s, gyro_rad_s, range_rad_s, rng=None, held_rad_s=None,
     saturated = np.zeros((len(t), 3), dtype=bool)
     active = fault.active(t)
     if not active.any():
-        return Effect(out, published, saturated, active)
+        return FaultEffect(out, published, saturated, active)
     axes = fault.axes
     rows = np.flatnonzero(active)
     kind = fault.kind
@@ -219,7 +219,7 @@ def apply_block(fault, t_s, gyro_rad_s, range_rad_s, rng=None, held_rad_s=None,
             raise ValueError('apply_block: a noise_burst fault needs a numpy Generator')
         noise = rng.standard_normal((len(rows), len(axes)))
         out[np.ix_(rows, axes)] += fault.magnitude * noise
-    return Effect(out, published, saturated, active)
+    return FaultEffect(out, published, saturated, active)
 
 
 class Injector:
@@ -253,7 +253,7 @@ class Injector:
         self._held = {}
 
     def apply(self, t_s, gyro_rad_s):
-        """Return the :class:`Effect` of the schedule on the next block of samples."""
+        """Return the :class:`FaultEffect` of the schedule on the next block of samples."""
         t = np.asarray(t_s, dtype=float)
         out = np.array(gyro_rad_s, dtype=float, copy=True).reshape(len(t), 3)
         published = np.ones(len(t), dtype=bool)
@@ -273,7 +273,7 @@ class Injector:
         if len(t):
             self._last = out[-1]
             self._last_t = float(t[-1])
-        return Effect(out, published, saturated, active)
+        return FaultEffect(out, published, saturated, active)
 
 
 def parse_schedule(where, raw):

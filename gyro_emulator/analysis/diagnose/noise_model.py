@@ -17,10 +17,10 @@ the wander and asks how much held-out gain it alone would give:
    the model with the cause under test (what is left if the cause is
    real); for the tail bound of the test, the wider of that and the
    current model's (:meth:`NoiseModel.wider`).
-2. :func:`simulate`: Gaussian noise with those terms at the mean times of
-   *super-bins* (a few hundred groups of bins, each inside one fold): white
-   noise averaged over the group, flicker as a sum of Gauss-Markov terms one
-   per decade from the group length to ten record lengths
+2. :func:`draw_noise_records`: Gaussian noise with those terms at the mean
+   times of *super-bins* (a few hundred groups of bins, each inside one
+   fold): white noise averaged over the group, flicker as a sum of
+   Gauss-Markov terms one per decade from the group length to ten record lengths
    (:func:`gyro_emulator.sensor.noise.flicker_unit_variance`), and a random
    walk, each exactly discretised at the (irregular) group times.
 3. :func:`null_gain`: the cross-validation of :mod:`.cv` run on the
@@ -45,8 +45,8 @@ SUPER_PER_FOLD = 60
 N_SIM = 64
 #: The Allan fit uses averaging times up to this share of the record.
 TAU_MAX_SHARE = 0.1
-#: The terms :func:`simulate` draws, and so the only ones fitted: a share of
-#: the curve given to quantization or rate ramp would be lost to the null.
+#: The terms :func:`draw_noise_records` draws, and so the only ones fitted: a share
+#: of the curve given to quantization or rate ramp would be lost to the null.
 NOISE_TERMS = ('arw', 'bias_instability', 'rrw')
 
 
@@ -234,7 +234,7 @@ class SuperBins:
         return np.bincount(self.group, weights=values * self._bin_weight) / self.weight
 
 
-def simulate(noise, superbins, n_sim, rng):
+def draw_noise_records(noise, superbins, n_sim, rng):
     """
     Noise records at the super-bin times: white averaged per group, flicker, random walk.
 

@@ -127,8 +127,8 @@ class Selector:
 
     def sims_of(self, noise):
         """Noise records at the super-bins (the same random numbers for every noise model)."""
-        return noise_model.simulate(noise, self.superbins, noise_model.N_SIM,
-                                    np.random.default_rng(self.seed))
+        return noise_model.draw_noise_records(noise, self.superbins, noise_model.N_SIM,
+                                              np.random.default_rng(self.seed))
 
     def group_columns(self, model, phis):
         """Return the model's columns on the bins, averaged over the super-bins: (groups, p)."""
