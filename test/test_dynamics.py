@@ -2,6 +2,7 @@
 
 from dataclasses import replace
 
+import dynamics_reference
 from gyro_emulator.physics import dynamics, first_order, time_domain
 from gyro_emulator.physics.presets import PAPER_DEVICE, PAPER_SUTHERLAND_DEVICE
 from gyro_emulator.units import deg_s_to_rad_s
@@ -134,19 +135,18 @@ def test_time_domain_off_resonance_drive_matches_exact():
         1.0 / np.hypot(1.0, 2 * q_d * 60.0 / f_x), rel=0.01)
 
 
-def test_time_domain_transient_matches_rk4():
-    """The exact per-cycle map against brute-force RK4 (200 steps/cycle)."""
+def test_time_domain_transient_matches_dop853():
+    """The exact per-cycle map against scipy's DOP853 (rtol 1e-12)."""
     duration = 0.002
     res = dynamics.simulate_time_domain(PAPER_DEVICE, duration, 3.0, 25.0, 100.0,
                                         initial='rest')
-    ref = dynamics.simulate_rk4_reference(PAPER_DEVICE, duration, 3.0, 25.0,
-                                          100.0, points_per_cycle=200)
+    ref = dynamics_reference.simulate_reference(PAPER_DEVICE, duration, 3.0, 25.0, 100.0)
     n = len(res.time_s)
     assert ref.shape == (n + 1, 4)
     w = 2 * np.pi * float(first_order.lumped_parameters(PAPER_DEVICE).freq_x_hz)
     scale = np.array([1.0, w, 1.0, w]) * np.max(np.abs(ref[:, [0, 0, 2, 2]]), 0)
     err = np.max(np.abs(ref[:n] - res.state_m), 0) / scale
-    assert np.all(err < 1e-5), err
+    assert np.all(err < 1e-9), err
 
 
 def test_cycle_series_matches_direct_exponential():

@@ -289,6 +289,13 @@ def test_yield_interval_is_statsmodels_wilson_interval(passed, n):
     assert low <= passed / n <= high
 
 
+@pytest.mark.parametrize('n', [1, 10, 4096])
+def test_yield_interval_ends_are_exact_floats_at_no_and_all_parts_passing(n):
+    assert report.wilson_interval(0, n)[0] == 0.0 and report.wilson_interval(n, n)[1] == 1.0
+    assert all(type(end) is float for k in (0, 1, n) for end in report.wilson_interval(k, n))
+    assert report.wilson_interval(0, 0) == [None, None]
+
+
 @pytest.mark.parametrize('p_up,p_down', [(0.2, 0.05), (0.02, 0.02), (0.3, 0.0), (0.001, 0.0)])
 def test_paired_gain_interval_covers_the_true_gain_95_percent_of_the_time(p_up, p_down):
     """

@@ -3,11 +3,12 @@ Console-script entry points: ``gyro-emulator`` and the ROS executables.
 
 Each entry point first limits the BLAS thread pool, then imports the module
 that does the work. The models run many small matrix operations (ZOH
-discretisation, matrix exponentials of 6x6 to 42x42 matrices); on a loaded
-2-core machine one ``scipy.linalg.expm`` of a 42x42 matrix took 12.6 ms with
-OpenBLAS's default thread pool against 0.14 ms single-threaded (measured
-2026-11-22). The limit only takes effect before numpy is imported, so it
-lives here, at process start, and a user's own setting wins.
+discretisation, matrix exponentials of 6x6 to 42x42 matrices), which a BLAS
+thread pool slows down on a loaded machine: a 42x42 ``scipy.linalg.expm``
+takes 12.6 ms with OpenBLAS's default pool against 0.14 ms single-threaded
+on 2 cores. OpenBLAS reads ``OPENBLAS_NUM_THREADS`` when numpy loads it
+(OpenBLAS README, environment variables), so the limit lives here, at
+process start, and a user's own setting wins.
 """
 
 import importlib

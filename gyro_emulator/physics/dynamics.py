@@ -37,7 +37,7 @@ from gyro_emulator.physics.envelope import (
     rate_channel_step, rate_channel_step_response, RateChannelPoles)
 from gyro_emulator.physics.exact import exact_steady_state, ExactSteadyState
 from gyro_emulator.physics.time_domain import (
-    AgcSettings, DRIVE_MODES, INITIAL_STATES, settle_time_s, simulate_rk4_reference,
+    AgcSettings, DRIVE_MODES, INITIAL_STATES, settle_time_s,
     simulate_time_domain, time_domain_frequency_response, TimeDomainResult)
 
 __all__ = [
@@ -45,5 +45,5 @@ __all__ = [
     'rate_channel_bandwidth_hz', 'rate_channel_discrete', 'rate_channel_filter',
     'rate_channel_frequency_response', 'rate_channel_poles', 'rate_channel_state_space',
     'rate_channel_step', 'rate_channel_step_response', 'RateChannelPoles', 'settle_time_s',
-    'simulate_rk4_reference', 'simulate_time_domain', 'time_domain_frequency_response',
+    'simulate_time_domain', 'time_domain_frequency_response',
     'TimeDomainResult']

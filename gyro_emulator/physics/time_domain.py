@@ -4,8 +4,8 @@ Eq 3-4 in time, discretised exactly, with synchronous demodulation.
 :func:`simulate_time_domain` runs Omega(t), T(t), an open-loop or
 amplitude-regulated (AGC) drive and the demodulator; the augmented 6-state
 system advances one drive cycle per matrix step, exactly. Also the settling
-time, the swept frequency response and a fixed-step RK4 reference
-(:func:`simulate_rk4_reference`) that the benchmark and tests compare with.
+time and the swept frequency response. The tests and the benchmark check
+the transient against scipy's DOP853 (test/dynamics_reference.py).
 """
 
 from dataclasses import dataclass
@@ -242,7 +242,8 @@ def simulate_time_domain(device, duration_s, rate_rad_s=0.0, temp_c=25.0,
     error at any step size), needs one 4x4 step per drive cycle instead of
     40+ RK4 stages, and the recursion is evaluated in vectorised chunks; only
     the AGC needs a Python loop, one small matrix product per AGC update.
-    ``bench/bench_dynamics.py`` measures it against fixed-step RK4.
+    ``bench/bench_dynamics.py`` measures it against fixed-step RK4 and
+    checks it against DOP853.
 
     Inputs are held per drive cycle: Omega is sampled at each cycle's centre
     and T at the start of each ``temp_update_s`` segment (T sets the lumped
@@ -622,69 +623,3 @@ def time_domain_frequency_response(device, freq_hz, temp_c=25.0, split_hz=0.0,
     coef, *_ = np.linalg.lstsq(basis, res.in_phase_m[sel], rcond=None)
     gain = float(ref.sense_in_phase_m)
     return complex(coef[0], coef[1]) / gain
-
-
-def simulate_rk4_reference(device, duration_s, rate_rad_s=0.0, temp_c=25.0,
-                           split_hz=0.0, points_per_cycle=40):
-    """
-    Plain fixed-step RK4 of Eq 3-4 from rest (reference for tests and bench).
-
-    Open-loop drive F_d sin(w_x t), constant rate and temperature; a scalar
-    Python loop, the usual way such models are integrated. Its error is
-    O((w h)^4) per unit time, unlike :func:`simulate_time_domain`.
-
-    Parameters
-    ----------
-    device : gyro_emulator.physics.params.Device
-        The device (scalar fields).
-    duration_s : float
-        Simulated time, s (whole drive cycles).
-    rate_rad_s : float
-        True rate, rad/s.
-    temp_c : float
-        Die temperature, deg C.
-    split_hz : float
-        Drive-sense split f_y - f_x, Hz.
-    points_per_cycle : int
-        RK4 steps per drive cycle.
-
-    Returns
-    -------
-    numpy.ndarray
-        (x, x', y, y') at the start of each drive cycle, shape (n_cycles + 1, 4).
-
-    """
-    mech = _mechanics(device, temp_c, split_hz, None)
-    w = 2.0 * np.pi * mech.drive_freq_hz
-    cycles = max(1, int(math.ceil(duration_s * mech.drive_freq_hz - 1e-9)))
-    h = 1.0 / (mech.drive_freq_hz * points_per_cycle)
-    inv_m = 1.0 / mech.mass
-    kx, ky, cd, cs = (mech.k_x * inv_m, mech.k_y * inv_m, mech.c_d * inv_m,
-                      mech.c_s * inv_m)
-    fm = mech.force * inv_m
-    two_r = 2.0 * float(rate_rad_s)
-    sin = math.sin
-
-    def deriv(t, x, vx, y, vy):
-        return (vx, fm * sin(w * t) - cd * vx - kx * x + two_r * vy,
-                vy, -cs * vy - ky * y - two_r * vx)
-
-    x = vx = y = vy = 0.0
-    out = [(0.0, 0.0, 0.0, 0.0)]
-    t = 0.0
-    for c in range(cycles):
-        for i in range(points_per_cycle):
-            t = (c * points_per_cycle + i) * h
-            k1 = deriv(t, x, vx, y, vy)
-            k2 = deriv(t + 0.5 * h, x + 0.5 * h * k1[0], vx + 0.5 * h * k1[1],
-                       y + 0.5 * h * k1[2], vy + 0.5 * h * k1[3])
-            k3 = deriv(t + 0.5 * h, x + 0.5 * h * k2[0], vx + 0.5 * h * k2[1],
-                       y + 0.5 * h * k2[2], vy + 0.5 * h * k2[3])
-            k4 = deriv(t + h, x + h * k3[0], vx + h * k3[1], y + h * k3[2],
-                       vy + h * k3[3])
-            x += h / 6.0 * (k1[0] + 2.0 * k2[0] + 2.0 * k3[0] + k4[0])
-            vx += h / 6.0 * (k1[1] + 2.0 * k2[1] + 2.0 * k3[1] + k4[1])
-            y += h / 6.0 * (k1[2] + 2.0 * k2[2] + 2.0 * k3[2] + k4[2])
-            vy += h / 6.0 * (k1[3] + 2.0 * k2[3] + 2.0 * k3[3] + k4[3])
-        out.append((x, vx, y, vy))
-    return np.array(out)

@@ -64,25 +64,9 @@ VISIBLE_SLOPE = 0.7
 VISIBLE_EDF = 20.0
 #: Q and R must lower the weighted sum of squares by this (chi^2_1 at 95 %).
 LIKELIHOOD_RATIO = 3.84
-#: A term is resolved only from taus up to this share of the longest segment.
-#: Beyond it a record holds fewer than ten independent averages: their
-#: chi-squared intervals rest on a few degrees of freedom, the narrowest of
-#: several was taken, and the flicker level was held at its fitted value.
-#: An adversarial review found K "resolved" in 8 of 48 1 h axes that had no
-#: random walk (flicker B 10 deg/h, N 0.3 deg/sqrt(h)), every time read at
-#: tau 290-900 s; resolved from tau <= T/10 only: see test_allan.py.
+#: Resolved from tau <= T/10 only: beyond, few averages give few dof (NIST SP 1065 Sec 5.3).
 RESOLVE_TAU_SHARE = 0.1
-#: A resolved K must also lower the weighted sum of squares by this when it
-#: is removed (N and B refitted). The 3.84 of chi^2_1 treats the taus as
-#: independent; at 10 per decade the overlapping deviations of neighbours
-#: share most of their data, and at the long end a few independent
-#: averages make the whole tail rise or fall together, so the statistic's
-#: null distribution is far wider and is not known in closed form. Set
-#: from 84 simulated 1 h axes without a random walk (N 0.3 deg/sqrt(h), B
-#: 10 deg/h; the project's Gauss-Markov flicker and an outside reviewer's
-#: FFT flicker): the six on which K was resolved gave 12-27; 34 axes with
-#: K = 50 deg/h/sqrt(h) gave 20-146 (24 resolved, 23 kept), K = 100 gave
-#: 47-293. Too strict only turns a K into an upper bound (test_allan.py).
+#: A resolved K must cost this when removed: overlapping taus make 3.84 too lax (test_allan.py).
 RRW_LIKELIHOOD_RATIO = 30.0
 #: Default level of the term intervals (coverage measured in test_allan.py).
 TERM_CI = 0.95

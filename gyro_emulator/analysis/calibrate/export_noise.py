@@ -28,7 +28,10 @@ preset     electronics_arw_deg_sqrt_h, bias_instability_deg_h, rate_random_walk_
 =========  =====================================  ======================================
 
 Accelerometer fields are written as ``FILL_IN`` with a comment: this is a
-gyro log.
+gyro log. The YAML files (kalibr, openvins, preset) are written by PyYAML,
+numbers to 6 significant digits, with the comments added around it; the
+VINS-Fusion and ORB-SLAM3 blocks are pasted into OpenCV ``FileStorage``
+files and stay written by hand.
 """
 
 from gyro_emulator import units
@@ -36,6 +39,7 @@ from gyro_emulator.analysis.calibrate.noise import axis_values, export_noise
 from gyro_emulator.analysis.calibrate.provenance import (as_comments, MARKER, noise_lines,
                                                          NOT_MEASURED)
 from gyro_emulator.analysis.calibrate.twin import emulator_fit, PER_DECADE
+from gyro_emulator.analysis.calibrate.yaml_text import dump as dump_yaml, Figure, Flow, Quoted
 from gyro_emulator.sensor import noise as sensor_noise
 from gyro_emulator.sensor.config import ErrorTerms
 import numpy as np
@@ -51,8 +55,8 @@ def _num(value):
     return f'{float(value):.6g}'
 
 
-def _vec(values):
-    return '[' + ', '.join(_num(v) for v in values) + ']'
+def _identity(size, scale=1.0):
+    return [Flow(scale if i == j else 0.0 for j in range(size)) for i in range(size)]
 
 
 def _update_rate(calibration, rate_hz):
@@ -72,15 +76,19 @@ def kalibr(calibration, inflate=1.0, rate_hz=None):
                   'gyroscope_random_walk * sqrt(dt) with dt = 1 / update_rate.')
     topic = _topic(calibration)
     text = as_comments(noise_lines(calibration, ex, 'kalibr', convention))
-    text += (f'rostopic: {topic or MARKER}'
-             + ('' if topic else '   # the IMU topic of your calibration bag') + '\n'
-             f'update_rate: {_num(rate)}   # Hz\n'
-             f'accelerometer_noise_density: {MARKER}   # m/s^2/sqrt(Hz); {NOT_MEASURED}\n'
-             f'accelerometer_random_walk: {MARKER}   # m/s^3/sqrt(Hz); {NOT_MEASURED}\n'
-             f'gyroscope_noise_density: {_num(ex.arw_rad_s_sqrt_hz)}   # rad/s/sqrt(Hz), N\n'
-             f'gyroscope_random_walk: {_num(ex.rrw_rad_s_sqrt_s)}   # rad/s^2/sqrt(Hz), K'
-             + (' (upper bound)' if ex.rrw_is_bound else '') + '\n')
-    return text
+    bound = ' (upper bound)' if ex.rrw_is_bound else ''
+    data = {'rostopic': topic or MARKER, 'update_rate': Figure(rate),
+            'accelerometer_noise_density': MARKER, 'accelerometer_random_walk': MARKER,
+            'gyroscope_noise_density': Figure(ex.arw_rad_s_sqrt_hz),
+            'gyroscope_random_walk': Figure(ex.rrw_rad_s_sqrt_s)}
+    comments = {'update_rate': 'Hz',
+                'accelerometer_noise_density': f'm/s^2/sqrt(Hz); {NOT_MEASURED}',
+                'accelerometer_random_walk': f'm/s^3/sqrt(Hz); {NOT_MEASURED}',
+                'gyroscope_noise_density': 'rad/s/sqrt(Hz), N',
+                'gyroscope_random_walk': 'rad/s^2/sqrt(Hz), K' + bound}
+    if not topic:
+        comments['rostopic'] = 'the IMU topic of your calibration bag'
+    return text + dump_yaml(data, comments)
 
 
 def openvins(calibration, inflate=1.0, rate_hz=None):
@@ -90,27 +98,22 @@ def openvins(calibration, inflate=1.0, rate_hz=None):
     convention = (_CONTINUOUS + ' OpenVINS reads the Kalibr keys in the same continuous '
                   'units and discretises with the IMU sample period.')
     topic = _topic(calibration)
-    eye4 = ''.join(f'    - [{", ".join("1.0" if i == j else "0.0" for j in range(4))}]\n'
-                   for i in range(4))
-
-    def mat3(zero=False):
-        rows = (', '.join('1.0' if i == j and not zero else '0.0' for j in range(3))
-                for i in range(3))
-        return ''.join(f'    - [{row}]\n' for row in rows)
-
+    bound = ' (upper bound)' if ex.rrw_is_bound else ''
+    imu = {'T_i_b': _identity(4),
+           'accelerometer_noise_density': MARKER, 'accelerometer_random_walk': MARKER,
+           'gyroscope_noise_density': Figure(ex.arw_rad_s_sqrt_hz),
+           'gyroscope_random_walk': Figure(ex.rrw_rad_s_sqrt_s),
+           'rostopic': topic or MARKER, 'time_offset': 0.0, 'update_rate': Figure(rate),
+           'model': Quoted('kalibr'), 'Tw': _identity(3), 'R_IMUtoGYRO': _identity(3),
+           'Ta': _identity(3), 'R_IMUtoACC': _identity(3), 'Tg': _identity(3, 0.0)}
+    comments = {'accelerometer_noise_density': f'm/s^2/sqrt(Hz); {NOT_MEASURED}',
+                'accelerometer_random_walk': f'm/s^3/sqrt(Hz); {NOT_MEASURED}',
+                'gyroscope_noise_density': 'rad/s/sqrt(Hz), N',
+                'gyroscope_random_walk': 'rad/s^2/sqrt(Hz), K' + bound}
     text = '%YAML:1.0\n' + as_comments(noise_lines(calibration, ex, 'openvins', convention))
     text += ('# Intrinsics (T_i_b, Tw, R_IMUtoGYRO, Ta, R_IMUtoACC, Tg) and time_offset are\n'
              "# OpenVINS's uncalibrated defaults (identity, zero): this log does not give them.\n"
-             '\nimu0:\n  T_i_b:\n' + eye4
-             + f'  accelerometer_noise_density: {MARKER}  # m/s^2/sqrt(Hz); {NOT_MEASURED}\n'
-             f'  accelerometer_random_walk: {MARKER}  # m/s^3/sqrt(Hz); {NOT_MEASURED}\n'
-             f'  gyroscope_noise_density: {_num(ex.arw_rad_s_sqrt_hz)}  # rad/s/sqrt(Hz), N\n'
-             f'  gyroscope_random_walk: {_num(ex.rrw_rad_s_sqrt_s)}  # rad/s^2/sqrt(Hz), K'
-             + (' (upper bound)' if ex.rrw_is_bound else '') + '\n'
-             f'  rostopic: {topic or MARKER}\n  time_offset: 0.0\n'
-             f'  update_rate: {_num(rate)}\n  model: "kalibr"\n'
-             '  Tw:\n' + mat3() + '  R_IMUtoGYRO:\n' + mat3() + '  Ta:\n' + mat3()
-             + '  R_IMUtoACC:\n' + mat3() + '  Tg:\n' + mat3(zero=True))
+             '\n' + dump_yaml({'imu0': imu}, comments, gap='  '))
     return text
 
 
@@ -287,22 +290,19 @@ def preset(calibration, inflate=1.0, rate_hz=None):
     if len(twin.per_axis) < 3:
         lines.append(f'Axes {", ".join(n for n in "xyz" if n not in twin.per_axis)} copy '
                      f'axis {next(iter(twin.per_axis))} (not in the calibration).')
-    text = as_comments(lines)
-    text += 'device: paper\nterms:\n' + ''.join(
-        f'  {name}: {"true" if name in on else "false"}\n' for name in ErrorTerms.names())
-    text += (
-        'electronics_arw_deg_sqrt_h: '
-        + _vec(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v[0] * inflate) for v in axes) + '\n'
-        'bias_instability_deg_h: ' + _vec(units.rad_s_to_deg_h(v[1] * inflate) for v in axes)
-        + '\n'
-        f'bias_instability_band_s: [{_num(twin.band_s[0])}, {_num(twin.band_s[1])}]\n'
-        f'bias_instability_per_decade: {PER_DECADE:g}\n'
-        'rate_random_walk_deg_h_sqrt_h: '
-        + _vec(units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h(v[2] * inflate) for v in axes) + '\n'
-        'turn_on_bias_deg_s: ' + _vec(units.rad_s_to_deg_s(m) for m in mean) + '\n')
+    data = {'device': 'paper', 'terms': {name: name in on for name in ErrorTerms.names()},
+            'electronics_arw_deg_sqrt_h': Flow(
+                Figure(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v[0] * inflate)) for v in axes),
+            'bias_instability_deg_h': Flow(
+                Figure(units.rad_s_to_deg_h(v[1] * inflate)) for v in axes),
+            'bias_instability_band_s': Flow(Figure(t) for t in twin.band_s),
+            'bias_instability_per_decade': Figure(PER_DECADE),
+            'rate_random_walk_deg_h_sqrt_h': Flow(
+                Figure(units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h(v[2] * inflate)) for v in axes),
+            'turn_on_bias_deg_s': Flow(Figure(units.rad_s_to_deg_s(m)) for m in mean)}
     if calibration.lsb_rad_s > 0.0:
-        text += f'lsb_deg_s: {_num(units.rad_s_to_deg_s(calibration.lsb_rad_s))}\n'
-    return text
+        data['lsb_deg_s'] = Figure(units.rad_s_to_deg_s(calibration.lsb_rad_s))
+    return as_comments(lines) + dump_yaml(data)
 
 
 WRITERS = {'kalibr': kalibr, 'openvins': openvins, 'vins': vins, 'orbslam3': orbslam3,

@@ -1,1 +1,1 @@
-"""Fleets: Monte Carlo over fabrication tolerances and temperature (issue 16)."""
+"""Fleets: Monte Carlo over fabrication tolerances and temperature."""

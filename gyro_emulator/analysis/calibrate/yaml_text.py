@@ -1,0 +1,72 @@
+"""
+YAML text of the calibration exports: PyYAML writes the data, comments go around it.
+
+PyYAML writes no comments, so :func:`dump` adds a comment after the line of
+a key. Measured figures (:class:`Figure`) are written to 6 significant
+digits, each tagged as YAML reads its text back, so a file says what it
+held before: ``100`` an integer, ``2.31665e-05`` a float.
+"""
+
+import yaml
+
+
+class Figure(float):
+    """A measured figure, written to 6 significant digits (``f'{value:.6g}'``)."""
+
+
+class Flow(list):
+    """A sequence written on one line, ``[a, b, c]``."""
+
+
+class Quoted(str):
+    """A string written in double quotes."""
+
+
+class _Dumper(yaml.SafeDumper):
+    """PyYAML's safe dumper with block sequences indented under their key."""
+
+    def increase_indent(self, flow=False, indentless=False):
+        """Indent every block sequence (PyYAML leaves those in a mapping unindented)."""
+        return super().increase_indent(flow, False)
+
+
+def _represent_figure(dumper, data):
+    text = f'{float(data):.6g}'
+    # tagged as YAML resolves the plain text, so that no explicit tag is written
+    return dumper.represent_scalar(dumper.resolve(yaml.ScalarNode, text, (True, False)), text)
+
+
+_Dumper.add_representer(Figure, _represent_figure)
+_Dumper.add_representer(Flow, lambda dumper, data: dumper.represent_sequence(
+    'tag:yaml.org,2002:seq', data, flow_style=True))
+_Dumper.add_representer(Quoted, lambda dumper, data: dumper.represent_scalar(
+    'tag:yaml.org,2002:str', data, style='"'))
+
+
+def dump(data, comments=None, gap='   '):
+    """
+    Return ``data`` as block YAML: keys in their order, no line wrapping.
+
+    Parameters
+    ----------
+    data : dict
+        The document (``Figure``, ``Flow`` and ``Quoted`` values as above).
+    comments : dict
+        Key -> comment written after the line of that key.
+    gap : str
+        The spaces between a value and its comment.
+
+    Returns
+    -------
+    str
+
+    """
+    text = yaml.dump(data, Dumper=_Dumper, sort_keys=False, default_flow_style=False,
+                     width=float('inf'))
+    if not comments:
+        return text
+    lines = []
+    for line in text.splitlines():
+        key = line.lstrip().partition(':')[0]
+        lines.append(line + f'{gap}# {comments[key]}' if key in comments else line)
+    return '\n'.join(lines) + '\n'
