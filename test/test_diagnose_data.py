@@ -247,3 +247,15 @@ def test_stamp_rule_log_time_when_every_stamp_is_zero():
     np.testing.assert_array_equal(times, [0, 5, 7])
     times, _ = record.stream_times_ns(Arrays(), use_log_time=True)
     np.testing.assert_array_equal(times, [10, 20, 30])
+
+
+def test_a_record_built_from_arrays_is_the_measured_data_it_holds():
+    from gyro_emulator.recording.record import Record
+    rec = _record(n=300, dt=0.02)
+    built = Record.from_arrays(rec.time_s, rec.gyro_rad_s, rec.rate_cmd_rad_s, rec.temp_c,
+                               rec.accel_m_s2, path='synthetic')
+    back = dd.measured(built)
+    assert back.source == 'synthetic' and back.rows == rec.rows and back.has_accel
+    for name in ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s', 'accel_m_s2'):
+        np.testing.assert_array_equal(getattr(back, name), getattr(rec, name))
+    assert dd.measured(back) is back
