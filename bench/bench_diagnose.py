@@ -28,7 +28,7 @@ import time
 for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ[_var] = '1'
 
-from gyro_emulator.analysis.diagnose import (diagnose, EFFECT_IDS, load_csv,  # noqa: E402
+from gyro_emulator.analysis.diagnose import (diagnose, EFFECT_IDS, load_measured,  # noqa: E402
                                              make_truth, write_measured_csv)
 from gyro_emulator.analysis.diagnose.report import write_report  # noqa: E402
 
@@ -41,7 +41,7 @@ def _timed(args, record):
     path = os.path.join(args.out, 'measured.csv')
     write_measured_csv(path, record)
     t0 = time.perf_counter()
-    data = load_csv(path)
+    data = load_measured(path)
     t1 = time.perf_counter()
     result = diagnose(data)
     t2 = time.perf_counter()

@@ -6,16 +6,22 @@ import xml.etree.ElementTree as ElementTree
 
 from gyro_emulator import cli, units
 from gyro_emulator.analysis import simulate
-from gyro_emulator.analysis.allan.record import GyroRecord
 from gyro_emulator.analysis.calibrate import (export_noise, export_thermal, noise, thermal,
                                               twin)
 from gyro_emulator.recording import csvio
+from gyro_emulator.recording.record import load_record, Record
 from gyro_emulator.sensor import noise as sensor_noise, profiles
 from gyro_emulator.sensor.config import config_from_mapping, load_sensor_config, SensorConfig
 from gyro_emulator.sensor.model import GyroModel
 import numpy as np
 import pytest
 import yaml
+
+
+def _read_log(paths):
+    return thermal.thermal_log([load_record(p, required=thermal.REQUIRED_COLUMNS)
+                                for p in paths])
+
 
 REAL = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), '..',
                     'shared', 'data', 'real')
@@ -48,7 +54,7 @@ def noise_log(tmp_path_factory):
 
 @pytest.fixture(scope='module')
 def calibration(noise_log):
-    return noise.calibrate_noise(noise_log)
+    return noise.calibrate_noise(load_record(noise_log))
 
 
 def test_consumer_preset_recovery_through_its_output_filter():
@@ -62,10 +68,9 @@ def test_consumer_preset_recovery_through_its_output_filter():
     35 % of it.
     """
     time_s, _, batch = simulate.run_simulation('consumer', 'static', 7200.0, 200.0, seed=2026)
-    record = GyroRecord(
-        'consumer', time_s, {a: batch.gyro_rad_s[:, i] for i, a in enumerate('xyz')},
-        {a: a for a in 'xyz'})
-    cal = noise.calibrate_noise('consumer', record=record)
+    record = Record(time_s, {a: batch.gyro_rad_s[:, i] for i, a in enumerate('xyz')},
+                    {a: a for a in 'xyz'}, path='consumer')
+    cal = noise.calibrate_noise(record)
     k_true = units.rrw_deg_h_sqrt_h_to_rad_s_sqrt_s(50.0)
     for item in cal.axes:
         fit = item.fit
@@ -214,7 +219,7 @@ def test_a_grid_coarser_than_the_noise_is_warned(tmp_path):
         path = tmp_path / f'q{lsb:g}.csv'
         np.savetxt(path, np.column_stack([t, np.round(x / lsb) * lsb]), delimiter=',',
                    header='time_s,gyro_x_rad_s', comments='', fmt='%.10g')
-        cal = noise.calibrate_noise(str(path))
+        cal = noise.calibrate_noise(load_record(str(path)))
         notes = [w for w in cal.axes[0].fit.warnings if 'coarser than half' in w]
         assert bool(notes) == warned, (lsb, cal.axes[0].fit.warnings)
         assert cal.lsb_rad_s == (0.0 if warned else pytest.approx(lsb, rel=1e-6))
@@ -243,7 +248,7 @@ def thermal_log(tmp_path_factory):
 
 
 def test_thermal_fit_recovers_the_polynomial(thermal_log):
-    log = thermal.read_thermal_log([thermal_log])
+    log = _read_log([thermal_log])
     fit = thermal.fit_thermal(log)
     assert fit.order == 2 and fit.temp_ref_c == pytest.approx(25.0, abs=0.1)
     assert fit.span_k > 38.0 and fit.grouping.endswith('windows of 60 s')
@@ -257,7 +262,7 @@ def test_thermal_fit_recovers_the_polynomial(thermal_log):
 
 def test_px4_and_ardupilot_files_reproduce_the_fit(thermal_log):
     """PX4's and ArduPilot's own formulas, applied to the written values, give the fit."""
-    log = thermal.read_thermal_log([thermal_log])
+    log = _read_log([thermal_log])
     fit = thermal.fit_thermal(log)
     params = export_thermal.read_px4_params(export_thermal.write_thermal(fit, 'px4'))
     temps = np.linspace(fit.temp_min_c - 5.0, fit.temp_max_c + 5.0, 31)
@@ -283,10 +288,10 @@ def test_px4_and_ardupilot_files_reproduce_the_fit(thermal_log):
 
 
 def test_thermal_round_trip_and_compensation(thermal_log, tmp_path):
-    log = thermal.read_thermal_log([thermal_log])
+    log = _read_log([thermal_log])
     fit = thermal.fit_thermal(log)
     path = tmp_path / 'fitted.yaml'
-    path.write_text(export_thermal.write_thermal(fit, 'preset', log))
+    path.write_text(export_thermal.write_thermal(thermal.with_white_noise(fit, log), 'preset'))
     config = load_sensor_config(str(path))
     assert config.device[0].calibration_temp_c == pytest.approx(fit.temp_ref_c, abs=1e-3)
     check = twin.check_thermal(fit, log, config)
@@ -305,7 +310,7 @@ def test_thermal_refuses_too_little_span(thermal_log, tmp_path):
     short = tmp_path / 'short.csv'
     csvio.write_csv(str(short), {k: v[keep] for k, v in cols.items()})
     with pytest.raises(ValueError, match=r'spans 2\.\d+ K .*need, for order 1: 5 K'):
-        thermal.fit_thermal(thermal.read_thermal_log([str(short)]))
+        thermal.fit_thermal(_read_log([str(short)]))
     assert thermal.allowed_order(8.2, 25) == 1
     assert thermal.allowed_order(40.0, 40) == 3
     assert thermal.allowed_order(20.0, 4) == 1                   # span for 2, not the count
@@ -317,8 +322,7 @@ def test_thermal_refuses_too_little_span(thermal_log, tmp_path):
 def test_lsm6dsm_thermal_log():
     """8 K in 25 bursts: order 1, confounded with time, PX4 correction flattens x and y."""
     folder = os.path.join(REAL, 'lsm6dsm_thermal_chamber')
-    log = thermal.read_thermal_log([os.path.join(folder, f'lsm6dsm_tvc_{a}.csv')
-                                    for a in 'xyz'])
+    log = _read_log([os.path.join(folder, f'lsm6dsm_tvc_{a}.csv') for a in 'xyz'])
     fit = thermal.fit_thermal(log)
     assert fit.order == 1 and fit.distinct_temps >= 20 and 8.0 < fit.span_k < 8.5
     assert fit.correlation < -0.99 and any('confounded' in n for n in fit.notes)
@@ -327,7 +331,7 @@ def test_lsm6dsm_thermal_log():
         comp = thermal.compensation_check(fit, params, axis)
         assert comp.after_std < comp.before_std / 10.0
     check = twin.check_thermal(fit, log, load_sensor_config_text(
-        export_thermal.write_thermal(fit, 'preset', log)))
+        export_thermal.write_thermal(thermal.with_white_noise(fit, log), 'preset')))
     assert all(check.passed.values())
 
 
@@ -339,7 +343,7 @@ def load_sensor_config_text(text):
 def test_adis16405_round_trip():
     """The ADIS16405 twin: within 10 % up to 100 s, and within the log's interval beyond."""
     path = os.path.join(REAL, 'adis16405_static', 'adis16405_run1_100hz.csv.gz')
-    cal = noise.calibrate_noise(path)
+    cal = noise.calibrate_noise(load_record(path))
     config = load_sensor_config_text(export_noise.write_noise(cal, 'preset'))
     check = twin.check_noise(cal, config, seeds=4)
     assert check.taus_s[-1] == pytest.approx(819.2)

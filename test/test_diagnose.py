@@ -18,7 +18,7 @@ import sys
 
 from gyro_emulator.analysis.diagnose import baseline as base
 from gyro_emulator.analysis.diagnose import (CANDIDATE_IDS, CATALOGUE, diagnose, EFFECT_IDS,
-                                             load_csv, make_truth, write_measured_csv)
+                                             load_measured, make_truth, write_measured_csv)
 from gyro_emulator.analysis.diagnose.truth import TRUTH_EFFECTS
 from gyro_emulator.analysis.diagnose.truth_effects import EXTRA_TRUTHS
 from gyro_emulator.physics.presets import physics_preset
@@ -52,7 +52,7 @@ PRIMARY = {
 def _through_csv(tmp_path, record):
     path = tmp_path / 'measured.csv'
     write_measured_csv(path, record)
-    return load_csv(path)
+    return load_measured(path)
 
 
 def test_every_catalogue_entry_has_a_truth_and_a_check():
@@ -200,7 +200,7 @@ def test_the_papers_validation_experiment_with_sutherland_air(tmp_path):
 
 @pytest.mark.skipif(not os.path.isdir(REAL), reason='real data not present')
 def test_real_lsm6dsm_log_states_the_temperature_time_confounding(tmp_path):
-    doc = diagnose(load_csv(os.path.join(REAL, 'lsm6dsm_tvc_x.csv'))).doc
+    doc = diagnose(load_measured(os.path.join(REAL, 'lsm6dsm_tvc_x.csv'))).doc
     untested = {nt['effect'] for nt in doc['not_tested']}
     # static: the scale-factor causes cannot be observed, and say so
     assert {'viscosity_temperature', 'thermal_lag', 'time_delay', 'pressure_drift',

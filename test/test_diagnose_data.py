@@ -1,7 +1,7 @@
 """The diagnose CSV contract, bag input and the decimated view."""
 
 from gyro_emulator.analysis.diagnose import data as dd
-from gyro_emulator.analysis.diagnose.data import (load_csv, MeasuredData, Prepared,
+from gyro_emulator.analysis.diagnose.data import (load_measured, MeasuredData, Prepared,
                                                   write_measured_csv)
 import numpy as np
 import pytest
@@ -21,7 +21,7 @@ def test_csv_round_trip_with_and_without_accel(tmp_path):
         rec = _record(accel=accel)
         path = tmp_path / f'r{accel}.csv'
         write_measured_csv(path, rec)
-        back = load_csv(path)
+        back = load_measured(path)
         assert back.rows == rec.rows and back.has_accel == accel
         np.testing.assert_allclose(back.gyro_rad_s, rec.gyro_rad_s, rtol=1e-8)
         np.testing.assert_allclose(back.temp_c, rec.temp_c, atol=1e-5)
@@ -32,7 +32,7 @@ def test_extra_columns_ignored_and_any_column_order(tmp_path):
     rows = ['note,gyro_rad_s,temp_c,time_s,rate_cmd_rad_s']
     rows += [f'a,{0.1 * i},{20 + i},{i * 0.5},{0.0}' for i in range(30)]
     path.write_text('\n'.join(rows) + '\n')
-    rec = load_csv(path)
+    rec = load_measured(path)
     assert rec.rows == 30 and not rec.has_accel
     assert rec.gyro_rad_s[3] == pytest.approx(0.3)
     assert rec.time_s[-1] == pytest.approx(14.5)
@@ -50,10 +50,10 @@ GOOD = [f'{i * 0.1},0,25,0.001' for i in range(30)]
 def test_missing_column_names_it(tmp_path):
     path = _csv(tmp_path, 'time_s,temp_c,gyro_rad_s', [f'{i},25,0' for i in range(30)])
     with pytest.raises(ValueError, match='missing required column rate_cmd_rad_s.*--static'):
-        load_csv(path)
+        load_measured(path)
     path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c', [f'{i},0,25' for i in range(30)])
     with pytest.raises(ValueError, match='missing required column gyro_rad_s'):
-        load_csv(path)
+        load_measured(path)
 
 
 def test_static_three_axis_log_without_temperature(tmp_path):
@@ -61,19 +61,19 @@ def test_static_three_axis_log_without_temperature(tmp_path):
     path = _csv(tmp_path, 'time_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s',
                 [f'{0.01 * i},{i},{10 * i},{100 * i}' for i in range(30)])
     with pytest.raises(ValueError, match='choose an axis.*gyro_x_rad_s, gyro_y_rad_s'):
-        load_csv(path, static=True)
+        load_measured(path, static=True)
     with pytest.raises(ValueError, match='rate_cmd_rad_s'):
-        load_csv(path, axis='y')
-    rec = load_csv(path, axis='y', static=True)
+        load_measured(path, axis='y')
+    rec = load_measured(path, axis='y', static=True)
     assert not rec.has_temp and not rec.has_accel
     np.testing.assert_array_equal(rec.gyro_rad_s, 10.0 * np.arange(30))
     np.testing.assert_array_equal(rec.rate_cmd_rad_s, 0.0)
     assert rec.source.endswith('(gyro_y_rad_s)')
     with pytest.raises(ValueError, match="diagnose.axis = 'w' is not allowed"):
-        load_csv(path, axis='w', static=True)
+        load_measured(path, axis='w', static=True)
     # without temperature the contract round trips without the column
     write_measured_csv(tmp_path / 'back.csv', rec)
-    back = load_csv(tmp_path / 'back.csv')
+    back = load_measured(tmp_path / 'back.csv')
     assert not back.has_temp and back.rows == 30
 
 
@@ -87,21 +87,21 @@ def test_a_bad_cell_names_column_and_row(tmp_path, row, line, message):
     lines[row] = line
     path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
     with pytest.raises(ValueError, match=message):
-        load_csv(path)
+        load_measured(path)
 
 
 def test_a_repeated_stamp_is_accepted(tmp_path):
     lines = list(GOOD)
     lines[10] = '0.9,0,25,0.001'
     path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', lines)
-    assert load_csv(path).rows == 30
+    assert load_measured(path).rows == 30
 
 
 def test_partial_acceleration_columns_rejected(tmp_path):
     path = _csv(tmp_path, 'time_s,rate_cmd_rad_s,temp_c,gyro_rad_s,accel_x_m_s2',
                 [line + ',0' for line in GOOD])
     with pytest.raises(ValueError, match='acceleration needs all of'):
-        load_csv(path)
+        load_measured(path)
 
 
 def test_out_of_model_temperature_rejected():
@@ -184,42 +184,46 @@ def test_bag_input_maps_topics_onto_the_contract(tmp_path):
     pytest.importorskip('gyro_emulator.recording.bag')
     rec = _record(n=600, dt=0.02)
     _write_bag(tmp_path / 'run', rec)
-    back = dd.load_bag(str(tmp_path / 'run'))
+    back = dd.load_measured(str(tmp_path / 'run'))
     assert back.rows == rec.rows and back.has_accel
     np.testing.assert_allclose(back.time_s, rec.time_s, atol=1e-9)
     np.testing.assert_allclose(back.rate_cmd_rad_s, rec.rate_cmd_rad_s, atol=1e-12)
     np.testing.assert_allclose(back.temp_c, rec.temp_c, atol=1e-12)
     np.testing.assert_allclose(back.gyro_rad_s, rec.gyro_rad_s, atol=1e-12)
     np.testing.assert_allclose(back.accel_m_s2, rec.accel_m_s2, atol=1e-12)
-    no_accel = dd.load_bag(str(tmp_path / 'run'), accel_topic='none')
+    no_accel = dd.load_measured(str(tmp_path / 'run'), accel_topic='none')
     assert not no_accel.has_accel
     with pytest.raises(ValueError, match="no topic 'imu/nope' for the gyro"):
-        dd.load_bag(str(tmp_path / 'run'), gyro_topic='imu/nope')
+        dd.load_measured(str(tmp_path / 'run'), gyro_topic='imu/nope')
 
 
 def test_a_bag_with_a_corrupt_chunk_is_read_and_says_what_was_lost(tmp_path):
     from test_fuzz_readers import _corrupt_middle_chunk
     rec = _record(n=1500, dt=0.02)
     _write_bag(tmp_path / 'run', rec)
-    clean = dd.load_bag(str(tmp_path / 'run'))
+    clean = dd.load_measured(str(tmp_path / 'run'))
     assert clean.recovery == ()
     _corrupt_middle_chunk(str(tmp_path / 'run' / 'run_0.mcap'))
-    back = dd.load_bag(str(tmp_path / 'run'))
+    back = dd.load_measured(str(tmp_path / 'run'))
     assert 0 < back.rows < rec.rows
     assert len(back.recovery) >= 1 and 'corrupt chunk' in back.recovery[0]
 
 
 def test_one_loader_for_csv_and_bag(tmp_path):
-    from gyro_emulator.recording import records, topics
+    from gyro_emulator.recording import record, topics
     rec = _record(n=300, dt=0.02)
     write_measured_csv(tmp_path / 'run.csv', rec)
     _write_bag(tmp_path / 'run', rec)
-    csv = records.load_record(tmp_path / 'run.csv', required=('time_s',))
-    assert csv.reader is None and csv.recovery == () and 'gyro_rad_s' in csv.columns
-    bag = records.load_record(tmp_path / 'run')
-    assert bag.columns is None and records.is_bag(bag.path)
-    topic = bag.find_topic('gyro', topics.IMU_OUT.name)
-    stream = bag.stream(topic)
+    csv = record.load_record(tmp_path / 'run.csv', required=('time_s',))
+    assert not csv.is_bag and csv.recovery == () and 'gyro_rad_s' in csv.names
+    assert csv.gyro_sources == {'x': 'gyro_rad_s'} and csv.rate.source == 'rate_cmd_rad_s'
+    loaded = record.load_record(tmp_path / 'run', {'gyro': topics.IMU_OUT.name})
+    assert loaded.is_bag and record.is_bag(loaded.path)
+    assert loaded.topics['gyro'] == topics.IMU_OUT.bag_name and len(loaded.time_s) == rec.rows
+    np.testing.assert_allclose(loaded.gyro['z'], rec.gyro_rad_s)
+    reader = record.open_bag(tmp_path / 'run')
+    topic = record.find_topic(reader, 'gyro', topics.IMU_OUT.name)
+    stream = record.read_stream(reader, topic)
     assert topic == topics.IMU_OUT.bag_name and len(stream) == rec.rows
     np.testing.assert_array_equal(np.diff(stream.times_ns) > 0, True)
     np.testing.assert_allclose(stream.field('angular_velocity')[:, 2], rec.gyro_rad_s)
@@ -229,17 +233,29 @@ def test_one_loader_for_csv_and_bag(tmp_path):
 
 
 def test_stamp_rule_log_time_when_every_stamp_is_zero():
-    from gyro_emulator.recording import records
+    from gyro_emulator.recording import record
 
     class Arrays:
         stamp_ns = np.zeros(3, dtype=np.int64)
         log_time_ns = np.array([30, 10, 20], dtype=np.int64)
 
-    times, order = records.stream_times_ns(Arrays())
+    times, order = record.stream_times_ns(Arrays())
     np.testing.assert_array_equal(times, [10, 20, 30])
     np.testing.assert_array_equal(order, [1, 2, 0])
     Arrays.stamp_ns = np.array([5, 0, 7], dtype=np.int64)
-    times, _ = records.stream_times_ns(Arrays())
+    times, _ = record.stream_times_ns(Arrays())
     np.testing.assert_array_equal(times, [0, 5, 7])
-    times, _ = records.stream_times_ns(Arrays(), use_log_time=True)
+    times, _ = record.stream_times_ns(Arrays(), use_log_time=True)
     np.testing.assert_array_equal(times, [10, 20, 30])
+
+
+def test_a_record_built_from_arrays_is_the_measured_data_it_holds():
+    from gyro_emulator.recording.record import Record
+    rec = _record(n=300, dt=0.02)
+    built = Record.from_arrays(rec.time_s, rec.gyro_rad_s, rec.rate_cmd_rad_s, rec.temp_c,
+                               rec.accel_m_s2, path='synthetic')
+    back = dd.measured(built)
+    assert back.source == 'synthetic' and back.rows == rec.rows and back.has_accel
+    for name in ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s', 'accel_m_s2'):
+        np.testing.assert_array_equal(getattr(back, name), getattr(rec, name))
+    assert dd.measured(back) is back

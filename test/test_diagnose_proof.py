@@ -14,7 +14,7 @@ no false cause.
 import math
 import os
 
-from gyro_emulator.analysis.diagnose import diagnose, load_csv, make_truth
+from gyro_emulator.analysis.diagnose import diagnose, load_measured, make_truth
 import pytest
 from scipy import stats
 
@@ -194,7 +194,7 @@ def test_false_alarm_rate_is_at_most_nominal_over_seeded_records():
 @pytest.mark.skipif(not os.path.exists(MPU), reason='real data not present')
 @pytest.mark.parametrize('axis', 'xyz')
 def test_real_mpu6050_static_log_gives_no_false_cause(axis):
-    doc = diagnose(load_csv(MPU, axis=axis, static=True)).doc
+    doc = diagnose(load_measured(MPU, axis=axis, static=True)).doc
     assert doc['best']['effect'] == 'none' and doc['selected'] == []
     assert doc['set_aside']['fraction'] < 1e-3
     assert {'bias_temperature', 'viscosity_temperature'} <= {
@@ -204,7 +204,7 @@ def test_real_mpu6050_static_log_gives_no_false_cause(axis):
 @pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists(ADIS), reason='real data not present')
 def test_real_adis16405_static_log_gives_no_false_cause():
-    record = load_csv(ADIS, axis='x', static=True)
+    record = load_measured(ADIS, axis='x', static=True)
     doc = diagnose(record).doc
     assert doc['best']['effect'] == 'none' and doc['selected'] == []
     assert doc['verdict'] == 'no_mismatch'

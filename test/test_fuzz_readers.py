@@ -9,7 +9,7 @@ import gzip
 import os
 import shutil
 
-from gyro_emulator.analysis.diagnose.data import load_csv
+from gyro_emulator.analysis.diagnose.data import load_measured
 from gyro_emulator.recording import bag, cdr, csvio
 import numpy as np
 import pytest
@@ -60,7 +60,7 @@ def test_csv_readers_end_in_data_or_one_line(tmp_path, compressed):
     for i, damaged in enumerate(_mutations(data, rng, 200)):
         path = tmp_path / (f'case{i}.csv' + ('.gz' if compressed else ''))
         path.write_bytes(damaged)
-        for reader in (lambda p: csvio.read_csv(p, required=('time_s',)), load_csv,
+        for reader in (lambda p: csvio.read_csv(p, required=('time_s',)), load_measured,
                        lambda p: csvio.read_gyro_csv(p)):
             try:
                 reader(str(path))
@@ -76,7 +76,7 @@ def test_diagnose_refuses_duplicate_columns(tmp_path):
     path = tmp_path / 'dup.csv'
     path.write_text('time_s,rate_cmd_rad_s,temp_c,gyro_rad_s,temp_c\n0,0,25,0,26\n')
     with pytest.raises(ValueError, match='duplicate column.*temp_c'):
-        load_csv(str(path))
+        load_measured(str(path))
 
 
 def _small_bag(path):

@@ -6,10 +6,17 @@ from gyro_emulator import cli
 from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.calibrate import noise as cal_noise, thermal
 from gyro_emulator.analysis.diagnose import make_truth
-from gyro_emulator.recording import csvio
+from gyro_emulator.recording import timing
+from gyro_emulator.recording.record import load_record
 import numpy as np
 import pytest
 from scipy import signal
+
+
+def _read_log(paths):
+    return thermal.thermal_log([load_record(p, required=thermal.REQUIRED_COLUMNS)
+                                for p in paths])
+
 
 RATE_HZ = 100.0
 
@@ -130,9 +137,9 @@ def _thermal_log(path, outliers_kind):
 def test_thermal_fit_survives_spikes_and_motion(tmp_path):
     clean, _ = _thermal_log(tmp_path / 'clean.csv', None)
     dirty, truth = _thermal_log(tmp_path / 'dirty.csv', 'spikes+motion')
-    ref = thermal.fit_thermal(thermal.read_thermal_log([clean]))
-    fit = thermal.fit_thermal(thermal.read_thermal_log([dirty]))
-    kept = thermal.fit_thermal(thermal.read_thermal_log([dirty]), outlier_threshold=math.inf)
+    ref = thermal.fit_thermal(_read_log([clean]))
+    fit = thermal.fit_thermal(_read_log([dirty]))
+    kept = thermal.fit_thermal(_read_log([dirty]), outlier_threshold=math.inf)
     slope, err = ref.coefficients['x'][1], ref.errors['x'][1]
     assert fit.order == ref.order
     assert abs(fit.coefficients['x'][1] - slope) < 3 * err
@@ -157,7 +164,7 @@ def test_cli_reports_and_can_keep_every_sample(tmp_path, capsys):
     assert cli.main(['calibrate', 'noise', str(path), '--format', 'kalibr', '-o',
                      str(out)]) == 0
     assert '#   set aside 3 samples' in out.read_text()
-    cal = cal_noise.calibrate_noise(str(path))
+    cal = cal_noise.calibrate_noise(load_record(str(path)))
     assert cal.axes[0].set_aside['count'] == 3 and cal.axes[0].set_aside['filled'] == 3
 
 
@@ -171,12 +178,12 @@ def test_a_stuck_or_saturated_axis_is_left_out_and_named(tmp_path):
         temp = 20.0 + 20.0 * t / t[-1]
         np.savetxt(path, np.column_stack([t, x, y, z, temp]), delimiter=',', comments='',
                    header='time_s,gyro_x_rad_s,gyro_y_rad_s,gyro_z_rad_s,temp_c', fmt='%.10g')
-        cal = cal_noise.calibrate_noise(str(path))
+        cal = cal_noise.calibrate_noise(load_record(str(path)))
         assert [a.axis for a in cal.axes] == ['x', 'y']
         assert len(cal.skipped) == 1 and cal.skipped[0].startswith('axis z holds one value')
         with pytest.raises(ValueError, match='axis z holds one value'):
-            cal_noise.calibrate_noise(str(path), axes=('z',))
-        fit = thermal.fit_thermal(thermal.read_thermal_log([str(path)]))
+            cal_noise.calibrate_noise(load_record(str(path)), axes=('z',))
+        fit = thermal.fit_thermal(_read_log([str(path)]))
         assert set(fit.coefficients) == {'x', 'y'}
         assert any('axis z holds one value' in note for note in fit.notes)
     # a noisy quantised output repeats a value for a few samples, never for a second
@@ -193,7 +200,7 @@ def test_coarse_or_shared_timestamps_give_the_true_rate(stamping):
     t = (np.floor(true_t * 1000.0) / 1000.0 if stamping == 'milliseconds'
          else np.repeat(true_t[::3], 3)[:n])
     x = np.random.default_rng(6).standard_normal(n) * 1e-3
-    got, segments = csvio.sample_rate_and_segments(t)
+    got, segments = timing.sample_rate_and_segments(t)
     assert got == pytest.approx(rate_hz, rel=1e-3) and len(segments) == 1
     _, fit = allan.identify([x], got)
     density = 1e-3 / math.sqrt(rate_hz)
@@ -213,12 +220,12 @@ def test_dropped_samples_keep_the_nominal_rate_and_are_counted(share):
     n = 200_000
     t = np.arange(n) / RATE_HZ + 7.0
     keep = rng.random(n) >= share
-    rate_hz, bounds = csvio.sample_rate_and_segments(t[keep])
+    rate_hz, bounds = timing.sample_rate_and_segments(t[keep])
     assert rate_hz == pytest.approx(RATE_HZ, rel=1e-9)
     index = np.flatnonzero(keep)
     steps = np.diff(index)
     # a step of exactly 3 periods sits on the gap threshold: either side is right
-    missing = csvio.missing_samples(t[keep])
+    missing = timing.missing_samples(t[keep])
     assert np.sum(steps[steps <= 2] - 1) <= missing <= np.sum(steps[steps <= 3] - 1)
     assert 1 + np.sum(steps > 3) <= len(bounds) <= 1 + np.sum(steps > 2)
 
@@ -227,9 +234,9 @@ def test_dropped_samples_keep_the_nominal_rate_and_are_counted(share):
 def test_a_faster_part_on_a_millisecond_clock_is_not_read_as_dropped_samples(rate_hz):
     """Steps of 1 and 2 ms at a fixed beat (or 0 and 1, 2 and 3 ms): true rate, none missing."""
     t = np.floor(np.arange(300_000) / rate_hz * 1000.0) / 1000.0
-    got, _ = csvio.sample_rate_and_segments(t)
+    got, _ = timing.sample_rate_and_segments(t)
     assert got == pytest.approx(rate_hz, rel=2e-3)
-    assert csvio.missing_samples(t) == 0
+    assert timing.missing_samples(t) == 0
 
 
 def test_calibrate_noise_on_a_log_with_dropped_samples_gets_n_and_says_what_is_missing(
@@ -243,7 +250,7 @@ def test_calibrate_noise_on_a_log_with_dropped_samples_gets_n_and_says_what_is_m
     path = tmp_path / 'lossy.csv'
     np.savetxt(path, np.column_stack([t[keep], x[keep]]), delimiter=',',
                header='time_s,gyro_x_rad_s', comments='', fmt='%.10g')
-    cal = cal_noise.calibrate_noise(str(path))
+    cal = cal_noise.calibrate_noise(load_record(str(path)))
     assert cal.rate_hz == pytest.approx(RATE_HZ)
     arw = cal.axes[0].fit.intervals['arw']
     truth = 1e-3 / math.sqrt(RATE_HZ)
@@ -252,7 +259,7 @@ def test_calibrate_noise_on_a_log_with_dropped_samples_gets_n_and_says_what_is_m
     clean = tmp_path / 'clean.csv'
     np.savetxt(clean, np.column_stack([t, x]), delimiter=',', header='time_s,gyro_x_rad_s',
                comments='', fmt='%.10g')
-    assert cal_noise.calibrate_noise(str(clean)).timing == ()
+    assert cal_noise.calibrate_noise(load_record(str(clean))).timing == ()
 
 
 def test_a_shock_that_moves_the_bias_splits_the_record():
@@ -283,7 +290,7 @@ def test_thermal_range_and_windows_survive_glitches_and_logging_gaps(tmp_path):
     path = tmp_path / 'ramp.csv'
     np.savetxt(path, np.column_stack([t[keep], temp[keep], rate[keep]]), delimiter=',',
                header='time_s,temp_c,gyro_rad_s', comments='', fmt='%.10g')
-    fit = thermal.fit_thermal(thermal.read_thermal_log([str(path)]))
+    fit = thermal.fit_thermal(_read_log([str(path)]))
     assert 'windows of 60 s in 4 stretches' in fit.grouping
     assert 10.0 <= fit.temp_min_c < 11.0 and 49.0 < fit.temp_max_c <= 50.0
     assert fit.span_k > 38.0

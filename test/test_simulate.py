@@ -10,7 +10,7 @@ import time
 from gyro_emulator import cli, units
 from gyro_emulator.analysis import simulate
 from gyro_emulator.cli.simulate import Progress
-from gyro_emulator.recording import csvio
+from gyro_emulator.recording import csvio, timing
 from gyro_emulator.sensor import profiles
 from gyro_emulator.sensor.config import load_sensor_config
 from gyro_emulator.sensor.model import SensorBatch
@@ -224,7 +224,7 @@ def test_csv_round_trip_gz_and_repeated_times(tmp_path):
 
 def test_segments_at_gaps():
     t = np.concatenate([np.arange(100) * 0.02, 100.0 + np.arange(50) * 0.02])
-    rate, bounds = csvio.sample_rate_and_segments(t)
+    rate, bounds = timing.sample_rate_and_segments(t)
     assert rate == pytest.approx(50.0)
     assert bounds == [(0, 100), (100, 150)]
 

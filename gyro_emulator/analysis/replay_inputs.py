@@ -21,7 +21,7 @@ configuration and seed give the identical emulated output.
 from dataclasses import dataclass, field
 
 from gyro_emulator.analysis.emulator_bag import DEFAULT_FRAME_ID, IMU, TEMPERATURE, VECTOR3_STAMPED
-from gyro_emulator.recording import records, topics
+from gyro_emulator.recording import record, topics
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.model import GyroModel
 from gyro_emulator.units import NS_PER_S
@@ -167,7 +167,7 @@ def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
     temp_c = DEFAULT_TEMP_C if temp_c is None else temp_c
     roles = _role_topics(reader, source, rate_topic, temperature_topic, accel_topic,
                          measured_topic, notes)
-    rate_stream = records.read_stream(reader, roles['rate'], use_log_time)
+    rate_stream = record.read_stream(reader, roles['rate'], use_log_time)
     if len(rate_stream) < 2:
         raise ValueError(f'{roles["rate"]} has {len(rate_stream)} message(s): need at least 2')
     rate_stamp = rate_stream.times_ns
@@ -176,7 +176,7 @@ def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
     measured_stamp = measured = None
     if roles['measured'] is not None:
         m = rate_stream if roles['measured'] == roles['rate'] else \
-            records.read_stream(reader, roles['measured'], use_log_time)
+            record.read_stream(reader, roles['measured'], use_log_time)
         measured_stamp, measured = m.times_ns, m.field('angular_velocity')
         frame_id = str(m.arrays.decoded.frame_id[0]) or frame_id
     rate_hz = _sample_rate_hz(reader, rate_hz, measured_stamp, rate_stamp, notes)
@@ -206,17 +206,17 @@ def _resolve_source(reader, source, rate_topic):
     if source != 'auto':
         return source
     if rate_topic:
-        found = records.find_topic(reader, 'rate', rate_topic)
+        found = record.find_topic(reader, 'rate', rate_topic)
         return 'command' if reader.topics[found].type_name == VECTOR3_STAMPED else 'imu'
-    found = records.find_topic(reader, 'rate', default=topics.RATE_CMD.name,
-                               types=(VECTOR3_STAMPED,))
+    found = record.find_topic(reader, 'rate', default=topics.RATE_CMD.name,
+                              types=(VECTOR3_STAMPED,))
     return 'command' if found else 'imu'
 
 
 def _role_topics(reader, source, rate_topic, temperature_topic, accel_topic, measured_topic,
                  notes):
     """Return the bag topic of each role: rate, measured, accel, temperature."""
-    find = records.find_topic
+    find = record.find_topic
     roles = {}
     if source == 'command':
         roles['rate'] = find(reader, 'rate', rate_topic, topics.RATE_CMD.name,
@@ -294,7 +294,7 @@ def _held(reader, topic, name, stamp, period_ns, before, use_log_time):
     """Field ``name`` of ``topic`` held (zero-order) at ``stamp``; None without a topic."""
     if topic is None:
         return None
-    stream = records.read_stream(reader, topic, use_log_time)
+    stream = record.read_stream(reader, topic, use_log_time)
     return hold(stream.times_ns, stream.field(name), stamp, int(period_ns // 2), before=before)
 
 

@@ -2,7 +2,7 @@
 One offline replay run: a bag in; the emulated bag, the report and the plots out.
 
 :func:`replay_bag` is what ``gyro-emulator replay`` does once its arguments
-are parsed: open the bag (:func:`gyro_emulator.recording.records.load_record`,
+are parsed: open the bag (:func:`gyro_emulator.recording.record.open_bag`,
 tolerant of damage), take the sensor configuration and seed as given or else
 from the bag's ``custom_data``, read the inputs (:func:`load_inputs`),
 emulate, compare, and write ``DIR/emulated``, the report and the plots.
@@ -14,7 +14,7 @@ import os
 from gyro_emulator.analysis.emulator_bag import white_noise_sigma, write_output_bag
 from gyro_emulator.analysis.replay_inputs import emulate, load_inputs
 from gyro_emulator.analysis.replay_report import compare, report_text, write_report
-from gyro_emulator.recording import records
+from gyro_emulator.recording import record
 from gyro_emulator.sensor.config import load_sensor_config
 
 #: Sensor configuration when neither the caller nor the bag names one.
@@ -78,9 +78,9 @@ def replay_bag(bag_path, out_dir, config=None, seed=None, plots=True, overwrite=
         ``out_dir/emulated`` exists, is not empty and ``overwrite`` is false.
 
     """
-    reader = records.load_record(bag_path).reader
-    if reader is None:
+    if not record.is_bag(bag_path):
         raise ValueError(f'{bag_path} is not a bag (a directory or an .mcap file)')
+    reader = record.open_bag(bag_path)
     for note in reader.problems:
         warn(f'incomplete bag, {note}')
     bag_dir = os.path.join(out_dir, 'emulated')

@@ -98,9 +98,10 @@ def print_terms(info, out=None, indent='  '):
 def run(args):
     """Analyse the record, print the summary, write JSON and plot if asked."""
     from gyro_emulator.analysis import allan
+    from gyro_emulator.recording.record import load_record
 
-    info, result, fit = allan.analyse_record(args.file, args.axis, args.topic,
-                                             args.max_tau_fraction, args.gap_factor,
+    info, result, fit = allan.analyse_record(load_record(args.file, {'gyro': args.topic}),
+                                             args.axis, args.max_tau_fraction, args.gap_factor,
                                              outlier_threshold=outlier_threshold(args))
     for note in info['recovery'] + info['timing']:
         print(f'gyro-emulator allan: warning: {note}', file=sys.stderr)

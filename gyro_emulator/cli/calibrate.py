@@ -117,9 +117,10 @@ def _threshold(args):
 
 def _calibrate(args):
     from gyro_emulator.analysis.calibrate import noise
+    from gyro_emulator.recording.record import load_record
 
     axes = None if args.axis == 'all' else (args.axis,)
-    cal = noise.calibrate_noise(args.log, axes, args.topic,
+    cal = noise.calibrate_noise(load_record(args.log, {'gyro': args.topic}), axes,
                                 outlier_threshold=_threshold(args))
     for note in cal.recovery + cal.skipped + cal.timing:
         print(f'gyro-emulator calibrate: warning: {note}', file=sys.stderr)
@@ -182,8 +183,11 @@ def _axis_path(path, axis):
 
 def _thermal(args):
     from gyro_emulator.analysis.calibrate import thermal
+    from gyro_emulator.recording.record import load_record
 
-    log = thermal.read_thermal_log(args.log, args.topic, args.temperature_topic)
+    roles = thermal.bag_topics(args.topic, args.temperature_topic)
+    log = thermal.thermal_log([load_record(path, roles, thermal.REQUIRED_COLUMNS)
+                               for path in args.log])
     fit = thermal.fit_thermal(log, getattr(args, 'order', 3), args.window_s, args.gyro_scale,
                               _threshold(args))
     return log, fit
@@ -223,11 +227,13 @@ def _thermal_doc(fit):
 
 def run_thermal(args):
     """Fit bias against temperature and write the chosen format."""
-    from gyro_emulator.analysis.calibrate import export_thermal, plots
+    from gyro_emulator.analysis.calibrate import export_thermal, plots, thermal
 
     log, fit = _thermal(args)
     _print_thermal(fit)
-    _write(args.out, export_thermal.write_thermal(fit, args.format, log))
+    if args.format == 'preset':
+        fit = thermal.with_white_noise(fit, log)
+    _write(args.out, export_thermal.write_thermal(fit, args.format))
     if args.json:
         write_json(args.json, _thermal_doc(fit))
     if args.plot:

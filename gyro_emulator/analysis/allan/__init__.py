@@ -16,5 +16,5 @@ from gyro_emulator.analysis.allan.fit import (  # noqa: F401
     compare_readings, fit_noise_terms, model_adev, NoiseFit, readings, TERMS)
 from gyro_emulator.analysis.allan.plot import plot_adev  # noqa: F401
 from gyro_emulator.analysis.allan.record import (  # noqa: F401
-    analyse_record, identify, read_gyro_record, screened_segments, segments_of,
+    analyse_record, identify, screened_segments, segments_of,
     start_transient)

@@ -1,9 +1,9 @@
 """
 Noise identification of a record, as ``gyro-emulator allan`` and ``calibrate noise`` run it.
 
-:func:`read_gyro_record` reads the gyro axes of a CSV file or a bag once
-(through :func:`gyro_emulator.recording.records.load_record`);
-:func:`identify` runs the IEEE Std 952 procedure on one axis: overlapping
+The record is a :class:`gyro_emulator.recording.record.Record` (its gyro
+axes, their times and columns); :func:`identify` runs the IEEE Std 952
+procedure on one axis: overlapping
 Allan deviation with confidence intervals, the band-limited short-tau region
 (:mod:`~gyro_emulator.analysis.allan.band`), the five-term fit and its
 intervals (:mod:`~gyro_emulator.analysis.allan.fit`), the read-offs, and the
@@ -11,87 +11,29 @@ warnings when they disagree; :func:`analyse_record` does both for one axis
 and returns the JSON summary.
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 from gyro_emulator import units
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import adev, band, fit as fitting
-from gyro_emulator.recording import csvio, records, topics
+from gyro_emulator.recording import csvio, timing
 import numpy as np
 
-AXES = ('x', 'y', 'z')
 #: A stretch set aside no longer than this is filled with its neighbours' mean,
 #: a longer one splits the record, s.
 FILL_MAX_S = 10.0
 
 
-@dataclass(frozen=True)
-class GyroRecord:
-    """
-    The gyro axes of a record.
-
-    Attributes
-    ----------
-    path : str
-        Where it was read from.
-    time_s : numpy.ndarray
-        Sample times from the first, s (non-decreasing).
-    rates : dict
-        Axis ('x', 'y', 'z') -> rate samples, rad/s: the axes the record
-        has (a single-axis CSV's ``gyro_rad_s`` is taken as axis 'x').
-    columns : dict
-        Axis -> the column or topic field it came from.
-    recovery : tuple of str
-        What a damaged bag lost.
-
-    """
-
-    path: str
-    time_s: np.ndarray
-    rates: dict
-    columns: dict
-    recovery: tuple = ()
-
-
-def read_gyro_record(path, topic=None):
-    """
-    Read the gyro axes of a CSV file (``gyro_rad_s`` or ``gyro_{x,y,z}_rad_s``) or a bag.
-
-    A bag must have one sensor_msgs/Imu topic, or ``topic`` names it.
-    Repeated timestamps of a jittery logger are accepted.
-    """
-    path = str(path)
-    if records.is_bag(path):
-        rec = records.load_record(path)
-        imu = [name for name, info in rec.reader.topics.items()
-               if info.type_name == topics.IMU]
-        if topic is None and len(imu) != 1:
-            raise ValueError(f'{path}: {len(imu)} sensor_msgs/Imu topics '
-                             f'({", ".join(imu) or "none"}): choose one with --topic')
-        name = rec.find_topic('gyro', topic or imu[0], types=(topics.IMU,))
-        stream = rec.stream(name)
-        time_s = (stream.times_ns - stream.times_ns[0]) * 1e-9
-        csvio.check_increasing(time_s, f'{path}: header stamps', strict=False)
-        block = stream.field('angular_velocity')
-        return GyroRecord(path, time_s, {a: block[:, i] for i, a in enumerate(AXES)},
-                          {a: f'{name} angular_velocity.{a}' for a in AXES},
-                          tuple(rec.recovery))
-    rec = records.load_record(path, required=('time_s',), time_order='nondecreasing')
-    found = csvio.gyro_columns(rec.columns, path)
-    return GyroRecord(path, rec.columns['time_s'],
-                      {a: rec.columns[name] for a, name in found.items()}, found)
-
-
 def axis_of(record, axis):
     """Return (rate, column) of ``axis`` (None: the record's first axis)."""
-    column = csvio.gyro_column_of(record.columns, axis, record.path)
-    axis = next(a for a, c in record.columns.items() if c == column)
-    return record.rates[axis], column
+    column = csvio.gyro_column_of(record.require_gyro().gyro_sources, axis, record.path)
+    axis = next(a for a, c in record.gyro_sources.items() if c == column)
+    return record.gyro[axis], column
 
 
 def segments_of(time_s, rate, gap_factor=3.0):
     """Return (nominal rate Hz, contiguous segments of >= 3 samples) split at gaps."""
-    rate_hz, bounds = csvio.sample_rate_and_segments(time_s, gap_factor)
+    rate_hz, bounds = timing.sample_rate_and_segments(time_s, gap_factor)
     segments = [np.asarray(rate[a:b], dtype=float) for a, b in bounds if b - a >= 3]
     if not segments:
         raise ValueError('no segment has 3 or more samples')
@@ -126,7 +68,7 @@ def screened_segments(time_s, rate, gap_factor=3.0, threshold=outliers.THRESHOLD
     """
     time_s = np.asarray(time_s, dtype=float)
     rate = np.asarray(rate, dtype=float)
-    rate_hz, _ = csvio.sample_rate_and_segments(time_s, gap_factor)
+    rate_hz, _ = timing.sample_rate_and_segments(time_s, gap_factor)
     outliers.check_not_held(rate, rate_hz, what)
     screened = outliers.screen_at_rest(time_s, rate, 1.0 / rate_hz, threshold)
     filled = rate.copy()
@@ -260,14 +202,14 @@ def missing_note(time_s, gap_factor=3.0):
     """
     Say how many samples are missing between the stamps, and what that does (or nothing).
 
-    The rate is the nominal one (:func:`gyro_emulator.recording.csvio.dropped_samples`)
+    The rate is the nominal one (:func:`gyro_emulator.recording.timing.dropped_samples`)
     and the Allan deviation joins the samples on either side of a missing
     one: the white noise N is right (its per-sample spread and the sample
     period are), but the correlated terms see a share p of their time
     removed, so a random walk reads 1 / sqrt(1 - p) high in K; B, a
     scale-free term, hardly moves.
     """
-    missing = csvio.missing_samples(time_s, gap_factor)
+    missing = timing.missing_samples(time_s, gap_factor)
     if not missing:
         return ()
     share = missing / (len(time_s) + missing)
@@ -277,17 +219,17 @@ def missing_note(time_s, gap_factor=3.0):
             f'{100 * (1 / np.sqrt(1 - share) - 1):.2g} % high',)
 
 
-def analyse_record(path, axis=None, topic=None, max_tau_fraction=0.25, gap_factor=3.0,
-                   record=None, outlier_threshold=outliers.THRESHOLD):
+def analyse_record(record, axis=None, max_tau_fraction=0.25, gap_factor=3.0,
+                   outlier_threshold=outliers.THRESHOLD):
     """
-    Analyse one axis of a record (CSV or bag) as ``gyro-emulator allan`` does.
+    Analyse one axis of a record as ``gyro-emulator allan`` does.
 
-    Returns ``(JSON-ready dict, AllanResult, NoiseFit)``; ``record`` (a
-    :class:`GyroRecord`) skips reading the file again. Spikes and motion
-    are set aside first (:func:`screened_segments`; ``outlier_threshold``
+    ``record`` is a :class:`gyro_emulator.recording.record.Record`. Returns
+    ``(JSON-ready dict, AllanResult, NoiseFit)``. Spikes and motion are set
+    aside first (:func:`screened_segments`; ``outlier_threshold``
     ``math.inf`` keeps every sample) and ``set_aside`` says what went.
     """
-    record = read_gyro_record(path, topic) if record is None else record
+    path = record.path
     rate, column = axis_of(record, axis)
     try:
         rate_hz, segments, screened, handled = screened_segments(

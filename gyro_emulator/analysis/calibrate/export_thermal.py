@@ -20,11 +20,11 @@ Thermal exports: PX4 TC_G0_* and ArduPilot INS_TCAL1_* parameters, this emulator
 """
 
 from gyro_emulator import units
-from gyro_emulator.analysis.calibrate.noise import detect_lsb
 from gyro_emulator.analysis.calibrate.provenance import as_comments, MARKER, thermal_lines
-from gyro_emulator.analysis.calibrate.thermal import AXES, polyfit_stats, white_noise_of
+from gyro_emulator.analysis.calibrate.thermal import AXES, polyfit_stats
 from gyro_emulator.sensor.config import ErrorTerms
 import numpy as np
+import yaml
 
 FORMATS = ('px4', 'ardupilot', 'preset')
 #: ArduPilot's fixed reference temperature (AP_InertialSensor_tempcal.cpp TEMP_REFERENCE), C.
@@ -140,15 +140,40 @@ def _preset_axis_values(fit, axis):
     return coeffs[0], coeffs[1], coeffs[2]
 
 
-def preset(fit, log):
-    """Write this emulator's sensor YAML (module docstring), N and the LSB from the log."""
+class _Number(str):
+    """A number in the text it is written with (``%.6g``): YAML reads it as that text reads."""
+
+
+class _PresetDumper(yaml.SafeDumper):
+    """Block mappings, flow lists of numbers, numbers in their own text."""
+
+
+_PresetDumper.add_representer(_Number, lambda dumper, text: dumper.represent_scalar(
+    dumper.resolve(yaml.ScalarNode, str(text), (True, False)), str(text)))
+_PresetDumper.add_representer(list, lambda dumper, items: dumper.represent_sequence(
+    'tag:yaml.org,2002:seq', items, flow_style=True))
+
+
+def _vec(values):
+    return [_Number(f'{float(v):.6g}') for v in values]
+
+
+def preset(fit):
+    """
+    Write this emulator's sensor YAML (module docstring), N and the LSB as the fit carries them.
+
+    ``fit`` needs its white noise and LSB
+    (:func:`gyro_emulator.analysis.calibrate.thermal.with_white_noise`).
+    """
+    if fit.arw_rad_s_sqrt_hz is None or fit.lsb_rad_s is None:
+        raise ValueError('--format preset needs the white noise and LSB of the log: '
+                         'fit with thermal.with_white_noise first')
     convention = ('bias(T) = turn_on_bias + c1 (T - T_cal) + c2 (T - T_cal)^2 with T_cal = '
                   "device calibration_temp_c = the fit's T_ref; T is the die temperature "
                   "(thermal_lag off: the log's temperature is the die's).")
     values = {a: _preset_axis_values(fit, a) for a in fit.coefficients}
-    noise = {a: white_noise_of(log, a, fit.gyro_scale)[0] for a in fit.coefficients}
-    steps = [detect_lsb(log.axes[a][2] * fit.gyro_scale) for a in fit.coefficients]
-    lsb = float(np.median(steps)) if all(s > 0 for s in steps) else 0.0
+    noise = fit.arw_rad_s_sqrt_hz
+    lsb = fit.lsb_rad_s
     lines = thermal_lines(fit, 'preset', convention) + [
         'N (electronics_arw) from the same samples (IEEE Std 952 fit); bias instability and '
         'rate random walk: not measurable from this log, left at 0.']
@@ -165,30 +190,26 @@ def preset(fit, log):
         {'quantization'} if lsb > 0.0 else set())
     rows = [values.get(a) or next(iter(values.values())) for a in AXES]
     noise_rows = [noise.get(a) or next(iter(noise.values())) for a in AXES]
-
-    def vec(items):
-        return '[' + ', '.join(f'{float(v):.6g}' for v in items) + ']'
-
-    text = as_comments(lines)
-    text += (f'device:\n  preset: paper\n  calibration_temp_c: {fit.temp_ref_c:.4f}\nterms:\n'
-             + ''.join(f'  {n}: {"true" if n in on else "false"}\n' for n in ErrorTerms.names())
-             + 'electronics_arw_deg_sqrt_h: '
-             + vec(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v) for v in noise_rows) + '\n'
-             + 'turn_on_bias_deg_s: ' + vec(units.rad_s_to_deg_s(v[0]) for v in rows) + '\n'
-             + 'bias_temp_coeff_deg_s_k: ' + vec(units.rad_s_to_deg_s(v[1]) for v in rows)
-             + '\n' + 'bias_temp_coeff2_deg_s_k2: '
-             + vec(units.rad_s_to_deg_s(v[2]) for v in rows) + '\n')
+    data = {
+        'device': {'preset': 'paper', 'calibration_temp_c': _Number(f'{fit.temp_ref_c:.4f}')},
+        'terms': {n: n in on for n in ErrorTerms.names()},
+        'electronics_arw_deg_sqrt_h': _vec(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v)
+                                           for v in noise_rows),
+        'turn_on_bias_deg_s': _vec(units.rad_s_to_deg_s(v[0]) for v in rows),
+        'bias_temp_coeff_deg_s_k': _vec(units.rad_s_to_deg_s(v[1]) for v in rows),
+        'bias_temp_coeff2_deg_s_k2': _vec(units.rad_s_to_deg_s(v[2]) for v in rows)}
     if lsb > 0.0:
-        text += f'lsb_deg_s: {float(units.rad_s_to_deg_s(lsb)):.6g}\n'
-    return text
+        data['lsb_deg_s'] = _Number(f'{float(units.rad_s_to_deg_s(lsb)):.6g}')
+    return as_comments(lines) + yaml.dump(data, Dumper=_PresetDumper, sort_keys=False,
+                                          default_flow_style=False)
 
 
-def write_thermal(fit, fmt, log=None):
-    """Return the text of format ``fmt`` (one of :data:`FORMATS`); ``preset`` needs the log."""
+def write_thermal(fit, fmt):
+    """Return the text of format ``fmt`` (one of :data:`FORMATS`); ``preset`` needs N, LSB."""
     if fmt == 'px4':
         return px4(fit)
     if fmt == 'ardupilot':
         return ardupilot(fit)
     if fmt == 'preset':
-        return preset(fit, log)
+        return preset(fit)
     raise ValueError(f'format = {fmt!r} is not allowed: choose {", ".join(FORMATS)}')

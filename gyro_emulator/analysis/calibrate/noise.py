@@ -5,7 +5,8 @@ Noise calibration of a measured gyro log: the values an estimator or the emulato
 (:func:`gyro_emulator.analysis.allan.identify`) on each axis of a static
 log and keeps what the exporters need: N, B and K per axis with their
 intervals, the tau range used, the log's sample rate, the value grid of
-its samples (:func:`detect_lsb`) and its mean.
+its samples (:func:`detect_lsb`, on
+:func:`gyro_emulator.recording.record.grid_step`) and its mean.
 
 Estimators model white noise and a bias random walk only. :func:`export_noise`
 turns a calibration into those two numbers (continuous time, IEEE Std 952
@@ -22,10 +23,8 @@ from dataclasses import dataclass, replace
 
 from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.allan import record as allan_record
+from gyro_emulator.recording.record import grid_step
 import numpy as np
-
-#: A grid is a quantisation step when every sample lies on it within this fraction.
-GRID_TOLERANCE = 0.02
 
 
 @dataclass(frozen=True)
@@ -96,38 +95,14 @@ class NoiseCalibration:
         return min(lows), max(highs)
 
 
-def grid_step(rate, max_unique=200_000):
-    """
-    Return the grid a log's samples lie on, whatever its size, or 0, and their distinct values.
-
-    The smallest gap between distinct values, refined over all gaps, is a
-    grid when every sample is on it within 2 % of a step and there are 2 to
-    ``max_unique`` distinct values.
-    """
-    values = np.asarray(rate, dtype=float)
-    unique = np.unique(values)
-    if len(unique) < 2 or len(unique) > max_unique:
-        return 0.0, len(unique)
-    gaps = np.diff(unique)
-    smallest = float(np.min(gaps))
-    if not smallest > 0.0:
-        return 0.0, len(unique)
-    counts = np.round(gaps / smallest)
-    step = float(np.sum(gaps) / np.sum(counts))
-    offsets = (unique - unique[0]) / step
-    if np.max(np.abs(offsets - np.round(offsets))) > GRID_TOLERANCE:
-        return 0.0, len(unique)
-    return step, len(unique)
-
-
 def quantisation(rate, max_unique=200_000):
     """
     Return an axis's LSB (or 0) and a warning when its grid is coarser than its noise (or None).
 
-    The grid of :func:`grid_step` is the LSB when it is below half the
-    samples' standard deviation and there are at least 8 distinct values:
-    the part's LSB or the precision the log was written with; either way
-    the log's values are quantised to it. A coarser grid (any number of
+    The grid of :func:`gyro_emulator.recording.record.grid_step` is the LSB
+    when it is below half the samples' standard deviation and there are at
+    least 8 distinct values: the part's LSB or the precision the log was
+    written with; either way the log's values are quantised to it. A coarser grid (any number of
     values: a few in a whole log is quantisation) is no LSB the noise sits
     on: the output is quantised more coarsely than its noise, rounding adds
     about LSB^2 / 12 per sample and, at this size, is not independent of
@@ -148,23 +123,19 @@ def detect_lsb(rate, max_unique=200_000):
     return quantisation(rate, max_unique)[0]
 
 
-def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fraction=0.25,
-                    record=None, outlier_threshold=outliers.THRESHOLD):
+def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
+                    outlier_threshold=outliers.THRESHOLD):
     """
     Identify the noise terms of each axis of a static log.
 
     Parameters
     ----------
-    path : str
-        CSV or bag (see :func:`gyro_emulator.analysis.allan.read_gyro_record`).
+    record : gyro_emulator.recording.record.Record
+        The log (its gyro axes).
     axes : sequence of str, optional
         Axes to calibrate (default: all the log has).
-    topic : str, optional
-        Imu topic of a bag.
     gap_factor, max_tau_fraction : float
         As for ``gyro-emulator allan``.
-    record : GyroRecord, optional
-        Already read.
     outlier_threshold : float
         Spikes and motion beyond this many robust standard deviations of
         their neighbours are set aside before the Allan deviation
@@ -176,8 +147,8 @@ def calibrate_noise(path, axes=None, topic=None, gap_factor=3.0, max_tau_fractio
     NoiseCalibration
 
     """
-    record = allan.read_gyro_record(path, topic) if record is None else record
-    axes = tuple(record.rates) if axes is None else tuple(axes)
+    path = record.require_gyro().path
+    axes = tuple(record.gyro) if axes is None else tuple(axes)
     found, rate_hz, steps = [], None, []
     skipped = []
     for name in axes:

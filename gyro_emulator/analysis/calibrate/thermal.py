@@ -1,10 +1,12 @@
 """
 Thermal calibration: zero-rate bias against die temperature, from a static log.
 
-The log (:func:`read_thermal_log`) is a CSV with ``time_s``, ``temp_c`` and
-``gyro_rad_s`` or ``gyro_{x,y,z}_rad_s``, or several one-axis CSVs (x, y, z
-in the order given), or a bag with an Imu topic and a sensor_msgs/Temperature
-topic (default ``imu/temperature``, the die temperature). The samples are
+The log (:func:`thermal_log`, from loaded
+:class:`gyro_emulator.recording.record.Record` s) is a CSV with ``time_s``,
+``temp_c`` and ``gyro_rad_s`` or ``gyro_{x,y,z}_rad_s``, or several
+one-axis CSVs (x, y, z in the order given), or a bag with an Imu topic and
+a sensor_msgs/Temperature topic (default ``imu/temperature``, the die
+temperature). The samples are
 averaged in groups (:func:`group_means`): the bursts of a log with gaps, or
 windows of ``window_s`` of a continuous one. The bias is a polynomial in
 (T - T_ref), T_ref the middle of the logged range (PX4's TREF), fitted to
@@ -27,11 +29,13 @@ groups) a drift in time cannot be told from a temperature effect, and the
 fit says so.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import record as allan_record
-from gyro_emulator.recording import csvio, records, topics
+from gyro_emulator.analysis.calibrate.noise import detect_lsb
+from gyro_emulator.recording import csvio, timing
+from gyro_emulator.recording.record import DEFAULT_TOPICS
 import numpy as np
 
 #: Smallest temperature span (K) for each polynomial order.
@@ -49,65 +53,68 @@ AXES = ('x', 'y', 'z')
 
 @dataclass(frozen=True)
 class ThermalLog:
-    """Static gyro samples with their die temperature: per axis (time_s, temp_c, rate_rad_s)."""
+    """
+    Static gyro samples with their die temperature: per axis (time_s, temp_c, rate_rad_s).
+
+    Built from loaded records by :func:`thermal_log`; it reads no file.
+    """
 
     sources: tuple
     axes: dict
     columns: dict
 
 
-def _read_bag(path, topic, temperature_topic):
-    rec = records.load_record(path)
-    imu = [n for n, info in rec.reader.topics.items() if info.type_name == topics.IMU]
-    if topic is None and len(imu) != 1:
-        raise ValueError(f'{path}: {len(imu)} sensor_msgs/Imu topics: choose one with --topic')
-    name = rec.find_topic('gyro', topic or imu[0], types=(topics.IMU,))
-    temp_name = rec.find_topic('temperature', temperature_topic,
-                               default=topics.DIE_TEMPERATURE_OUT.name,
-                               types=(topics.TEMPERATURE,))
-    if temp_name is None:
-        raise ValueError(f'{path}: no sensor_msgs/Temperature topic (default '
-                         f'{topics.DIE_TEMPERATURE_OUT.name}): name one with --temperature-topic')
-    gyro, temp = rec.stream(name), rec.stream(temp_name)
-    if len(temp) < 2:
-        raise ValueError(f'{path}: {temp_name} has {len(temp)} messages: need >= 2')
-    t0 = gyro.times_ns[0]
-    time_s = (gyro.times_ns - t0) * 1e-9
-    temp_c = np.interp(time_s, (temp.times_ns - t0) * 1e-9, temp.field('temperature'))
-    block = gyro.field('angular_velocity')
-    return ({a: (time_s, temp_c, block[:, i]) for i, a in enumerate(AXES)},
-            {a: f'{name} angular_velocity.{a}' for a in AXES})
+#: CSV columns a thermal log must have (:func:`gyro_emulator.recording.record.load_record`).
+REQUIRED_COLUMNS = ('time_s', 'temp_c')
 
 
-def read_thermal_log(paths, topic=None, temperature_topic=None):
+def bag_topics(topic=None, temperature_topic=None):
+    """Return the bag topic of each role a thermal log reads: the gyro and the die temperature."""
+    return {'gyro': topic, 'die_temp': temperature_topic}
+
+
+def _bag_axes(rec):
+    """Per-axis (time_s, temp_c, rate) of a bag record, its temperature on the gyro's times."""
+    if rec.temp is None:
+        raise ValueError(f'{rec.path}: no sensor_msgs/Temperature topic (default '
+                         f'{DEFAULT_TOPICS["die_temp"]}): name one with '
+                         '--temperature-topic')
+    if len(rec.temp.time_s) < 2:
+        raise ValueError(f'{rec.path}: {rec.topics["temp"]} has {len(rec.temp.time_s)} '
+                         'messages: need >= 2')
+    temp_c = np.interp(rec.time_s, rec.temp.time_s, rec.temp.values)
+    return ({a: (rec.time_s, temp_c, rate) for a, rate in rec.gyro.items()},
+            dict(rec.gyro_sources))
+
+
+def thermal_log(recs):
     """
-    Read a thermal log: one 3-axis CSV or bag, or one-axis CSVs taken as x, y, z in order.
+    Return the :class:`ThermalLog` of loaded records: one 3-axis CSV or bag, or one-axis CSVs.
 
-    Returns a :class:`ThermalLog`.
+    One-axis CSVs are taken as x, y, z in the order given.
     """
-    paths = [str(p) for p in paths]
-    if not paths or len(paths) > 3:
-        raise ValueError(f'thermal log: {len(paths)} files given: give one 3-axis file or '
+    paths = tuple(r.path for r in recs)
+    if not recs or len(recs) > 3:
+        raise ValueError(f'thermal log: {len(recs)} files given: give one 3-axis file or '
                          'one to three one-axis files (x, y, z in that order)')
-    if len(paths) == 1 and records.is_bag(paths[0]):
-        axes, columns = _read_bag(paths[0], topic, temperature_topic)
-        return ThermalLog(tuple(paths), axes, columns)
+    if len(recs) == 1 and recs[0].is_bag:
+        axes, columns = _bag_axes(recs[0].require_gyro())
+        return ThermalLog(paths, axes, columns)
     axes, columns = {}, {}
-    for i, path in enumerate(paths):
-        if records.is_bag(path):
+    for i, rec in enumerate(recs):
+        path = rec.path
+        if rec.is_bag:
             raise ValueError(f'{path}: a bag must be the only thermal log given')
-        cols = records.load_record(path, required=('time_s', 'temp_c'),
-                                   time_order='nondecreasing').columns
-        found = csvio.gyro_columns(cols, path)
-        if len(found) > 1 and len(paths) > 1:
+        found = rec.require_gyro().gyro_sources
+        if len(found) > 1 and len(recs) > 1:
             raise ValueError(f'{path}: has {len(found)} gyro axes: give it alone')
         for named, name in found.items():
             axis = AXES[i] if name == csvio.GYRO_SINGLE else named
             if axis in axes:
                 raise ValueError(f'{path}: axis {axis} is given twice ({columns[axis]})')
-            axes[axis] = (cols['time_s'], cols['temp_c'], cols[name])
+            axes[axis] = (rec.time_s, rec.temp.values, rec.gyro[named])
             columns[axis] = f'{path}:{name}'
-    return ThermalLog(tuple(paths), axes, columns)
+    return ThermalLog(paths, axes, columns)
 
 
 @dataclass(frozen=True)
@@ -143,7 +150,7 @@ def group_means(time_s, temp_c, rate, window_s=60.0, gap_factor=3.0, keep=None):
     sample standard deviation over sqrt(count): it treats the samples
     within a group as independent.
     """
-    _, bounds = csvio.sample_rate_and_segments(time_s, gap_factor)
+    _, bounds = timing.sample_rate_and_segments(time_s, gap_factor)
     bounds = [(a, b) for a, b in bounds if b - a >= 3]
     how = f'{len(bounds)} bursts'
     long = [time_s[b - 1] - time_s[a] > 2.0 * window_s for a, b in bounds]
@@ -233,7 +240,10 @@ class ThermalFit:
     the scatter of the group means about the fit and ``group_noise`` their
     typical standard error (rad/s); ``notes`` what a user must know;
     ``set_aside[axis]`` the spikes and motion left out of the group means
-    (:class:`gyro_emulator.analysis.outliers.SetAside`).
+    (:class:`gyro_emulator.analysis.outliers.SetAside`). The white noise
+    ``arw_rad_s_sqrt_hz[axis]`` (N, rad/s/sqrt(Hz)) and the grid
+    ``lsb_rad_s`` of the samples are None until :func:`with_white_noise`
+    adds them (what the ``preset`` export needs beside the polynomial).
     """
 
     sources: tuple
@@ -255,6 +265,8 @@ class ThermalFit:
     gyro_scale: float
     notes: tuple
     set_aside: dict = field(default_factory=dict)
+    arw_rad_s_sqrt_hz: dict = None
+    lsb_rad_s: float = None
 
     @property
     def groups_temp_c(self):
@@ -289,11 +301,9 @@ def _screen(log, gyro_scale, threshold):
     :class:`gyro_emulator.analysis.outliers.SetAside` per axis, notes on the
     axes left out); with no axis left, ValueError.
     """
-    from dataclasses import replace
-
     screened, notes = {}, []
     for axis, (t, _, rate) in log.axes.items():
-        rate_hz, _ = csvio.sample_rate_and_segments(t)
+        rate_hz, _ = timing.sample_rate_and_segments(t)
         try:
             outliers.check_not_held(rate, rate_hz, f'axis {axis}')
         except outliers.HeldOutput as exc:
@@ -451,3 +461,18 @@ def white_noise_of(log, axis, gyro_scale=1.0, gap_factor=3.0):
                                                              gap_factor)
     _, found = allan_record.identify(segments, rate_hz)
     return found.arw_rad_s_sqrt_hz, rate_hz
+
+
+def with_white_noise(fit, log):
+    """
+    Return ``fit`` with each axis's white noise N and the samples' LSB, from the log's samples.
+
+    N is the IEEE Std 952 fit of :func:`white_noise_of` (the logged rates
+    times ``fit.gyro_scale``); the LSB is the median of the axes' grids
+    (:func:`gyro_emulator.analysis.calibrate.noise.detect_lsb`), 0 unless
+    every axis has one.
+    """
+    noise = {a: white_noise_of(log, a, fit.gyro_scale)[0] for a in fit.coefficients}
+    steps = [detect_lsb(log.axes[a][2] * fit.gyro_scale) for a in fit.coefficients]
+    lsb = float(np.median(steps)) if all(s > 0 for s in steps) else 0.0
+    return replace(fit, arw_rad_s_sqrt_hz=noise, lsb_rad_s=lsb)

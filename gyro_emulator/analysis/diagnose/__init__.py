@@ -1,7 +1,7 @@
 """
 Model against measurement: find what the simulation gets wrong, name the cause.
 
-``diagnose`` compares a measured record (CSV contract in :mod:`.data`) with
+``diagnose`` compares a measured record (the contract in :mod:`.data`) with
 the paper's first-order physics calibrated as a user would (:mod:`.baseline`).
 It sets outliers aside (:mod:`.screening`), adds physical and generic
 causes (:mod:`.effects`, :mod:`.generic`, :mod:`.models`) by forward
@@ -12,12 +12,12 @@ writes the JSON. :mod:`.truth` makes simulated records with hidden effects
 to prove it; :mod:`.report` writes the Markdown report.
 """
 
-from gyro_emulator.analysis.diagnose.data import (load_csv, load_measured, MeasuredData,
+from gyro_emulator.analysis.diagnose.data import (load_measured, measured, MeasuredData,
                                                   write_measured_csv)
 from gyro_emulator.analysis.diagnose.generic import CANDIDATE_IDS, CATALOGUE, EFFECT_IDS
 from gyro_emulator.analysis.diagnose.pipeline import diagnose, Diagnosis
 from gyro_emulator.analysis.diagnose.truth import make_truth, TRUTH_EFFECTS
 
-__all__ = ['CANDIDATE_IDS', 'CATALOGUE', 'diagnose', 'Diagnosis', 'EFFECT_IDS', 'load_csv',
-           'load_measured', 'make_truth', 'MeasuredData', 'TRUTH_EFFECTS',
+__all__ = ['CANDIDATE_IDS', 'CATALOGUE', 'diagnose', 'Diagnosis', 'EFFECT_IDS',
+           'load_measured', 'make_truth', 'measured', 'MeasuredData', 'TRUTH_EFFECTS',
            'write_measured_csv']

@@ -7,7 +7,11 @@ leave it out when the caller says so, ``static=True``); ``temp_c`` (the
 temperature reading; optional: without it the temperature causes are not
 testable); ``gyro_rad_s`` or, with ``axis``, ``gyro_<axis>_rad_s`` (the
 measured output). Optional: ``accel_x_m_s2``, ``accel_y_m_s2``,
-``accel_z_m_s2`` (all three or none). Other columns are ignored.
+``accel_z_m_s2`` (all three or none). Other columns are ignored. A bag has
+its topics mapped onto these roles (:func:`bag_topics`). Either is read
+by :func:`gyro_emulator.recording.record.load_record`; :func:`measured`
+turns the :class:`~gyro_emulator.recording.record.Record` into
+:class:`MeasuredData`.
 
 Fitting runs on bin means (:class:`Frame`): the samples are grouped in
 contiguous bins of equal duration and every regressor is the mean of its
@@ -22,7 +26,8 @@ the temperature by < 0.02 K on a 3 K/min ramp. Samples set aside (outliers,
 
 from dataclasses import dataclass
 
-from gyro_emulator.recording import csvio, records, topics
+from gyro_emulator.recording import csvio
+from gyro_emulator.recording.record import DEFAULT_TOPICS, load_record
 import numpy as np
 
 REQUIRED_COLUMNS = ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s')
@@ -132,20 +137,48 @@ class MeasuredData:
         return self.temp_c is not None
 
 
-def load_csv(path, axis=None, static=False):
+#: The CSV columns diagnose reads (any others may hold anything).
+COLUMNS = REQUIRED_COLUMNS + ('gyro_rad_s',) + tuple(f'gyro_{a}_rad_s' for a in AXES) \
+    + ACCEL_COLUMNS
+#: Default topic mapping of a bag (the emulator's inputs and output).
+DEFAULT_BAG_TOPICS = {'rate': DEFAULT_TOPICS['rate'], 'temp': DEFAULT_TOPICS['temp'],
+                      'gyro': DEFAULT_TOPICS['output'], 'accel': DEFAULT_TOPICS['accel']}
+
+
+def _check_axis(axis):
+    if axis is not None and axis not in AXES:
+        raise ValueError(f"diagnose.axis = {axis!r} is not allowed: choose one of 'x', 'y', 'z'")
+
+
+def bag_topics(rate_topic=None, temp_topic=None, gyro_topic=None, accel_topic=None):
     """
-    Read a measured CSV in the diagnose contract.
+    Return the bag topic of each role diagnose reads (defaults :data:`DEFAULT_BAG_TOPICS`).
+
+    The acceleration is read from ``cmd/linear_acceleration`` when the bag
+    has it and ``accel_topic`` is None; ``'none'`` ignores it.
+    """
+    return {'gyro': gyro_topic or DEFAULT_BAG_TOPICS['gyro'],
+            'rate': rate_topic or DEFAULT_BAG_TOPICS['rate'],
+            'temp': temp_topic or DEFAULT_BAG_TOPICS['temp'], 'accel': accel_topic}
+
+
+def load_measured(path, rate_topic=None, temp_topic=None, gyro_topic=None, accel_topic=None,
+                  axis=None, static=False):
+    """
+    Read a measured record (CSV or bag) into the diagnose contract: :func:`measured` of it.
 
     Parameters
     ----------
     path : str
-        CSV file (``.gz`` for gzip) with a header row (see the module
-        docstring), read by :func:`gyro_emulator.recording.records.load_record`.
+        CSV file (``.gz`` for gzip) with a header row (module docstring), or
+        a bag directory or ``.mcap`` file
+        (:func:`gyro_emulator.recording.record.load_record`).
+    rate_topic, temp_topic, gyro_topic, accel_topic : str, optional
+        A bag's topics (:func:`bag_topics`).
     axis : str, optional
-        'x', 'y' or 'z': read ``gyro_<axis>_rad_s`` (a 3-axis log) when the
-        file has it; default ``gyro_rad_s``.
+        'x', 'y' or 'z': see :func:`measured`.
     static : bool
-        The part was at rest: the applied rate is zero when the file has no
+        The part was at rest: the applied rate is zero when a CSV has no
         ``rate_cmd_rad_s`` column.
 
     Returns
@@ -159,67 +192,105 @@ def load_csv(path, axis=None, static=False):
         or time goes back; the message names the column and the row.
 
     """
-    if axis is not None and axis not in AXES:
-        raise ValueError(f"diagnose.axis = {axis!r} is not allowed: choose one of 'x', 'y', 'z'")
-    gyro_names = ('gyro_rad_s',) + tuple(f'gyro_{a}_rad_s' for a in AXES)
-    record = records.load_record(path, required=('time_s',), time_order='nondecreasing',
-                                 only=REQUIRED_COLUMNS + gyro_names + ACCEL_COLUMNS)
-    if record.columns is None:
-        raise ValueError(f'{path} is a bag, not a CSV file')
-    return _from_columns(path, record.columns, axis, static)
+    _check_axis(axis)
+    record = load_record(path, bag_topics(rate_topic, temp_topic, gyro_topic, accel_topic),
+                         only=COLUMNS)
+    return measured(record, axis, static)
 
 
-def _gyro_column(path, columns, axis):
-    """Return the name of the measured-output column (see :func:`load_csv`)."""
+def measured(record, axis=None, static=False):
+    """
+    Return the :class:`MeasuredData` of a record (a MeasuredData is returned as it is).
+
+    A CSV's (or a synthetic record's) measured output is
+    ``gyro_<axis>_rad_s`` when ``axis`` is given and the record has it, else
+    ``gyro_rad_s``; without ``rate_cmd_rad_s`` the applied rate is zero
+    when ``static``. A bag's gyro topic sets the sample times (a repeated
+    stamp is dropped); the applied rate about ``axis`` (default 'z'), the
+    temperature and the acceleration are interpolated linearly onto them,
+    and samples outside the span of any input topic are dropped.
+    """
+    if isinstance(record, MeasuredData):
+        return record
+    _check_axis(axis)
+    if record.is_bag:
+        return _from_bag(record, axis or 'z')
+    return _from_columns(record, axis, static)
+
+
+def _gyro_column(record, axis):
+    """Return the name of the measured-output column (see :func:`measured`)."""
+    columns = {c: a for a, c in record.gyro_sources.items()}
     if axis is not None and f'gyro_{axis}_rad_s' in columns:
         return f'gyro_{axis}_rad_s'
     if 'gyro_rad_s' in columns:
         return 'gyro_rad_s'
-    per_axis = [f'gyro_{a}_rad_s' for a in AXES if f'gyro_{a}_rad_s' in columns]
+    per_axis = [c for c in csvio.GYRO_AXES if c in columns]
     if per_axis and axis is None:
-        raise ValueError(f'{path}: no gyro_rad_s column; choose an axis (--axis) to read one '
-                         f'of {", ".join(per_axis)}')
-    raise ValueError(f'{path}: missing required column gyro_rad_s'
+        raise ValueError(f'{record.path}: no gyro_rad_s column; choose an axis (--axis) to '
+                         f'read one of {", ".join(per_axis)}')
+    raise ValueError(f'{record.path}: missing required column gyro_rad_s'
                      + (f' (or gyro_{axis}_rad_s)' if axis else '')
-                     + f'; the file has {", ".join(columns)}')
+                     + f'; the file has {", ".join(record.names)}')
 
 
-def _from_columns(path, columns, axis=None, static=False):
-    """Return the MeasuredData of CSV ``columns`` (see :func:`load_csv`)."""
-    gyro = _gyro_column(path, columns, axis)
-    if 'rate_cmd_rad_s' not in columns and not static:
+def _from_columns(record, axis=None, static=False):
+    """Return the MeasuredData of a CSV or synthetic record (see :func:`measured`)."""
+    path = record.path
+    gyro = _gyro_column(record, axis)
+    if record.rate is None and not static:
         raise ValueError(f'{path}: missing required column rate_cmd_rad_s (the applied rate); '
                          'for a part at rest give --static')
-    accel = [c for c in ACCEL_COLUMNS if c in columns]
+    accel = [c for c in ACCEL_COLUMNS if c in record.names]
     if accel and len(accel) != 3:
         raise ValueError(
             f'{path}: acceleration needs all of {", ".join(ACCEL_COLUMNS)}; '
             f'found only {", ".join(accel)}')
-    n = len(columns['time_s'])
+    n = len(record.time_s)
+    by_column = {c: a for a, c in record.gyro_sources.items()}
     return MeasuredData(
-        time_s=columns['time_s'],
-        rate_cmd_rad_s=columns.get('rate_cmd_rad_s', np.zeros(n)),
-        temp_c=columns.get('temp_c'), gyro_rad_s=columns[gyro],
-        accel_m_s2=np.column_stack([columns[c] for c in ACCEL_COLUMNS]) if accel else None,
+        time_s=record.time_s,
+        rate_cmd_rad_s=np.zeros(n) if record.rate is None else record.rate.values,
+        temp_c=None if record.temp is None else record.temp.values,
+        gyro_rad_s=record.gyro[by_column[gyro]],
+        accel_m_s2=None if record.accel is None else record.accel.values,
         source=str(path) + (f' ({gyro})' if gyro != 'gyro_rad_s' else ''))
 
 
-def load_measured(path, rate_topic=None, temp_topic=None, gyro_topic=None, accel_topic=None,
-                  axis=None, static=False):
-    """
-    Read a measured record, a bag (:func:`load_bag`) or a CSV file (:func:`load_csv`).
-
-    Which one is :func:`gyro_emulator.recording.records.is_bag`'s rule; the
-    topic options apply to a bag only (``axis`` defaults to 'z' there).
-    """
-    if records.is_bag(path):
-        return load_bag(path, rate_topic=rate_topic, temp_topic=temp_topic,
-                        gyro_topic=gyro_topic, accel_topic=accel_topic, axis=axis or 'z')
-    return load_csv(path, axis=axis, static=static)
+def _from_bag(record, axis):
+    """Return the MeasuredData of a bag record on its gyro's times (see :func:`measured`)."""
+    path = record.path
+    t_gyro = record.gyro_stamp_ns
+    if len(t_gyro) < 20:
+        raise ValueError(f'bag {path}: topic {record.topics["gyro"]} has '
+                         f'{len(t_gyro)} messages: allowed >= 20')
+    keep = np.r_[True, np.diff(t_gyro) > 0]
+    t, gyro = record.time_s[keep], record.gyro[axis][keep]
+    inside = np.ones(len(t), bool)
+    series = {}
+    for role in ('rate', 'temp', 'accel'):
+        channel = getattr(record, role)
+        if channel is None:
+            continue
+        ts = channel.time_s
+        values = channel.values if role == 'accel' else channel.axis(axis)[:, None]
+        inside &= (t >= ts[0]) & (t <= ts[-1])
+        series[role] = np.column_stack(
+            [np.interp(t, ts, values[:, k]) for k in range(values.shape[1])])
+    if inside.sum() < 20:
+        raise ValueError(f'bag {path}: fewer than 20 output samples lie '
+                         'within the span of the input topics')
+    accel = series['accel'][inside] if 'accel' in series else None
+    return MeasuredData(time_s=t[inside] - t[inside][0],
+                        rate_cmd_rad_s=series['rate'][inside, 0],
+                        temp_c=series['temp'][inside, 0],
+                        gyro_rad_s=gyro[inside], accel_m_s2=accel,
+                        source=str(path), recovery=record.recovery)
 
 
 def write_measured_csv(path, data):
-    """Write ``data`` (MeasuredData) in the diagnose contract (csvio.write_csv)."""
+    """Write ``data`` (MeasuredData, or a Record: :func:`measured`) in the diagnose contract."""
+    data = measured(data)
     columns = {'time_s': data.time_s, 'rate_cmd_rad_s': data.rate_cmd_rad_s}
     fmt = ['%.6f', '%.9g']
     if data.has_temp:
@@ -458,129 +529,3 @@ class Prepared:
             total = total - np.bincount(self.sample_bin_all[dropped], weights=values,
                                         minlength=len(total))
         return total / self.binned.weight
-
-
-# --- rosbag2 MCAP input ----------------------------------------------------
-
-#: Default topic mapping of a bag (the emulator's inputs and output).
-DEFAULT_BAG_TOPICS = {'rate': topics.RATE_CMD.name,
-                      'temp': topics.TEMPERATURE_CMD.name,
-                      'gyro': topics.IMU_OUT.name,
-                      'accel': topics.ACCEL_CMD.name}
-
-_VECTOR_FIELDS = {'geometry_msgs/msg/Vector3Stamped': 'vector.{axis}',
-                  'geometry_msgs/msg/TwistStamped': 'twist.angular.{axis}',
-                  'geometry_msgs/msg/AccelStamped': 'accel.linear.{axis}',
-                  'sensor_msgs/msg/Imu': '{kind}.{axis}',
-                  'geometry_msgs/msg/Vector3': '{axis}',
-                  'std_msgs/msg/Float64': 'data'}
-_SCALAR_FIELDS = {'sensor_msgs/msg/Temperature': 'temperature',
-                  'std_msgs/msg/Float64': 'data'}
-
-
-#: Message field giving each role, by message type (``{kind}``: see :data:`_FIELD_KIND`).
-_FIELD_KIND = {'rate': 'angular_velocity', 'gyro': 'angular_velocity',
-               'accel': 'linear_acceleration'}
-
-
-def load_bag(path, rate_topic=None, temp_topic=None, gyro_topic=None,
-             accel_topic=None, axis='z'):
-    """
-    Read a rosbag2 MCAP bag into the diagnose contract.
-
-    The gyro output topic sets the sample times (the stamp rule of
-    :mod:`gyro_emulator.recording.records`: header stamps, or log times when
-    the stamps are zero); the commanded rate, temperature and acceleration
-    are interpolated linearly onto them. Samples outside the span of any
-    input topic are dropped.
-
-    Parameters
-    ----------
-    path : str
-        Bag directory or .mcap file (read with
-        :func:`gyro_emulator.recording.records.load_record`).
-    rate_topic, temp_topic, gyro_topic : str, optional
-        Topics of the applied rate (Vector3Stamped, TwistStamped, Imu,
-        Float64), the temperature (Temperature, Float64) and the measured
-        output (Imu ...); defaults :data:`DEFAULT_BAG_TOPICS`.
-    accel_topic : str, optional
-        Acceleration topic; default ``cmd/linear_acceleration`` when the bag
-        has it; ``'none'`` to ignore acceleration.
-    axis : str
-        Sense axis: 'x', 'y' or 'z'.
-
-    Returns
-    -------
-    MeasuredData
-
-    """
-    if axis not in ('x', 'y', 'z'):
-        raise ValueError(f'diagnose.axis = {axis!r} is not allowed: choose '
-                         "one of 'x', 'y', 'z'")
-    record = records.load_record(path)
-    if record.reader is None:
-        raise ValueError(f'{path} is not a bag (a directory or an .mcap file)')
-    resolved = _bag_topics(record, rate_topic, temp_topic, gyro_topic, accel_topic)
-    t_gyro, gyro = _read_role(record, 'gyro', resolved['gyro'], axis)
-    if len(t_gyro) < 20:
-        raise ValueError(f'bag {path}: topic {resolved["gyro"]} has '
-                         f'{len(t_gyro)} messages: allowed >= 20')
-    keep = np.r_[True, np.diff(t_gyro) > 0]
-    t_gyro, gyro = t_gyro[keep], gyro[keep, 0]
-    t0 = t_gyro[0]
-    t = (t_gyro - t0) * 1e-9
-    inside = np.ones(len(t), bool)
-    series = {}
-    for role in ('rate', 'temp', 'accel'):
-        if role not in resolved:
-            continue
-        ts, values = _read_role(record, role, resolved[role], axis)
-        ts = (ts - t0) * 1e-9
-        if len(ts) == 0:
-            raise ValueError(f'bag {path}: topic {resolved[role]} is empty')
-        inside &= (t >= ts[0]) & (t <= ts[-1])
-        series[role] = np.column_stack(
-            [np.interp(t, ts, values[:, k]) for k in range(values.shape[1])])
-    if inside.sum() < 20:
-        raise ValueError(f'bag {path}: fewer than 20 output samples lie '
-                         'within the span of the input topics')
-    accel = series['accel'][inside] if 'accel' in series else None
-    return MeasuredData(time_s=t[inside] - t[inside][0],
-                        rate_cmd_rad_s=series['rate'][inside, 0],
-                        temp_c=series['temp'][inside, 0],
-                        gyro_rad_s=gyro[inside], accel_m_s2=accel,
-                        source=str(path), recovery=record.recovery)
-
-
-def _bag_topics(record, rate_topic, temp_topic, gyro_topic, accel_topic):
-    """Return the bag topic of each role (rate, temp, gyro, accel when present)."""
-    names = {'rate': rate_topic or DEFAULT_BAG_TOPICS['rate'],
-             'temp': temp_topic or DEFAULT_BAG_TOPICS['temp'],
-             'gyro': gyro_topic or DEFAULT_BAG_TOPICS['gyro']}
-    resolved = {role: record.find_topic(role + ' topic', name)
-                for role, name in names.items()}
-    if accel_topic != 'none':
-        found = record.find_topic('acceleration topic', accel_topic, DEFAULT_BAG_TOPICS['accel'])
-        if found is not None:
-            resolved['accel'] = found
-    return resolved
-
-
-def _read_role(record, role, topic, axis):
-    """Return (times_ns, values (n, k)) of ``role``'s topic, in time order."""
-    stream = record.stream(topic)
-    table = _SCALAR_FIELDS if role == 'temp' else _VECTOR_FIELDS
-    if stream.type_name not in table:
-        raise ValueError(
-            f'bag topic {topic} has type {stream.type_name}, which cannot give '
-            f'the {role}: allowed {", ".join(sorted(table))}')
-    fmt = table[stream.type_name]
-    if role == 'accel' and fmt == 'data':
-        raise ValueError(f'bag topic {topic}: a Float64 cannot hold a '
-                         '3-axis acceleration')
-    if role == 'temp':
-        names = [fmt]
-    else:
-        axes = [axis] if role in ('rate', 'gyro') else ['x', 'y', 'z']
-        names = [fmt.format(kind=_FIELD_KIND[role], axis=a) for a in axes]
-    return stream.times_ns, np.column_stack([stream.field(name) for name in names])

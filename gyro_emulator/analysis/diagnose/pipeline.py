@@ -18,7 +18,7 @@ from gyro_emulator.analysis.diagnose import baseline as base
 from gyro_emulator.analysis.diagnose import document, generic, models, screening, selection
 from gyro_emulator.analysis.diagnose import verdict as vd
 from gyro_emulator.analysis.diagnose.cv import CrossValidation
-from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, Prepared
+from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, measured, Prepared
 from gyro_emulator.analysis.diagnose.effects import Context
 from gyro_emulator.analysis.diagnose.noise_model import SuperBins
 from gyro_emulator.physics.presets import physics_preset
@@ -99,8 +99,9 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
 
     Parameters
     ----------
-    data : gyro_emulator.analysis.diagnose.data.MeasuredData
-        The record.
+    data : gyro_emulator.analysis.diagnose.data.MeasuredData or Record
+        The record (a :class:`gyro_emulator.recording.record.Record` is
+        taken through :func:`~gyro_emulator.analysis.diagnose.data.measured`).
     preset : str
         Physics preset of the baseline device (``presets.physics_preset``).
     ref_temp_c : float, optional
@@ -129,6 +130,7 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     check_range('diagnose', 'alpha', alpha, 0.0, 1.0, '', high_open=True)
     catalogue = generic.CATALOGUE if effects is None else tuple(
         generic.effect(e) for e in effects)
+    data = measured(data)
     cv, screen = _setup(data, preset, ref_temp_c, folds, max_bins, outlier_threshold)
     prep, ctx = cv.prep, cv.ctx
     rmse_base, cals = _baseline_rmse(cv)

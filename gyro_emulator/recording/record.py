@@ -1,0 +1,454 @@
+"""
+One measured record: times, applied rate, temperature, gyro and acceleration, from CSV or a bag.
+
+A :class:`Record` holds what a record carries, each part optional where the
+source lacks it, with the column or topic field each came from, what a
+damaged bag lost, and its timing (segments and missing samples,
+:mod:`gyro_emulator.recording.timing`) and value grid (:func:`grid_step`).
+It is built from plain arrays (a synthetic record) or by
+:func:`load_record`, the one loader of CSV (``.gz`` too, through
+:func:`gyro_emulator.recording.csvio.read_csv`) and bags (a directory or
+``.mcap`` file through :class:`gyro_emulator.recording.bag.BagReader`,
+tolerant of damage). ``allan``, ``calibrate``, ``diagnose`` and ``replay``
+all read their input here, so a record means the same thing to all of them.
+
+Roles. The CSV column of each role is :data:`CSV_COLUMNS`; the bag topic
+of each role is the one the user names (:func:`find_topic`: exact, with a
+leading ``/``, or a unique suffix) or the default of :data:`DEFAULT_TOPICS`
+(names from :mod:`gyro_emulator.recording.topics`); the field of each
+message type is :data:`VECTOR_FIELDS` / :data:`SCALAR_FIELDS`.
+
+The stamp rule. A message's time is its ``header.stamp``, the time the
+sensor sampled, unless the stream does not carry one: when every stamp of
+the stream is zero (a publisher that never sets it), the stream uses the
+bag's log (receive) time. A stream that starts at a zero stamp on a sim
+clock keeps its stamps. ``use_log_time=True`` asks for
+log times always. Streams are returned in time order (a stable sort, so
+messages with equal times keep the bag's order).
+"""
+
+from dataclasses import dataclass, field
+import os
+from types import MappingProxyType
+
+from gyro_emulator.recording import bag, csvio, timing, topics as table
+import numpy as np
+
+
+def _resolve_name(topics, name):
+    """Return the topic called ``name``: exact, with a leading '/', or a unique suffix."""
+    for candidate in (name, '/' + name.lstrip('/')):
+        if candidate in topics:
+            return candidate
+    tail = [t for t in topics if t.endswith('/' + name.lstrip('/'))]
+    return tail[0] if len(tail) == 1 else None
+
+
+def find_topic(reader, role, name=None, default=None, types=None):
+    """
+    Return the bag topic that plays ``role``, or None when a default is absent.
+
+    Parameters
+    ----------
+    reader : gyro_emulator.recording.bag.BagReader
+        The bag.
+    role : str
+        What the topic is for, for error messages (e.g. ``'rate'``).
+    name : str, optional
+        The user's choice: the exact topic, the topic with a leading ``/``,
+        or the one topic whose name ends with ``/name``. A name that matches
+        nothing, or a topic of a type outside ``types``, raises ValueError.
+    default : str, optional
+        Without ``name``: the topics named ``default`` or ending with
+        ``/default`` (a namespace prefix is allowed) that have messages and a
+        type in ``types``; the first in name order, or None.
+    types : sequence of str, optional
+        Allowed message types (``pkg/msg/Type``); None allows any.
+
+    Returns
+    -------
+    str or None
+
+    """
+    topics = reader.topics
+    if name:
+        found = _resolve_name(topics, name)
+        if found is None:
+            raise ValueError(f'bag {reader.path}: no topic {name!r} for the {role}; topics: '
+                             f'{", ".join(sorted(topics)) or "(none)"}')
+        actual = topics[found].type_name
+        if types is not None and actual not in types:
+            raise ValueError(f'{role} topic {found} has type {actual}: expected '
+                             f'{" or ".join(types)}')
+        return found
+    if default is None:
+        return None
+    key = default.lstrip('/')
+    found = sorted(t for t, info in topics.items()
+                   if (t.lstrip('/') == key or t.endswith('/' + key)) and info.message_count
+                   and (types is None or info.type_name in types))
+    return found[0] if found else None
+
+
+def stream_times_ns(arrays, use_log_time=False):
+    """
+    Return ``(times_ns, order)``: the stream's message times, sorted, and the sort order.
+
+    ``arrays`` is a :class:`gyro_emulator.recording.reader.TopicArrays`;
+    the times follow the module's stamp rule. Index the decoded columns with
+    ``order`` to put them in time order.
+    """
+    stamps = np.asarray(arrays.stamp_ns, dtype=np.int64)
+    if use_log_time or not np.any(stamps):
+        stamps = np.asarray(arrays.log_time_ns, dtype=np.int64)
+    order = np.argsort(stamps, kind='stable')
+    return stamps[order], order
+
+
+@dataclass(frozen=True)
+class Stream:
+    """
+    One bag topic, decoded and in time order (the module's stamp rule).
+
+    Attributes
+    ----------
+    topic : str
+        Topic name in the bag.
+    type_name : str
+        Message type, ``pkg/msg/Type``.
+    times_ns : numpy.ndarray of int64
+        Message times, ns, sorted.
+    order : numpy.ndarray of int
+        Bag order -> time order: index the decoded columns with it.
+    arrays : gyro_emulator.recording.bag.TopicArrays
+        The decoded columns in bag order.
+
+    """
+
+    topic: str
+    type_name: str
+    times_ns: np.ndarray
+    order: np.ndarray
+    arrays: object
+
+    def __len__(self):
+        """Return the number of messages."""
+        return len(self.times_ns)
+
+    def field(self, name):
+        """Return a float64 column or block in time order, e.g. ``angular_velocity``."""
+        return self.arrays.field(name)[self.order]
+
+
+def read_stream(reader, topic, use_log_time=False):
+    """Return :class:`Stream` ``topic`` of ``reader`` (a BagReader), in time order."""
+    arrays = reader.read_arrays(topic)
+    times_ns, order = stream_times_ns(arrays, use_log_time)
+    return Stream(topic, reader.topics[topic].type_name, times_ns, order, arrays)
+
+
+def is_bag(path):
+    """Return whether ``path`` is a bag (a directory or an ``.mcap`` file), else a CSV file."""
+    return os.path.isdir(path) or str(path).endswith('.mcap')
+
+
+#: CSV column of each role (gyro: one of the layouts of :func:`csvio.gyro_columns`).
+CSV_COLUMNS = MappingProxyType({'time': 'time_s', 'rate': 'rate_cmd_rad_s', 'temp': 'temp_c',
+                                'gyro': (csvio.GYRO_SINGLE,) + csvio.GYRO_AXES,
+                                'accel': ('accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')})
+#: Default bag topic of each role when the user names none (gyro: the only Imu topic;
+#: temp: the commanded ambient; die_temp: the die temperature the node publishes).
+DEFAULT_TOPICS = MappingProxyType({
+    'gyro': None, 'rate': table.RATE_CMD.name, 'temp': table.TEMPERATURE_CMD.name,
+    'die_temp': table.DIE_TEMPERATURE_OUT.name, 'accel': table.ACCEL_CMD.name,
+    'output': table.IMU_OUT.name})
+#: Message field of a 3-vector role by type (``{kind}``: :data:`FIELD_KIND`).
+VECTOR_FIELDS = MappingProxyType({
+    'geometry_msgs/msg/Vector3Stamped': 'vector.{axis}',
+    'geometry_msgs/msg/TwistStamped': 'twist.angular.{axis}',
+    'geometry_msgs/msg/AccelStamped': 'accel.linear.{axis}',
+    'sensor_msgs/msg/Imu': '{kind}.{axis}',
+    'geometry_msgs/msg/Vector3': '{axis}',
+    'std_msgs/msg/Float64': 'data'})
+#: Message field of the temperature by type.
+SCALAR_FIELDS = MappingProxyType({'sensor_msgs/msg/Temperature': 'temperature',
+                                  'std_msgs/msg/Float64': 'data'})
+#: The Imu field of each vector role.
+FIELD_KIND = MappingProxyType({'rate': 'angular_velocity', 'gyro': 'angular_velocity',
+                               'accel': 'linear_acceleration'})
+#: What each role is called in messages.
+ROLE_LABELS = MappingProxyType({'gyro': 'gyro', 'rate': 'rate', 'temp': 'temperature',
+                                'accel': 'acceleration'})
+AXES = ('x', 'y', 'z')
+#: A grid is a quantisation step when every sample lies on it within this fraction.
+GRID_TOLERANCE = 0.02
+
+
+def grid_step(values, max_unique=200_000):
+    """
+    Return the grid samples lie on, whatever its size, or 0, and their distinct values.
+
+    The smallest gap between distinct values, refined over all gaps, is a
+    grid when every sample is on it within :data:`GRID_TOLERANCE` of a step
+    and there are 2 to ``max_unique`` distinct values.
+    """
+    values = np.asarray(values, dtype=float)
+    unique = np.unique(values)
+    if len(unique) < 2 or len(unique) > max_unique:
+        return 0.0, len(unique)
+    gaps = np.diff(unique)
+    smallest = float(np.min(gaps))
+    if not smallest > 0.0:
+        return 0.0, len(unique)
+    counts = np.round(gaps / smallest)
+    step = float(np.sum(gaps) / np.sum(counts))
+    offsets = (unique - unique[0]) / step
+    if np.max(np.abs(offsets - np.round(offsets))) > GRID_TOLERANCE:
+        return 0.0, len(unique)
+    return step, len(unique)
+
+
+@dataclass(frozen=True)
+class Channel:
+    """
+    One input of a record on its own times: the applied rate, a temperature or acceleration.
+
+    Attributes
+    ----------
+    time_s : numpy.ndarray
+        Sample times, s, on the record's clock (:attr:`Record.time_s`).
+    values : numpy.ndarray
+        Shape (n,) for a temperature, (n, 3) for a vector (x, y, z), or
+        (n,) for a CSV's single applied-rate column (the sense axis).
+    source : str
+        The column(s) or ``topic field`` it came from.
+    stamp_ns : numpy.ndarray of int64 or None
+        A bag's message times, ns (the stamp rule); None for CSV.
+
+    """
+
+    time_s: np.ndarray
+    values: np.ndarray
+    source: str
+    stamp_ns: np.ndarray = None
+
+    def axis(self, axis):
+        """Return the values of ``axis`` ('x', 'y', 'z'): a column of a vector, else the values."""
+        values = np.asarray(self.values)
+        return values if values.ndim == 1 else values[:, AXES.index(axis)]
+
+
+@dataclass(frozen=True)
+class Record:
+    """
+    One measured record, SI units; parts a source lacks are None (or empty).
+
+    Attributes
+    ----------
+    time_s : numpy.ndarray
+        Gyro sample times, s, non-decreasing: a CSV's ``time_s``, or a
+        bag's stamps from the first gyro message.
+    gyro : dict
+        Axis ('x', 'y', 'z') -> gyro output, rad/s: the axes the record
+        has (a single-axis CSV's ``gyro_rad_s`` is taken as axis 'x').
+    gyro_sources : dict
+        Axis -> the column or topic field it came from.
+    rate, temp, accel : Channel or None
+        Applied (true) rate, rad/s; temperature, deg C; specific force,
+        m/s^2, each on its own times (a CSV's share ``time_s``).
+    path : str
+        Where it was read from (a synthetic record: a name).
+    recovery : tuple of str
+        What a damaged bag lost, one note each; () if sound.
+    gyro_stamp_ns : numpy.ndarray of int64 or None
+        A bag's gyro message times, ns; None for CSV.
+    names : tuple of str
+        The CSV columns read (for messages); () for a bag.
+    topics : dict
+        Role -> the bag topic it came from.
+
+    """
+
+    time_s: np.ndarray
+    gyro: dict = field(default_factory=dict)
+    gyro_sources: dict = field(default_factory=dict)
+    rate: Channel = None
+    temp: Channel = None
+    accel: Channel = None
+    path: str = ''
+    recovery: tuple = ()
+    gyro_stamp_ns: np.ndarray = None
+    names: tuple = ()
+    topics: dict = field(default_factory=dict)
+
+    @classmethod
+    def from_arrays(cls, time_s, gyro_rad_s, rate_rad_s=None, temp_c=None, accel_m_s2=None,
+                    path=''):
+        """
+        Build a record from plain arrays on one time base (a synthetic record, no file).
+
+        ``gyro_rad_s`` is (n,) (axis 'x', as a single-axis CSV) or (n, 3);
+        ``rate_rad_s`` (n,) or (n, 3); ``temp_c`` (n,); ``accel_m_s2`` (n, 3).
+        """
+        t = np.asarray(time_s, dtype=float)
+        g = np.asarray(gyro_rad_s, dtype=float)
+        gyro = {'x': g} if g.ndim == 1 else {a: g[:, i] for i, a in enumerate(AXES)}
+        sources = ({'x': csvio.GYRO_SINGLE} if g.ndim == 1
+                   else dict(zip(AXES, csvio.GYRO_AXES)))
+
+        def channel(values, source):
+            return None if values is None else Channel(t, np.asarray(values, dtype=float),
+                                                       source)
+
+        return cls(t, gyro, sources, channel(rate_rad_s, CSV_COLUMNS['rate']),
+                   channel(temp_c, CSV_COLUMNS['temp']),
+                   channel(accel_m_s2, ', '.join(CSV_COLUMNS['accel'])), path)
+
+    @property
+    def is_bag(self):
+        """Return whether the record was read from a bag."""
+        return self.gyro_stamp_ns is not None
+
+    def sample_rate_and_segments(self, gap_factor=3.0):
+        """Return the nominal rate, Hz, and the segments (:mod:`.timing`)."""
+        return timing.sample_rate_and_segments(self.time_s, gap_factor)
+
+    def missing_samples(self, gap_factor=3.0):
+        """Return the samples missing between stamps (:func:`timing.missing_samples`)."""
+        return timing.missing_samples(self.time_s, gap_factor)
+
+    def require_gyro(self):
+        """Return the record; ValueError naming the accepted gyro columns when it has none."""
+        if not self.gyro:
+            csvio.gyro_columns(self.names, self.path)
+        return self
+
+    def grid_step(self, axis, scale=1.0):
+        """Return the grid the samples of ``axis`` (times ``scale``) lie on (:func:`grid_step`)."""
+        return grid_step(self.gyro[axis] * scale if scale != 1.0 else self.gyro[axis])
+
+
+def load_record(path, topics=None, required=('time_s',), only=None,
+                time_order='nondecreasing'):
+    """
+    Read a record: a bag directory or ``.mcap`` file, else a CSV file (``.gz`` ok).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The record.
+    topics : dict, optional
+        Bag: role ('gyro', 'rate', 'temp' or 'die_temp', 'accel') -> the
+        topic to read it from. A role given as None takes its default from
+        :data:`DEFAULT_TOPICS` when the bag has one of a fitting type (the
+        gyro: the bag's only sensor_msgs/Imu topic); an accel of ``'none'``
+        is skipped; a role left out is not read. 'die_temp' fills :attr:`Record.temp`.
+        Default: the gyro only.
+    required, only, time_order
+        CSV: see :func:`gyro_emulator.recording.csvio.read_csv`.
+
+    Returns
+    -------
+    Record
+
+    """
+    path = os.fspath(path)
+    if is_bag(path):
+        return _load_bag(path, {'gyro': None} if topics is None else dict(topics))
+    columns = csvio.read_csv(path, required, time_order, only)
+    return _from_columns(path, columns)
+
+
+def _from_columns(path, columns):
+    """Return the :class:`Record` of CSV ``columns`` (the roles of :data:`CSV_COLUMNS`)."""
+    t = columns['time_s']
+    try:
+        found = csvio.gyro_columns(columns, path)
+    except ValueError:
+        found = {}
+    accel = CSV_COLUMNS['accel']
+
+    def channel(values, source):
+        return None if values is None else Channel(t, values, source)
+
+    return Record(
+        t, {a: columns[c] for a, c in found.items()}, found,
+        rate=channel(columns.get(CSV_COLUMNS['rate']), CSV_COLUMNS['rate']),
+        temp=channel(columns.get(CSV_COLUMNS['temp']), CSV_COLUMNS['temp']),
+        accel=channel(np.column_stack([columns[c] for c in accel]), ', '.join(accel))
+        if all(c in columns for c in accel) else None,
+        path=path, names=tuple(columns))
+
+
+def _only_imu(reader, path):
+    """Return the bag's one sensor_msgs/Imu topic; ValueError naming them otherwise."""
+    imu = [name for name, info in reader.topics.items() if info.type_name == table.IMU]
+    if len(imu) != 1:
+        raise ValueError(f'{path}: {len(imu)} sensor_msgs/Imu topics '
+                         f'({", ".join(imu) or "none"}): choose one with --topic')
+    return imu[0]
+
+
+def _role_values(stream, role, axis_fields=AXES):
+    """Return the (n,) or (n, 3) values of ``role`` in ``stream`` and the field names."""
+    table_ = SCALAR_FIELDS if role == 'temp' else VECTOR_FIELDS
+    if stream.type_name not in table_:
+        raise ValueError(
+            f'bag topic {stream.topic} has type {stream.type_name}, which cannot give '
+            f'the {role}: allowed {", ".join(sorted(table_))}')
+    fmt = table_[stream.type_name]
+    if role == 'temp':
+        return stream.field(fmt), fmt
+    if fmt == 'data':
+        if role == 'accel':
+            raise ValueError(f'bag topic {stream.topic}: a Float64 cannot hold a '
+                             '3-axis acceleration')
+        values = stream.field(fmt)
+        return np.column_stack([values] * 3), fmt
+    names = [fmt.format(kind=FIELD_KIND[role], axis=a) for a in axis_fields]
+    return np.column_stack([stream.field(name) for name in names]), names[0][:-2]
+
+
+def _load_bag(path, roles):
+    """Read the roles of a bag (see :func:`load_record`) onto the gyro's clock."""
+    reader = bag.BagReader(path, tolerant=True)
+    name = roles.get('gyro')
+    name = _only_imu(reader, path) if name is None else find_topic(reader, 'gyro', name)
+    gyro = read_stream(reader, name)
+    if len(gyro) == 0:
+        raise ValueError(f'bag {path}: topic {name} is empty')
+    block, fieldname = _role_values(gyro, 'gyro')
+    t0 = gyro.times_ns[0]
+    time_s = (gyro.times_ns - t0) * 1e-9
+    timing.check_increasing(time_s, f'{path}: header stamps', strict=False)
+    found = {'gyro': name}
+    channels = {}
+    for key in ('rate', 'temp', 'die_temp', 'accel'):
+        if key not in roles or (key == 'accel' and roles[key] == 'none'):
+            continue
+        role = 'temp' if key == 'die_temp' else key
+        given = roles[key]
+        if given:
+            topic = find_topic(reader, ROLE_LABELS[role], given)
+        else:
+            types = tuple(SCALAR_FIELDS if role == 'temp' else VECTOR_FIELDS)
+            topic = find_topic(reader, ROLE_LABELS[role], default=DEFAULT_TOPICS[key],
+                               types=types)
+        if topic is None:
+            continue
+        stream = read_stream(reader, topic)
+        if len(stream) == 0:
+            raise ValueError(f'bag {path}: topic {topic} is empty')
+        values, source = _role_values(stream, role)
+        found[role] = topic
+        channels[role] = Channel((stream.times_ns - t0) * 1e-9, values,
+                                 f'{topic} {source}', stream.times_ns)
+    return Record(time_s, {a: block[:, i] for i, a in enumerate(AXES)},
+                  {a: f'{name} {fieldname}.{a}' for a in AXES}, path=path,
+                  recovery=tuple(reader.problems), gyro_stamp_ns=gyro.times_ns,
+                  topics=found, **channels)
+
+
+def open_bag(path):
+    """Open a bag for stream-level reading (:func:`find_topic`, :func:`read_stream`), tolerant."""
+    return bag.BagReader(os.fspath(path), tolerant=True)

@@ -1,0 +1,132 @@
+"""
+Timing of a record: increasing stamps, the nominal sample rate, segments and missing samples.
+
+A step longer than ``gap_factor`` times the median positive step starts a
+new segment (a gap in the record); within the segments, steps of whole
+numbers of the nominal step are samples lost on the way
+(:func:`dropped_samples`), unless they recur at a beat (a coarse clock).
+Pure numpy: every reader of a record (:mod:`gyro_emulator.recording.record`,
+:mod:`gyro_emulator.recording.csvio`) and every analysis use these rules.
+"""
+
+import numpy as np
+
+
+def check_increasing(time_s, what='time_s', strict=True):
+    """Raise ValueError naming the first data row where ``time_s`` does not increase."""
+    time_s = np.asarray(time_s, dtype=float)
+    step = np.diff(time_s)
+    bad = np.flatnonzero(step <= 0.0 if strict else step < 0.0)
+    if len(bad):
+        i = int(bad[0])
+        hint = '' if not strict or np.any(step < 0.0) else ' (repeated timestamp)'
+        raise ValueError(f'{what} does not increase at data row {i + 2}: '
+                         f'{float(time_s[i + 1])!r} after {float(time_s[i])!r}{hint}')
+
+
+#: Median and mean time step agreeing within this share: the median is the step.
+STEP_AGREEMENT = 1e-3
+
+
+def sample_rate_and_segments(time_s, gap_factor=3.0):
+    """
+    Nominal sample rate and the contiguous segments of a record.
+
+    A step longer than ``gap_factor`` times the median positive step
+    starts a new segment (a gap in the record). The rate is 1 / that median,
+    or 1 / the mean step within the segments when the two differ by more
+    than :data:`STEP_AGREEMENT`: stamps rounded to a coarse clock (a 416.7 Hz
+    part stamped in whole milliseconds steps 2 and 3 ms, median 2) or shared
+    by a FIFO batch (steps 0, 0, 3 dt) have the right mean, not median.
+
+    Returns
+    -------
+    rate_hz : float
+        Nominal sample rate, Hz.
+    bounds : list of (int, int)
+        Start and stop index of each segment.
+
+    """
+    dt, within, bounds = _median_step_and_segments(time_s, gap_factor)
+    mean = float(np.mean(within)) if len(within) else dt
+    if mean > 0.0 and abs(mean / dt - 1.0) > STEP_AGREEMENT:
+        lost = dropped_samples(within, dt)
+        dt = mean if lost is None else lost[1]
+    return 1.0 / dt, bounds
+
+
+def _median_step_and_segments(time_s, gap_factor):
+    """Return the median positive step, the steps within segments, and the segments."""
+    t = np.asarray(time_s, dtype=float)
+    if len(t) < 2:
+        raise ValueError(f'time_s has {len(t)} samples: need >= 2')
+    step = np.diff(t)
+    positive = step[step > 0.0]
+    if not len(positive):
+        raise ValueError('time_s: no time step is positive')
+    dt = float(np.median(positive))
+    gap = step > gap_factor * dt
+    cuts = np.flatnonzero(gap) + 1
+    edges = np.concatenate(([0], cuts, [len(t)]))
+    return dt, step[~gap], [(int(a), int(b)) for a, b in zip(edges[:-1], edges[1:])]
+
+
+#: Long steps off a whole number of nominal steps by more than this (median): not drops.
+WHOLE_STEP_TOLERANCE = 0.25
+#: More long steps than this share of all: a slower clock, not dropped samples.
+MAX_LONG_STEP_SHARE = 0.5
+#: Long steps whose spacings take two values this often recur at a beat (a coarse clock).
+BEAT_SHARE = 0.9
+
+
+def dropped_samples(step, dt):
+    """
+    Read steps as whole numbers of the nominal step with samples missing, or None.
+
+    Samples lost on the way (a serial link, a USB buffer) leave steps of k
+    whole nominal steps (k >= 2, k = the step / ``dt`` rounded) scattered
+    among single ones. A faster part stamped by a coarse clock (900 Hz in
+    whole milliseconds: steps of 1 and 2 ms) leaves the same two lengths,
+    but its long steps recur at a beat: nearly all their spacings take one
+    or two values. So the steps read as drops when none rounds to zero (a
+    FIFO sharing a stamp is not a drop), at most
+    :data:`MAX_LONG_STEP_SHARE` are long, the long ones lie within
+    :data:`WHOLE_STEP_TOLERANCE` of whole numbers (median; stamps rounded to
+    a clock leave 1.5 steps), and, when there are ten or more, fewer than
+    :data:`BEAT_SHARE` of their spacings take the two commonest values
+    (random losses spread them geometrically).
+
+    Returns
+    -------
+    (int, float) or None
+        The samples missing, sum(k - 1), and the step, sum(step) / sum(k);
+        None when the steps are not drops.
+
+    """
+    step = np.asarray(step, dtype=float)
+    whole = np.rint(step / dt)
+    if not len(step) or np.any(whole < 1.0):
+        return None
+    long = np.flatnonzero(whole >= 2.0)
+    if len(long) > MAX_LONG_STEP_SHARE * len(step):
+        return None
+    if len(long) and np.median(np.abs(step[long] / dt - whole[long])) > WHOLE_STEP_TOLERANCE:
+        return None
+    if len(long) >= 10:
+        counts = np.sort(np.unique(np.diff(long), return_counts=True)[1])
+        if np.sum(counts[-2:]) >= BEAT_SHARE * (len(long) - 1):
+            return None
+    return int(np.sum(whole - 1.0)), float(np.sum(step) / np.sum(whole))
+
+
+def missing_samples(time_s, gap_factor=3.0):
+    """
+    Return the samples missing inside the segments of a record (0 when none read as drops).
+
+    The segments and the median step are those of
+    :func:`sample_rate_and_segments`; see :func:`dropped_samples` (counted
+    even when so few are missing that the mean step agrees with the median).
+    """
+    dt, within, _ = _median_step_and_segments(time_s, gap_factor)
+    lost = dropped_samples(within, dt)
+    return 0 if lost is None else lost[0]
