@@ -371,7 +371,7 @@ def test_adis16405_z_has_a_bias_instability():
 
 def test_a_log_with_some_axes_is_read_by_axis(tmp_path):
     """A CSV with only gyro_y_rad_s and gyro_z_rad_s: the axes it has, and a clear error."""
-    from gyro_emulator.analysis.allan import record as allan_record
+    from gyro_emulator.analysis.allan import analyse as allan_record
     from gyro_emulator.recording import csvio
 
     rng = np.random.default_rng(5)

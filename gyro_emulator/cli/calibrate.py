@@ -128,7 +128,7 @@ def _calibrate(args):
 
 
 def _print_noise(cal):
-    from gyro_emulator.analysis.allan.record import summary
+    from gyro_emulator.analysis.allan.analyse import summary
     from gyro_emulator.cli.allan import print_terms
 
     print(f'{cal.source}: {cal.rate_hz:.6g} Hz, {cal.duration_s:.1f} s')
@@ -145,7 +145,7 @@ def run_noise(args):
     """Identify the noise terms and write the chosen format."""
     from gyro_emulator import units
     from gyro_emulator.analysis.allan import plot_adev
-    from gyro_emulator.analysis.allan.record import summary
+    from gyro_emulator.analysis.allan.analyse import summary
     from gyro_emulator.analysis.calibrate import export_noise, noise
 
     cal = _calibrate(args)

@@ -20,11 +20,12 @@ Thermal exports: PX4 TC_G0_* and ArduPilot INS_TCAL1_* parameters, this emulator
 """
 
 from gyro_emulator import units
+from gyro_emulator.analysis.calibrate import yaml_text
 from gyro_emulator.analysis.calibrate.provenance import as_comments, MARKER, thermal_lines
 from gyro_emulator.analysis.calibrate.thermal import AXES, polyfit_stats
+from gyro_emulator.analysis.calibrate.yaml_text import Figure, Flow
 from gyro_emulator.sensor.config import ErrorTerms
 import numpy as np
-import yaml
 
 FORMATS = ('px4', 'ardupilot', 'preset')
 #: ArduPilot's fixed reference temperature (AP_InertialSensor_tempcal.cpp TEMP_REFERENCE), C.
@@ -140,22 +141,8 @@ def _preset_axis_values(fit, axis):
     return coeffs[0], coeffs[1], coeffs[2]
 
 
-class _Number(str):
-    """A number in the text it is written with (``%.6g``): YAML reads it as that text reads."""
-
-
-class _PresetDumper(yaml.SafeDumper):
-    """Block mappings, flow lists of numbers, numbers in their own text."""
-
-
-_PresetDumper.add_representer(_Number, lambda dumper, text: dumper.represent_scalar(
-    dumper.resolve(yaml.ScalarNode, str(text), (True, False)), str(text)))
-_PresetDumper.add_representer(list, lambda dumper, items: dumper.represent_sequence(
-    'tag:yaml.org,2002:seq', items, flow_style=True))
-
-
-def _vec(values):
-    return [_Number(f'{float(v):.6g}') for v in values]
+def _flow(values):
+    return Flow(Figure(v) for v in values)
 
 
 def preset(fit):
@@ -191,17 +178,16 @@ def preset(fit):
     rows = [values.get(a) or next(iter(values.values())) for a in AXES]
     noise_rows = [noise.get(a) or next(iter(noise.values())) for a in AXES]
     data = {
-        'device': {'preset': 'paper', 'calibration_temp_c': _Number(f'{fit.temp_ref_c:.4f}')},
+        'device': {'preset': 'paper', 'calibration_temp_c': Figure(fit.temp_ref_c, '.4f')},
         'terms': {n: n in on for n in ErrorTerms.names()},
-        'electronics_arw_deg_sqrt_h': _vec(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v)
-                                           for v in noise_rows),
-        'turn_on_bias_deg_s': _vec(units.rad_s_to_deg_s(v[0]) for v in rows),
-        'bias_temp_coeff_deg_s_k': _vec(units.rad_s_to_deg_s(v[1]) for v in rows),
-        'bias_temp_coeff2_deg_s_k2': _vec(units.rad_s_to_deg_s(v[2]) for v in rows)}
+        'electronics_arw_deg_sqrt_h': _flow(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v)
+                                            for v in noise_rows),
+        'turn_on_bias_deg_s': _flow(units.rad_s_to_deg_s(v[0]) for v in rows),
+        'bias_temp_coeff_deg_s_k': _flow(units.rad_s_to_deg_s(v[1]) for v in rows),
+        'bias_temp_coeff2_deg_s_k2': _flow(units.rad_s_to_deg_s(v[2]) for v in rows)}
     if lsb > 0.0:
-        data['lsb_deg_s'] = _Number(f'{float(units.rad_s_to_deg_s(lsb)):.6g}')
-    return as_comments(lines) + yaml.dump(data, Dumper=_PresetDumper, sort_keys=False,
-                                          default_flow_style=False)
+        data['lsb_deg_s'] = Figure(units.rad_s_to_deg_s(lsb))
+    return as_comments(lines) + yaml_text.dump(data)
 
 
 def write_thermal(fit, fmt):

@@ -22,7 +22,7 @@ units: N in rad/s/sqrt(Hz), K in rad/s^2/sqrt(Hz) = rad/s/sqrt(s)):
 from dataclasses import dataclass, replace
 
 from gyro_emulator.analysis import allan, outliers
-from gyro_emulator.analysis.allan import record as allan_record
+from gyro_emulator.analysis.allan import analyse as allan_record
 from gyro_emulator.recording.record import grid_step
 import numpy as np
 
@@ -33,7 +33,7 @@ class AxisNoise:
     The identification of one axis: its Allan deviation, fit, mean (rad/s) and segments.
 
     ``set_aside`` is the JSON form of the spikes and motion left out
-    (:func:`gyro_emulator.analysis.allan.record.set_aside_summary`).
+    (:func:`gyro_emulator.analysis.allan.analyse.set_aside_summary`).
     """
 
     axis: str

@@ -32,7 +32,7 @@ fit says so.
 from dataclasses import dataclass, field, replace
 
 from gyro_emulator.analysis import outliers
-from gyro_emulator.analysis.allan import record as allan_record
+from gyro_emulator.analysis.allan import analyse as allan_record
 from gyro_emulator.analysis.calibrate.noise import detect_lsb
 from gyro_emulator.recording import csvio, timing
 from gyro_emulator.recording.record import DEFAULT_TOPICS

@@ -11,7 +11,13 @@ import yaml
 
 
 class Figure(float):
-    """A measured figure, written to 6 significant digits (``f'{value:.6g}'``)."""
+    """A measured figure, written as ``format(value, spec)``: 6 significant digits by default."""
+
+    def __new__(cls, value, spec='.6g'):
+        """Return ``value`` to be written with the format ``spec``."""
+        figure = super().__new__(cls, value)
+        figure.spec = spec
+        return figure
 
 
 class Flow(list):
@@ -31,7 +37,7 @@ class _Dumper(yaml.SafeDumper):
 
 
 def _represent_figure(dumper, data):
-    text = f'{float(data):.6g}'
+    text = format(float(data), data.spec)
     # tagged as YAML resolves the plain text, so that no explicit tag is written
     return dumper.represent_scalar(dumper.resolve(yaml.ScalarNode, text, (True, False)), text)
 
