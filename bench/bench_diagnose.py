@@ -29,8 +29,9 @@ for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ[_var] = '1'
 
 from gyro_emulator.analysis.diagnose import (diagnose, EFFECT_IDS, load_csv,  # noqa: E402
-                                             make_truth, write_measured_csv)
+                                             write_measured_csv)
 from gyro_emulator.analysis.diagnose.report import write_report  # noqa: E402
+from gyro_emulator.emulation.truth.generator import make_truth  # noqa: E402
 
 BUDGET_S = 30.0
 

@@ -18,9 +18,9 @@ import sys
 
 from gyro_emulator.analysis.diagnose import baseline as base
 from gyro_emulator.analysis.diagnose import (CANDIDATE_IDS, CATALOGUE, diagnose, EFFECT_IDS,
-                                             load_csv, make_truth, write_measured_csv)
-from gyro_emulator.analysis.diagnose.truth import TRUTH_EFFECTS
-from gyro_emulator.analysis.diagnose.truth_effects import EXTRA_TRUTHS
+                                             load_csv, write_measured_csv)
+from gyro_emulator.emulation.truth.effects import EXTRA_TRUTHS, TRUTH_EFFECTS
+from gyro_emulator.emulation.truth.generator import make_truth
 from gyro_emulator.physics.presets import physics_preset
 import numpy as np
 import pytest
@@ -83,14 +83,14 @@ def test_truth_csv_holds_only_the_contract(tmp_path):
 def test_truth_is_the_one_simulator_gyromodel():
     # with every effect and noise term off, the record is GyroModel's output
     # for the profile: the generator adds nothing of its own
-    from gyro_emulator.analysis.diagnose import truth as tr
-    from gyro_emulator.analysis.diagnose.truth_profiles import make_profile
+    from gyro_emulator.emulation.profiles import draw_profile
+    from gyro_emulator.emulation.truth import generator as tr
     from gyro_emulator.sensor.model import GyroModel
 
     quiet = {'arw_deg_sqrt_s': 0.0, 'bias_instability_deg_h': 0.0, 'rrw_deg_h_sqrt_h': 0.0}
     record, truth = make_truth('none', 3, sample_rate_hz=2.0, levels=3, noise=quiet)
     rng = np.random.default_rng(3)
-    prof = make_profile('lab', rng, 2.0, levels=3)
+    prof = draw_profile('lab', rng, 2.0, levels=3)
     drawn = tr._draw_part_errors(rng, quiet)
     model = GyroModel(tr._sensor_config(physics_preset('paper'), (), {}, drawn), 2.0, rng)
     rates = np.zeros((len(prof.time_s), 3))

@@ -14,7 +14,8 @@ no false cause.
 import math
 import os
 
-from gyro_emulator.analysis.diagnose import diagnose, load_csv, make_truth
+from gyro_emulator.analysis.diagnose import diagnose, load_csv
+from gyro_emulator.emulation.truth.generator import make_truth
 import pytest
 from scipy import stats
 

@@ -5,7 +5,7 @@ import math
 from gyro_emulator import cli
 from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.calibrate import noise as cal_noise, thermal
-from gyro_emulator.analysis.diagnose import make_truth
+from gyro_emulator.emulation.truth.generator import make_truth
 from gyro_emulator.recording import csvio
 import numpy as np
 import pytest

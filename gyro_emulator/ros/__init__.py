@@ -11,6 +11,6 @@ prints ``--help`` from ``node_help``; ``gyro_array`` runs redundant
 instances. ``recorder``, ``replay`` and
 ``codec`` record and play back MCAP bags (``program``: what the recorder and
 replay programs share). ``inputs``, ``imu_input``, ``fault_injection``,
-``gyro_array`` and the profile parsing in ``scenario`` are plain Python, so
-they test without a ROS graph.
+and ``gyro_array`` are plain Python, so they test without a ROS graph; the
+scenario file ``scenario`` plays is :mod:`gyro_emulator.emulation.scenario`.
 """
