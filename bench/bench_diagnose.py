@@ -29,8 +29,9 @@ for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ[_var] = '1'
 
 from gyro_emulator.analysis.diagnose import (diagnose, EFFECT_IDS, load_measured,  # noqa: E402
-                                             make_truth, write_measured_csv)
+                                             write_measured_csv)
 from gyro_emulator.analysis.diagnose.report import write_report  # noqa: E402
+from gyro_emulator.emulation.truth.generator import make_truth  # noqa: E402
 
 BUDGET_S = 30.0
 
@@ -87,9 +88,9 @@ def _adversarial(args):
     """Run the issue's 74 h thermal ramp with spikes: gain with and without them set aside."""
     record, truth = make_truth('bias_temperature', args.seed, profile='thermal_ramp',
                                sample_rate_hz=1.0, duration_s=74 * 3600.0, outliers='spikes')
-    print(f'record: {record.rows} rows, 74 h at 1 Hz, static part on a one-way thermal '
+    print(f'record: {len(record.time_s)} rows, 74 h at 1 Hz, static part on a one-way thermal '
           f'ramp, bias following temperature, {truth["outliers"]["spikes"]} spikes '
-          f'({100 * truth["outliers"]["spikes"] / record.rows:.3f} %) (seed {args.seed})')
+          f'({100 * truth["outliers"]["spikes"] / len(record.time_s):.3f} %) (seed {args.seed})')
     data, result = _timed(args, record)
     doc = result.doc
     best = doc['best']
@@ -120,7 +121,7 @@ def main():
         return
     record, truth = make_truth(args.effect, args.seed, sample_rate_hz=100.0,
                                duration_s=args.hours * 3600.0)
-    print(f'record: {record.rows} rows, {args.hours:g} h at 100 Hz, hidden effect '
+    print(f'record: {len(record.time_s)} rows, {args.hours:g} h at 100 Hz, hidden effect '
           f'{truth["effect"]} (seed {args.seed})')
     data, _ = _timed(args, record)
     if args.effect != 'none':

@@ -22,7 +22,8 @@ import os
 for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
     os.environ[_var] = '1'
 
-from gyro_emulator.analysis.diagnose import diagnose, make_truth  # noqa: E402
+from gyro_emulator.analysis.diagnose import diagnose  # noqa: E402
+from gyro_emulator.emulation.truth.generator import make_truth  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 from tqdm import tqdm  # noqa: E402

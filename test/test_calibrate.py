@@ -5,12 +5,12 @@ import os
 import xml.etree.ElementTree as ElementTree
 
 from gyro_emulator import cli, units
-from gyro_emulator.analysis import simulate
 from gyro_emulator.analysis.calibrate import (export_noise, export_thermal, noise, thermal,
                                               twin)
+from gyro_emulator.emulation import profiles, simulate
 from gyro_emulator.recording import csvio
 from gyro_emulator.recording.record import load_record, Record
-from gyro_emulator.sensor import noise as sensor_noise, profiles
+from gyro_emulator.sensor import noise as sensor_noise
 from gyro_emulator.sensor.config import config_from_mapping, load_sensor_config, SensorConfig
 from gyro_emulator.sensor.model import GyroModel
 import numpy as np

@@ -18,9 +18,9 @@ import sys
 
 from gyro_emulator.analysis.diagnose import baseline as base
 from gyro_emulator.analysis.diagnose import (CANDIDATE_IDS, CATALOGUE, diagnose, EFFECT_IDS,
-                                             load_measured, make_truth, write_measured_csv)
-from gyro_emulator.analysis.diagnose.truth import TRUTH_EFFECTS
-from gyro_emulator.analysis.diagnose.truth_effects import EXTRA_TRUTHS
+                                             load_measured, write_measured_csv)
+from gyro_emulator.emulation.truth.effects import EXTRA_TRUTHS, TRUTH_EFFECTS
+from gyro_emulator.emulation.truth.generator import make_truth
 from gyro_emulator.physics.presets import physics_preset
 import numpy as np
 import pytest
@@ -73,7 +73,7 @@ def test_truth_csv_holds_only_the_contract(tmp_path):
     assert truth['effect'] in TRUTH_EFFECTS
     again, truth2 = make_truth('random', 5, sample_rate_hz=2.0, levels=3)
     assert truth2 == truth
-    np.testing.assert_array_equal(again.gyro_rad_s, record.gyro_rad_s)
+    np.testing.assert_array_equal(again.gyro['x'], record.gyro['x'])
     with pytest.raises(ValueError, match="truth.effect = 'nope' is not allowed"):
         make_truth('bias_step+nope', 0)
     with pytest.raises(ValueError, match='needs an applied rate'):
@@ -83,20 +83,20 @@ def test_truth_csv_holds_only_the_contract(tmp_path):
 def test_truth_is_the_one_simulator_gyromodel():
     # with every effect and noise term off, the record is GyroModel's output
     # for the profile: the generator adds nothing of its own
-    from gyro_emulator.analysis.diagnose import truth as tr
-    from gyro_emulator.analysis.diagnose.truth_profiles import make_profile
+    from gyro_emulator.emulation.profiles import draw_profile
+    from gyro_emulator.emulation.truth import generator as tr
     from gyro_emulator.sensor.model import GyroModel
 
     quiet = {'arw_deg_sqrt_s': 0.0, 'bias_instability_deg_h': 0.0, 'rrw_deg_h_sqrt_h': 0.0}
     record, truth = make_truth('none', 3, sample_rate_hz=2.0, levels=3, noise=quiet)
     rng = np.random.default_rng(3)
-    prof = make_profile('lab', rng, 2.0, levels=3)
+    prof = draw_profile('lab', rng, 2.0, levels=3)
     drawn = tr._draw_part_errors(rng, quiet)
     model = GyroModel(tr._sensor_config(physics_preset('paper'), (), {}, drawn), 2.0, rng)
     rates = np.zeros((len(prof.time_s), 3))
     rates[:, 2] = prof.rate_rad_s
     expected = model.run(rates, prof.temp_c, prof.accel_m_s2).gyro_rad_s[:, 2]
-    np.testing.assert_array_equal(record.gyro_rad_s, expected)
+    np.testing.assert_array_equal(record.gyro['x'], expected)
 
 
 @pytest.mark.slow

@@ -14,7 +14,8 @@ no false cause.
 import math
 import os
 
-from gyro_emulator.analysis.diagnose import diagnose, load_measured, make_truth
+from gyro_emulator.analysis.diagnose import diagnose, load_measured, measured
+from gyro_emulator.emulation.truth.generator import make_truth
 import pytest
 from scipy import stats
 
@@ -219,7 +220,7 @@ def test_a_bias_that_follows_the_sign_of_rotation_is_not_called_explained():
 
     import numpy as np
 
-    record, _ = make_truth('none', 4, sample_rate_hz=2.0, levels=3)
+    record = measured(make_truth('none', 4, sample_rate_hz=2.0, levels=3)[0])
     signed = dataclasses.replace(
         record, gyro_rad_s=record.gyro_rad_s + 2e-3 * np.sign(record.rate_cmd_rad_s))
     doc = diagnose(signed).doc

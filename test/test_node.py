@@ -18,10 +18,10 @@ import types
 from conftest import ros_env
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
+from gyro_emulator.emulation import profiles
 from gyro_emulator.physics import first_order
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
-from gyro_emulator.sensor import profiles
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest

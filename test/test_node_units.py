@@ -6,12 +6,11 @@ import os
 import sys
 import types
 
-from gyro_emulator.emulation import commands
+from gyro_emulator.emulation import commands, profiles, scenario
 from gyro_emulator.emulation.block_stepper import BlockStepper
-from gyro_emulator.ros import params, scenario
+from gyro_emulator.ros import params
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
-from gyro_emulator.sensor import profiles
 import numpy as np
 import pytest
 import yaml
@@ -335,13 +334,13 @@ def test_shipped_paper_profile_is_the_papers_grid_and_short():
 ])
 def test_profile_errors_name_the_key(doc, match):
     with pytest.raises(ValueError, match=match):
-        scenario.parse_profile(doc)
+        scenario.parse_scenario(doc)
 
 
 def test_scenario_and_simulate_profiles_share_one_segment_schema():
     """The same segment mapping means the same rate, temperature and settle time."""
     seg = {'duration_s': 2.0, 'rate_rpm': 10.0, 'temp_c': 40.0, 'settle_s': 0.5}
-    step = scenario.parse_profile({'axis': [0, 1, 0], 'segments': [seg]}).steps[0]
+    step = scenario.parse_scenario({'axis': [0, 1, 0], 'segments': [seg]}).steps[0]
     segment = profiles.profile_from_mapping({'axis': [0, 1, 0], 'segments': [seg]}).segments[0]
     assert segment.rate_start_rad_s == pytest.approx((0.0, step.rate_rad_s, 0.0))
     assert step.rate_rad_s == pytest.approx(10.0 * 2.0 * math.pi / 60.0)
@@ -351,22 +350,22 @@ def test_scenario_and_simulate_profiles_share_one_segment_schema():
 def test_old_temperature_spelling_is_read_with_a_deprecation_warning():
     old = {'segments': [{'duration_s': 1.0, 'rate_rpm': 1, 'temperature_c': 30.0}]}
     with pytest.warns(DeprecationWarning, match='temperature_c is deprecated, write temp_c'):
-        step = scenario.parse_profile(old).steps[0]
+        step = scenario.parse_scenario(old).steps[0]
     assert step.temp_c == 30.0
     with pytest.warns(DeprecationWarning, match='temperatures_c is deprecated'):
-        grid = scenario.parse_profile({'grid': {'temperatures_c': [20.0], 'rates_rpm': [0],
-                                                'hold_s': 1.0}})
+        grid = scenario.parse_scenario({'grid': {'temperatures_c': [20.0], 'rates_rpm': [0],
+                                                 'hold_s': 1.0}})
     assert grid.steps[0].temp_c == 20.0
 
 
 def test_a_scenario_step_refuses_a_ramp():
     with pytest.raises(ValueError, match='holds its rate and temp_c'):
-        scenario.parse_profile({'segments': [
+        scenario.parse_scenario({'segments': [
             {'duration_s': 1.0, 'rate_rpm': 1, 'temp_c': [20.0, 30.0]}]})
 
 
 def test_summary_averages_each_step_after_its_settle_time():
-    profile = scenario.parse_profile({'axis': [0, 0, 2], 'segments': [
+    profile = scenario.parse_scenario({'axis': [0, 0, 2], 'segments': [
         {'duration_s': 1.0, 'rate_deg_s': 10.0, 'temp_c': 20.0, 'settle_s': 0.5},
         {'duration_s': 1.0, 'rate_rad_s': 1.0, 'temp_c': 40.0, 'settle_s': 0.25}]})
     start = 5 * 10**9

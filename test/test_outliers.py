@@ -5,7 +5,7 @@ import math
 from gyro_emulator import cli
 from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.calibrate import noise as cal_noise, thermal
-from gyro_emulator.analysis.diagnose import make_truth
+from gyro_emulator.emulation.truth.generator import make_truth
 from gyro_emulator.recording import timing
 from gyro_emulator.recording.record import load_record
 import numpy as np
@@ -108,7 +108,7 @@ def test_the_noise_fit_survives_spikes_and_handling_motion():
                                  ('screened', dirty, outliers.THRESHOLD),
                                  ('kept', dirty, math.inf)):
         rate_hz, segments, found, handled = allan.screened_segments(
-            rec.time_s, rec.gyro_rad_s, threshold=threshold)
+            rec.time_s, rec.gyro['x'], threshold=threshold)
         fits[name] = (allan.identify(segments, rate_hz)[1], found, handled)
     n_clean = fits['clean'][0].intervals['arw']
     n = fits['screened'][0].arw_rad_s_sqrt_hz
@@ -129,7 +129,7 @@ def _thermal_log(path, outliers_kind):
                             duration_s=20000.0, outliers=outliers_kind)
     with open(path, 'w', encoding='utf-8') as handle:
         handle.write('time_s,temp_c,gyro_rad_s\n')
-        for row in zip(rec.time_s, rec.temp_c, rec.gyro_rad_s):
+        for row in zip(rec.time_s, rec.temp.values, rec.gyro['x']):
             handle.write('%.3f,%.5f,%.9g\n' % row)
     return str(path), truth
 

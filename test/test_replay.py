@@ -7,7 +7,9 @@ import sys
 import time
 
 from conftest import ROOT
-from gyro_emulator.analysis import replay
+from gyro_emulator.analysis.replay.inputs import emulate, hold, load_inputs
+from gyro_emulator.analysis.replay.report import compare
+from gyro_emulator.emulation import emulator_bag
 from gyro_emulator.recording import bag, cdr
 from gyro_emulator.sensor.config import load_sensor_config
 import numpy as np
@@ -35,16 +37,17 @@ def simulated(tmp_path_factory):
 
 
 def test_simulate_out_writes_the_emulator_layout(simulated):
-    from gyro_emulator.analysis import simulate
+    from gyro_emulator.emulation import simulate
     from rosbags.rosbag2 import Reader
     reader = bag.BagReader(simulated)
     assert reader.custom_data['seed'] == '3' and reader.custom_data['rate_hz'] == '100.0'
-    for topic in (replay.RATE_TOPIC, replay.TEMPERATURE_COMMAND_TOPIC, replay.IMU_TOPIC,
-                  replay.DIE_TEMPERATURE_TOPIC, replay.TRUTH_NAMESPACE + '/rate'):
+    for topic in (emulator_bag.RATE_TOPIC, emulator_bag.TEMPERATURE_COMMAND_TOPIC,
+                  emulator_bag.IMU_TOPIC, emulator_bag.DIE_TEMPERATURE_TOPIC,
+                  emulator_bag.TRUTH_NAMESPACE + '/rate'):
         assert reader.topics[topic].message_count == 2000, topic
     # The bag holds exactly what run_simulation returns for the same arguments.
     time_s, profile, batch = simulate.run_simulation('paper', 'steps', 20.0, 100.0, seed=3)
-    imu = reader.read_arrays(replay.IMU_TOPIC)
+    imu = reader.read_arrays(emulator_bag.IMU_TOPIC)
     np.testing.assert_array_equal(imu.field('angular_velocity'), batch.gyro_rad_s)
     # Issue 15: stamped from the start time (default: now), not from 1970.
     start = int(reader.custom_data['start_time_ns'])
@@ -55,7 +58,7 @@ def test_simulate_out_writes_the_emulator_layout(simulated):
         imu.stamp_ns, imu.log_time_ns + np.round(batch.output_delay_s * 1e9).astype(np.int64))
     assert imu.field('orientation_covariance[0]')[0] == -1.0
     assert imu.field('angular_velocity_covariance[0]')[0] > 0.0
-    rate = reader.read_arrays(replay.RATE_TOPIC)
+    rate = reader.read_arrays(emulator_bag.RATE_TOPIC)
     np.testing.assert_array_equal(rate.field('vector'), profile.rate_rad_s)
     with Reader(simulated) as rosbags_reader:
         assert rosbags_reader.message_count == reader.message_count
@@ -81,15 +84,15 @@ def test_same_bag_and_seed_give_identical_decoded_output(simulated, tmp_path):
         assert out.returncode == 0, out.stderr
         reader = bag.BagReader(str(tmp_path / run / 'emulated'))
         outputs.append({t: reader.read_arrays(t).decoded.values for t in
-                        (replay.IMU_TOPIC, replay.TRUTH_NAMESPACE + '/bias',
-                         replay.RESIDUAL_TOPIC)})
+                        (emulator_bag.IMU_TOPIC, emulator_bag.TRUTH_NAMESPACE + '/bias',
+                         emulator_bag.RESIDUAL_TOPIC)})
     for topic, values in outputs[0].items():
         np.testing.assert_array_equal(values, outputs[1][topic], err_msg=topic)
     # Another seed is another noise realisation: the residual is the difference
     # of two independent white noises, sqrt(2) sigma on a static axis (x).
     with open(tmp_path / 'a' / 'report.json', encoding='utf-8') as handle:
         stats = json.load(handle)['stats']
-    sigma = replay.white_noise_sigma(load_sensor_config('paper'), 100.0)[0]
+    sigma = emulator_bag.white_noise_sigma(load_sensor_config('paper'), 100.0)[0]
     ratio = stats['residual_rad_s']['x']['std'] / (np.sqrt(2.0) * sigma)
     assert 0.85 < ratio < 1.3
 
@@ -98,10 +101,10 @@ def test_hold_is_a_zero_order_hold_at_the_stamps():
     stamps = np.array([0, 100, 200], dtype=np.int64)
     values = np.array([[1.0], [2.0], [3.0]])
     query = np.array([-50, 0, 99, 100, 150, 199, 500], dtype=np.int64)
-    np.testing.assert_array_equal(replay.hold(stamps, values, query, 0, before=0.0)[:, 0],
+    np.testing.assert_array_equal(hold(stamps, values, query, 0, before=0.0)[:, 0],
                                   [0, 1, 1, 2, 2, 2, 3])
     # within the tolerance a command counts for the sample just before its stamp
-    np.testing.assert_array_equal(replay.hold(stamps, values, query, 1)[:, 0],
+    np.testing.assert_array_equal(hold(stamps, values, query, 1)[:, 0],
                                   [1, 1, 2, 2, 2, 3, 3])
 
 
@@ -134,8 +137,8 @@ def test_imu_source_takes_the_robot_rate_as_truth(tmp_path):
     path = str(tmp_path / 'robot')
     stamps, rate, temp_stamps, temps = _robot_bag(path)
     reader = bag.BagReader(path)
-    inputs = replay.load_inputs(reader, rate_topic='/robot/imu',
-                                temperature_topic='/robot/imu_temp')
+    inputs = load_inputs(reader, rate_topic='/robot/imu',
+                         temperature_topic='/robot/imu_temp')
     assert inputs.source == 'imu' and inputs.rate_hz == 100.0
     np.testing.assert_array_equal(inputs.stamp_ns, stamps)
     np.testing.assert_array_equal(inputs.rate_rad_s, rate)
@@ -151,7 +154,7 @@ def test_imu_source_takes_the_robot_rate_as_truth(tmp_path):
     assert report['stats']['matched'] == len(stamps)
     assert set(report['adev']) == {'measured', 'emulated'}
     emulated = bag.BagReader(str(tmp_path / 'out' / 'emulated'))
-    truth = emulated.read_arrays(replay.TRUTH_NAMESPACE + '/rate').field('vector')
+    truth = emulated.read_arrays(emulator_bag.TRUTH_NAMESPACE + '/rate').field('vector')
     np.testing.assert_array_equal(truth, rate)
 
 
@@ -161,16 +164,16 @@ def test_command_source_holds_sparse_commands_on_the_sample_grid(tmp_path):
     cmd = np.column_stack([np.arange(len(cmd_stamps)) * 0.01,
                            np.zeros((len(cmd_stamps), 2))])
     with bag.BagWriter(path) as writer:
-        writer.add_topic(replay.RATE_TOPIC, VECTOR)
-        writer.write_batches([(replay.RATE_TOPIC, cdr.encode(VECTOR, cmd_stamps, cmd),
+        writer.add_topic(emulator_bag.RATE_TOPIC, VECTOR)
+        writer.write_batches([(emulator_bag.RATE_TOPIC, cdr.encode(VECTOR, cmd_stamps, cmd),
                                cmd_stamps)])
-    inputs = replay.load_inputs(bag.BagReader(path), rate_hz=50.0, temp_c=40.0)
+    inputs = load_inputs(bag.BagReader(path), rate_hz=50.0, temp_c=40.0)
     assert inputs.source == 'command' and len(inputs.stamp_ns) == 96
     np.testing.assert_array_equal(inputs.stamp_ns, np.arange(96) * 20_000_000)
     np.testing.assert_array_equal(inputs.rate_rad_s[:, 0], cmd[inputs.stamp_ns // 100_000_000, 0])
     assert np.all(inputs.temp_c == 40.0) and inputs.measured_rad_s is None
-    _, batch = replay.emulate(inputs, 'paper', seed=1)
-    assert replay.compare(inputs, batch).matched == 0
+    _, batch = emulate(inputs, 'paper', seed=1)
+    assert compare(inputs, batch).matched == 0
 
 
 @pytest.mark.parametrize('args,message', [

@@ -8,10 +8,9 @@ import os
 import time
 
 from gyro_emulator import cli, units
-from gyro_emulator.analysis import simulate
 from gyro_emulator.cli.simulate import Progress
+from gyro_emulator.emulation import profiles, simulate
 from gyro_emulator.recording import csvio, timing
-from gyro_emulator.sensor import profiles
 from gyro_emulator.sensor.config import load_sensor_config
 from gyro_emulator.sensor.model import SensorBatch
 import numpy as np

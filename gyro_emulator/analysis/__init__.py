@@ -1,6 +1,7 @@
 """
-Offline runs and analysis: simulate, replay, Allan deviation and diagnose.
+Analysis: replay, Allan deviation, calibrate, diagnose and fleet.
 
-Drives the sensor model from profiles or recorded bags and compares it with
-measured data. No ROS.
+Compares the sensor model with measured data (a recorded bag replayed
+through it, Allan terms, identified calibrations, named causes) and runs
+fleets of parts. The runs themselves are :mod:`gyro_emulator.emulation`. No ROS.
 """

@@ -94,7 +94,7 @@ def physics_error_deg_s(rate_rad_s, die_temp_c):
 
 def format_table(results):
     """Return the summary table with the physics prediction column."""
-    from gyro_emulator.ros import scenario
+    from gyro_emulator.emulation import scenario
 
     lines = scenario.format_summary(results).split('\n')
     lines[0] += f' {"physics err":>11}'
@@ -106,7 +106,8 @@ def format_table(results):
 
 def run_scenario(opts):
     """Start node (+ recorder), play the profile, print and save the summary."""
-    from gyro_emulator.ros import scenario
+    from gyro_emulator.emulation import scenario
+    from gyro_emulator.ros.scenario import play
 
     profile = scenario.load_scenario(opts.profile)
     os.makedirs(opts.out_dir, exist_ok=True)
@@ -139,8 +140,8 @@ def run_scenario(opts):
                 print(f'  step {index + 1:>2}/{len(profile.steps)}: {step.label:>8} at '
                       f'{step.temp_c:5.1f} C', flush=True)
 
-            player = scenario.play(profile, collect=True, wait_s=NODE_START_TIMEOUT_S,
-                                   progress=progress)
+            player = play(profile, collect=True, wait_s=NODE_START_TIMEOUT_S,
+                          progress=progress)
             elapsed = time.monotonic() - started
         except RuntimeError as exc:
             print(f'main: {exc}; node log: {node_log}', file=sys.stderr)

@@ -56,9 +56,9 @@ def add_arguments(parser):
 
 def run(args):
     """Replay the bag through the model, write the bag and the report."""
-    from gyro_emulator.analysis import replay
+    from gyro_emulator.analysis.replay.run import replay_bag
 
-    run = replay.replay_bag(
+    run = replay_bag(
         args.bag, args.out, config=args.config, seed=args.seed, plots=not args.no_plots,
         overwrite=args.overwrite,
         warn=lambda note: print(f'replay: warning: {note}', file=sys.stderr),

@@ -4,7 +4,7 @@ Simulate the gyro over a scripted profile and write the record as CSV.
 Profiles: ``static`` (zero rate), ``steps`` (rate table about z at 0, 10, 20,
 40 RPM and back to 0), ``temp-ramp`` (60 deg/s about z while the ambient goes
 from 25 to 85 C, the paper's Fig 6 conditions) or a YAML profile file (see
-``gyro_emulator.sensor.profiles``). The CSV columns are time_s, rate_{x,y,z}_rad_s
+``gyro_emulator.emulation.profiles``). The CSV columns are time_s, rate_{x,y,z}_rad_s
 (true rate), temp_c (ambient) and gyro_{x,y,z}_rad_s (sensor output).
 An ``--out`` path not ending in .csv/.csv.gz is a rosbag2 MCAP bag directory
 with the node's topics (see ``gyro_emulator.analysis.replay``), stamped from
@@ -74,7 +74,7 @@ class Progress:
 
 def run(args):
     """Run the simulation and write the record."""
-    from gyro_emulator.analysis import simulate
+    from gyro_emulator.emulation import simulate
     from gyro_emulator.sensor import faults
 
     started = time.monotonic()

@@ -25,7 +25,8 @@ HELP = 'write a simulated measured CSV with hidden effects'
 
 def add_arguments(parser):
     """Register the ``truth`` options."""
-    from gyro_emulator.analysis.diagnose.truth import PROFILES, TRUTH_EFFECTS
+    from gyro_emulator.emulation.profiles import SAMPLED_PROFILES
+    from gyro_emulator.emulation.truth.effects import TRUTH_EFFECTS
 
     parser.add_argument('output', metavar='OUT.csv', help='CSV to write')
     parser.add_argument('--effect', default='random', metavar='E[+E...]',
@@ -33,7 +34,7 @@ def add_arguments(parser):
                              f'{", ".join(TRUTH_EFFECTS)}, or several joined by + '
                              '(default: %(default)s)')
     parser.add_argument('--seed', type=int, default=0, help='random seed (default: 0)')
-    parser.add_argument('--profile', default='lab', choices=PROFILES,
+    parser.add_argument('--profile', default='lab', choices=SAMPLED_PROFILES,
                         help='test profile (default: %(default)s)')
     parser.add_argument('--rate', type=float, default=25.0, metavar='HZ',
                         help='sample rate, Hz (default: %(default)s)')
@@ -52,7 +53,8 @@ def add_arguments(parser):
 
 def run(args):
     """Simulate and write the CSV (and the answer if asked)."""
-    from gyro_emulator.analysis.diagnose import make_truth, write_measured_csv
+    from gyro_emulator.analysis.diagnose import write_measured_csv
+    from gyro_emulator.emulation.truth.generator import make_truth
     from gyro_emulator.validation import check_range
 
     check_range('truth', 'rate', args.rate, 1e-3, 2000.0, 'Hz')
@@ -69,7 +71,7 @@ def run(args):
     directory = os.path.dirname(os.path.abspath(args.output))
     os.makedirs(directory, exist_ok=True)
     write_measured_csv(args.output, data)
-    print(f'wrote {args.output}: {data.rows} samples, {truth["duration_s"]:.0f} s '
+    print(f'wrote {args.output}: {len(data.time_s)} samples, {truth["duration_s"]:.0f} s '
           f'({truth["profile"]} profile, seed {args.seed}); the effect is hidden')
     if args.answer:
         write_json(args.answer, truth)

@@ -14,7 +14,7 @@ tau) unless a shorter one lowers the weighted sum of squares by more than
 discrepancy).
 
 :func:`check_noise` is the round trip: it simulates the fitted preset with
-``gyro_emulator.analysis.simulate`` (what ``simulate --config fitted.yaml``
+``gyro_emulator.emulation.simulate`` (what ``simulate --config fitted.yaml``
 runs) for several seeds at the log's rate and length, and compares the mean
 Allan deviation of the simulated records with the log's at every octave tau
 from 0.1 s to a tenth of the record. :func:`check_thermal` simulates a
@@ -24,10 +24,11 @@ group of samples with the log's.
 
 from dataclasses import dataclass
 
-from gyro_emulator.analysis import allan, simulate
+from gyro_emulator.analysis import allan
 from gyro_emulator.analysis.allan import fit as fitting
 from gyro_emulator.analysis.calibrate import thermal
-from gyro_emulator.sensor import noise as sensor_noise, profiles
+from gyro_emulator.emulation import profiles, simulate
+from gyro_emulator.sensor import noise as sensor_noise
 import numpy as np
 
 #: Gauss-Markov terms per decade of the twin's flicker model.

@@ -8,16 +8,14 @@ causes (:mod:`.effects`, :mod:`.generic`, :mod:`.models`) by forward
 selection on held-out evidence (:mod:`.cv`, :mod:`.selection`) judged
 against the record's own noise (:mod:`.noise_model`), and states what
 remains (:mod:`.verdict`); :mod:`.pipeline` runs it and :mod:`.document`
-writes the JSON. :mod:`.truth` makes simulated records with hidden effects
-to prove it; :mod:`.report` writes the Markdown report.
+writes the JSON; :mod:`.report` writes the Markdown report. The records
+with hidden effects that prove it come from :mod:`gyro_emulator.emulation.truth`.
 """
 
 from gyro_emulator.analysis.diagnose.data import (load_measured, measured, MeasuredData,
                                                   write_measured_csv)
 from gyro_emulator.analysis.diagnose.generic import CANDIDATE_IDS, CATALOGUE, EFFECT_IDS
 from gyro_emulator.analysis.diagnose.pipeline import diagnose, Diagnosis
-from gyro_emulator.analysis.diagnose.truth import make_truth, TRUTH_EFFECTS
 
 __all__ = ['CANDIDATE_IDS', 'CATALOGUE', 'diagnose', 'Diagnosis', 'EFFECT_IDS',
-           'load_measured', 'make_truth', 'measured', 'MeasuredData', 'TRUTH_EFFECTS',
-           'write_measured_csv']
+           'load_measured', 'measured', 'MeasuredData', 'write_measured_csv']

@@ -24,9 +24,8 @@ named only when it beats them on held-out data (:mod:`.selection`).
 
 from dataclasses import dataclass
 
+from gyro_emulator.units import SECONDS_PER_HOUR
 import numpy as np
-
-HOUR_S = 3600.0
 
 
 @dataclass(frozen=True)
@@ -234,13 +233,13 @@ class PressureDrift(Effect):
 
     def grids(self, ctx):
         """Pressure rates keeping P(t) >= 0.1 P_ref over the record."""
-        hours = max(1e-6, (ctx.time_span_s[1] - ctx.time_span_s[0]) / HOUR_S)
+        hours = max(1e-6, (ctx.time_span_s[1] - ctx.time_span_s[0]) / SECONDS_PER_HOUR)
         return (np.linspace(max(-0.9 / hours, -3.0), 3.0, 61),)
 
     def sf_factor(self, ctx, frame, phi):
         """Y(T, P(t)) / Y(T, P_ref)."""
         b = frame.bins.binned
-        pressure = 1.0 + phi[0] * (b.time_s - ctx.time_span_s[0]) / HOUR_S
+        pressure = 1.0 + phi[0] * (b.time_s - ctx.time_span_s[0]) / SECONDS_PER_HOUR
         where = cached(frame, 'temp_index', lambda: ctx.phys.temp_index(b.temp_c))
         return ctx.phys.pressure_factor(where, np.maximum(pressure, 0.05))
 

@@ -14,8 +14,10 @@ mechanisms instead of guessing one.
 :data:`CATALOGUE` holds every candidate, physical and generic.
 """
 
-from gyro_emulator.analysis.diagnose.effects import (cached, Effect, HOUR_S, NULL, Param,
+from gyro_emulator.analysis.diagnose.effects import (cached, Effect, NULL, Param,
                                                      physical_causes, slow_temp)
+from gyro_emulator.emulation.truth.effects import CATALOGUE_TRUTHS
+from gyro_emulator.units import SECONDS_PER_HOUR
 import numpy as np
 
 
@@ -120,7 +122,7 @@ class ScaleFactorTemperature(Effect):
 
 def _hours_from_mid(ctx, frame):
     """(t - t_mid) in hours at ``frame``'s rows (slow: from the bins)."""
-    return frame.slow((frame.bins.binned.time_s - ctx.mid_time_s) / HOUR_S)
+    return frame.slow((frame.bins.binned.time_s - ctx.mid_time_s) / SECONDS_PER_HOUR)
 
 
 class ScaleFactorTime(Effect):
@@ -291,18 +293,21 @@ def generic_causes():
 
 
 def _catalogue():
-    """Return the nine causes of the first catalogue in their order, then the new ones."""
+    """
+    Return the nine causes of the first catalogue in their order, then the new ones.
+
+    The nine are the causes the truth generator plants
+    (:data:`gyro_emulator.emulation.truth.effects.CATALOGUE_TRUTHS`), one list.
+    """
     by_id = {e.effect_id: e for e in physical_causes() + generic_causes()}
-    first = ('viscosity_temperature', 'bias_temperature', 'thermal_lag',
-             'scale_factor_nonlinearity', 'g_sensitivity', 'time_delay', 'pressure_drift',
-             'mode_split_drift', 'temperature_rate_bias')
+    first = CATALOGUE_TRUTHS
     rest = tuple(k for k in by_id if k not in first)
     return tuple(by_id[k] for k in first + rest)
 
 
 #: Every candidate cause, in the order reports list them.
 CATALOGUE = _catalogue()
-#: The nine causes of the first catalogue (kept for the truth generator and tests).
+#: The nine causes of the first catalogue (those the truth generator plants).
 EFFECT_IDS = tuple(e.effect_id for e in CATALOGUE[:9])
 #: Every candidate's id.
 CANDIDATE_IDS = tuple(e.effect_id for e in CATALOGUE)

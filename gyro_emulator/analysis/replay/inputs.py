@@ -20,7 +20,8 @@ configuration and seed give the identical emulated output.
 
 from dataclasses import dataclass, field
 
-from gyro_emulator.analysis.emulator_bag import DEFAULT_FRAME_ID, IMU, TEMPERATURE, VECTOR3_STAMPED
+from gyro_emulator.emulation.emulator_bag import (DEFAULT_FRAME_ID, IMU, TEMPERATURE,
+                                                  VECTOR3_STAMPED)
 from gyro_emulator.recording import record, topics
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.model import GyroModel

@@ -5,9 +5,9 @@ A record is the output of the one sensor simulator,
 :class:`gyro_emulator.sensor.model.GyroModel`, configured as a part with the
 baseline physics (the paper's first-order model of a preset: SF(T) from
 :func:`gyro_emulator.physics.first_order.scale_factor_ratio`), a random bias
-and scale-factor error, the hidden effects (:mod:`.truth_effects`: none,
+and scale-factor error, the hidden effects (:mod:`.effects`: none,
 one, or several joined by ``+``), driven by a seeded profile
-(:mod:`.truth_profiles`), plus noise:
+(:class:`gyro_emulator.emulation.profiles.SampledProfile`), plus noise:
 
 - white rate noise of density N (angle random walk), sigma = N / sqrt(dt);
 - bias instability B (flicker: a sum of exactly discretised Gauss-Markov
@@ -26,10 +26,10 @@ it: the CSV holds only the diagnose contract columns.
 
 from dataclasses import replace
 
-from gyro_emulator.analysis.diagnose import truth_effects as te
-from gyro_emulator.analysis.diagnose.data import MeasuredData
-from gyro_emulator.analysis.diagnose.truth_profiles import make_profile, PROFILES
+from gyro_emulator.emulation.profiles import draw_profile
+from gyro_emulator.emulation.truth import effects as te
 from gyro_emulator.physics.presets import physics_preset
+from gyro_emulator.recording.record import Record
 from gyro_emulator.sensor.config import ErrorTerms, SensorConfig
 from gyro_emulator.sensor.model import GyroModel
 from gyro_emulator.units import (deg_h_to_rad_s, deg_s_to_rad_s,
@@ -47,7 +47,7 @@ FLICKER_BAND_S = (1.0, 3e4)
 #: Outlier kinds :func:`make_truth` accepts (joined by + for both).
 OUTLIER_KINDS = ('spikes', 'motion')
 
-__all__ = ['make_truth', 'PROFILES', 'simulate', 'TRUTH_EFFECTS']
+__all__ = ['make_record', 'make_truth', 'TRUTH_EFFECTS']
 
 
 def _sensor_config(device, effects, params, drawn):
@@ -57,7 +57,7 @@ def _sensor_config(device, effects, params, drawn):
     The part's own terms: turn-on bias, scale-factor error, SF(T) from the
     physics of ``device``, white rate noise N, bias instability B, rate
     random walk K, and the hidden effects the error model has
-    (:func:`.truth_effects.part_config`). Everything else is off.
+    (:func:`.effects.part_config`). Everything else is off.
     """
     on = {'scale_factor_temperature', 'turn_on_bias', 'scale_factor_error',
           'electronics_noise', 'rate_random_walk', 'bias_instability'}
@@ -110,7 +110,7 @@ def _run_scheduled(model, config, rate_in, temp, accel, bias, sf):
     Run ``model`` over the record, changing its bias or scale factor on schedule.
 
     The record is cut where the bias (or scale-factor) schedule moves by more
-    than 1 % of its range (:func:`.truth_effects.change_points`); each piece
+    than 1 % of its range (:func:`.effects.change_points`); each piece
     runs with the schedule's mean over it added to the part's turn-on bias
     (scale-factor error) through ``GyroModel.update_config``, so the states
     (noise, die temperature) carry over.
@@ -191,27 +191,27 @@ def logger_spikes(rng, n):
     return idx, deg_s_to_rad_s(mags * rng.choice([-1.0, 1.0], len(idx)))
 
 
-def simulate(profile, effects, params, rng, preset='paper', noise=None, outliers=None,
-             record_temperature=True):
+def make_record(profile, effects, params, rng, preset='paper', noise=None, outliers=None,
+                record_temperature=True):
     """
-    Simulate the measured output for a profile with hidden effects.
+    Make the measured record of a part with hidden effects run through a profile.
 
     The sensor is :class:`gyro_emulator.sensor.model.GyroModel` (the one
     simulator) on the z axis, configured by :func:`_sensor_config` and
     driven by the true rate (plus handling motion) with the effects it
-    lacks applied (:func:`.truth_effects.rate_into_the_part`), with bias and
+    lacks applied (:func:`.effects.rate_into_the_part`), with bias and
     scale-factor schedules applied between samples (:func:`_run_scheduled`).
     The viscosity effect changes the physics of the device itself (a
     Sutherland gas law).
 
     Parameters
     ----------
-    profile : gyro_emulator.analysis.diagnose.truth_profiles.Profile
+    profile : gyro_emulator.emulation.profiles.SampledProfile
         True rate, temperature and acceleration.
     effects : tuple of str
-        Hidden effects (:func:`.truth_effects.parse_effects`).
+        Hidden effects (:func:`.effects.parse_effects`).
     params : dict
-        Their parameters (:func:`.truth_effects.draw_effect_parameters`).
+        Their parameters (:func:`.effects.draw_effect_parameters`).
     rng : numpy.random.Generator
         Source of randomness; the sensor's noise streams are spawned from it.
     preset : str
@@ -225,7 +225,7 @@ def simulate(profile, effects, params, rng, preset='paper', noise=None, outliers
 
     Returns
     -------
-    (MeasuredData, dict)
+    (Record, dict)
         The record and the truth (effects, parameters, noise, outliers).
 
     """
@@ -252,11 +252,11 @@ def simulate(profile, effects, params, rng, preset='paper', noise=None, outliers
         spikes, values = logger_spikes(rng, n)
         out[spikes] += values
     reading = temp + rng.normal(0.0, TEMP_READING_NOISE_C, n)
-    data = MeasuredData(
-        time_s=t, rate_cmd_rad_s=profile.rate_rad_s,
-        temp_c=reading if record_temperature else None, gyro_rad_s=out,
+    data = Record.from_arrays(
+        t, out, rate_rad_s=profile.rate_rad_s,
+        temp_c=reading if record_temperature else None,
         accel_m_s2=accel + rng.normal(0.0, ACCEL_NOISE_M_S2, accel.shape),
-        source=f'truth:{profile.name}')
+        path=f'truth:{profile.name}')
     truth = {'effect': '+'.join(effects) or 'none', 'effects': list(effects),
              'parameters': dict(params), 'preset': preset, 'noise': drawn,
              'profile': profile.name, 'duration_s': float(t[-1] - t[0] + t[1] - t[0]),
@@ -286,7 +286,7 @@ def make_truth(effect, seed, profile='lab', sample_rate_hz=25.0, levels=5, param
     seed : int
         Seed of the one ``numpy.random.Generator`` used.
     profile : str
-        One of :data:`.truth_profiles.PROFILES`.
+        One of :data:`gyro_emulator.emulation.profiles.SAMPLED_PROFILES`.
     sample_rate_hz : float
         Output data rate, Hz.
     levels : int
@@ -296,12 +296,12 @@ def make_truth(effect, seed, profile='lab', sample_rate_hz=25.0, levels=5, param
     preset : str
         Physics preset of the simulated device.
     noise : dict, optional
-        Override noise and calibration-error terms (see :func:`simulate`).
+        Override noise and calibration-error terms (see :func:`make_record`).
     duration_s : float, optional
         Cut the lab profile at this duration, or set the length of the
         thermal and static profiles, s.
     outliers : str, optional
-        'spikes', 'motion' or 'spikes+motion' (see :func:`simulate`).
+        'spikes', 'motion' or 'spikes+motion' (see :func:`make_record`).
     record_temperature : bool
         Write the temperature column.
     max_duration_s : float, optional
@@ -309,7 +309,7 @@ def make_truth(effect, seed, profile='lab', sample_rate_hz=25.0, levels=5, param
 
     Returns
     -------
-    (MeasuredData, dict)
+    (Record, dict)
         The record and the hidden truth.
 
     """
@@ -319,7 +319,7 @@ def make_truth(effect, seed, profile='lab', sample_rate_hz=25.0, levels=5, param
     if duration_s is not None:
         check_range('truth', 'duration_s', duration_s, 60.0, 1e7, 's', low_open=False)
     rng = np.random.default_rng(seed)
-    prof = make_profile(profile, rng, sample_rate_hz, levels=levels,
+    prof = draw_profile(profile, rng, sample_rate_hz, levels=levels,
                         duration_s=duration_s if duration_s is not None else max_duration_s)
     has_rate = prof.max_rate_rad_s > 0.0
     if effect == 'random':
@@ -336,5 +336,5 @@ def make_truth(effect, seed, profile='lab', sample_rate_hz=25.0, levels=5, param
             f'truth.params: {", ".join(unknown)} is not a parameter of '
             f'{"+".join(effects) or "none"}; allowed: {", ".join(sorted(drawn)) or "(none)"}')
     drawn.update({k: float(v) for k, v in (params or {}).items()})
-    return simulate(prof, effects, drawn, rng, preset=preset, noise=noise, outliers=outliers,
-                    record_temperature=record_temperature)
+    return make_record(prof, effects, drawn, rng, preset=preset, noise=noise,
+                       outliers=outliers, record_temperature=record_temperature)

@@ -207,7 +207,7 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
     ----------
     path : str
         Bag directory to create.
-    chunks : iterable of gyro_emulator.analysis.simulate.SimulationChunk
+    chunks : iterable of gyro_emulator.emulation.simulate.SimulationChunk
         From ``simulate.iter_simulation``.
     progress : callable, optional
         ``progress(done, total)`` after each chunk.

@@ -25,14 +25,15 @@ in one of four ways (:func:`part_config`, :func:`rate_into_the_part`,
   warm-up, a bias following dT/dt, hysteresis).
 """
 
-from gyro_emulator.analysis.diagnose.effects import HOUR_S
-from gyro_emulator.analysis.diagnose.generic import EFFECT_IDS
 from gyro_emulator.physics import first_order
-from gyro_emulator.units import deg_s_to_rad_s, STANDARD_GRAVITY_M_S2
+from gyro_emulator.units import deg_s_to_rad_s, SECONDS_PER_HOUR, STANDARD_GRAVITY_M_S2
 import numpy as np
 
-#: The catalogue causes the generator can hide.
-CATALOGUE_TRUTHS = EFFECT_IDS
+#: The catalogue causes the generator can hide: the physical causes of the first
+#: diagnose catalogue, in its order (diagnose lists them first from here).
+CATALOGUE_TRUTHS = ('viscosity_temperature', 'bias_temperature', 'thermal_lag',
+                    'scale_factor_nonlinearity', 'g_sensitivity', 'time_delay', 'pressure_drift',
+                    'mode_split_drift', 'temperature_rate_bias')
 #: Mechanisms beyond the catalogue's physical causes.
 EXTRA_TRUTHS = ('electronics_sf_tempco', 'factory_compensation', 'scale_factor_step',
                 'bias_step', 'bias_warmup', 'bias_hysteresis')
@@ -89,7 +90,7 @@ def _draw_catalogue(effect, rng, profile):
     if effect == 'time_delay':
         return {'delay_s': rng.uniform(0.002, 0.02)}
     if effect == 'pressure_drift':
-        hours = profile.time_s[-1] / HOUR_S
+        hours = profile.time_s[-1] / SECONDS_PER_HOUR
         return {'pressure_rate_per_h': sign * rng.uniform(0.1, 0.4) / hours}
     if effect == 'mode_split_drift':
         return {'mode_split_at_ref_hz': rng.uniform(-5.0, 5.0),
@@ -129,7 +130,7 @@ def draw_effect_parameters(effects, rng, profile):
         From :func:`parse_effects`.
     rng : numpy.random.Generator
         Source of randomness.
-    profile : gyro_emulator.analysis.diagnose.truth_profiles.Profile
+    profile : gyro_emulator.emulation.profiles.SampledProfile
         The profile (its temperature span, rates and length set the scales).
 
     Returns
@@ -203,7 +204,7 @@ def rate_into_the_part(profile, effects, params, device):
         rate_in = rate_in / np.sqrt(1.0 + (2.0 * p.q_sense * split / p.freq_y_hz) ** 2)
     if 'pressure_drift' in effects:
         coarse = np.arange(0, len(t), max(1, int(round(1.0 / float(t[1] - t[0])))))
-        pr = 1.0 + params['pressure_rate_per_h'] * t[coarse] / HOUR_S
+        pr = 1.0 + params['pressure_rate_per_h'] * t[coarse] / SECONDS_PER_HOUR
         sf_p = first_order.sense_scale_factor_m_per_rad_s(
             device.with_gas(pressure_pa=device.gas.pressure_pa * pr),
             temp[coarse]) / first_order.sense_scale_factor_m_per_rad_s(

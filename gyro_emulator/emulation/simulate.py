@@ -23,12 +23,12 @@ import shutil
 import tempfile
 import time
 
-from gyro_emulator.analysis.emulator_bag import simulation_custom_data, write_simulation_bag
+from gyro_emulator.emulation.emulator_bag import simulation_custom_data, write_simulation_bag
+from gyro_emulator.emulation.profiles import make_profile, Profile, ProfileSamples
 from gyro_emulator.recording import csvio
 from gyro_emulator.sensor import faults as sensor_faults
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.model import GyroModel, SensorBatch
-from gyro_emulator.sensor.profiles import make_profile, Profile, ProfileSamples
 import numpy as np
 
 #: Columns of the simulation CSV, in order.
@@ -273,7 +273,7 @@ def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
     out : str
         ``.csv``/``.csv.gz``: :func:`write_simulation_csv`; anything else: a
         rosbag2 bag directory in the emulator layout
-        (:func:`gyro_emulator.analysis.emulator_bag.write_simulation_bag`,
+        (:func:`gyro_emulator.emulation.emulator_bag.write_simulation_bag`,
         whose ``custom_data`` records how to reproduce the run).
     config, profile, duration_s, rate_hz, seed, temp_c
         As for :func:`iter_simulation`; ``config`` and ``profile`` names are

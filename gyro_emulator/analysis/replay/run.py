@@ -11,9 +11,9 @@ emulate, compare, and write ``DIR/emulated``, the report and the plots.
 from dataclasses import dataclass
 import os
 
-from gyro_emulator.analysis.emulator_bag import white_noise_sigma, write_output_bag
-from gyro_emulator.analysis.replay_inputs import emulate, load_inputs
-from gyro_emulator.analysis.replay_report import compare, report_text, write_report
+from gyro_emulator.analysis.replay.inputs import emulate, load_inputs
+from gyro_emulator.analysis.replay.report import compare, report_text, write_report
+from gyro_emulator.emulation.emulator_bag import white_noise_sigma, write_output_bag
 from gyro_emulator.recording import record
 from gyro_emulator.sensor.config import load_sensor_config
 
