@@ -16,7 +16,9 @@ Roles. The CSV column of each role is :data:`CSV_COLUMNS`; the bag topic
 of each role is the one the user names (:func:`find_topic`: exact, with a
 leading ``/``, or a unique suffix) or the default of :data:`DEFAULT_TOPICS`
 (names from :mod:`gyro_emulator.recording.topics`); the field of each
-message type is :data:`VECTOR_FIELDS` / :data:`SCALAR_FIELDS`.
+message type is :data:`VECTOR_FIELDS` / :data:`SCALAR_FIELDS`. What drives a
+model replaying a bag (the commands, or an Imu as truth) and its topics is
+:func:`drive_topics`.
 
 The stamp rule. A message's time is its ``header.stamp``, the time the
 sensor sampled, unless the stream does not carry one: when every stamp of
@@ -266,6 +268,12 @@ class Record:
         The CSV columns read (for messages); () for a bag.
     topics : dict
         Role -> the bag topic it came from.
+    frames : dict
+        Role -> the ``header.frame_id`` of its topic's first message (bag
+        order); {} for CSV.
+    metadata : dict
+        A bag's ``custom_data`` (:class:`gyro_emulator.recording.bag.BagReader`);
+        {} for CSV.
 
     """
 
@@ -280,6 +288,8 @@ class Record:
     gyro_stamp_ns: np.ndarray = None
     names: tuple = ()
     topics: dict = field(default_factory=dict)
+    frames: dict = field(default_factory=dict)
+    metadata: dict = field(default_factory=dict)
 
     @classmethod
     def from_arrays(cls, time_s, gyro_rad_s, rate_rad_s=None, temp_c=None, accel_m_s2=None,
@@ -329,32 +339,42 @@ class Record:
 
 
 def load_record(path, topics=None, required=('time_s',), only=None,
-                time_order='nondecreasing'):
+                time_order='nondecreasing', use_log_time=False):
     """
     Read a record: a bag directory or ``.mcap`` file, else a CSV file (``.gz`` ok).
 
     Parameters
     ----------
-    path : str or os.PathLike
-        The record.
+    path : str, os.PathLike or gyro_emulator.recording.bag.BagReader
+        The record, or a bag already open (:func:`open_bag`).
     topics : dict, optional
-        Bag: role ('gyro', 'rate', 'temp' or 'die_temp', 'accel') -> the
-        topic to read it from. A role given as None takes its default from
-        :data:`DEFAULT_TOPICS` when the bag has one of a fitting type (the
-        gyro: the bag's only sensor_msgs/Imu topic); an accel of ``'none'``
-        is skipped; a role left out is not read. 'die_temp' fills :attr:`Record.temp`.
-        Default: the gyro only.
+        Bag: role ('gyro', 'rate', 'temp' or 'die_temp', 'accel' or
+        'imu_accel') -> the topic to read it from, read in the order given.
+        A role given as None takes its default from :data:`DEFAULT_TOPICS`
+        when the bag has one of a fitting type (the gyro: the bag's only
+        sensor_msgs/Imu topic); an accel of ``'none'`` is skipped; a role
+        left out is not read (without 'gyro' the record has no gyro and its
+        clock starts at the first message read). 'die_temp' fills
+        :attr:`Record.temp`; 'imu_accel' (a named sensor_msgs/Imu) fills
+        :attr:`Record.accel` with its ``linear_acceleration`` unless the Imu
+        marks it absent (REP 145: covariance element 0 = -1). Default: the
+        gyro only.
     required, only, time_order
         CSV: see :func:`gyro_emulator.recording.csvio.read_csv`.
+    use_log_time : bool
+        Bag: log (receive) times for every topic (the module's stamp rule).
 
     Returns
     -------
     Record
 
     """
+    roles = {'gyro': None} if topics is None else dict(topics)
+    if isinstance(path, bag.BagReader):
+        return _load_bag(path, path.path, roles, use_log_time)
     path = os.fspath(path)
     if is_bag(path):
-        return _load_bag(path, {'gyro': None} if topics is None else dict(topics))
+        return _load_bag(bag.BagReader(path, tolerant=True), path, roles, use_log_time)
     columns = csvio.read_csv(path, required, time_order, only)
     return _from_columns(path, columns)
 
@@ -389,6 +409,92 @@ def _only_imu(reader, path):
     return imu[0]
 
 
+#: What drives a model replaying a bag: ``command`` (the rate, temperature and
+#: acceleration commands of the emulator's layout), ``imu`` (a sensor_msgs/Imu's
+#: angular velocity taken as the true rate); ``auto``: command when the bag has
+#: rate commands, else imu.
+DRIVE_SOURCES = ('auto', 'command', 'imu')
+
+
+def _drive_source(reader, source, rate):
+    """Turn ``auto`` into ``command`` (the bag has rate commands) or ``imu``."""
+    if source != 'auto':
+        return source
+    if rate:
+        found = find_topic(reader, 'rate', rate)
+        return 'command' if reader.topics[found].type_name == table.VECTOR3_STAMPED else 'imu'
+    found = find_topic(reader, 'rate', default=table.RATE_CMD.name,
+                       types=(table.VECTOR3_STAMPED,))
+    return 'command' if found else 'imu'
+
+
+def _first_imu(reader, notes):
+    """Return the first Imu topic with messages (noted when there are several)."""
+    imus = sorted(n for n, t in reader.topics.items()
+                  if t.type_name == table.IMU and t.message_count)
+    if not imus:
+        raise ValueError(
+            f'bag {reader.path} has neither {table.RATE_CMD.name} '
+            '(geometry_msgs/Vector3Stamped) nor a sensor_msgs/Imu topic to replay; '
+            f'topics: {", ".join(sorted(reader.topics)) or "(none)"}')
+    if len(imus) > 1:
+        notes.append(f'several Imu topics; using {imus[0]} (choose with --rate-topic)')
+    return imus[0]
+
+
+def drive_topics(reader, source='auto', rate=None, temp=None, accel=None, gyro=None):
+    """
+    Return what drives a model replaying a bag, and the topic of each role.
+
+    Parameters
+    ----------
+    reader : gyro_emulator.recording.bag.BagReader
+        The bag (:func:`open_bag`).
+    source : str
+        One of :data:`DRIVE_SOURCES`.
+    rate, temp, accel, gyro : str, optional
+        The user's topics (:func:`find_topic`): the rate commands
+        (Vector3Stamped) or the Imu taken as truth; the ambient temperature
+        (sensor_msgs/Temperature); the specific force commands
+        (Vector3Stamped); the measured output (sensor_msgs/Imu).
+
+    Returns
+    -------
+    source : str
+        ``command`` or ``imu``.
+    roles : dict
+        The ``topics`` of :func:`load_record`, in reading order. command:
+        'rate', 'gyro' (the measured output), 'accel', 'temp' (defaults
+        from :data:`DEFAULT_TOPICS`); imu: the Imu as 'rate', 'gyro' and
+        'imu_accel', and 'temp' when named. Roles the bag lacks are left out.
+    notes : list of str
+        How a topic was chosen (several Imu topics).
+
+    """
+    notes = []
+    source = _drive_source(reader, source, rate)
+    if source == 'command':
+        vector = (table.VECTOR3_STAMPED,)
+        found = {'rate': find_topic(reader, 'rate', rate, table.RATE_CMD.name, vector),
+                 'gyro': find_topic(reader, 'measured', gyro, table.IMU_OUT.name,
+                                    (table.IMU,)),
+                 'accel': find_topic(reader, 'acceleration', accel, table.ACCEL_CMD.name,
+                                     vector)}
+        default_temp = table.TEMPERATURE_CMD.name
+        if found['rate'] is None:
+            raise ValueError(f'no rate commands in bag {reader.path}: expected a '
+                             f'geometry_msgs/Vector3Stamped topic named */{table.RATE_CMD.name} '
+                             '(or pass --rate-topic)')
+    else:
+        imu = find_topic(reader, 'imu', rate or gyro, types=(table.IMU,))
+        if imu is None:
+            imu = _first_imu(reader, notes)
+        found = {'rate': imu, 'gyro': imu, 'imu_accel': imu}
+        default_temp = None
+    found['temp'] = find_topic(reader, 'temperature', temp, default_temp, (table.TEMPERATURE,))
+    return source, {k: v for k, v in found.items() if v is not None}, notes
+
+
 def _role_values(stream, role, axis_fields=AXES):
     """Return the (n,) or (n, 3) values of ``role`` in ``stream`` and the field names."""
     table_ = SCALAR_FIELDS if role == 'temp' else VECTOR_FIELDS
@@ -409,46 +515,75 @@ def _role_values(stream, role, axis_fields=AXES):
     return np.column_stack([stream.field(name) for name in names]), names[0][:-2]
 
 
-def _load_bag(path, roles):
+#: The roles a bag record reads, and the Record part each fills.
+_BAG_ROLES = MappingProxyType({'gyro': 'gyro', 'rate': 'rate', 'temp': 'temp',
+                               'die_temp': 'temp', 'accel': 'accel', 'imu_accel': 'accel'})
+
+
+def _role_topic(reader, path, key, given):
+    """Return the topic of role ``key`` (:func:`load_record`), or None to skip it."""
+    role = _BAG_ROLES[key]
+    if key == 'gyro':
+        return _only_imu(reader, path) if given is None else find_topic(reader, 'gyro', given)
+    if key == 'accel' and given == 'none':
+        return None
+    if given:
+        return find_topic(reader, ROLE_LABELS[role], given)
+    types = tuple(SCALAR_FIELDS if role == 'temp' else VECTOR_FIELDS)
+    return find_topic(reader, ROLE_LABELS[role], default=DEFAULT_TOPICS.get(key), types=types)
+
+
+def _imu_accel_absent(stream):
+    """Return whether an Imu marks its linear_acceleration absent (REP 145: covariance[0] = -1)."""
+    if stream.type_name != table.IMU:
+        raise ValueError(f'bag topic {stream.topic} has type {stream.type_name}: the Imu '
+                         f'acceleration needs {table.IMU}')
+    return not np.all(stream.field('linear_acceleration_covariance[0]') != -1.0)
+
+
+def _load_bag(reader, path, roles, use_log_time=False):
     """Read the roles of a bag (see :func:`load_record`) onto the gyro's clock."""
-    reader = bag.BagReader(path, tolerant=True)
-    name = roles.get('gyro')
-    name = _only_imu(reader, path) if name is None else find_topic(reader, 'gyro', name)
-    gyro = read_stream(reader, name)
-    if len(gyro) == 0:
-        raise ValueError(f'bag {path}: topic {name} is empty')
-    block, fieldname = _role_values(gyro, 'gyro')
-    t0 = gyro.times_ns[0]
-    time_s = (gyro.times_ns - t0) * 1e-9
-    timing.check_increasing(time_s, f'{path}: header stamps', strict=False)
-    found = {'gyro': name}
-    channels = {}
-    for key in ('rate', 'temp', 'die_temp', 'accel'):
-        if key not in roles or (key == 'accel' and roles[key] == 'none'):
+    streams, read = {}, {}
+    for key, given in roles.items():
+        if key not in _BAG_ROLES:
             continue
-        role = 'temp' if key == 'die_temp' else key
-        given = roles[key]
-        if given:
-            topic = find_topic(reader, ROLE_LABELS[role], given)
-        else:
-            types = tuple(SCALAR_FIELDS if role == 'temp' else VECTOR_FIELDS)
-            topic = find_topic(reader, ROLE_LABELS[role], default=DEFAULT_TOPICS[key],
-                               types=types)
+        topic = _role_topic(reader, path, key, given)
         if topic is None:
             continue
-        stream = read_stream(reader, topic)
+        if topic not in streams:
+            streams[topic] = read_stream(reader, topic, use_log_time)
+        stream = streams[topic]
         if len(stream) == 0:
             raise ValueError(f'bag {path}: topic {topic} is empty')
-        values, source = _role_values(stream, role)
-        found[role] = topic
-        channels[role] = Channel((stream.times_ns - t0) * 1e-9, values,
-                                 f'{topic} {source}', stream.times_ns)
-    return Record(time_s, {a: block[:, i] for i, a in enumerate(AXES)},
-                  {a: f'{name} {fieldname}.{a}' for a in AXES}, path=path,
-                  recovery=tuple(reader.problems), gyro_stamp_ns=gyro.times_ns,
-                  topics=found, **channels)
+        if key == 'imu_accel' and _imu_accel_absent(stream):
+            continue
+        read[_BAG_ROLES[key]] = (stream, *_role_values(stream, _BAG_ROLES[key]))
+    first = read['gyro'] if 'gyro' in read else next(iter(read.values()), None)
+    t0 = first[0].times_ns[0] if first is not None else 0
+    gyro_stamp_ns, time_s, gyro, sources = np.zeros(0, dtype=np.int64), np.zeros(0), {}, {}
+    if 'gyro' in read:
+        stream, block, fieldname = read['gyro']
+        gyro_stamp_ns = stream.times_ns
+        time_s = (gyro_stamp_ns - t0) * 1e-9
+        timing.check_increasing(time_s, f'{path}: header stamps', strict=False)
+        gyro = {a: block[:, i] for i, a in enumerate(AXES)}
+        sources = {a: f'{stream.topic} {fieldname}.{a}' for a in AXES}
+    channels = {role: Channel((stream.times_ns - t0) * 1e-9, values, f'{stream.topic} {source}',
+                              stream.times_ns)
+                for role, (stream, values, source) in read.items() if role != 'gyro'}
+    return Record(time_s, gyro, sources, path=path, recovery=tuple(reader.problems),
+                  gyro_stamp_ns=gyro_stamp_ns,
+                  topics={role: r[0].topic for role, r in read.items()},
+                  frames={role: str(r[0].arrays.decoded.frame_id[0]) for role, r in read.items()},
+                  metadata=dict(reader.custom_data), **channels)
 
 
 def open_bag(path):
-    """Open a bag for stream-level reading (:func:`find_topic`, :func:`read_stream`), tolerant."""
+    """
+    Open a bag for stream-level reading (:func:`find_topic`, :func:`read_stream`), tolerant.
+
+    A bag already open (a :class:`gyro_emulator.recording.bag.BagReader`) is returned as it is.
+    """
+    if isinstance(path, bag.BagReader):
+        return path
     return bag.BagReader(os.fspath(path), tolerant=True)

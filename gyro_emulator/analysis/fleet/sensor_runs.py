@@ -6,7 +6,9 @@ For each of the first ``sensor_runs.devices`` valid parts of block 0, the
 part's own physics on every axis: its device, its drive-sense split (the
 sense envelope of ``mode_split_hz``, magnitude) and its electronics terms,
 on top of the non-physics terms of the ``sensor_runs.config`` preset. The
-record is static, at the calibration temperature; the x axis is analysed
+record is the static profile (:func:`gyro_emulator.emulation.profiles.static`)
+at the calibration temperature, without its specific force (the run measures
+noise, not g-sensitivity); the x axis is analysed
 with :func:`gyro_emulator.analysis.allan.overlapping_adev` and
 :func:`~gyro_emulator.analysis.allan.fit_noise_terms` (IEEE Std 952).
 
@@ -19,6 +21,7 @@ from dataclasses import replace
 from gyro_emulator import units
 from gyro_emulator.analysis import allan
 from gyro_emulator.analysis.fleet import config as fleet_config
+from gyro_emulator.emulation import profiles
 from gyro_emulator.sensor import noise
 from gyro_emulator.sensor.model import GyroModel
 import numpy as np
@@ -70,7 +73,9 @@ def run_part(config, values, metrics, i, seed):
     rng = np.random.Generator(np.random.SFC64(np.random.SeedSequence(seed, spawn_key=(0, i))))
     model = GyroModel(sensor, runs.rate_hz, rng)
     n = int(round(runs.duration_s * runs.rate_hz))
-    batch = model.run(np.zeros((n, 3)), config.calibration_temp_c)
+    static = profiles.static(runs.duration_s, config.calibration_temp_c).sample(
+        np.arange(n) / runs.rate_hz)
+    batch = model.run(static.rate_rad_s, static.temp_c)
     result = allan.overlapping_adev(batch.gyro_rad_s[:, 0], runs.rate_hz)
     fit = allan.fit_noise_terms(result)
     elec = _electronics(config, values, i)['electronics_noise_rad_s_sqrt_hz']

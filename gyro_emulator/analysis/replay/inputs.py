@@ -20,16 +20,15 @@ configuration and seed give the identical emulated output.
 
 from dataclasses import dataclass, field
 
-from gyro_emulator.emulation.emulator_bag import (DEFAULT_FRAME_ID, IMU, TEMPERATURE,
-                                                  VECTOR3_STAMPED)
-from gyro_emulator.recording import record, topics
+from gyro_emulator.emulation.emulator_bag import DEFAULT_FRAME_ID
+from gyro_emulator.recording import record
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.model import GyroModel
 from gyro_emulator.units import NS_PER_S
 from gyro_emulator.validation import check_choice, check_range
 import numpy as np
 
-SOURCES = ('auto', 'command', 'imu')
+SOURCES = record.DRIVE_SOURCES
 
 
 DEFAULT_TEMP_C = 25.0
@@ -127,16 +126,20 @@ def estimate_rate_hz(stamp_ns):
     return float(f'{rate:.6g}')
 
 
-def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
+def load_inputs(bag, source='auto', rate_topic=None, temperature_topic=None,
                 accel_topic=None, measured_topic=None, rate_hz=None, temp_c=None,
                 use_log_time=False):
     """
     Read what drives the model from a bag.
 
+    The topics are chosen by :func:`gyro_emulator.recording.record.drive_topics`
+    and read by :func:`gyro_emulator.recording.record.load_record`;
+    :func:`replay_inputs` turns the record into the inputs.
+
     Parameters
     ----------
-    reader : gyro_emulator.recording.bag.BagReader
-        The bag.
+    bag : str or gyro_emulator.recording.bag.BagReader
+        The bag: a directory or ``.mcap`` file, or one already open.
     source : str
         ``command`` (``cmd/angular_velocity`` of our bags), ``imu`` (a
         sensor_msgs/Imu's angular velocity as truth) or ``auto`` (command if
@@ -163,34 +166,59 @@ def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
 
     """
     check_choice('replay', 'source', source, SOURCES)
-    notes = []
-    source = _resolve_source(reader, source, rate_topic)
+    reader = record.open_bag(bag)
+    source, roles, notes = record.drive_topics(reader, source, rate_topic, temperature_topic,
+                                               accel_topic, measured_topic)
+    rec = record.load_record(reader, roles, use_log_time=use_log_time)
+    return replay_inputs(rec, source, notes, rate_hz, temp_c)
+
+
+def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
+    """
+    Return the :class:`ReplayInputs` of a bag record.
+
+    Parameters
+    ----------
+    rec : gyro_emulator.recording.record.Record
+        Read with the roles of :func:`gyro_emulator.recording.record.drive_topics`:
+        the rate (commands, or the Imu as truth), the measured gyro, the
+        specific force and the temperature, on their native stamps.
+    source : str
+        ``command`` or ``imu``.
+    notes : sequence of str
+        Notes so far (how the topics were chosen).
+    rate_hz, temp_c : float, optional
+        See :func:`load_inputs`.
+
+    Returns
+    -------
+    ReplayInputs
+
+    """
+    notes = list(notes)
     temp_c = DEFAULT_TEMP_C if temp_c is None else temp_c
-    roles = _role_topics(reader, source, rate_topic, temperature_topic, accel_topic,
-                         measured_topic, notes)
-    rate_stream = record.read_stream(reader, roles['rate'], use_log_time)
-    if len(rate_stream) < 2:
-        raise ValueError(f'{roles["rate"]} has {len(rate_stream)} message(s): need at least 2')
-    rate_stamp = rate_stream.times_ns
-    rate_values = rate_stream.field('vector' if source == 'command' else 'angular_velocity')
-    frame_id = str(rate_stream.arrays.decoded.frame_id[0]) or DEFAULT_FRAME_ID
+    rate_stamp, rate_values = rec.rate.stamp_ns, rec.rate.values
+    if len(rate_stamp) < 2:
+        raise ValueError(f'{rec.topics["rate"]} has {len(rate_stamp)} message(s): need at least 2')
+    frame_id = rec.frames.get('gyro') or rec.frames['rate'] or DEFAULT_FRAME_ID
     measured_stamp = measured = None
-    if roles['measured'] is not None:
-        m = rate_stream if roles['measured'] == roles['rate'] else \
-            record.read_stream(reader, roles['measured'], use_log_time)
-        measured_stamp, measured = m.times_ns, m.field('angular_velocity')
-        frame_id = str(m.arrays.decoded.frame_id[0]) or frame_id
-    rate_hz = _sample_rate_hz(reader, rate_hz, measured_stamp, rate_stamp, notes)
-    period_ns = NS_PER_S / rate_hz
+    if rec.gyro:
+        measured_stamp = rec.gyro_stamp_ns
+        measured = np.column_stack([rec.gyro[a] for a in record.AXES])
+    rate_hz = _sample_rate_hz(rec.metadata, rate_hz, measured_stamp, rate_stamp, notes)
+    half_ns = int(NS_PER_S / rate_hz // 2)
     if source == 'imu':
-        stamp, rate, accel = _imu_truth(rate_stream, rate_values, notes)
+        stamp, rate, accel = rate_stamp, rate_values, None
+        if rec.accel is not None:
+            accel = rec.accel.values
+            notes.append('specific force from the Imu linear_acceleration')
     else:
         stamp, rate = _command_grid(rate_stamp, rate_values, rate_hz, notes)
-        accel = _held(reader, roles['accel'], 'vector', stamp, period_ns, np.zeros(3),
-                      use_log_time)
-    temp = _held(reader, roles['temperature'], 'temperature', stamp, period_ns, temp_c,
-                 use_log_time)
-    if temp is None:
+        accel = None if rec.accel is None else hold(
+            rec.accel.stamp_ns, rec.accel.values, stamp, half_ns, before=np.zeros(3))
+    if rec.temp is not None:
+        temp = hold(rec.temp.stamp_ns, rec.temp.values, stamp, half_ns, before=temp_c)
+    else:
         temp = np.full(len(stamp), float(temp_c))
         notes.append(f'no temperature topic: ambient held at {temp_c:g} C')
     return ReplayInputs(source=source, stamp_ns=np.asarray(stamp, dtype=np.int64),
@@ -198,67 +226,23 @@ def load_inputs(reader, source='auto', rate_topic=None, temperature_topic=None,
                         temp_c=np.ascontiguousarray(temp, dtype=float),
                         accel_m_s2=None if accel is None else np.ascontiguousarray(accel),
                         rate_hz=rate_hz, measured_stamp_ns=measured_stamp,
-                        measured_rad_s=measured, topics=roles, frame_id=frame_id,
-                        notes=notes)
+                        measured_rad_s=measured, topics=_role_topics(rec, source),
+                        frame_id=frame_id, notes=notes)
 
 
-def _resolve_source(reader, source, rate_topic):
-    """Turn ``auto`` into ``command`` (the bag has rate commands) or ``imu``."""
-    if source != 'auto':
-        return source
-    if rate_topic:
-        found = record.find_topic(reader, 'rate', rate_topic)
-        return 'command' if reader.topics[found].type_name == VECTOR3_STAMPED else 'imu'
-    found = record.find_topic(reader, 'rate', default=topics.RATE_CMD.name,
-                              types=(VECTOR3_STAMPED,))
-    return 'command' if found else 'imu'
-
-
-def _role_topics(reader, source, rate_topic, temperature_topic, accel_topic, measured_topic,
-                 notes):
-    """Return the bag topic of each role: rate, measured, accel, temperature."""
-    find = record.find_topic
-    roles = {}
+def _role_topics(rec, source):
+    """Return the bag topic of each replay role: rate, measured, accel (command), temperature."""
+    roles = {'rate': rec.topics.get('rate'), 'measured': rec.topics.get('gyro')}
     if source == 'command':
-        roles['rate'] = find(reader, 'rate', rate_topic, topics.RATE_CMD.name,
-                             (VECTOR3_STAMPED,))
-        roles['measured'] = find(reader, 'measured', measured_topic, topics.IMU_OUT.name,
-                                 (IMU,))
-        roles['accel'] = find(reader, 'acceleration', accel_topic, topics.ACCEL_CMD.name,
-                              (VECTOR3_STAMPED,))
-        default_temp = topics.TEMPERATURE_CMD.name
-        if roles['rate'] is None:
-            raise ValueError(f'no rate commands in bag {reader.path}: expected a '
-                             f'geometry_msgs/Vector3Stamped topic named */{topics.RATE_CMD.name} '
-                             '(or pass --rate-topic)')
-    else:
-        roles['rate'] = find(reader, 'imu', rate_topic or measured_topic, types=(IMU,))
-        if roles['rate'] is None:
-            roles['rate'] = _only_imu_topic(reader, notes)
-        roles['measured'] = roles['rate']
-        default_temp = None
-    roles['temperature'] = find(reader, 'temperature', temperature_topic, default_temp,
-                                (TEMPERATURE,))
+        roles['accel'] = rec.topics.get('accel')
+    roles['temperature'] = rec.topics.get('temp')
     return roles
 
 
-def _only_imu_topic(reader, notes):
-    """Return the first Imu topic with messages (noted when there are several)."""
-    imus = sorted(n for n, t in reader.topics.items() if t.type_name == IMU and t.message_count)
-    if not imus:
-        raise ValueError(
-            f'bag {reader.path} has neither {topics.RATE_CMD.name} '
-            '(geometry_msgs/Vector3Stamped) nor a sensor_msgs/Imu topic to replay; '
-            f'topics: {", ".join(sorted(reader.topics)) or "(none)"}')
-    if len(imus) > 1:
-        notes.append(f'several Imu topics; using {imus[0]} (choose with --rate-topic)')
-    return imus[0]
-
-
-def _sample_rate_hz(reader, rate_hz, measured_stamp, rate_stamp, notes):
+def _sample_rate_hz(metadata, rate_hz, measured_stamp, rate_stamp, notes):
     """Return the model rate: given, else the bag's custom_data, else from the stamps."""
-    if rate_hz is None and 'rate_hz' in reader.custom_data:
-        rate_hz = float(reader.custom_data['rate_hz'])
+    if rate_hz is None and 'rate_hz' in metadata:
+        rate_hz = float(metadata['rate_hz'])
         notes.append(f'sample rate {rate_hz:g} Hz from the bag custom_data')
     if rate_hz is None:
         basis = measured_stamp if measured_stamp is not None and measured_stamp.size > 1 \
@@ -266,16 +250,6 @@ def _sample_rate_hz(reader, rate_hz, measured_stamp, rate_stamp, notes):
         rate_hz = estimate_rate_hz(basis)
         notes.append(f'sample rate {rate_hz:g} Hz from the mean stamp interval')
     return check_range('replay', 'rate_hz', rate_hz, 0.0, 1e6, 'Hz')
-
-
-def _imu_truth(rate_stream, rate_values, notes):
-    """Imu source: its stamps and rates, and its specific force when it has one."""
-    accel = None
-    cov0 = rate_stream.field('linear_acceleration_covariance[0]')
-    if np.all(cov0 != -1.0):
-        accel = rate_stream.field('linear_acceleration')
-        notes.append('specific force from the Imu linear_acceleration')
-    return rate_stream.times_ns, rate_values, accel
 
 
 def _command_grid(rate_stamp, rate_values, rate_hz, notes):
@@ -289,14 +263,6 @@ def _command_grid(rate_stamp, rate_values, rate_hz, notes):
     stamp = rate_stamp[0] + np.round(np.arange(count) * period_ns).astype(np.int64)
     notes.append(f'rate commands held (zero-order) on a {rate_hz:g} Hz grid')
     return stamp, hold(rate_stamp, rate_values, stamp, int(period_ns // 2))
-
-
-def _held(reader, topic, name, stamp, period_ns, before, use_log_time):
-    """Field ``name`` of ``topic`` held (zero-order) at ``stamp``; None without a topic."""
-    if topic is None:
-        return None
-    stream = record.read_stream(reader, topic, use_log_time)
-    return hold(stream.times_ns, stream.field(name), stamp, int(period_ns // 2), before=before)
 
 
 def emulate(inputs, config, seed):
