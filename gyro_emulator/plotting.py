@@ -8,6 +8,7 @@ Plots are written to files (no display is needed, CI included): take
 
 def pyplot():
     """Return ``matplotlib.pyplot`` on the Agg backend (imported on first use)."""
+    # pyplot costs 1.1 s, and most runs write no plot.
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt

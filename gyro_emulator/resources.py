@@ -45,6 +45,7 @@ def read_yaml(path):
     An unreadable file or malformed YAML raises ValueError naming the path
     and the parser's account of where it failed.
     """
+    # `gyro-emulator --help` imports this module; yaml (20 ms) waits for a file.
     import yaml
 
     try:

@@ -10,6 +10,7 @@ the rate step response and the rate-channel Bode plot.
 
 from gyro_emulator import plotting
 from gyro_emulator.physics import dynamics
+from gyro_emulator.units import deg_s_to_rad_s
 import numpy as np
 
 #: Splits of the README table, Hz.
@@ -18,8 +19,6 @@ TABLE_SPLITS_HZ = (10.0, 50.0, 100.0, 500.0)
 
 def summary(device, split_hz, rate_dps, temp_c):
     """Return the JSON document (SI values) for one operating point."""
-    from gyro_emulator.units import deg_s_to_rad_s
-
     rate = float(deg_s_to_rad_s(rate_dps))
     exact = dynamics.exact_steady_state(device, rate, temp_c, split_hz)
     settle = dynamics.settle_time_s(device, temp_c)

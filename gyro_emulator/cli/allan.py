@@ -20,6 +20,7 @@ Units: N (angle random walk) in deg/sqrt(h), B (bias instability, Allan floor
 in urad, R (rate ramp) in deg/h/h.
 """
 
+import math
 import os
 import sys
 
@@ -65,9 +66,7 @@ def add_outlier_arguments(parser):
 
 def outlier_threshold(args):
     """Return the screening threshold the options ask for (``math.inf``: --keep-outliers)."""
-    import math
-
-    from gyro_emulator.analysis import outliers
+    from gyro_emulator.analysis import outliers  # lazy: see run
 
     return math.inf if args.keep_outliers else outliers.THRESHOLD
 
@@ -97,6 +96,8 @@ def print_terms(info, out=None, indent='  '):
 
 def run(args):
     """Analyse the record, print the summary, write JSON and plot if asked."""
+    # The analysis (scipy, numba: 0.9 s) is imported here, not at the top:
+    # `gyro-emulator --help` imports every command module.
     from gyro_emulator.analysis import allan
     from gyro_emulator.recording.record import load_record
 

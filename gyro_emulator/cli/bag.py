@@ -29,6 +29,8 @@ def add_arguments(parser):
 
 def run(args):
     """Print the bag summary or repair the bag."""
+    # The bag modules (mcap, lz4, yaml: 40 ms) are imported here, not at the
+    # top: `gyro-emulator --help` imports every command module.
     from gyro_emulator.recording import bag
 
     if args.action == 'info':

@@ -19,15 +19,15 @@ import math
 import sys
 
 from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator.physics.presets import PHYSICS_PRESETS
 from gyro_emulator.recording import topics
+from gyro_emulator.validation import check_range
 
 HELP = 'find what the physics model gets wrong in measured data, name the cause'
 
 
 def add_arguments(parser):
     """Register the ``diagnose`` options."""
-    from gyro_emulator.physics.presets import PHYSICS_PRESETS
-
     parser.add_argument('input', metavar='FILE',
                         help='measured CSV (.csv or .csv.gz), or a rosbag2 MCAP bag directory / '
                              '.mcap')
@@ -70,8 +70,6 @@ def add_arguments(parser):
 
 def _check(args):
     """One-line errors for out-of-range options."""
-    from gyro_emulator.validation import check_range
-
     check_range('diagnose', 'alpha', args.alpha, 0.0, 1.0, '', high_open=True)
     if not math.isinf(args.outlier_sigma):
         check_range('diagnose', 'outlier_sigma', args.outlier_sigma, 3.0, 1e6, 'sigma',
@@ -81,7 +79,7 @@ def _check(args):
 
 def _print(doc):
     """Print the verdict on stdout."""
-    from gyro_emulator.analysis.diagnose import report
+    from gyro_emulator.analysis.diagnose import report  # lazy: see run
 
     best = doc['best']
     sa = doc['set_aside']
@@ -113,6 +111,8 @@ def _print(doc):
 
 def run(args):
     """Load the record, diagnose it, print the verdict, write JSON/report."""
+    # The analysis (scipy, numba: 0.9 s, 2.4 s cold) is imported here, not at
+    # the top: `gyro-emulator --help` imports every command module.
     from gyro_emulator.analysis.diagnose import data, diagnose, report
 
     _check(args)

@@ -17,6 +17,8 @@ Example::
 import os
 
 from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator.physics.presets import physics_preset
+from gyro_emulator.units import deg_s_to_rad_s
 
 HELP = 'exact 2-DOF response, time-domain simulation and rate-channel dynamics'
 
@@ -40,9 +42,9 @@ def add_arguments(parser):
 
 def run(args):
     """Print the summary; write JSON and plots when asked."""
+    # The 2-DOF dynamics (0.2 s) are imported here, not at the top:
+    # `gyro-emulator --help` imports every command module.
     from gyro_emulator.analysis import dynamics_report as report
-    from gyro_emulator.physics.presets import physics_preset
-    from gyro_emulator.units import deg_s_to_rad_s
 
     device = physics_preset(args.preset)
     doc = report.summary(device, args.split_hz, args.rate_dps, args.temp_c)

@@ -45,6 +45,7 @@ def _run(module_name):
 def run_cli():
     """Run ``gyro-emulator``, the command line (:mod:`gyro_emulator.cli`)."""
     limit_blas_threads()
+    # Imported after the limit, as every entry point's work is (the module docstring).
     from gyro_emulator.cli import main
     return main()
 

@@ -42,6 +42,8 @@ def add_arguments(parser):
 
 def run(args):
     """Run the fleet and print its yields."""
+    # The fleet (scipy, pyarrow: 1 s) is imported here, not at the top:
+    # `gyro-emulator --help` imports every command module.
     from gyro_emulator.analysis.fleet.config import load_fleet_config
     from gyro_emulator.analysis.fleet.run import run_fleet
 

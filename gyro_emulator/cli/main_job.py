@@ -24,6 +24,9 @@ import sys
 import time
 
 from gyro_emulator import cli
+from gyro_emulator.emulation import scenario
+from gyro_emulator.physics import first_order, presets
+import yaml
 
 NODE_START_TIMEOUT_S = 30.0
 STOP_TIMEOUT_S = 10.0
@@ -60,8 +63,6 @@ def _ros_environment():
 
 
 def _write_params(path, node_parameters, seed, sensor_config=None):
-    import yaml
-
     values = dict(node_parameters)
     values['seed'] = seed
     if sensor_config:
@@ -84,8 +85,6 @@ def _stop(proc, name):
 
 def physics_error_deg_s(rate_rad_s, die_temp_c):
     """Error the first-order physics predicts for the paper device (Fig 6), deg/s."""
-    from gyro_emulator.physics import first_order, presets
-
     if not math.isfinite(die_temp_c):
         return float('nan')
     apparent = first_order.apparent_rate_rad_s(presets.PAPER_DEVICE, rate_rad_s, die_temp_c)
@@ -94,8 +93,6 @@ def physics_error_deg_s(rate_rad_s, die_temp_c):
 
 def format_table(results):
     """Return the summary table with the physics prediction column."""
-    from gyro_emulator.emulation import scenario
-
     lines = scenario.format_summary(results).split('\n')
     lines[0] += f' {"physics err":>11}'
     lines[1] = '-' * len(lines[0])
@@ -106,7 +103,7 @@ def format_table(results):
 
 def run_scenario(opts):
     """Start node (+ recorder), play the profile, print and save the summary."""
-    from gyro_emulator.emulation import scenario
+    # rclpy (0.2 s) only for the scenario part: `--paper-only` loads no ROS.
     from gyro_emulator.ros.scenario import play
 
     profile = scenario.load_scenario(opts.profile)

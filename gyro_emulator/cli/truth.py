@@ -19,15 +19,15 @@ hidden truth goes to --answer (or stays hidden).
 import os
 
 from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator.emulation.profiles import SAMPLED_PROFILES
+from gyro_emulator.emulation.truth.effects import TRUTH_EFFECTS
+from gyro_emulator.validation import check_range
 
 HELP = 'write a simulated measured CSV with hidden effects'
 
 
 def add_arguments(parser):
     """Register the ``truth`` options."""
-    from gyro_emulator.emulation.profiles import SAMPLED_PROFILES
-    from gyro_emulator.emulation.truth.effects import TRUTH_EFFECTS
-
     parser.add_argument('output', metavar='OUT.csv', help='CSV to write')
     parser.add_argument('--effect', default='random', metavar='E[+E...]',
                         help='hidden effect(s): random (drawn from the seed), '
@@ -53,9 +53,10 @@ def add_arguments(parser):
 
 def run(args):
     """Simulate and write the CSV (and the answer if asked)."""
+    # The generator and the writer (scipy, numba: 1.5 s) are imported here,
+    # not at the top: `gyro-emulator --help` imports every command module.
     from gyro_emulator.analysis.diagnose import write_measured_csv
     from gyro_emulator.emulation.truth.generator import make_truth
-    from gyro_emulator.validation import check_range
 
     check_range('truth', 'rate', args.rate, 1e-3, 2000.0, 'Hz')
     params = {}

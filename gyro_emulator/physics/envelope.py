@@ -204,6 +204,7 @@ def rate_channel_filter(discrete, rate_rad_s, state=None):
         ``(output_rad_s, final_state)``.
 
     """
+    # scipy.signal costs 1 s: `gyro-emulator dynamics` imports this module and never filters.
     from scipy import signal
 
     ad, bd, cd, dd = discrete

@@ -20,11 +20,13 @@ import zlib
 
 from gyro_emulator import __version__
 from gyro_emulator.validation import check_choice, check_range
+import lz4.frame
 from mcap.data_stream import RecordBuilder
 from mcap.opcode import Opcode
 from mcap.records import (Channel, Chunk, ChunkIndex, DataEnd, Footer, Header, Metadata,
                           MetadataIndex, Schema, Statistics, SummaryOffset)
 import numpy as np
+import zstandard
 
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 
@@ -81,10 +83,8 @@ class McapFileWriter:
         check_range('BagWriter', 'chunk_size', chunk_size, 0, 1 << 30, 'bytes')
         check_range('BagWriter', 'flush_interval_s', flush_interval_s, 0.0, 3600.0, 's')
         if compression == 'lz4':
-            import lz4.frame
             self._compress = lz4.frame.compress
         elif compression == 'zstd':
-            import zstandard
             self._compress = zstandard.ZstdCompressor(level=1).compress
         else:
             self._compress = None

@@ -11,11 +11,14 @@ from gyro_emulator.recording import cdr
 from gyro_emulator.recording.mcap_writer import RECORD_HEAD
 from gyro_emulator.recording.metadata import FileInfo, METADATA_FILE, topic_from, TopicInfo
 from gyro_emulator.recording.scan import scan_mcap, ScanReport
+import lz4.frame
 from mcap.data_stream import ReadDataStream
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, Message, Metadata, Schema
+from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import yaml
+import zstandard
 
 
 class BagMessage(NamedTuple):
@@ -164,11 +167,9 @@ def index_file(path, tolerant):
 
 def _decompressor(compression):
     if compression == 'zstd':
-        import zstandard
         dctx = zstandard.ZstdDecompressor()
         return lambda data, size: dctx.decompress(data, max_output_size=size)
     if compression == 'lz4':
-        import lz4.frame
         return lambda data, size: lz4.frame.decompress(data)
     if compression == '':
         return lambda data, size: data
@@ -467,7 +468,6 @@ class BagReader:
         files use the same factory. Decoded messages are mcap-ros2-support's
         dynamic objects (attribute access like rclpy messages).
         """
-        from mcap_ros2.decoder import DecoderFactory
         topics = self._check_topics(topics)
         factory = DecoderFactory()
         for info in self._infos:

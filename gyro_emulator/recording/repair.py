@@ -7,6 +7,7 @@ a ``metadata.yaml``.
 
 from dataclasses import dataclass, field
 import os
+import shutil
 
 from gyro_emulator.recording.mcap_writer import McapFileWriter
 from gyro_emulator.recording.metadata import (file_info_from_writer, METADATA_FILE, metadata_yaml,
@@ -169,7 +170,6 @@ def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
                               good_bytes=os.path.getsize(source), complete=True,
                               messages=info.message_count)
             if target != source:
-                import shutil
                 shutil.copyfile(source, target)
                 info.path = target
             report.scans.append(scan)

@@ -15,6 +15,8 @@ import re
 
 from gyro_emulator.recording import bag
 from gyro_emulator.units import NS_PER_S
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
+                       ReliabilityPolicy)
 from rclpy.serialization import deserialize_message
 from rclpy.type_support import check_is_valid_msg_type, NoTypeSupportImportedException
 
@@ -74,8 +76,6 @@ def topic_qos(topic):
     last 5, volatile); ``reliable`` is reliable, keep last 10, volatile;
     ``latched`` is reliable, keep last 1, transient local.
     """
-    from rclpy.qos import DurabilityPolicy, qos_profile_sensor_data, QoSProfile
-
     if topic.qos == 'sensor_data':
         return qos_profile_sensor_data
     if topic.qos == 'latched':
@@ -143,8 +143,6 @@ def profile_to_qos(profile, depth=None):
         Override the history depth.
 
     """
-    from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-
     def policy(enum, value, default):
         if isinstance(value, int):
             try:

@@ -44,6 +44,7 @@ from gyro_emulator.ros import params
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor.streams import seed_from_name
 import numpy as np
+import yaml
 
 DEFAULT_SPEC = 'gyro_array.yaml'
 #: Error terms a spec's tolerances may spread, with their unit.
@@ -160,8 +161,6 @@ def load_spec(path=None):
 
 def params_file_text(instance):
     """Return a ``--params-file`` YAML for one instance (its node's section)."""
-    import yaml
-
     section = {f'{instance.node_name}': {'ros__parameters': instance.parameters}}
     return yaml.safe_dump(section, default_flow_style=None, sort_keys=True)
 

@@ -47,6 +47,7 @@ from gyro_emulator.recording import topics
 from gyro_emulator.ros import codec, diagnostics, node_help, params, spinning
 from gyro_emulator.ros.intake import INBOX_DEPTH, Intake
 from gyro_emulator.ros.outputs import fault_message, OutputStage
+from gyro_emulator.ros.self_record import SelfRecorder
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import faults
 from gyro_emulator.sensor import model as sensor_model
@@ -154,7 +155,6 @@ class GyroEmulatorNode(Node):
         self._warn_unknown_overrides()
         self._self_recorder = None
         if p['record_dir']:
-            from gyro_emulator.ros.self_record import SelfRecorder
             self._self_recorder = SelfRecorder(self, p['record_dir'])
         self._log_start()
 

@@ -25,9 +25,11 @@ from gyro_emulator.recording import bag
 from gyro_emulator.ros import codec, program
 from gyro_emulator.units import NS_PER_S
 import rclpy
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
+from rosgraph_msgs.msg import Clock
 
 #: Longest single sleep while waiting for a message, s (keeps /clock and signals live).
 MAX_SLEEP_S = 0.05
@@ -132,7 +134,6 @@ class Player:
                 codec.message_class(info.type_name), remap.get(name, name), qos)
         self.clock_publisher = None
         if self.clock_period_s is not None:
-            from rosgraph_msgs.msg import Clock
             self._clock_msg = Clock()
             self.clock_publisher = node.create_publisher(
                 Clock, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
@@ -153,7 +154,6 @@ class Player:
 
     def wait_for_acks(self, timeout_s):
         """Wait until reliable subscribers acknowledged everything published."""
-        from rclpy.duration import Duration
         for publisher in self.publishers.values():
             publisher.wait_for_all_acked(Duration(nanoseconds=int(timeout_s * NS_PER_S)))
 

@@ -22,6 +22,7 @@ it.
 """
 
 import argparse
+import json
 import os
 import signal
 import sys
@@ -30,8 +31,14 @@ import time
 from gyro_emulator.emulation.scenario import format_summary, load_scenario, results_json, \
     summarize
 from gyro_emulator.recording import topics
+from gyro_emulator.ros.codec import topic_class, topic_qos
 from gyro_emulator.ros.spinning import spin_once
 from gyro_emulator.units import NS_PER_S
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.utilities import remove_ros_args
 
 #: How far ahead of its start a scheduled fault is sent to the node, s.
 FAULT_LEAD_S = 0.5
@@ -59,8 +66,6 @@ class ScenarioPlayer:
     """
 
     def __init__(self, node, profile, collect=False, loop=False):
-        from gyro_emulator.ros.codec import topic_class, topic_qos
-
         self.node = node
         self.profile = profile
         self.loop = loop
@@ -89,7 +94,6 @@ class ScenarioPlayer:
         self._fault_futures = []
         self._fault_client = None
         if profile.faults:
-            from rclpy.parameter_client import AsyncParameterClient
             self._fault_client = AsyncParameterClient(node, topics.NODE_NAME)
 
     def _on_imu(self, msg):
@@ -128,8 +132,6 @@ class ScenarioPlayer:
             self._fault_next += 1
 
     def _set_fault(self, kind, axis, magnitude, start_s, duration_s):
-        from rclpy.parameter import Parameter
-
         values = (('fault.type', kind), ('fault.axis', axis), ('fault.magnitude', magnitude),
                   ('fault.start_s', start_s), ('fault.duration_s', duration_s))
         future = self._fault_client.set_parameters_atomically(
@@ -214,9 +216,6 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
         emulator never subscribes.
 
     """
-    import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-
     context = rclpy.Context()
     rclpy.init(args=args, context=context)
     node = rclpy.create_node('gyro_scenario', context=context)
@@ -284,8 +283,6 @@ def _interrupt(signum, frame):
 
 def main(args=None):
     """Entry point of ``ros2 run gyro_emulator scenario``; returns the exit status."""
-    from rclpy.utilities import remove_ros_args
-
     argv = sys.argv[1:] if args is None else list(args)
     opts = build_parser().parse_args(remove_ros_args(['scenario'] + argv)[1:])
     signal.signal(signal.SIGTERM, _interrupt)
@@ -311,7 +308,6 @@ def main(args=None):
         results = player.results()
         print(format_summary(results))
         if opts.json:
-            import json
             with open(opts.json, 'w', encoding='utf-8') as handle:
                 json.dump(results_json(profile, results), handle, indent=1)
     return 0

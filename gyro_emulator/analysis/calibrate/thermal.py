@@ -222,6 +222,8 @@ def polyfit_stats(dtemp, values, order):
     err = np.sqrt(np.maximum(np.diag(scale * np.linalg.pinv(design.T @ design)), 0.0))
     lags = newey_west_lags(len(values))
     if lags >= 1 and dof >= 3:
+        # statsmodels costs 0.5 s (3.8 s cold); `calibrate check-noise` loads this
+        # module (through plots) without fitting anything.
         import statsmodels.api as sm
 
         hac = sm.OLS(values, design).fit(cov_type='HAC', cov_kwds={

@@ -25,6 +25,7 @@ import math
 
 from gyro_emulator.analysis.diagnose import models
 import numpy as np
+from scipy.special import stdtr
 
 
 @dataclass
@@ -115,8 +116,6 @@ def fold_test(sse_ref, sse_new, null_reduction=None):
         than 3 folds.
 
     """
-    from scipy.special import stdtr
-
     ref = np.asarray(sse_ref, dtype=float)
     new = np.asarray(sse_new, dtype=float)
     null = np.zeros(len(ref)) if null_reduction is None else np.asarray(null_reduction)

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from gyro_emulator.recording import csvio
 from gyro_emulator.recording.record import DEFAULT_TOPICS, load_record
 import numpy as np
+from scipy.signal import lfilter, lfilter_zi
 
 REQUIRED_COLUMNS = ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s')
 ACCEL_COLUMNS = ('accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')
@@ -481,7 +482,6 @@ class Prepared:
         key = float(tau_s)
         if key in self._lag_cache:
             return self._lag_cache[key]
-        from scipy.signal import lfilter, lfilter_zi
         h = self.grid_step_s
         a = np.exp(-h / tau_s)
         c = tau_s * (1.0 - a) / h

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 from gyro_emulator.analysis.diagnose.effects import Basis, cached, slow_temp
 import numpy as np
+from scipy.optimize import minimize, minimize_scalar
 
 #: Rows kept at each end of a change-point search (share of the rows, and at least 3).
 STEP_MARGIN = 0.02
@@ -249,8 +250,6 @@ def _search_grid(sse_of, g):
 
 def _search_1d(sse_of, g):
     """Grid search over ``g``, then bounded refinement between the best point's neighbours."""
-    from scipy.optimize import minimize_scalar
-
     sses = np.array([sse_of((v,)) for v in g])
     i = int(np.argmin(sses))
     lo, hi = g[max(i - 1, 0)], g[min(i + 1, len(g) - 1)]
@@ -265,8 +264,6 @@ def _search_1d(sse_of, g):
 
 def _search_2d(sse_of, g0, g1, max_evals=120):
     """Grid search over ``g0 x g1``, then a Nelder-Mead refinement from the best point."""
-    from scipy.optimize import minimize
-
     sses = np.array([[sse_of((a, b)) for b in g1] for a in g0])
     i, j = np.unravel_index(int(np.argmin(sses)), sses.shape)
     best_phi, best_sse = (float(g0[i]), float(g1[j])), sses[i, j]

@@ -31,7 +31,7 @@ the wander and asks how much held-out gain it alone would give:
    would leave: the noise floor of the verdict.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 
 from gyro_emulator.analysis import allan
@@ -62,8 +62,6 @@ class NoiseModel:
 
     def wider(self, other):
         """Return this model with the larger bias instability and random walk of the two."""
-        from dataclasses import replace
-
         return replace(self, bias_instability_rad_s=max(self.bias_instability_rad_s,
                                                         other.bias_instability_rad_s),
                        rrw_rad_s_sqrt_s=max(self.rrw_rad_s_sqrt_s, other.rrw_rad_s_sqrt_s),
@@ -99,8 +97,6 @@ def robust_adev(parts, rate_hz, taus=None):
     the same value for Gaussian noise, but a minority of windows that hold
     unmodelled structure (a step, a short misfit) does not raise it.
     """
-    from dataclasses import replace
-
     result = allan.overlapping_adev(parts if len(parts) > 1 else parts[0], rate_hz, taus)
     dt = 1.0 / rate_hz
     phases = [np.concatenate([[0.0], np.cumsum((p - p.mean()) * dt)]) for p in parts]

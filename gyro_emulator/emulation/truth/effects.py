@@ -242,6 +242,8 @@ def _body_rate(t, temp, tau_s):
     (the recursion of :meth:`.data.Prepared.lagged_temp_on_bins`), from
     equilibrium.
     """
+    # scipy.signal costs 1 s, and `gyro-emulator --help` imports this module
+    # (the effect names of `truth`): imported when a record is made.
     from scipy.signal import lfilter, lfilter_zi
 
     h = float(t[1] - t[0])

@@ -36,6 +36,7 @@ from gyro_emulator.units import (deg_h_to_rad_s, deg_s_to_rad_s,
                                  rrw_deg_h_sqrt_h_to_rad_s_sqrt_s)
 from gyro_emulator.validation import check_range
 import numpy as np
+from scipy.signal import butter, lfilter
 
 TRUTH_EFFECTS = te.TRUTH_EFFECTS
 #: Sutherland constant of air, K (White, Viscous Fluid Flow).
@@ -159,8 +160,6 @@ def handling_motion(rng, t):
     1 Hz) of 3 to 30 deg/s rms with sin^2 tapers, placed at random in the
     record. Returns ``(rate_rad_s, [(start_s, end_s), ...])``.
     """
-    from scipy.signal import butter, lfilter
-
     dt = float(t[1] - t[0])
     rate = np.zeros(len(t))
     spans = []
