@@ -4,7 +4,7 @@ One model sample per tick at block cost, exactly (no ROS imports).
 ``GyroModel.step`` runs the compiled kernel on one sample, but its Python
 argument handling makes it ~15 us a call. At 1 kHz the node then used
 1.33-1.41x the CPU of a bare rclpy Imu publisher, against 1.13-1.26x with
-blocks of 50 (``bench/bench_node.py``, 2026-11-22). :class:`BlockStepper`
+blocks of 50 (``bench/bench_node.py``). :class:`BlockStepper`
 calls ``GyroModel.run`` on K samples of the current (held) input ahead of
 time and hands them out one per tick. When the input changes before the block is used
 up, it restores a copy of the model taken before the block and re-runs only

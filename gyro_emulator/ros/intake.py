@@ -12,7 +12,7 @@ types without a fixed layout, and as a fallback), validates each command
 "on receipt": the sample that takes it.
 
 Raw callbacks and one decode per sample keep a command flood from stalling
-the output: about 1.5 us a message, not ~100 us (issue 14).
+the output: about 1.5 us a message, not ~100 us (``bench/bench_node.py``).
 """
 
 from collections import deque

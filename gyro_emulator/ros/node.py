@@ -145,7 +145,7 @@ class GyroEmulatorNode(Node):
         self._timer = None
         if not self._imu_mode:
             # The part's clock drift sets its output data rate (sample period), so
-            # the stamps stay tied to the ROS clock (issue 14).
+            # the stamps stay tied to the ROS clock.
             self._timer = self.create_timer(self._stepper.model.sample_period_s, self._tick)
         self._make_inputs()
         self._set_fault(self._fault_from(p), self._now_ns())

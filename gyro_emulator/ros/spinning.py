@@ -105,7 +105,7 @@ def run_node(make_node, args, program, warm_up=None):
             print('[gyro_emulator] shutting down: stopped while starting', file=sys.stderr)
             return 0
         # The events executor serves a callback for about 1.5 us instead of the
-        # ~100 us of a SingleThreadedExecutor wait set (issue 14: command floods).
+        # ~100 us of a SingleThreadedExecutor wait set (``bench/bench_node.py``, command floods).
         executor = EventsExecutor()
         executor.add_node(node)
         # Waiting at most SHUTDOWN_POLL_S re-checks the context even if the
