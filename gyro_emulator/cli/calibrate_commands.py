@@ -49,7 +49,7 @@ def _print_noise(cal):
 
 
 def _accel(args):
-    """The accelerometer figures of the command line: both or neither."""
+    """Return the accelerometer figures of the command line: both or neither."""
     given = (args.accel_noise_density, args.accel_random_walk)
     if given == (None, None):
         return None

@@ -141,7 +141,7 @@ _ACCEL_COMMENTS = {'accelerometer_noise_density': 'm/s^2/sqrt(Hz); given by the 
 
 
 def _kalibr_keys(ex, accel):
-    """The four noise keys of Kalibr's imu.yaml (and OpenVINS's imu0), accelerometer if given."""
+    """Return the four noise keys of Kalibr's imu.yaml (and OpenVINS's imu0) and comments."""
     data = {}
     if accel is not None:
         data['accelerometer_noise_density'] = Figure(accel.noise_density_m_s2_sqrt_hz)
@@ -175,14 +175,14 @@ def kalibr(calibration, inflate=1.0, rate_hz=None, accel=None):
     keys, comments = _kalibr_keys(ex, accel)
     data = ({'rostopic': topic} if topic else {}) | {'update_rate': Figure(rate)} | keys
     comments['update_rate'] = 'Hz'
-    lines += _kalibr_missing(topic, accel, "Kalibr stops with \"[ImuConfig Reader]: Field "
-                                           "'<name>' missing in file: ...\"")
+    lines += _kalibr_missing(topic, accel, 'Kalibr stops with "[ImuConfig Reader]: Field '
+                                           '\'<name>\' missing in file: ..."')
     return as_comments(lines) + dump_yaml(data, comments)
 
 
 def openvins(calibration, inflate=1.0, rate_hz=None, accel=None):
     """
-    OpenVINS ``kalibr_imu_chain.yaml``, a whole file (Kalibr's keys and units, its intrinsics).
+    Write OpenVINS's ``kalibr_imu_chain.yaml``, a whole file (Kalibr's keys, its intrinsics).
 
     OpenVINS reads it with ``cv::FileStorage`` (ov_core YamlParser): a key
     left out prints ``the node accelerometer_noise_density of type [d] was
@@ -210,8 +210,8 @@ def openvins(calibration, inflate=1.0, rate_hz=None, accel=None):
                                            'parse all parameters, please fix"')
     lines += ['Intrinsics (T_i_b, Tw, R_IMUtoGYRO, Ta, R_IMUtoACC, Tg) and time_offset are '
               "OpenVINS's uncalibrated defaults (identity, zero): this log does not give them."]
-    return '%YAML:1.0\n' + as_comments(lines) + '\n' + dump_yaml({'imu0': imu}, comments,
-                                                                  gap='  ')
+    body = dump_yaml({'imu0': imu}, comments, gap='  ')
+    return '%YAML:1.0\n' + as_comments(lines) + '\n' + body
 
 
 def vins(calibration, inflate=1.0, rate_hz=None, accel=None):
@@ -257,11 +257,12 @@ _ORBSLAM3_CONVENTION = (_CONTINUOUS + ' ORB-SLAM3 reads IMU.NoiseGyro in rad/s/s
                         'IMU.GyroWalk in rad/s^2/sqrt(Hz) and builds its discrete noise as '
                         'NoiseGyro sqrt(IMU.Frequency), GyroWalk / sqrt(IMU.Frequency).')
 #: How ORB-SLAM3 v1.0 stops on a key left out (Settings::readParameter, src/Settings.cc).
-_ORBSLAM3_STOP = 'ORB-SLAM3 v1.0 stops with "<name> required parameter does not exist, aborting..."'
+_ORBSLAM3_STOP = ('ORB-SLAM3 v1.0 stops with "<name> required parameter does not exist, '
+                  'aborting..."')
 
 
 def _orbslam3_imu(ex, rate, accel):
-    """The IMU keys of ORB-SLAM3 v1.0, every number a real (``readParameter<float>``)."""
+    """Return the IMU keys of ORB-SLAM3 v1.0, every number a real (``readParameter<float>``)."""
     bound = ' (upper bound)' if ex.rrw_is_bound else ''
     text = f'IMU.NoiseGyro: {_num(ex.arw_rad_s_sqrt_hz)}   # rad/s/sqrt(Hz)\n'
     if accel is not None:
@@ -294,8 +295,8 @@ def orbslam3(calibration, inflate=1.0, rate_hz=None, accel=None):
     ex = export_noise(calibration, inflate)
     rate = _update_rate(calibration, rate_hz)
     lines = ['ORB-SLAM3 IMU block, not a whole file: paste it into your v1.0 settings file '
-             '(which starts with %YAML:1.0 and has File.version: "1.0") in place of its IMU.Noise*, '
-             'IMU.*Walk and IMU.Frequency lines.',
+             '(which starts with %YAML:1.0 and has File.version: "1.0") in place of its '
+             'IMU.Noise*, IMU.*Walk and IMU.Frequency lines.',
              'An older settings file (no File.version) reads IMU.Frequency as an integer: '
              f'there write IMU.Frequency: {int(round(rate))} (it stops with "*IMU.Frequency '
              'parameter doesn\'t exist or is not an integer*" otherwise).']
@@ -304,7 +305,7 @@ def orbslam3(calibration, inflate=1.0, rate_hz=None, accel=None):
     return as_comments(lines) + _orbslam3_imu(ex, rate, accel)
 
 
-_ORBSLAM3_CAMERA_TEMPLATE = '''\
+_ORBSLAM3_CAMERA_TEMPLATE = """\
 # --- Camera: fill in from your camera calibration, then remove the leading "# ".
 # Until then ORB-SLAM3 stops with "Camera.type required parameter does not exist,
 # aborting..." (a FILL_IN left in a number stops it with "<name> parameter must be a
@@ -334,9 +335,9 @@ _ORBSLAM3_CAMERA_TEMPLATE = '''\
 #           FILL_IN, FILL_IN, FILL_IN, FILL_IN,
 #           FILL_IN, FILL_IN, FILL_IN, FILL_IN,
 #           0.0, 0.0, 0.0, 1.0]
-'''
+"""
 
-_ORBSLAM3_REST = '''\
+_ORBSLAM3_REST = """\
 
 # --- ORB extractor and viewer: the values of ORB-SLAM3's own EuRoC examples.
 ORBextractor.nFeatures: 1000
@@ -355,12 +356,12 @@ Viewer.ViewpointX: 0.0
 Viewer.ViewpointY: -0.7
 Viewer.ViewpointZ: -1.8
 Viewer.ViewpointF: 500.0
-'''
+"""
 
 
 def orbslam3_settings(calibration, inflate=1.0, rate_hz=None, accel=None):
     """
-    A whole ORB-SLAM3 v1.0 settings file: ``%YAML:1.0``, ``File.version: "1.0"``, the IMU.
+    Write a whole ORB-SLAM3 v1.0 settings file: ``%YAML:1.0``, ``File.version: "1.0"``, the IMU.
 
     What a gyro log cannot give is left out, so ORB-SLAM3's own checks
     (Settings.cc, read in the order camera, image, IMU, ORB, viewer) stop
@@ -445,8 +446,10 @@ ACCEL_CORRELATION_TIME_S = 3600.0
 def _gazebo_accel(rate, accel):
     """``<linear_acceleration>``: the figures given, or FILL_IN where sdformat reads a double."""
     if accel is None:
-        note = (f'      <!-- {NOT_MEASURED} (or give {ACCEL_OPTIONS}). Left as is, sdformat '
-                'stops on it: "Unable to set value [FILL_IN] for key[stddev]" -->')
+        # no double hyphen inside an XML comment: the options are named in the header
+        note = (f'      <!-- {NOT_MEASURED} (or give the accelerometer figures, see the top). '
+                'Left as is, sdformat reports "Unable to set value [FILL_IN] for key[stddev]" '
+                '-->')
         stddev = sigma_b = MARKER
     else:
         note = (f'      <!-- given by the user: N_a {_num(accel.noise_density_m_s2_sqrt_hz)} '
@@ -483,10 +486,12 @@ def gazebo(calibration, inflate=1.0, rate_hz=None, accel=None):
                   'process driven by dynamic_bias_stddev (steady sigma_b sqrt(T/2), a random '
                   'walk of K = sigma_b for tau << T). gz-sensors has no flicker (B) term: the '
                   'Gauss-Markov pair is fitted to the B and K part of the Allan curve.')
-    header = as_comments(['gz-sensors <imu> block, not a whole file: paste it into your '
-                          '<sensor type="imu"> (SDF 1.9 to 1.12 element names).']
+    header = as_comments(['gz-sensors imu element, a block, not a whole file: paste it into '
+                          'your <sensor type="imu"> (SDF 1.9 to 1.12 element names).']
                          + noise_lines(calibration, None, 'gazebo', convention)
-                         + [f'Inflation factor: {inflate:g}'], style='xml')
+                         + [f'Inflation factor: {inflate:g}']
+                         + ([] if accel else [f'Accelerometer: {NOT_MEASURED}, or give '
+                                              f'{ACCEL_OPTIONS}.']), style='xml')
     body = ['<imu>', '  <angular_velocity>']
     axes = {a.axis: a for a in calibration.axes}
     for name in ('x', 'y', 'z'):

@@ -33,7 +33,7 @@ import numpy as np
 FORMATS = ('px4', 'ardupilot', 'preset')
 #: The warning of a PX4 file written without the gyro's device id.
 PX4_NO_ID = ('TC_G0_ID is not in the PX4 file (no --px4-gyro-id): the thermal correction stays '
-             'off until TC_G0_ID is set to the gyro\'s device id (param show CAL_GYRO0_ID)')
+             "off until TC_G0_ID is set to the gyro's device id (param show CAL_GYRO0_ID)")
 #: Largest PX4 INT32 parameter value.
 _INT32_MAX = 2 ** 31 - 1
 #: ArduPilot's fixed reference temperature (AP_InertialSensor_tempcal.cpp TEMP_REFERENCE), C.
