@@ -407,8 +407,8 @@ def sdf_errors(element, allowed, path=''):
             try:
                 value = float(child.text)
             except ValueError:
-                errors.append(f'Unable to set value [{child.text.strip()}] for '
-                              f'key[{child.tag}]')
+                errors.append(f'Invalid argument. Unable to set value [{child.text.strip()}] '
+                              f'for key[{child.tag}].')
                 continue
             if spec is not None and value < spec:
                 errors.append(f'{here}/{child.tag} = {value} below its min {spec}')
@@ -424,8 +424,9 @@ def test_gazebo_block_follows_sdformat_imu_and_noise(calibration):
     assert stddev == pytest.approx(ACCEL.noise_density_m_s2_sqrt_hz * np.sqrt(RATE_HZ))
     bare = export_noise.write_noise(calibration, 'gazebo')
     errors = sdf_errors(ElementTree.fromstring(bare[bare.index('<imu>'):]), SDF_IMU['imu'])
-    assert errors == ['Unable to set value [FILL_IN] for key[stddev]',
-                      'Unable to set value [FILL_IN] for key[dynamic_bias_stddev]'] * 3
+    assert errors == ['Invalid argument. Unable to set value [FILL_IN] for key[stddev].',
+                      'Invalid argument. Unable to set value [FILL_IN] for '
+                      'key[dynamic_bias_stddev].'] * 3
     wrong = ElementTree.fromstring('<imu><angular_velocity><x><noise type="gaussian">'
                                    '<std_dev>1</std_dev></noise></x></angular_velocity></imu>')
     assert 'element <std_dev> not in' in sdf_errors(wrong, SDF_IMU['imu'])[0]

@@ -448,8 +448,8 @@ def _gazebo_accel(rate, accel):
     if accel is None:
         # no double hyphen inside an XML comment: the options are named in the header
         note = (f'      <!-- {NOT_MEASURED} (or give the accelerometer figures, see the top). '
-                'Left as is, sdformat reports "Unable to set value [FILL_IN] for key[stddev]" '
-                '-->')
+                'Left as is, sdformat reports "Invalid argument. Unable to set value [FILL_IN] '
+                'for key[stddev]." -->')
         stddev = sigma_b = MARKER
     else:
         note = (f'      <!-- given by the user: N_a {_num(accel.noise_density_m_s2_sqrt_hz)} '
