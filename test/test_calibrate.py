@@ -88,8 +88,14 @@ def _comments(text):
 
 @pytest.mark.parametrize('fmt', ['kalibr', 'openvins', 'vins', 'orbslam3'])
 def test_estimator_exports_carry_the_fitted_n_and_k(calibration, fmt):
-    """Each file's keys against the fitted N and K, and the units back again."""
-    text = export_noise.write_noise(calibration, fmt)
+    """
+    Each file's keys against the fitted N and K, and the units back again.
+
+    Read as each consumer reads it: test_calibrate_consumers.py.
+    """
+    accel = export_noise.AccelFigures(2e-3, 3e-3)
+    text = export_noise.write_noise(calibration, fmt, accel=accel)
+    bare = '' if fmt == 'vins' else export_noise.write_noise(calibration, fmt)
     chosen = noise.export_noise(calibration)
     n, k = chosen.arw_rad_s_sqrt_hz, chosen.rrw_rad_s_sqrt_s
     assert n == max(a.fit.arw_rad_s_sqrt_hz for a in calibration.axes)
@@ -98,19 +104,22 @@ def test_estimator_exports_carry_the_fitted_n_and_k(calibration, fmt):
         doc = doc['imu0'] if fmt == 'openvins' else doc
         got_n, got_k = doc['gyroscope_noise_density'], doc['gyroscope_random_walk']
         assert doc['update_rate'] == pytest.approx(RATE_HZ)
-        assert doc['accelerometer_noise_density'] == 'FILL_IN'
-        assert doc['accelerometer_random_walk'] == 'FILL_IN'
+        assert doc['accelerometer_noise_density'] == 2e-3
+        assert doc['accelerometer_random_walk'] == 3e-3
+        assert 'accelerometer_noise_density:' not in bare and 'FILL_IN' not in bare
     elif fmt == 'vins':
         # per-sample standard deviations: back to the densities through units
         got_n = float(units.sample_sigma_to_density(doc['gyr_n'], RATE_HZ))
         got_k = doc['gyr_w'] / np.sqrt(RATE_HZ)
         assert doc['gyr_n'] == pytest.approx(units.density_to_sample_sigma(n, RATE_HZ),
                                              rel=1e-5)
-        assert doc['acc_n'] == 'FILL_IN' and doc['acc_w'] == 'FILL_IN'
+        assert doc['acc_n'] == pytest.approx(2e-3 * np.sqrt(RATE_HZ))
+        assert doc['acc_w'] == pytest.approx(3e-3 * np.sqrt(RATE_HZ))
     else:
         got_n, got_k = doc['IMU.NoiseGyro'], doc['IMU.GyroWalk']
         assert doc['IMU.Frequency'] == pytest.approx(RATE_HZ)
-        assert doc['IMU.NoiseAcc'] == 'FILL_IN' and doc['IMU.AccWalk'] == 'FILL_IN'
+        assert doc['IMU.NoiseAcc'] == 2e-3 and doc['IMU.AccWalk'] == 3e-3
+        assert '\nIMU.NoiseAcc:' not in bare and 'FILL_IN' not in bare
         # ORB-SLAM3 builds its discrete noise as NoiseGyro sqrt(f): the exact discretisation
         assert got_n * np.sqrt(RATE_HZ) == pytest.approx(float(
             units.density_to_sample_sigma(n, RATE_HZ)), rel=1e-5)

@@ -2,12 +2,17 @@
 Calibrate from a measured log, export to the stacks users run, and check the emulated twin.
 
   calibrate noise LOG [--axis x|y|z|all] --format F -o OUT [--inflate F]
+                  [--accel-noise-density A --accel-random-walk W]
       IEEE Std 952 noise identification of a static log (Allan deviation, the
       band-limited short taus left out, five terms with confidence intervals,
       read-offs) written for: kalibr (imu.yaml), openvins (kalibr_imu_chain.yaml),
-      vins (gyr_n/gyr_w block), orbslam3 (IMU.NoiseGyro/IMU.GyroWalk), gazebo
-      (gz-sensors <imu> noise) or preset (this emulator's sensor YAML).
+      vins (IMU block; needs the accelerometer figures), orbslam3 (IMU block),
+      orbslam3-settings (a whole v1.0 settings file), gazebo (gz-sensors <imu>
+      block) or preset (this emulator's sensor YAML). A gyro log does not give
+      the accelerometer's figures: without them each file makes its consumer
+      stop and name the field (docs/calibrate.md), never load a wrong value.
   calibrate thermal LOG [LOG ...] --format px4|ardupilot|preset -o OUT
+                    [--px4-gyro-id ID]
       Bias against die temperature of a static log (temp_c and gyro columns;
       several one-axis files are x, y, z in order), written as PX4 TC_G0_*
       parameters, ArduPilot INS_TCAL1_* parameters or this emulator's bias terms.
@@ -23,15 +28,16 @@ Calibrate from a measured log, export to the stacks users run, and check the emu
       report the spread before and after.
 
 Every file states its source log, the tau range or temperature span used, the
-continuous-to-discrete convention of its target and the inflation factor.
-Accelerometer fields are written as FILL_IN: this is a gyro log.
+continuous-to-discrete convention of its target and the inflation factor; its
+first comment line says whether it is a whole file or a block to paste.
 """
 
 from gyro_emulator.cli.allan import add_outlier_arguments
 
 HELP = 'calibrate noise or thermal terms from a log; export to Kalibr, VINS, PX4, ...'
 
-NOISE_FORMATS = ('kalibr', 'openvins', 'vins', 'orbslam3', 'gazebo', 'preset')
+NOISE_FORMATS = ('kalibr', 'openvins', 'vins', 'orbslam3', 'orbslam3-settings', 'gazebo',
+                 'preset')
 THERMAL_FORMATS = ('px4', 'ardupilot', 'preset')
 
 
@@ -67,6 +73,13 @@ def add_arguments(parser):
                        help='multiply N, B and K by F (stated in the file; default: none)')
     noise.add_argument('--rate-hz', type=float, default=None, metavar='R',
                        help="the estimator's IMU rate for discrete values (default: the log's)")
+    noise.add_argument('--accel-noise-density', type=float, default=None, metavar='A',
+                       help='accelerometer white-noise density in m/s^2/sqrt(Hz), continuous '
+                            "(Kalibr's accelerometer_noise_density; a gyro log does not give "
+                            'it); with --accel-random-walk')
+    noise.add_argument('--accel-random-walk', type=float, default=None, metavar='W',
+                       help='accelerometer bias random walk in m/s^3/sqrt(Hz), continuous '
+                            "(Kalibr's accelerometer_random_walk); with --accel-noise-density")
     therm = sub.add_parser('thermal', help='bias against temperature, exported')
     _common_log(therm, many=True)
     therm.add_argument('--format', required=True, choices=THERMAL_FORMATS)
@@ -75,6 +88,9 @@ def add_arguments(parser):
                        help='highest polynomial order wanted (default: %(default)s)')
     therm.add_argument('--window-s', type=float, default=60.0, metavar='S',
                        help='group length of a log without gaps (default: %(default)s)')
+    therm.add_argument('--px4-gyro-id', type=int, default=None, metavar='ID',
+                       help="px4: the gyro's device id (param show CAL_GYRO0_ID), written as "
+                            'TC_G0_ID; PX4 corrects no gyro until TC_G0_ID is set')
     check = sub.add_parser('check-noise', help='simulate the fitted preset; compare ADEV')
     _common_log(check)
     check.add_argument('--config', required=True, metavar='YAML', help='the fitted preset')

@@ -48,11 +48,23 @@ def _print_noise(cal):
                   file=sys.stderr)
 
 
+def _accel(args):
+    """Return the accelerometer figures of the command line: both or neither."""
+    given = (args.accel_noise_density, args.accel_random_walk)
+    if given == (None, None):
+        return None
+    if None in given:
+        raise ValueError('give both --accel-noise-density and --accel-random-walk, or neither')
+    return export_noise.AccelFigures(*given)
+
+
 def run_noise(args):
     """Identify the noise terms and write the chosen format."""
+    accel = _accel(args)
+    export_noise.require_accel(args.format, accel)      # before the fit, which takes seconds
     cal = _calibrate(args)
     _print_noise(cal)
-    text = export_noise.write_noise(cal, args.format, args.inflate, args.rate_hz)
+    text = export_noise.write_noise(cal, args.format, args.inflate, args.rate_hz, accel)
     chosen = noise.export_noise(cal, args.inflate)
     print(f' exported: N {chosen.arw_rad_s_sqrt_hz:.4g} rad/s/sqrt(Hz) '
           f'({float(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(chosen.arw_rad_s_sqrt_hz)):.4g} '
@@ -128,13 +140,15 @@ def run_thermal(args):
     _print_thermal(fit)
     if args.format == 'preset':
         fit = thermal.with_white_noise(fit, log)
-    _write(args.out, export_thermal.write_thermal(fit, args.format))
+    _write(args.out, export_thermal.write_thermal(fit, args.format, args.px4_gyro_id))
     if args.json:
         write_json(args.json, _thermal_doc(fit))
     if args.plot:
         plots.plot_thermal(fit, args.plot, title=', '.join(os.path.basename(s)
                                                            for s in fit.sources))
         print(f'wrote {args.plot}')
+    if args.format == 'px4' and args.px4_gyro_id is None:
+        print(f'gyro-emulator calibrate: warning: {export_thermal.PX4_NO_ID}', file=sys.stderr)
     return 0
 
 

@@ -18,7 +18,8 @@ vins       gyr_n = N sqrt(f_s), rad/s per sample  gyr_w = K sqrt(f_s) (its pre-i
            (integration_base.h propagates them    adds (gyr_w dt)^2 per sample)
            as per-sample standard deviations)
 orbslam3   IMU.NoiseGyro = N, continuous          IMU.GyroWalk = K, continuous (it
-           (ORB-SLAM3 multiplies by sqrt(f_s))    divides by sqrt(f_s))
+           (ORB-SLAM3 multiplies by sqrt(f_s))    divides by sqrt(f_s)); orbslam3-settings:
+                                                  the same in a whole v1.0 settings file
 gazebo     stddev = N sqrt(f_s), per sample       dynamic_bias_stddev sigma_b with
                                                   dynamic_bias_correlation_time T: a
                                                   Gauss-Markov bias driven by sigma_b
@@ -27,32 +28,97 @@ gazebo     stddev = N sqrt(f_s), per sample       dynamic_bias_stddev sigma_b wi
 preset     electronics_arw_deg_sqrt_h, bias_instability_deg_h, rate_random_walk_deg_h_sqrt_h
 =========  =====================================  ======================================
 
-Accelerometer fields are written as ``FILL_IN`` with a comment: this is a
-gyro log. The YAML files (kalibr, openvins, preset) are written by PyYAML,
-numbers to 6 significant digits, with the comments added around it; the
-VINS-Fusion and ORB-SLAM3 blocks are pasted into OpenCV ``FileStorage``
-files and stay written by hand.
+The first comment line of each file says whether it is a whole file or a
+block to paste (after ``%YAML:1.0`` where ``cv::FileStorage`` opens it).
+
+A gyro log does not give the accelerometer figures: the user may
+(:class:`AccelFigures`). Without them no file loads a wrong value silently;
+each one makes its consumer stop and name the field (docs/calibrate.md
+cites each consumer's parser): kalibr, openvins and both orbslam3 formats
+leave the keys out (their own missing-key checks fire), gazebo writes
+``FILL_IN`` where sdformat parses a double, and vins is refused (VINS-Fusion
+checks nothing). Numbers are written by :func:`.yaml_text.float_text`, a
+float to PyYAML and a real to ``cv::FileStorage``; the YAML files (kalibr,
+openvins, preset) are written by PyYAML with the comments added around
+it, the VINS-Fusion and ORB-SLAM3 text by hand.
 """
+
+from dataclasses import dataclass
 
 from gyro_emulator import units
 from gyro_emulator.analysis.calibrate.noise import axis_values, export_noise
 from gyro_emulator.analysis.calibrate.provenance import (as_comments, MARKER, noise_lines,
                                                          NOT_MEASURED)
 from gyro_emulator.analysis.calibrate.twin import emulator_fit, PER_DECADE
-from gyro_emulator.analysis.calibrate.yaml_text import dump as dump_yaml, Figure, Flow, Quoted
+from gyro_emulator.analysis.calibrate.yaml_text import (dump as dump_yaml, Figure, float_text,
+                                                        Flow, Quoted)
 from gyro_emulator.sensor import noise as sensor_noise
 from gyro_emulator.sensor.config import ErrorTerms
 import numpy as np
 from scipy import optimize
 
-FORMATS = ('kalibr', 'openvins', 'vins', 'orbslam3', 'gazebo', 'preset')
+FORMATS = ('kalibr', 'openvins', 'vins', 'orbslam3', 'orbslam3-settings', 'gazebo', 'preset')
 
 _CONTINUOUS = ('N and K are continuous-time densities (IEEE Std 952): the sampled white noise '
                'has sigma_d = N sqrt(f), the bias walk steps K / sqrt(f) per sample at rate f.')
 
 
+@dataclass(frozen=True)
+class AccelFigures:
+    """
+    Accelerometer figures the user gives: a gyro log does not measure them.
+
+    Continuous-time IEEE Std 952 / Kalibr coefficients, as Kalibr's
+    ``accelerometer_noise_density`` and ``accelerometer_random_walk``; each
+    writer converts them with the convention it states for the gyro. They
+    are written as given: ``--inflate`` scales only the fitted gyro terms.
+    """
+
+    noise_density_m_s2_sqrt_hz: float
+    random_walk_m_s3_sqrt_hz: float
+
+    def __post_init__(self):
+        """Check that both figures are finite and positive."""
+        for name in ('noise_density_m_s2_sqrt_hz', 'random_walk_m_s3_sqrt_hz'):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise ValueError(f'{name} = {value!r} is out of range: allowed (0, inf)')
+
+
+#: The options that give the accelerometer figures (named in messages).
+ACCEL_OPTIONS = '--accel-noise-density and --accel-random-walk'
+
+
+_ACCEL_WHY = f'NOT MEASURED by this gyro log (give {ACCEL_OPTIONS} to write them)'
+_TOPIC_WHY = 'a CSV log has no topic: add the IMU topic of your bag'
+
+
+def _not_written(missing, stop):
+    """Comment lines for keys left out, so that the consumer's own check names them."""
+    if not missing:
+        return []
+    return [f'Not written: {"; ".join(f"{names}: {why}" for names, why in missing)}. '
+            f'Until they are added, {stop}.']
+
+
+def _kalibr_missing(topic, accel, stop):
+    missing = [] if topic else [('rostopic', _TOPIC_WHY)]
+    if accel is None:
+        missing.append(('accelerometer_noise_density (m/s^2/sqrt(Hz)) and '
+                        'accelerometer_random_walk (m/s^3/sqrt(Hz))', _ACCEL_WHY))
+    return _not_written(missing, stop)
+
+
+def require_accel(fmt, accel):
+    """Refuse ``vins`` without the accelerometer figures: VINS-Fusion would not stop on them."""
+    if fmt == 'vins' and accel is None:
+        raise ValueError(f'--format vins needs {ACCEL_OPTIONS}: VINS-Fusion reads a missing '
+                         'acc_n or acc_w as 0 and a text one as 1.8e308, without an error '
+                         '(parameters.cpp), so no file without them can stop it')
+
+
 def _num(value):
-    return f'{float(value):.6g}'
+    return float_text(value)
 
 
 def _identity(size, scale=1.0):
@@ -68,96 +134,249 @@ def _topic(calibration):
     return column.split(' ')[0] if ' angular_velocity' in column else None
 
 
-def kalibr(calibration, inflate=1.0, rate_hz=None):
-    """Kalibr ``imu.yaml`` (gyroscope_noise_density, gyroscope_random_walk; continuous)."""
+_ACCEL_COMMENTS = {'accelerometer_noise_density': 'm/s^2/sqrt(Hz); given by the user',
+                   'accelerometer_random_walk': 'm/s^3/sqrt(Hz); given by the user',
+                   'gyroscope_noise_density': 'rad/s/sqrt(Hz), N',
+                   'gyroscope_random_walk': 'rad/s^2/sqrt(Hz), K'}
+
+
+def _kalibr_keys(ex, accel):
+    """Return the four noise keys of Kalibr's imu.yaml (and OpenVINS's imu0) and comments."""
+    data = {}
+    if accel is not None:
+        data['accelerometer_noise_density'] = Figure(accel.noise_density_m_s2_sqrt_hz)
+        data['accelerometer_random_walk'] = Figure(accel.random_walk_m_s3_sqrt_hz)
+    data['gyroscope_noise_density'] = Figure(ex.arw_rad_s_sqrt_hz)
+    data['gyroscope_random_walk'] = Figure(ex.rrw_rad_s_sqrt_s)
+    comments = dict(_ACCEL_COMMENTS)
+    if ex.rrw_is_bound:
+        comments['gyroscope_random_walk'] += ' (upper bound)'
+    return data, comments
+
+
+def kalibr(calibration, inflate=1.0, rate_hz=None, accel=None):
+    """
+    Kalibr ``imu.yaml``, a whole file (gyroscope_noise_density, gyroscope_random_walk).
+
+    A key this log cannot give (the accelerometer's without ``accel``, the
+    rostopic of a CSV log) is left out: Kalibr's ``ImuParameters`` getters
+    (``@catch_keyerror``, kalibr_common/ConfigReader.py) then stop with
+    ``[ImuConfig Reader]: Field 'accelerometer_noise_density' missing in
+    file: ...``. A text placeholder would instead reach its ``<=`` checks
+    and end in a TypeError.
+    """
     ex = export_noise(calibration, inflate)
     rate = _update_rate(calibration, rate_hz)
     convention = (_CONTINUOUS + ' Kalibr uses gyroscope_noise_density / sqrt(dt) and '
                   'gyroscope_random_walk * sqrt(dt) with dt = 1 / update_rate.')
     topic = _topic(calibration)
-    text = as_comments(noise_lines(calibration, ex, 'kalibr', convention))
-    bound = ' (upper bound)' if ex.rrw_is_bound else ''
-    data = {'rostopic': topic or MARKER, 'update_rate': Figure(rate),
-            'accelerometer_noise_density': MARKER, 'accelerometer_random_walk': MARKER,
-            'gyroscope_noise_density': Figure(ex.arw_rad_s_sqrt_hz),
-            'gyroscope_random_walk': Figure(ex.rrw_rad_s_sqrt_s)}
-    comments = {'update_rate': 'Hz',
-                'accelerometer_noise_density': f'm/s^2/sqrt(Hz); {NOT_MEASURED}',
-                'accelerometer_random_walk': f'm/s^3/sqrt(Hz); {NOT_MEASURED}',
-                'gyroscope_noise_density': 'rad/s/sqrt(Hz), N',
-                'gyroscope_random_walk': 'rad/s^2/sqrt(Hz), K' + bound}
-    if not topic:
-        comments['rostopic'] = 'the IMU topic of your calibration bag'
-    return text + dump_yaml(data, comments)
+    lines = ['Kalibr imu.yaml: a whole file (kalibr_calibrate_imu_camera --imu FILE).']
+    lines += noise_lines(calibration, ex, 'kalibr', convention)
+    keys, comments = _kalibr_keys(ex, accel)
+    data = ({'rostopic': topic} if topic else {}) | {'update_rate': Figure(rate)} | keys
+    comments['update_rate'] = 'Hz'
+    lines += _kalibr_missing(topic, accel, 'Kalibr stops with "[ImuConfig Reader]: Field '
+                                           '\'<name>\' missing in file: ..."')
+    return as_comments(lines) + dump_yaml(data, comments)
 
 
-def openvins(calibration, inflate=1.0, rate_hz=None):
-    """Write OpenVINS ``kalibr_imu_chain.yaml`` (Kalibr's keys and units, its intrinsics)."""
+def openvins(calibration, inflate=1.0, rate_hz=None, accel=None):
+    """
+    Write OpenVINS's ``kalibr_imu_chain.yaml``, a whole file (Kalibr's keys, its intrinsics).
+
+    OpenVINS reads it with ``cv::FileStorage`` (ov_core YamlParser): a key
+    left out prints ``the node accelerometer_noise_density of type [d] was
+    not found...`` and the estimator exits with ``unable to parse all
+    parameters, please fix``. A ``FILL_IN   # ...: ...`` line would instead
+    be read as a nested map, and a text value as 1.8e308 without a word.
+    """
     ex = export_noise(calibration, inflate)
     rate = _update_rate(calibration, rate_hz)
     convention = (_CONTINUOUS + ' OpenVINS reads the Kalibr keys in the same continuous '
                   'units and discretises with the IMU sample period.')
     topic = _topic(calibration)
-    bound = ' (upper bound)' if ex.rrw_is_bound else ''
-    imu = {'T_i_b': _identity(4),
-           'accelerometer_noise_density': MARKER, 'accelerometer_random_walk': MARKER,
-           'gyroscope_noise_density': Figure(ex.arw_rad_s_sqrt_hz),
-           'gyroscope_random_walk': Figure(ex.rrw_rad_s_sqrt_s),
-           'rostopic': topic or MARKER, 'time_offset': 0.0, 'update_rate': Figure(rate),
-           'model': Quoted('kalibr'), 'Tw': _identity(3), 'R_IMUtoGYRO': _identity(3),
-           'Ta': _identity(3), 'R_IMUtoACC': _identity(3), 'Tg': _identity(3, 0.0)}
-    comments = {'accelerometer_noise_density': f'm/s^2/sqrt(Hz); {NOT_MEASURED}',
-                'accelerometer_random_walk': f'm/s^3/sqrt(Hz); {NOT_MEASURED}',
-                'gyroscope_noise_density': 'rad/s/sqrt(Hz), N',
-                'gyroscope_random_walk': 'rad/s^2/sqrt(Hz), K' + bound}
-    text = '%YAML:1.0\n' + as_comments(noise_lines(calibration, ex, 'openvins', convention))
-    text += ('# Intrinsics (T_i_b, Tw, R_IMUtoGYRO, Ta, R_IMUtoACC, Tg) and time_offset are\n'
-             "# OpenVINS's uncalibrated defaults (identity, zero): this log does not give them.\n"
-             '\n' + dump_yaml({'imu0': imu}, comments, gap='  '))
-    return text
+    keys, comments = _kalibr_keys(ex, accel)
+    imu = {'T_i_b': _identity(4)} | keys
+    if topic:
+        imu['rostopic'] = topic
+    imu |= {'time_offset': 0.0, 'update_rate': Figure(rate), 'model': Quoted('kalibr'),
+            'Tw': _identity(3), 'R_IMUtoGYRO': _identity(3), 'Ta': _identity(3),
+            'R_IMUtoACC': _identity(3), 'Tg': _identity(3, 0.0)}
+    lines = ['OpenVINS kalibr_imu_chain.yaml: a whole file (relative_config_imu of '
+             'estimator_config.yaml); cv::FileStorage needs %YAML:1.0 as its first line.']
+    lines += noise_lines(calibration, ex, 'openvins', convention)
+    lines += _kalibr_missing(topic, accel, 'OpenVINS prints "the node <name> of type [...] '
+                                           'was not found..." and exits with "unable to '
+                                           'parse all parameters, please fix"')
+    lines += ['Intrinsics (T_i_b, Tw, R_IMUtoGYRO, Ta, R_IMUtoACC, Tg) and time_offset are '
+              "OpenVINS's uncalibrated defaults (identity, zero): this log does not give them."]
+    body = dump_yaml({'imu0': imu}, comments, gap='  ')
+    return '%YAML:1.0\n' + as_comments(lines) + '\n' + body
 
 
-def vins(calibration, inflate=1.0, rate_hz=None):
-    """VINS-Fusion's IMU block: gyr_n and gyr_w as per-sample standard deviations."""
+def vins(calibration, inflate=1.0, rate_hz=None, accel=None):
+    """
+    VINS-Fusion's IMU block (not a whole file): acc_n, gyr_n, acc_w, gyr_w per sample.
+
+    VINS-Fusion reads them as ``ACC_N = fsSettings["acc_n"]``
+    (vins_estimator/src/estimator/parameters.cpp) and checks nothing: a
+    missing key is 0 and a text one 1.8e308 (``FileNode::real()``), so a
+    block without the accelerometer figures would load a wrong value
+    silently. It is refused instead (``ValueError`` naming the options).
+    """
+    require_accel('vins', accel)
     ex = export_noise(calibration, inflate)
     rate = _update_rate(calibration, rate_hz)
     gyr_n = float(units.density_to_sample_sigma(ex.arw_rad_s_sqrt_hz, rate))
     gyr_w = ex.rrw_rad_s_sqrt_s * np.sqrt(rate)
+    acc_n = float(units.density_to_sample_sigma(accel.noise_density_m_s2_sqrt_hz, rate))
+    acc_w = accel.random_walk_m_s3_sqrt_hz * np.sqrt(rate)
     convention = (
         _CONTINUOUS + ' VINS-Fusion documents gyr_n and gyr_w as standard deviations and '
         'its pre-integration (integration_base.h) adds (gyr_n dt / 2)^2 twice and '
         '(gyr_w dt)^2 per sample: per-sample values, so gyr_n = N sqrt(f) and '
-        f'gyr_w = K sqrt(f) at f = {rate:g} Hz. The continuous N = '
-        f'{_num(ex.arw_rad_s_sqrt_hz)} rad/s/sqrt(Hz) and K = {_num(ex.rrw_rad_s_sqrt_s)} '
-        'rad/s^2/sqrt(Hz) are what imu_utils and Kalibr-style configs enter instead.')
-    text = as_comments(noise_lines(calibration, ex, 'vins', convention))
-    text += ('# Paste into your VINS-Fusion config in place of its IMU parameters.\n'
-             '# VINS reads a text value as 0 without an error: replace every FILL_IN.\n'
-             f'acc_n: {MARKER}   # {NOT_MEASURED}\n'
-             f'gyr_n: {_num(gyr_n)}   # rad/s per sample at {rate:g} Hz\n'
-             f'acc_w: {MARKER}   # {NOT_MEASURED}\n'
-             f'gyr_w: {_num(gyr_w)}   # K sqrt(f): per-sample sd of the bias rate at {rate:g} Hz'
-             + (' (upper bound of K)' if ex.rrw_is_bound else '') + '\n')
-    return text
+        f'gyr_w = K sqrt(f) at f = {rate:g} Hz (acc_n, acc_w alike from the accelerometer '
+        f'figures given). The continuous N = {_num(ex.arw_rad_s_sqrt_hz)} rad/s/sqrt(Hz) and '
+        f'K = {_num(ex.rrw_rad_s_sqrt_s)} rad/s^2/sqrt(Hz) are what imu_utils and Kalibr-style '
+        'configs enter instead.')
+    lines = ['VINS-Fusion IMU block, not a whole file: paste it into your config (which starts '
+             'with %YAML:1.0) in place of its acc_n, gyr_n, acc_w and gyr_w lines.']
+    lines += noise_lines(calibration, ex, 'vins', convention)
+    lines.append(f'Accelerometer: N_a {_num(accel.noise_density_m_s2_sqrt_hz)} m/s^2/sqrt(Hz), '
+                 f'K_a {_num(accel.random_walk_m_s3_sqrt_hz)} m/s^3/sqrt(Hz), given by the user '
+                 '(not inflated).')
+    bound = ' (upper bound of K)' if ex.rrw_is_bound else ''
+    return as_comments(lines) + (
+        f'acc_n: {_num(acc_n)}   # m/s^2 per sample at {rate:g} Hz\n'
+        f'gyr_n: {_num(gyr_n)}   # rad/s per sample at {rate:g} Hz\n'
+        f'acc_w: {_num(acc_w)}   # K_a sqrt(f), m/s^3 per sample at {rate:g} Hz\n'
+        f'gyr_w: {_num(gyr_w)}   # K sqrt(f), rad/s^2 per sample at {rate:g} Hz{bound}\n')
 
 
-def orbslam3(calibration, inflate=1.0, rate_hz=None):
-    """ORB-SLAM3 settings: IMU.NoiseGyro and IMU.GyroWalk (continuous) and IMU.Frequency."""
+_ORBSLAM3_CONVENTION = (_CONTINUOUS + ' ORB-SLAM3 reads IMU.NoiseGyro in rad/s/sqrt(Hz) and '
+                        'IMU.GyroWalk in rad/s^2/sqrt(Hz) and builds its discrete noise as '
+                        'NoiseGyro sqrt(IMU.Frequency), GyroWalk / sqrt(IMU.Frequency).')
+#: How ORB-SLAM3 v1.0 stops on a key left out (Settings::readParameter, src/Settings.cc).
+_ORBSLAM3_STOP = ('ORB-SLAM3 v1.0 stops with "<name> required parameter does not exist, '
+                  'aborting..."')
+
+
+def _orbslam3_imu(ex, rate, accel):
+    """Return the IMU keys of ORB-SLAM3 v1.0, every number a real (``readParameter<float>``)."""
+    bound = ' (upper bound)' if ex.rrw_is_bound else ''
+    text = f'IMU.NoiseGyro: {_num(ex.arw_rad_s_sqrt_hz)}   # rad/s/sqrt(Hz)\n'
+    if accel is not None:
+        text += f'IMU.NoiseAcc: {_num(accel.noise_density_m_s2_sqrt_hz)}   # m/s^2/sqrt(Hz)\n'
+    text += f'IMU.GyroWalk: {_num(ex.rrw_rad_s_sqrt_s)}   # rad/s^2/sqrt(Hz){bound}\n'
+    if accel is not None:
+        text += f'IMU.AccWalk: {_num(accel.random_walk_m_s3_sqrt_hz)}   # m/s^3/sqrt(Hz)\n'
+    return text + f'IMU.Frequency: {_num(rate)}   # Hz\n'
+
+
+def _orbslam3_missing(accel):
+    if accel is not None:
+        return []
+    return _not_written([('IMU.NoiseAcc (m/s^2/sqrt(Hz)) and IMU.AccWalk (m/s^3/sqrt(Hz))',
+                          _ACCEL_WHY)],
+                        _ORBSLAM3_STOP + ' (before v1.0: "*IMU.NoiseAcc parameter doesn\'t '
+                        'exist or is not a real number*")')
+
+
+def orbslam3(calibration, inflate=1.0, rate_hz=None, accel=None):
+    """
+    ORB-SLAM3's IMU block (not a whole file): IMU.NoiseGyro, IMU.GyroWalk, IMU.Frequency.
+
+    Every number is a real, as v1.0's ``Settings::readParameter<float>``
+    requires (``node.isReal()``, else "IMU.Frequency parameter must be a
+    real number, aborting..."). Settings files without ``File.version:
+    "1.0"`` go through the older ``Tracking::ParseIMUParamFile``, which wants
+    IMU.Frequency as an integer: the block says so.
+    """
     ex = export_noise(calibration, inflate)
     rate = _update_rate(calibration, rate_hz)
-    convention = (_CONTINUOUS + ' ORB-SLAM3 reads IMU.NoiseGyro in rad/s/sqrt(Hz) and '
-                  'IMU.GyroWalk in rad/s^2/sqrt(Hz) and builds its discrete noise as '
-                  'NoiseGyro sqrt(IMU.Frequency), GyroWalk / sqrt(IMU.Frequency).')
-    text = as_comments(noise_lines(calibration, ex, 'orbslam3', convention))
-    text += ('# Paste into your ORB-SLAM3 settings file (which starts with %YAML:1.0).\n'
-             '# ORB-SLAM3 stops with "not a real number" while a FILL_IN is left.\n'
-             f'IMU.NoiseGyro: {_num(ex.arw_rad_s_sqrt_hz)}   # rad/s/sqrt(Hz)\n'
-             f'IMU.NoiseAcc: {MARKER}   # m/s^2/sqrt(Hz); {NOT_MEASURED}\n'
-             f'IMU.GyroWalk: {_num(ex.rrw_rad_s_sqrt_s)}   # rad/s^2/sqrt(Hz)'
-             + (' (upper bound)' if ex.rrw_is_bound else '') + '\n'
-             f'IMU.AccWalk: {MARKER}   # m/s^3/sqrt(Hz); {NOT_MEASURED}\n'
-             f'IMU.Frequency: {_num(rate)}   # Hz\n')
-    return text
+    lines = ['ORB-SLAM3 IMU block, not a whole file: paste it into your v1.0 settings file '
+             '(which starts with %YAML:1.0 and has File.version: "1.0") in place of its '
+             'IMU.Noise*, IMU.*Walk and IMU.Frequency lines.',
+             'An older settings file (no File.version) reads IMU.Frequency as an integer: '
+             f'there write IMU.Frequency: {int(round(rate))} (it stops with "*IMU.Frequency '
+             'parameter doesn\'t exist or is not an integer*" otherwise).']
+    lines += noise_lines(calibration, ex, 'orbslam3', _ORBSLAM3_CONVENTION)
+    lines += _orbslam3_missing(accel)
+    return as_comments(lines) + _orbslam3_imu(ex, rate, accel)
+
+
+_ORBSLAM3_CAMERA_TEMPLATE = """\
+# --- Camera: fill in from your camera calibration, then remove the leading "# ".
+# Until then ORB-SLAM3 stops with "Camera.type required parameter does not exist,
+# aborting..." (a FILL_IN left in a number stops it with "<name> parameter must be a
+# real number" or "... an integer number").
+# Camera.type: "PinHole"
+# Camera1.fx: FILL_IN
+# Camera1.fy: FILL_IN
+# Camera1.cx: FILL_IN
+# Camera1.cy: FILL_IN
+# Camera1.k1: FILL_IN
+# Camera1.k2: FILL_IN
+# Camera1.p1: FILL_IN
+# Camera1.p2: FILL_IN
+# Camera.width: FILL_IN
+# Camera.height: FILL_IN
+# Camera.fps: FILL_IN
+# Camera.RGB: 1
+# Stereo: Camera2.* as Camera1.*, Stereo.T_c1_c2 (4x4) and Stereo.ThDepth: 60.0
+#
+# --- Camera-IMU extrinsics: the camera's pose in the IMU (body) frame. Until it is
+# here ORB-SLAM3 stops with "IMU.T_b_c1 required parameter does not exist, aborting...".
+# IMU.T_b_c1: !!opencv-matrix
+#    rows: 4
+#    cols: 4
+#    dt: f
+#    data: [FILL_IN, FILL_IN, FILL_IN, FILL_IN,
+#           FILL_IN, FILL_IN, FILL_IN, FILL_IN,
+#           FILL_IN, FILL_IN, FILL_IN, FILL_IN,
+#           0.0, 0.0, 0.0, 1.0]
+"""
+
+_ORBSLAM3_REST = """\
+
+# --- ORB extractor and viewer: the values of ORB-SLAM3's own EuRoC examples.
+ORBextractor.nFeatures: 1000
+ORBextractor.scaleFactor: 1.2
+ORBextractor.nLevels: 8
+ORBextractor.iniThFAST: 20
+ORBextractor.minThFAST: 7
+
+Viewer.KeyFrameSize: 0.05
+Viewer.KeyFrameLineWidth: 1.0
+Viewer.GraphLineWidth: 0.9
+Viewer.PointSize: 2.0
+Viewer.CameraSize: 0.08
+Viewer.CameraLineWidth: 3.0
+Viewer.ViewpointX: 0.0
+Viewer.ViewpointY: -0.7
+Viewer.ViewpointZ: -1.8
+Viewer.ViewpointF: 500.0
+"""
+
+
+def orbslam3_settings(calibration, inflate=1.0, rate_hz=None, accel=None):
+    """
+    Write a whole ORB-SLAM3 v1.0 settings file: ``%YAML:1.0``, ``File.version: "1.0"``, the IMU.
+
+    What a gyro log cannot give is left out, so ORB-SLAM3's own checks
+    (Settings.cc, read in the order camera, image, IMU, ORB, viewer) stop
+    on it by name: the camera (``Camera.type`` first), ``IMU.T_b_c1``, and
+    the accelerometer figures without ``accel``. Its template is in comments.
+    """
+    ex = export_noise(calibration, inflate)
+    rate = _update_rate(calibration, rate_hz)
+    lines = ['ORB-SLAM3 v1.0 settings: a whole file (./mono_inertial_euroc VOC SETTINGS ...). '
+             'The camera and the camera-IMU extrinsics are yours to fill in (below).']
+    lines += noise_lines(calibration, ex, 'orbslam3-settings', _ORBSLAM3_CONVENTION)
+    lines += _orbslam3_missing(accel)
+    return ('%YAML:1.0\n' + as_comments(lines) + '\nFile.version: "1.0"\n\n'
+            + _ORBSLAM3_CAMERA_TEMPLATE + '\n# --- IMU, from the log\n'
+            + _orbslam3_imu(ex, rate, accel) + _ORBSLAM3_REST)
 
 
 def gauss_markov_match(fit, taus_s):
@@ -218,8 +437,48 @@ def _gazebo_axis(item, rate, inflate, lsb):
     return lines
 
 
-def gazebo(calibration, inflate=1.0, rate_hz=None):
-    """Write a gz-sensors ``<imu>`` block: per-axis ``<noise>`` of ``<angular_velocity>``."""
+#: gz-sensors' dynamic bias is Gauss-Markov: the accelerometer's random walk K_a is written
+#: as sigma_b = K_a with this correlation time (a walk of K_a for tau << T; the value
+#: sdformat's noise.sdf calls typical), s.
+ACCEL_CORRELATION_TIME_S = 3600.0
+
+
+def _gazebo_accel(rate, accel):
+    """``<linear_acceleration>``: the figures given, or FILL_IN where sdformat reads a double."""
+    if accel is None:
+        # no double hyphen inside an XML comment: the options are named in the header
+        note = (f'      <!-- {NOT_MEASURED} (or give the accelerometer figures, see the top). '
+                'Left as is, sdformat reports "Invalid argument. Unable to set value [FILL_IN] '
+                'for key[stddev]." -->')
+        stddev = sigma_b = MARKER
+    else:
+        note = (f'      <!-- given by the user: N_a {_num(accel.noise_density_m_s2_sqrt_hz)} '
+                f'm/s^2/sqrt(Hz) x sqrt({rate:g} Hz); K_a '
+                f'{_num(accel.random_walk_m_s3_sqrt_hz)} m/s^3/sqrt(Hz) as a Gauss-Markov '
+                f'bias of correlation time {ACCEL_CORRELATION_TIME_S:g} s -->')
+        stddev = _num(units.density_to_sample_sigma(accel.noise_density_m_s2_sqrt_hz, rate))
+        sigma_b = _num(accel.random_walk_m_s3_sqrt_hz)
+    lines = ['  <linear_acceleration>']
+    for name in ('x', 'y', 'z'):
+        lines += [f'    <{name}>', note, '      <noise type="gaussian">',
+                  '        <mean>0.0</mean>', f'        <stddev>{stddev}</stddev>',
+                  '        <bias_mean>0.0</bias_mean>', '        <bias_stddev>0.0</bias_stddev>',
+                  f'        <dynamic_bias_stddev>{sigma_b}</dynamic_bias_stddev>',
+                  '        <dynamic_bias_correlation_time>'
+                  f'{_num(ACCEL_CORRELATION_TIME_S)}</dynamic_bias_correlation_time>',
+                  '      </noise>', f'    </{name}>']
+    return lines + ['  </linear_acceleration>']
+
+
+def gazebo(calibration, inflate=1.0, rate_hz=None, accel=None):
+    """
+    Write a gz-sensors ``<imu>`` block: per-axis ``<noise>`` of both vectors.
+
+    ``<linear_acceleration>`` holds the accelerometer figures given, or
+    ``FILL_IN`` where sdformat parses a double: it then reports "Unable to
+    set value [FILL_IN] for key[stddev]" (src/Param.cc) instead of
+    simulating a noise-free accelerometer, as a block without it would.
+    """
     export_noise(calibration, inflate)
     rate = _update_rate(calibration, rate_hz)
     convention = (_CONTINUOUS + f' gz-sensors adds stddev per sample at <update_rate> = '
@@ -227,8 +486,12 @@ def gazebo(calibration, inflate=1.0, rate_hz=None):
                   'process driven by dynamic_bias_stddev (steady sigma_b sqrt(T/2), a random '
                   'walk of K = sigma_b for tau << T). gz-sensors has no flicker (B) term: the '
                   'Gauss-Markov pair is fitted to the B and K part of the Allan curve.')
-    header = as_comments(noise_lines(calibration, None, 'gazebo', convention)
-                         + [f'Inflation factor: {inflate:g}'], style='xml')
+    header = as_comments(['gz-sensors imu element, a block, not a whole file: paste it into '
+                          'your <sensor type="imu"> (SDF 1.9 to 1.12 element names).']
+                         + noise_lines(calibration, None, 'gazebo', convention)
+                         + [f'Inflation factor: {inflate:g}']
+                         + ([] if accel else [f'Accelerometer: {NOT_MEASURED}, or give '
+                                              f'{ACCEL_OPTIONS}.']), style='xml')
     body = ['<imu>', '  <angular_velocity>']
     axes = {a.axis: a for a in calibration.axes}
     for name in ('x', 'y', 'z'):
@@ -237,13 +500,7 @@ def gazebo(calibration, inflate=1.0, rate_hz=None):
             body.append(f'    <!-- axis {name}: copied from axis {item.axis} (not in the '
                         'calibration) -->')
         body += _gazebo_axis(item, rate, inflate, calibration.lsb_rad_s)
-    body += ['  </angular_velocity>',
-             f'  <!-- linear_acceleration: {NOT_MEASURED}. Template:',
-             '  <linear_acceleration><x><noise type="gaussian"><mean>0</mean>'
-             f'<stddev>{MARKER}</stddev>',
-             f'    <dynamic_bias_stddev>{MARKER}</dynamic_bias_stddev>'
-             f'<dynamic_bias_correlation_time>{MARKER}</dynamic_bias_correlation_time>',
-             '  </noise></x> ... y, z ... </linear_acceleration> -->', '</imu>']
+    body += ['  </angular_velocity>'] + _gazebo_accel(rate, accel) + ['</imu>']
     return header + '\n'.join(body) + '\n'
 
 
@@ -255,7 +512,7 @@ def flicker_band(calibration):
     return low, high
 
 
-def preset(calibration, inflate=1.0, rate_hz=None):
+def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
     """
     Write this emulator's sensor YAML: the twin's N, B, K per axis, flicker band, LSB.
 
@@ -274,7 +531,9 @@ def preset(calibration, inflate=1.0, rate_hz=None):
     convention = (_CONTINUOUS + ' The emulator discretises exactly at the rate given to '
                   'simulate or the node: white sigma N / sqrt(dt), walk K sqrt(dt), flicker '
                   'as Gauss-Markov terms across bias_instability_band_s.')
-    lines = noise_lines(calibration, export_noise(calibration, inflate), 'preset', convention)
+    lines = ["gyro_emulator sensor YAML: a whole file (simulate --config FILE, the node's "
+             'sensor_config); a gyro model, so no accelerometer figures.']
+    lines += noise_lines(calibration, export_noise(calibration, inflate), 'preset', convention)
     lines += [f"Twin: the emulator's noise model (white + flicker over correlation times "
               f'{twin.band_s[0]:.3g} .. {twin.band_s[1]:.4g} s + rate random walk) fitted to '
               'the same Allan curves'
@@ -306,13 +565,19 @@ def preset(calibration, inflate=1.0, rate_hz=None):
 
 
 WRITERS = {'kalibr': kalibr, 'openvins': openvins, 'vins': vins, 'orbslam3': orbslam3,
-           'gazebo': gazebo, 'preset': preset}
+           'orbslam3-settings': orbslam3_settings, 'gazebo': gazebo, 'preset': preset}
 
 
-def write_noise(calibration, fmt, inflate=1.0, rate_hz=None):
-    """Return the text of format ``fmt`` (one of :data:`FORMATS`)."""
+def write_noise(calibration, fmt, inflate=1.0, rate_hz=None, accel=None):
+    """
+    Return the text of format ``fmt`` (one of :data:`FORMATS`).
+
+    ``accel`` (:class:`AccelFigures`, or None) gives the accelerometer
+    figures; without them each format leaves them so that its consumer
+    stops on them by name, and ``vins`` is refused (its consumer would not).
+    """
     if fmt not in WRITERS:
         raise ValueError(f'format = {fmt!r} is not allowed: choose {", ".join(FORMATS)}')
     if rate_hz is not None and not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
         raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
-    return WRITERS[fmt](calibration, inflate, rate_hz)
+    return WRITERS[fmt](calibration, inflate, rate_hz, accel)

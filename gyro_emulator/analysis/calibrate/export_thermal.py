@@ -6,7 +6,10 @@ Thermal exports: PX4 TC_G0_* and ArduPilot INS_TCAL1_* parameters, this emulator
   sensors module subtracts X0 + X1 d + X2 d^2 + X3 d^3 with d = T - TREF and
   T held within [TMIN, TMAX]; TREF is the middle of the range; values in
   rad/s per K^k. TC_G0_ID must be the gyro's device id, which a log does
-  not give: it is left as a marked comment.
+  not give: written from ``px4_gyro_id`` (an INT32 parameter, type 6, as
+  process_sensor_caldata.py writes it); without it the row is left out, the
+  file says so and the command warns (:data:`PX4_NO_ID`): PX4 applies
+  TC_G0_* only to the gyro whose device id is TC_G0_ID.
 * ``ardupilot``: ``NAME VALUE`` lines (as Tools/scripts/tempcal_IMU.py
   writes them). ArduPilot's AP_InertialSensor_tempcal.cpp subtracts
   p(T - 35) - p(T_cal - 35), p(d) = (GYR1 d + GYR2 d^2 + GYR3 d^3) 1e-6,
@@ -21,13 +24,18 @@ Thermal exports: PX4 TC_G0_* and ArduPilot INS_TCAL1_* parameters, this emulator
 
 from gyro_emulator import units
 from gyro_emulator.analysis.calibrate import yaml_text
-from gyro_emulator.analysis.calibrate.provenance import as_comments, MARKER, thermal_lines
+from gyro_emulator.analysis.calibrate.provenance import as_comments, thermal_lines
 from gyro_emulator.analysis.calibrate.thermal import AXES, polyfit_stats
 from gyro_emulator.analysis.calibrate.yaml_text import Figure, Flow
 from gyro_emulator.sensor.config import ErrorTerms
 import numpy as np
 
 FORMATS = ('px4', 'ardupilot', 'preset')
+#: The warning of a PX4 file written without the gyro's device id.
+PX4_NO_ID = ('TC_G0_ID is not in the PX4 file (no --px4-gyro-id): the thermal correction stays '
+             "off until TC_G0_ID is set to the gyro's device id (param show CAL_GYRO0_ID)")
+#: Largest PX4 INT32 parameter value.
+_INT32_MAX = 2 ** 31 - 1
 #: ArduPilot's fixed reference temperature (AP_InertialSensor_tempcal.cpp TEMP_REFERENCE), C.
 ARDUPILOT_TREF_C = 35.0
 #: ArduPilot stores its coefficients times this (SCALE_FACTOR).
@@ -62,23 +70,34 @@ def px4_params(fit):
     return params
 
 
-def px4(fit):
-    """Write the PX4 parameter file (module docstring)."""
+def _check_gyro_id(gyro_id):
+    if gyro_id is not None and not (isinstance(gyro_id, (int, np.integer))
+                                    and 0 < gyro_id <= _INT32_MAX):
+        raise ValueError(f'px4_gyro_id = {gyro_id!r} is out of range: allowed 1 .. {_INT32_MAX} '
+                         '(the device id PX4 shows as CAL_GYRO0_ID)')
+
+
+def px4(fit, gyro_id=None):
+    """Write the PX4 parameter file (module docstring); ``gyro_id`` becomes TC_G0_ID."""
     _require_three(fit, 'px4')
+    _check_gyro_id(gyro_id)
     convention = ('PX4 subtracts X0 + X1 d + X2 d^2 + X3 d^3, d = T - TC_G0_TREF with T held '
                   'within [TC_G0_TMIN, TC_G0_TMAX]; X_k in rad/s/K^k, temperatures in deg C '
                   '(TREF = middle of the range, as PX4 process_sensor_caldata.py sets it).')
     text = as_comments(thermal_lines(fit, 'px4', convention)
                        + ['Load with QGroundControl (Parameters > Tools > Load from file), then '
                           'reboot.',
-                          f'TC_G0_ID: {MARKER}: the device id of this gyro (param show '
-                          'CAL_GYRO0_ID); a log does not give it, and PX4 applies TC_G0_* only '
-                          'to the gyro with that id.',
+                          (f'TC_G0_ID = {gyro_id}: the device id given (--px4-gyro-id); PX4 '
+                           'applies TC_G0_* only to the gyro with that id.' if gyro_id else
+                           'Not written: TC_G0_ID (a log does not give the device id: give '
+                           '--px4-gyro-id, or set it after loading this file). Until it is set '
+                           'PX4 applies no thermal correction: it corrects only the gyro whose '
+                           'device id is TC_G0_ID.'),
                           'TC_A* (accelerometer): not measured by this gyro log; this file '
                           'leaves them unchanged.',
                           '',
                           'Vehicle-Id Component-Id Name Value Type'])
-    rows = [('TC_G_ENABLE', 1, 6)]
+    rows = [('TC_G_ENABLE', 1, 6)] + ([('TC_G0_ID', gyro_id, 6)] if gyro_id else [])
     rows += [(name, value, 9) for name, value in sorted(px4_params(fit).items())]
     return text + ''.join(f'1\t1\t{name}\t{_num(value) if kind == 9 else int(value)}\t{kind}\n'
                           for name, value, kind in rows)
@@ -190,10 +209,16 @@ def preset(fit):
     return as_comments(lines) + yaml_text.dump(data)
 
 
-def write_thermal(fit, fmt):
-    """Return the text of format ``fmt`` (one of :data:`FORMATS`); ``preset`` needs N, LSB."""
+def write_thermal(fit, fmt, px4_gyro_id=None):
+    """
+    Return the text of format ``fmt`` (one of :data:`FORMATS`); ``preset`` needs N, LSB.
+
+    ``px4_gyro_id`` (px4 only) is the gyro's device id, written as TC_G0_ID.
+    """
+    if px4_gyro_id is not None and fmt != 'px4':
+        raise ValueError(f'--px4-gyro-id is for --format px4, not {fmt}')
     if fmt == 'px4':
-        return px4(fit)
+        return px4(fit, px4_gyro_id)
     if fmt == 'ardupilot':
         return ardupilot(fit)
     if fmt == 'preset':

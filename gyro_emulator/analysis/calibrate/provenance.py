@@ -4,8 +4,9 @@ What every exported file says about where its numbers came from.
 Comment lines, one format-neutral list (:func:`noise_lines`,
 :func:`thermal_lines`) turned into ``#`` or XML comments by
 :func:`as_comments`. Fields the log cannot give (the accelerometer of a
-gyro log, a device id) are written as :data:`MARKER` with a comment, never
-as a made-up number.
+gyro log, a device id) are never a made-up number: each writer leaves them
+out or writes :data:`MARKER` where that makes its consumer stop and name
+the field, and says which in a comment.
 """
 
 from gyro_emulator import units

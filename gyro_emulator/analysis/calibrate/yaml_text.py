@@ -3,11 +3,41 @@ YAML text of the calibration exports: PyYAML writes the data, comments go around
 
 PyYAML writes no comments, so :func:`dump` adds a comment after the line of
 a key. Measured figures (:class:`Figure`) are written to 6 significant
-digits, each tagged as YAML reads its text back, so a file says what it
-held before: ``100`` an integer, ``2.31665e-05`` a float.
+digits as text that both readers of these files take as a float
+(:func:`float_text`): ``100.0``, ``1.0e-05``, ``2.31665e-05``. ``100`` would
+be an integer to ``cv::FileStorage`` (ORB-SLAM3 v1.0 stops on it), and
+``1e-05`` a *string* to PyYAML (YAML 1.1 floats need a dot and a signed
+exponent), hence to Kalibr.
 """
 
+import math
+
 import yaml
+
+
+def float_text(value, spec='.6g'):
+    """
+    Return ``value`` as ``format(value, spec)`` with a dot: a float to YAML 1.1 and OpenCV.
+
+    YAML 1.1's float pattern (PyYAML's resolver) needs a dot in the mantissa
+    and a sign in the exponent. ``cv::FileStorage`` reads that text as a real
+    (``FileNode::isReal()``). Python's exponent always carries a sign; the
+    dot is added where ``format`` leaves it out (``1e-05`` -> ``1.0e-05``,
+    ``100`` -> ``100.0``).
+
+    Raises
+    ------
+    ValueError
+        For a value that is not finite (no consumer of these files takes one).
+
+    """
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f'value = {value!r} is not finite: an exported figure must be')
+    mantissa, mark, exponent = format(value, spec).partition('e')
+    if '.' not in mantissa:
+        mantissa += '.0'
+    return mantissa + mark + exponent
 
 
 class Figure(float):
@@ -37,8 +67,8 @@ class _Dumper(yaml.SafeDumper):
 
 
 def _represent_figure(dumper, data):
-    text = format(float(data), data.spec)
-    # tagged as YAML resolves the plain text, so that no explicit tag is written
+    text = float_text(data, data.spec)
+    # tagged as YAML resolves the plain text (a float), so that no explicit tag is written
     return dumper.represent_scalar(dumper.resolve(yaml.ScalarNode, text, (True, False)), text)
 
 
