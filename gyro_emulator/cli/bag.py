@@ -39,7 +39,11 @@ def run(args):
     if args.action == 'info':
         reader = bag.BagReader(args.bag, tolerant=True)
         print(reader.info_text())
+        shown = len(reader.problems)
         corrupt, lost = reader.verify()
+        for note in reader.problems[shown:]:
+            if not note.startswith(tuple(c['file'] + ': corrupt chunk' for c in corrupt)):
+                print(f'Notice:           {note}')
         for chunk in corrupt:
             count = '?' if chunk['messages'] is None else chunk['messages']
             print(f'Corrupt chunk:    {chunk["file"]} byte {chunk["offset"]}, log time '

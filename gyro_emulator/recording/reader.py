@@ -341,7 +341,10 @@ class BagReader:
         sound bag).
     corrupt_chunks : list of dict
         Chunks skipped while reading: ``file``, ``offset`` (byte),
-        ``start_ns``/``end_ns`` (the log-time range lost) and ``reason``.
+        ``start_ns``/``end_ns`` (the log-time range lost), ``messages`` (the
+        count its message indexes give, None if unreadable) and ``reason``.
+    repeated_messages : int
+        Messages found repeated by :meth:`verify` (a chunk written twice).
 
     """
 
@@ -372,27 +375,36 @@ class BagReader:
             i.scan.describe() for i in self._infos
             if not i.complete or (i.scan is not None and not i.scan.sound)]
         self.corrupt_chunks = []
+        self.repeated_messages = 0
 
     def verify(self):
         """
         Read every chunk of every file once, checking CRCs; return what is lost.
 
         Returns ``(corrupt_chunks, messages_lost)``: the chunks that cannot
-        be read (as :attr:`corrupt_chunks`, with their log-time ranges) and
-        the number of messages the summaries count but no chunk delivers.
-        Files without a summary are scanned; their losses are in
-        :attr:`problems`.
+        be read (as :attr:`corrupt_chunks`, with their log-time ranges and
+        message counts) and the number of messages the summaries count but
+        no intact chunk delivers. Files without a summary, and files whose
+        chunks overlap in time, are scanned: their losses and repeated
+        messages are in :attr:`problems`, the repeats also in
+        :attr:`repeated_messages`.
         """
         read = 0
         for info in self._infos:
-            if info.summary is None or not info.summary.chunk_indexes:
-                read += sum(1 for _ in self._file_messages(info, None, None, None))
+            if (info.summary is not None and info.summary.chunk_indexes
+                    and _chunks_in_order(info.summary) is not None):
+                with open(info.path, 'rb') as handle:
+                    read += sum(1 for _ in _iter_chunk_messages(
+                        handle, info.summary, list(info.summary.chunk_indexes), None, None,
+                        None, self._corrupt_handler(info.path, collect=True)))
                 continue
-            with open(info.path, 'rb') as handle:
-                read += sum(1 for _ in _iter_chunk_messages(
-                    handle, info.summary, list(info.summary.chunk_indexes), None, None, None,
-                    self._corrupt_handler(info.path, collect=True)))
-        return list(self.corrupt_chunks), max(0, self.message_count - read)
+            report = ScanReport(info.path)
+            read += sum(1 for r in scan_mcap(info.path, report) if isinstance(r, Message))
+            self.repeated_messages += report.repeated_messages
+            if not report.sound and report.describe() not in self.problems:
+                self.problems.append(report.describe())
+        lost = self.message_count - read - self.repeated_messages
+        return list(self.corrupt_chunks), max(0, lost)
 
     def _corrupt_handler(self, path, collect=False):
         """Return the ``on_corrupt`` callback of one file: record and skip, or raise."""

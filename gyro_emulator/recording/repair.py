@@ -171,8 +171,9 @@ def _needs_rewrite(source, report):
         info = index_file(source, tolerant=False)
     except ValueError:
         return None, None
-    corrupt, lost = BagReader(source).verify()
-    if corrupt or lost:
+    reader = BagReader(source)
+    corrupt, lost = reader.verify()
+    if corrupt or lost or reader.repeated_messages:
         report.corrupt.extend(corrupt)
         return None, info.message_count
     return info, info.message_count
@@ -196,8 +197,8 @@ def _repair_file(source, target, backup, compression, expected, report):
     scan, info = _rewrite(source, tmp, compression)
     report.scans.append(scan)
     counted = counted if counted is not None else expected
-    if counted is not None and counted > scan.messages:
-        report.lost_messages += counted - scan.messages
+    if counted is not None and counted > scan.messages + scan.repeated_messages:
+        report.lost_messages += counted - scan.messages - scan.repeated_messages
     if target == source and backup:
         kept = _keep_original(source)
         if kept:
