@@ -32,7 +32,7 @@ def _write(path, count=2000, chunk_size=8192):
 
 @pytest.fixture(scope='module')
 def original(tmp_path_factory):
-    """A sound bag and its messages read back (log times and payloads)."""
+    """Return a sound bag and its messages read back (log times and payloads)."""
     path = str(tmp_path_factory.mktemp('integrity') / 'orig')
     _write(path)
     return path, _messages(path)

@@ -169,7 +169,7 @@ class Repeats:
         self._keys = []
         self._max_end = None
 
-    def filter(self, chunk, messages):
+    def drop(self, chunk, messages):
         """Return ``(kept messages, repeated count, whole chunk repeated)``."""
         key = (chunk.message_start_time, chunk.message_end_time, chunk.uncompressed_size,
                chunk.compression, len(chunk.data), zlib.crc32(chunk.data))
@@ -258,7 +258,7 @@ def _resync(handle, report, position, size, why):
 def _drop_repeats(repeats, chunk, records, report):
     """Return the records of ``chunk`` without repeated messages, counted in ``report``."""
     messages = [r for r in records if isinstance(r, Message)]
-    kept, repeated, _ = repeats.filter(chunk, messages)
+    kept, repeated, _ = repeats.drop(chunk, messages)
     if not repeated:
         return records
     report.repeated_messages += repeated
