@@ -26,7 +26,8 @@ CHECKED = {'mcap': '1.6.0', 'mcap-ros2-support': '0.6.0'}
 #: Every symbol the package imports from mcap (grep 'from mcap' gyro_emulator/).
 SYMBOLS = [('mcap.data_stream', 'RecordBuilder'), ('mcap.data_stream', 'ReadDataStream'),
            ('mcap.opcode', 'Opcode'), ('mcap.stream_reader', 'breakup_chunk'),
-           ('mcap.reader', 'make_reader'), ('mcap_ros2.decoder', 'DecoderFactory')] + [
+           ('mcap.reader', 'make_reader'), ('mcap_ros2.decoder', 'DecoderFactory'),
+           ('mcap.exceptions', 'McapError')] + [
     ('mcap.records', name) for name in (
         'Channel', 'Chunk', 'ChunkIndex', 'DataEnd', 'Footer', 'Header', 'Message',
         'Metadata', 'MetadataIndex', 'Schema', 'Statistics', 'SummaryOffset')]
@@ -144,3 +145,36 @@ def test_a_chunk_round_trips_through_builder_stream_and_breakup():
     assert isinstance(message, Message)
     assert (message.channel_id, message.sequence, message.log_time, message.publish_time,
             message.data) == (3, 7, 10, 11, payload)
+
+
+def test_the_library_errors_derive_from_mcap_error():
+    """The reader turns McapError (EndOfFile, InvalidMagic, ...) into one-line ValueErrors."""
+    from mcap import exceptions
+    for name in ('EndOfFile', 'InvalidMagic', 'RecordLengthLimitExceeded'):
+        assert issubclass(getattr(exceptions, name), exceptions.McapError)
+
+
+def test_the_hand_packed_footer_and_chunk_heads_match_the_library(tmp_path):
+    """The summary CRC check and the chunk resync read the library's layout and CRC rule."""
+    from gyro_emulator.recording.scan import _intact_chunk_at, summary_crc_problem
+    from mcap.writer import Writer
+    path = tmp_path / 'library.mcap'
+    with open(path, 'wb') as handle:
+        writer = Writer(handle)
+        writer.start('ros2', 'test')
+        schema = writer.register_schema('s', 'ros2msg', b'float64 x')
+        channel = writer.register_channel('/t', 'cdr', schema)
+        for i in range(100):
+            writer.add_message(channel, log_time=i, data=b'\x00\x01\x00\x00' + bytes(8),
+                               publish_time=i)
+        writer.finish()
+    data = path.read_bytes()
+    with open(path, 'rb') as handle:
+        assert summary_crc_problem(handle, len(data)) is None
+    chunk_at = data.index(bytes([6]), 8)
+    assert _intact_chunk_at(data, chunk_at, chunk_at, len(data))
+    flipped = bytearray(data)
+    flipped[-20] ^= 1                          # inside the footer's summary_offset_start
+    path.write_bytes(bytes(flipped))
+    with open(path, 'rb') as handle:
+        assert 'CRC mismatch' in summary_crc_problem(handle, len(flipped))

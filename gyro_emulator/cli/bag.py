@@ -4,10 +4,13 @@ Inspect and repair rosbag2 MCAP bags.
   gyro-emulator bag info DIR          topics, counts, duration (like ros2 bag info)
   gyro-emulator bag repair DIR        recover a bag whose recorder was killed
 
-``repair`` scans every .mcap file that lacks its summary or footer, rewrites
-it with all the messages it can recover (the original is kept as
+``info`` reads every chunk once and reports what is damaged: corrupt
+chunks with their message counts, messages the summary counts that no
+intact chunk holds, a summary failing its CRC, repeated chunks.
+``repair`` rewrites every .mcap file that lacks a trustworthy summary or
+footer with all the messages it can recover (the original is kept as
 ``<file>.orig`` unless ``--no-backup``) and regenerates ``metadata.yaml``.
-It reports what was recovered and what was discarded.
+Both report what was recovered and what was lost.
 """
 
 HELP = 'inspect (info) or recover (repair) a rosbag2 MCAP bag'
@@ -36,13 +39,20 @@ def run(args):
     if args.action == 'info':
         reader = bag.BagReader(args.bag, tolerant=True)
         print(reader.info_text())
+        shown = len(reader.problems)
         corrupt, lost = reader.verify()
+        for note in reader.problems[shown:]:
+            if not note.startswith(tuple(c['file'] + ': corrupt chunk' for c in corrupt)):
+                print(f'Notice:           {note}')
         for chunk in corrupt:
+            count = '?' if chunk['messages'] is None else chunk['messages']
             print(f'Corrupt chunk:    {chunk["file"]} byte {chunk["offset"]}, log time '
-                  f'{chunk["start_ns"]}..{chunk["end_ns"]} ns ({chunk["reason"]})')
-        if corrupt:
-            print(f'Messages lost:    {lost} of {reader.message_count}')
-        if reader.problems or corrupt:
+                  f'{chunk["start_ns"]}..{chunk["end_ns"]} ns, {count} messages '
+                  f'({chunk["reason"]})')
+        if lost:
+            print(f'Messages lost:    {lost} of {reader.message_count} (counted, but in no '
+                  'intact chunk)')
+        if reader.problems or corrupt or lost:
             print(f'run: gyro-emulator bag repair {args.bag}')
         return 0
     report = bag.repair_bag(args.bag, out_dir=args.out, backup=not args.no_backup)

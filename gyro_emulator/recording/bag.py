@@ -9,8 +9,10 @@ The implementation lives in small modules beside this one:
 - :mod:`.metadata` -- QoS profiles, ``metadata.yaml``, topic and file info;
 - :mod:`.mcap_writer` -- the crash-safe MCAP file writer;
 - :mod:`.writer` -- :class:`BagWriter`, a bag directory;
+- :mod:`.files` -- ``metadata.yaml`` read as untrusted input, the files of a bag;
 - :mod:`.reader` -- :class:`BagReader`, messages and decoded columns;
-- :mod:`.scan` -- the tolerant record scanner :func:`scan_mcap`;
+- :mod:`.scan` -- the tolerant record scanner :func:`scan_mcap` (summary CRC,
+  resync past damage, repeated chunks dropped);
 - :mod:`.repair` -- :func:`repair_bag`.
 
 All times are integer nanoseconds (``log_time`` is the receive time,

@@ -289,6 +289,16 @@ class McapFileWriter:
         finally:
             self._file.close()
 
+    def abort(self):
+        """Close the file without a summary (after a write failed); the caller removes it."""
+        if self.finished:
+            return
+        self.finished = True
+        try:
+            self._file.close()
+        except OSError:
+            pass
+
     def topic_records(self):
         """Return [(Channel, Schema, count)] in channel id order."""
         return [(s.channel, s.schema, s.count) for s in self._channels.values()]

@@ -59,9 +59,14 @@ def load_qos(text):
 
 def write_text_atomic(path, text):
     tmp = path + '.tmp'
-    with open(tmp, 'w', encoding='utf-8') as handle:
-        handle.write(text)
-        handle.flush()
+    try:
+        with open(tmp, 'w', encoding='utf-8') as handle:
+            handle.write(text)
+            handle.flush()
+    except BaseException:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
     os.replace(tmp, path)
 
 

@@ -8,16 +8,18 @@ from typing import NamedTuple
 import zlib
 
 from gyro_emulator.recording import cdr
+from gyro_emulator.recording.files import resolve_bag
 from gyro_emulator.recording.mcap_writer import RECORD_HEAD
-from gyro_emulator.recording.metadata import FileInfo, METADATA_FILE, topic_from, TopicInfo
-from gyro_emulator.recording.scan import scan_mcap, ScanReport
+from gyro_emulator.recording.metadata import FileInfo, topic_from, TopicInfo
+from gyro_emulator.recording.scan import scan_mcap, ScanReport, summary_crc_problem
 import lz4.frame
 from mcap.data_stream import ReadDataStream
+from mcap.exceptions import McapError
+from mcap.opcode import Opcode
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, Message, Metadata, Schema
 from mcap_ros2.decoder import DecoderFactory
 import numpy as np
-import yaml
 import zstandard
 
 
@@ -81,40 +83,9 @@ class TopicArrays:
 
 
 def resolve_files(path):
-    """Return (bag_dir, [mcap files], metadata dict or None)."""
-    path = os.path.abspath(path)
-    if os.path.isfile(path):
-        if path.endswith(METADATA_FILE):
-            path = os.path.dirname(path)
-        else:
-            return os.path.dirname(path), [path], None
-    if not os.path.isdir(path):
-        raise FileNotFoundError(f'no bag at {path} (expected a bag directory or .mcap file)')
-    meta = None
-    meta_path = os.path.join(path, METADATA_FILE)
-    if os.path.isfile(meta_path):
-        try:
-            with open(meta_path, encoding='utf-8') as handle:
-                loaded = yaml.safe_load(handle)
-            meta = loaded['rosbag2_bagfile_information']
-        except (yaml.YAMLError, KeyError, TypeError) as exc:
-            raise ValueError(f'{meta_path} is not rosbag2 metadata: {exc}') from None
-    files = []
-    if meta is not None and meta.get('relative_file_paths'):
-        for rel in meta['relative_file_paths']:
-            full = os.path.realpath(os.path.join(path, str(rel)))
-            if os.path.isabs(str(rel)) or os.path.commonpath(
-                    [full, os.path.realpath(path)]) != os.path.realpath(path):
-                raise ValueError(f'{meta_path} lists {rel!r}, which is outside the bag '
-                                 'directory: allowed file names inside it only')
-            if not os.path.isfile(full):
-                raise FileNotFoundError(f'{meta_path} lists {rel}, which is missing')
-            files.append(full)
-    else:
-        files = sorted(os.path.join(path, n) for n in os.listdir(path) if n.endswith('.mcap'))
-    if not files:
-        raise FileNotFoundError(f'no .mcap file in bag directory {path}')
-    return path, files, meta
+    """Return (bag_dir, [mcap files], metadata dict or None) (see :func:`resolve_bag`)."""
+    found = resolve_bag(path)
+    return found.bag_dir, found.files, found.metadata
 
 
 def index_file(path, tolerant):
@@ -122,6 +93,10 @@ def index_file(path, tolerant):
     problem = None
     try:
         with open(path, 'rb') as handle:
+            problem = summary_crc_problem(handle, os.fstat(handle.fileno()).st_size)
+            if problem is not None:
+                raise ValueError(problem)
+            handle.seek(0)
             reader = make_reader(handle)
             summary = reader.get_summary()
             if summary is not None and summary.statistics is not None:
@@ -154,6 +129,10 @@ def index_file(path, tolerant):
             channels[record.id] = record
         elif isinstance(record, Metadata) and record.name == 'gyro_emulator':
             custom = dict(record.metadata)
+    if report.summary_problem and not tolerant:
+        raise ValueError(
+            f'{path}: {report.summary_problem}: the summary cannot be trusted. Read it '
+            f'tolerantly or rebuild it with: gyro-emulator bag repair {os.path.dirname(path)}')
     if not report.complete and not tolerant:
         raise ValueError(
             f'{path} is an incomplete MCAP file ({report.problem or problem}); the '
@@ -162,7 +141,8 @@ def index_file(path, tolerant):
     topics = {c.topic: topic_from(c, schemas.get(c.schema_id), counts.get(cid, 0))
               for cid, c in channels.items()}
     return FileInfo(path, topics, sum(counts.values()), start or 0, max(end, start or 0),
-                    complete=report.complete, custom_data=custom, scan=report)
+                    complete=report.complete and not report.summary_problem,
+                    custom_data=custom, scan=report)
 
 
 def _decompressor(compression):
@@ -177,13 +157,47 @@ def _decompressor(compression):
 
 
 def _chunks_in_order(summary):
-    """Return the chunk indexes sorted by start time if they do not overlap, else None."""
-    chunks = sorted(summary.chunk_indexes, key=lambda c: (c.message_start_time,
-                                                          c.chunk_start_offset))
+    """
+    Return the chunk indexes sorted by start time if they do not overlap, else None.
+
+    An index listed twice (the same chunk offset) counts once; two indexes
+    of the same time range and sizes at different offsets (a chunk written
+    twice) overlap, so the file is read by the scanner, which drops repeats.
+    """
+    chunks = sorted({c.chunk_start_offset: c for c in summary.chunk_indexes}.values(),
+                    key=lambda c: (c.message_start_time, c.chunk_start_offset))
     for before, after in zip(chunks, chunks[1:]):
-        if after.message_start_time < before.message_end_time:
+        if after.message_start_time < before.message_end_time or (
+                (after.message_start_time, after.message_end_time, after.compressed_size)
+                == (before.message_start_time, before.message_end_time,
+                    before.compressed_size)):
             return None
     return chunks
+
+
+def indexed_message_count(handle, index, channel_ids=None):
+    """
+    Return the messages the message indexes of one chunk list, or None if they are unreadable.
+
+    Counts the entries of the MessageIndex records after the chunk (16
+    bytes each: log time and offset), for ``channel_ids`` or all channels.
+    """
+    total = 0
+    for cid, offset in index.message_index_offsets.items():
+        if channel_ids is not None and cid not in channel_ids:
+            continue
+        try:
+            handle.seek(offset)
+            opcode, length, channel, size = _INDEX_HEAD.unpack(handle.read(_INDEX_HEAD.size))
+        except (OSError, ValueError, struct.error):
+            return None
+        if opcode != Opcode.MESSAGE_INDEX or channel != cid or size % 16 or length != size + 6:
+            return None
+        total += size // 16
+    return total
+
+
+_INDEX_HEAD = struct.Struct('<BQHI')
 
 
 def _iter_chunk_messages(handle, summary, chunks, channel_ids, start_ns, end_ns,
@@ -220,15 +234,25 @@ def _iter_chunk_messages(handle, summary, chunks, channel_ids, start_ns, end_ns,
 
 #: What a damaged chunk raises on its way through the decoders.
 _CHUNK_ERRORS = (ValueError, KeyError, IndexError, EOFError, struct.error, OSError,
-                 RuntimeError, MemoryError, OverflowError)
+                 RuntimeError, MemoryError, OverflowError, McapError)
 
 
 def _chunk_messages(handle, index, decompressors, channel_ids, start_ns, end_ns):
     """Return the wanted messages of one chunk, in log-time order; raise if it is damaged."""
     unpack_head = RECORD_HEAD.unpack_from
     unpack_msg = _MESSAGE_FIELDS.unpack_from
-    handle.seek(index.chunk_start_offset + 9)
+    handle.seek(index.chunk_start_offset)
+    opcode, length = unpack_head(handle.read(9))
+    if opcode != Opcode.CHUNK or length != index.chunk_length - 9:
+        raise ValueError(f'the record head (opcode 0x{opcode:02x}, {length} bytes) is not '
+                         f'the chunk its index lists ({index.chunk_length - 9} bytes)')
     record = Chunk.read(ReadDataStream(handle))
+    if ((record.message_start_time, record.message_end_time, record.uncompressed_size,
+         record.compression, len(record.data))
+            != (index.message_start_time, index.message_end_time, index.uncompressed_size,
+                index.compression, index.compressed_size)):
+        raise ValueError('the chunk header does not match its index (times, sizes or '
+                         'compression differ)')
     decompress = decompressors.get(record.compression)
     if decompress is None:
         decompress = decompressors[record.compression] = _decompressor(record.compression)
@@ -276,6 +300,21 @@ def _library_messages(path, topics, start_ns, end_ns):
                              'read it tolerantly or run gyro-emulator bag repair') from None
 
 
+def _library_decoded(path, factory, topics, start_ns, end_ns):
+    """Yield ``(BagMessage, decoded)`` of a complete file through the mcap library."""
+    with open(path, 'rb') as handle:
+        reader = make_reader(handle, decoder_factories=[factory])
+        try:
+            for schema, channel, msg, decoded in reader.iter_decoded_messages(
+                    topics=topics, starting_at=start_ns, ending_before=end_ns):
+                yield BagMessage(channel.topic, schema.name if schema else '',
+                                 msg.log_time, msg.publish_time, msg.data,
+                                 msg.sequence), decoded
+        except (McapError, struct.error, EOFError) as exc:
+            raise ValueError(f'{path}: unreadable data ({type(exc).__name__}: {exc}); '
+                             'read it tolerantly or run gyro-emulator bag repair') from None
+
+
 class BagReader:
     """
     Read a rosbag2 MCAP bag directory (or a single .mcap file).
@@ -302,12 +341,17 @@ class BagReader:
         sound bag).
     corrupt_chunks : list of dict
         Chunks skipped while reading: ``file``, ``offset`` (byte),
-        ``start_ns``/``end_ns`` (the log-time range lost) and ``reason``.
+        ``start_ns``/``end_ns`` (the log-time range lost), ``messages`` (the
+        count its message indexes give, None if unreadable) and ``reason``.
+    repeated_messages : int
+        Messages found repeated by :meth:`verify` (a chunk written twice).
 
     """
 
     def __init__(self, path, tolerant=False):
-        self.path, self.files, self.metadata = resolve_files(path)
+        found = resolve_bag(path)
+        self.path, self.metadata = found.bag_dir, found.metadata
+        self.files = [found.leftovers.get(f, f) for f in found.files]
         self.tolerant = tolerant
         self._infos = [index_file(f, tolerant) for f in self.files]
         self.topics = {}
@@ -327,36 +371,48 @@ class BagReader:
         for info in self._infos:
             for key, value in info.custom_data.items():
                 self.custom_data.setdefault(key, value)
-        self.problems = [i.scan.describe() for i in self._infos if not i.complete]
+        self.problems = list(found.notes) + [
+            i.scan.describe() for i in self._infos
+            if not i.complete or (i.scan is not None and not i.scan.sound)]
         self.corrupt_chunks = []
+        self.repeated_messages = 0
 
     def verify(self):
         """
         Read every chunk of every file once, checking CRCs; return what is lost.
 
         Returns ``(corrupt_chunks, messages_lost)``: the chunks that cannot
-        be read (as :attr:`corrupt_chunks`, with their log-time ranges) and
-        the number of messages the summaries count but no chunk delivers.
-        Files without a summary are scanned; their losses are in
-        :attr:`problems`.
+        be read (as :attr:`corrupt_chunks`, with their log-time ranges and
+        message counts) and the number of messages the summaries count but
+        no intact chunk delivers. Files without a summary, and files whose
+        chunks overlap in time, are scanned: their losses and repeated
+        messages are in :attr:`problems`, the repeats also in
+        :attr:`repeated_messages`.
         """
         read = 0
         for info in self._infos:
-            if info.summary is None or not info.summary.chunk_indexes:
-                read += sum(1 for _ in self._file_messages(info, None, None, None))
+            if (info.summary is not None and info.summary.chunk_indexes
+                    and _chunks_in_order(info.summary) is not None):
+                with open(info.path, 'rb') as handle:
+                    read += sum(1 for _ in _iter_chunk_messages(
+                        handle, info.summary, list(info.summary.chunk_indexes), None, None,
+                        None, self._corrupt_handler(info.path, collect=True)))
                 continue
-            with open(info.path, 'rb') as handle:
-                read += sum(1 for _ in _iter_chunk_messages(
-                    handle, info.summary, list(info.summary.chunk_indexes), None, None, None,
-                    self._corrupt_handler(info.path, collect=True)))
-        return list(self.corrupt_chunks), max(0, self.message_count - read)
+            report = ScanReport(info.path)
+            read += sum(1 for r in scan_mcap(info.path, report) if isinstance(r, Message))
+            self.repeated_messages += report.repeated_messages
+            if not report.sound and report.describe() not in self.problems:
+                self.problems.append(report.describe())
+        lost = self.message_count - read - self.repeated_messages
+        return list(self.corrupt_chunks), max(0, lost)
 
     def _corrupt_handler(self, path, collect=False):
         """Return the ``on_corrupt`` callback of one file: record and skip, or raise."""
         def on_corrupt(index, reason):
             lost = {'file': os.path.basename(path), 'offset': int(index.chunk_start_offset),
                     'start_ns': int(index.message_start_time),
-                    'end_ns': int(index.message_end_time), 'reason': reason}
+                    'end_ns': int(index.message_end_time), 'reason': reason,
+                    'messages': None}
             span = (f'{(lost["start_ns"] - self.start_time_ns) / 1e9:.3f}..'
                     f'{(lost["end_ns"] - self.start_time_ns) / 1e9:.3f} s')
             if not (self.tolerant or collect):
@@ -364,11 +420,24 @@ class BagReader:
                                  f'(messages of {span} after the start): {reason}')
             if all(c['offset'] != lost['offset'] or c['file'] != lost['file']
                    for c in self.corrupt_chunks):
+                with open(path, 'rb') as handle:
+                    lost['messages'] = indexed_message_count(handle, index)
+                count = ('an unknown number of' if lost['messages'] is None
+                         else lost['messages'])
                 self.corrupt_chunks.append(lost)
                 self.problems.append(f'{lost["file"]}: corrupt chunk at byte '
-                                     f'{lost["offset"]} skipped, messages of {span} '
+                                     f'{lost["offset"]} skipped, {count} messages of {span} '
                                      f'after the start lost ({reason})')
         return on_corrupt
+
+    def _check_count(self, topic, count, start_ns, end_ns):
+        """Note a whole-topic read that gives other than the summary's count."""
+        expected = self.topics[topic].message_count
+        if start_ns is None and end_ns is None and count != expected:
+            note = (f'{topic}: read {count} of the {expected} messages the bag counts'
+                    f'{"" if count < expected else " (more than it holds)"}')
+            if note not in self.problems:
+                self.problems.append(note)
 
     @property
     def complete(self):
@@ -434,11 +503,9 @@ class BagReader:
                 schemas[record.id] = record
             elif isinstance(record, Channel):
                 channels[record.id] = record
-        if report.bad_chunks:
-            note = (f'{os.path.basename(info.path)}: skipped {report.bad_chunks} corrupt '
-                    f'chunk(s) ({report.problem})')
-            if note not in self.problems:
-                self.problems.append(note)
+        note = report.describe()
+        if not report.sound and note not in self.problems:
+            self.problems.append(note)
 
     def messages(self, topics=None, start_ns=None, end_ns=None):
         """
@@ -472,13 +539,7 @@ class BagReader:
         factory = DecoderFactory()
         for info in self._infos:
             if info.complete and info.scan is None:
-                with open(info.path, 'rb') as handle:
-                    reader = make_reader(handle, decoder_factories=[factory])
-                    for schema, channel, msg, decoded in reader.iter_decoded_messages(
-                            topics=topics, starting_at=start_ns, ending_before=end_ns):
-                        yield BagMessage(channel.topic, schema.name if schema else '',
-                                         msg.log_time, msg.publish_time, msg.data,
-                                         msg.sequence), decoded
+                yield from _library_decoded(info.path, factory, topics, start_ns, end_ns)
                 continue
             decoders, schemas = {}, {}
             for item in self._file_messages(info, topics, start_ns, end_ns):
@@ -523,6 +584,7 @@ class BagReader:
             for item in self.messages(topic, start_ns, end_ns):
                 times.append(item.log_time_ns)
                 payloads.append(item.data)
+        self._check_count(topic, len(times), start_ns, end_ns)
         return TopicArrays(topic, np.asarray(times, dtype=np.int64),
                            cdr.decode(type_name, payloads))
 
@@ -544,7 +606,7 @@ class BagReader:
             t = self.topics[name]
             lines.append(f'  {name:<{width}}  {t.type_name:<34} {t.message_count:>9} msgs')
         for note in self.problems:
-            lines.append(f'Incomplete:       {note}')
+            lines.append(f'Notice:           {note}')
         if self.metadata is None:
             lines.append('Note:             metadata.yaml is missing '
                          '(gyro-emulator bag repair writes it)')

@@ -9,10 +9,11 @@ from dataclasses import dataclass, field
 import os
 import shutil
 
+from gyro_emulator.recording.files import BACKUP, REPAIR_TMP, resolve_bag
 from gyro_emulator.recording.mcap_writer import McapFileWriter
 from gyro_emulator.recording.metadata import (file_info_from_writer, METADATA_FILE, metadata_yaml,
                                               write_text_atomic)
-from gyro_emulator.recording.reader import BagReader, index_file, resolve_files
+from gyro_emulator.recording.reader import BagReader, index_file
 from gyro_emulator.recording.scan import scan_mcap, ScanReport
 from mcap.records import Channel, Message, Metadata, Schema
 
@@ -41,7 +42,12 @@ class RepairReport:
         be decompressed (``BagReader.corrupt_chunks`` entries: file, byte
         offset, log-time range, reason); those files are rewritten without them.
     lost_messages : int
-        Messages of those chunks, lost.
+        Messages the file counted (its summary, else ``metadata.yaml``) that
+        could not be recovered: those of the corrupt chunks, or of chunks
+        whose header was destroyed.
+    notes : list of str
+        What else was found and done (a file listed twice, a malformed
+        ``metadata.yaml`` replaced, a file restored after an interrupted repair).
 
     """
 
@@ -54,6 +60,7 @@ class RepairReport:
     end_time_ns: int = 0
     corrupt: list = field(default_factory=list)
     lost_messages: int = 0
+    notes: list = field(default_factory=list)
 
     @property
     def message_count(self):
@@ -62,13 +69,14 @@ class RepairReport:
 
     def describe(self):
         """Return a human summary, one line per file and per topic."""
-        lines = [s.describe() for s in self.scans]
+        lines = list(self.notes) + [s.describe() for s in self.scans]
         for chunk in self.corrupt:
             lines.append(f'{chunk["file"]}: corrupt chunk at byte {chunk["offset"]} (log time '
                          f'{chunk["start_ns"]}..{chunk["end_ns"]} ns, {chunk["reason"]}) dropped')
-        if self.corrupt:
-            lines.append(f'{self.lost_messages} messages lost in {len(self.corrupt)} '
-                         'corrupt chunk(s)')
+        if self.lost_messages or self.corrupt:
+            lines.append(f'{self.lost_messages} messages lost'
+                         f'{f" in {len(self.corrupt)} corrupt chunk(s)" if self.corrupt else ""}'
+                         ': the file counted them, no intact chunk holds them')
         if self.rewritten:
             lines.append('rewrote ' + ', '.join(os.path.basename(p) for p in self.rewritten)
                          + ' with summary and footer')
@@ -106,21 +114,118 @@ def _rewrite(source, target, compression):
             elif isinstance(record, Metadata) and record.name == 'gyro_emulator':
                 custom = dict(record.metadata)
                 writer.add_metadata(record.name, record.metadata)
-    finally:
         writer.finish()
+    except BaseException:
+        _discard(writer, target)
+        raise
     info = file_info_from_writer(writer)
     info.custom_data = custom
     return report, info
 
 
+def _discard(writer, path):
+    """Close a failed writer and remove its file (a full disk, a file size limit)."""
+    writer.abort()
+    try:
+        os.remove(path)
+    except OSError:
+        pass
+
+
+def _keep_original(source):
+    """Keep ``source`` as ``<source>.orig`` without ever leaving the bag without ``source``."""
+    backup = source + BACKUP
+    if os.path.exists(backup):
+        return None                 # an earlier repair's backup: the older original
+    try:
+        os.link(source, backup)     # atomic; source stays in place
+    except OSError:
+        shutil.copy2(source, backup + '.tmp')
+        os.replace(backup + '.tmp', backup)
+    return backup
+
+
+def _restore(full, stand_in, report):
+    """Put back ``full`` from what an interrupted repair left (its finished temp or original)."""
+    if stand_in.endswith(REPAIR_TMP):
+        os.replace(stand_in, full)
+    else:
+        shutil.copy2(stand_in, full + REPAIR_TMP)
+        os.replace(full + REPAIR_TMP, full)
+    report.notes.append(f'{os.path.basename(full)} was missing after an interrupted repair: '
+                        f'restored it from {os.path.basename(stand_in)}')
+
+
+def _counted(meta, source, bag_dir):
+    """Return the message count ``metadata.yaml`` gives ``source``, or None."""
+    for item in (meta or {}).get('files') or ():
+        if item.get('path') == os.path.relpath(source, bag_dir) and isinstance(
+                item.get('message_count'), int) and not isinstance(item['message_count'], bool):
+            return item['message_count']
+    return None
+
+
+def _needs_rewrite(source, report):
+    """Return (FileInfo or None, messages its summary counts or None); None means rewrite."""
+    try:
+        info = index_file(source, tolerant=False)
+    except ValueError:
+        return None, None
+    reader = BagReader(source)
+    corrupt, lost = reader.verify()
+    if corrupt or lost or reader.repeated_messages:
+        report.corrupt.extend(corrupt)
+        return None, info.message_count
+    return info, info.message_count
+
+
+def _repair_file(source, target, backup, compression, expected, report):
+    """Repair one MCAP file into ``target``; return its FileInfo."""
+    info, counted = _needs_rewrite(source, report)
+    if info is not None:
+        scan = ScanReport(source, size_bytes=os.path.getsize(source),
+                          good_bytes=os.path.getsize(source), complete=True,
+                          messages=info.message_count)
+        if target != source:
+            shutil.copyfile(source, target)
+            info.path = target
+        elif os.path.exists(source + REPAIR_TMP):
+            os.remove(source + REPAIR_TMP)
+        report.scans.append(scan)
+        return info
+    tmp = target + REPAIR_TMP
+    scan, info = _rewrite(source, tmp, compression)
+    report.scans.append(scan)
+    counted = counted if counted is not None else expected
+    if counted is not None and counted > scan.messages + scan.repeated_messages:
+        report.lost_messages += counted - scan.messages - scan.repeated_messages
+    if target == source and backup:
+        kept = _keep_original(source)
+        if kept:
+            report.backups.append(kept)
+    os.replace(tmp, target)
+    info.path = target
+    report.rewritten.append(target)
+    return info
+
+
 def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
     """
-    Make a bag whole again after its recorder was killed.
+    Make a bag whole again after its recorder was killed, or after damage.
 
-    Every MCAP file without a valid summary and footer is scanned
-    (:func:`scan_mcap`) and rewritten with all recovered messages; then
-    ``metadata.yaml`` is regenerated from the files. A complete bag only gets
-    its ``metadata.yaml`` rewritten.
+    Every MCAP file without a trustworthy summary and footer (missing,
+    failing its CRC, or counting messages no intact chunk holds) is scanned
+    (:func:`scan_mcap`: corrupt chunks skipped, repeated chunks dropped) and
+    rewritten with all recovered messages; then ``metadata.yaml`` is
+    regenerated from the files (a malformed one is replaced). A sound bag
+    only gets its ``metadata.yaml`` rewritten.
+
+    The bag always has each of its files: the original is kept as
+    ``<file>.orig`` by a hard link before the finished ``<file>.repair-tmp``
+    replaces it, and a temporary file is removed when writing fails (a full
+    disk, ``ulimit -f``). A file missing after an interrupted repair of an
+    older version is restored from its ``.repair-tmp`` (when finished) or
+    ``.orig`` first.
 
     Parameters
     ----------
@@ -143,46 +248,27 @@ def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
         If a file is not MCAP at all (bad magic).
 
     """
-    bag_dir, files, meta = resolve_files(path)
+    found = resolve_bag(path, metadata_errors='ignore')
+    bag_dir, meta = found.bag_dir, found.metadata
     if out_dir is not None:
         out_dir = os.path.abspath(out_dir)
         if os.path.exists(out_dir) and os.listdir(out_dir):
             raise FileExistsError(f'output directory {out_dir} exists and is not empty')
         os.makedirs(out_dir, exist_ok=True)
     target_dir = out_dir or bag_dir
-    report = RepairReport(target_dir)
+    report = RepairReport(target_dir, notes=[n for n in found.notes if 'interrupted' not in n])
     infos = []
     custom = dict((meta or {}).get('custom_data') or {})
-    for source in files:
-        target = os.path.join(target_dir, os.path.basename(source))
-        try:
-            info = index_file(source, tolerant=False)
-        except ValueError:
-            info = None
-        if info is not None:
-            corrupt, lost = BagReader(source).verify()
-            if corrupt:
-                report.corrupt.extend(corrupt)
-                report.lost_messages += lost
-                info = None             # rewrite it without the corrupt chunks
-        if info is not None:
-            scan = ScanReport(source, size_bytes=os.path.getsize(source),
-                              good_bytes=os.path.getsize(source), complete=True,
-                              messages=info.message_count)
-            if target != source:
-                shutil.copyfile(source, target)
-                info.path = target
-            report.scans.append(scan)
-        else:
-            tmp = target + '.repair-tmp'
-            scan, info = _rewrite(source, tmp, compression)
-            report.scans.append(scan)
-            if target == source and backup:
-                os.replace(source, source + '.orig')
-                report.backups.append(source + '.orig')
-            os.replace(tmp, target)
-            info.path = target
-            report.rewritten.append(target)
+    for full in found.files:
+        source = full
+        if full in found.leftovers:
+            if out_dir is None:
+                _restore(full, found.leftovers[full], report)
+            else:
+                source = found.leftovers[full]
+        target = os.path.join(target_dir, os.path.basename(full))
+        info = _repair_file(source, target, backup, compression,
+                            _counted(meta, full, bag_dir), report)
         for key, value in info.custom_data.items():
             custom.setdefault(key, value)
         infos.append(info)

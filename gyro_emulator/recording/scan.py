@@ -9,14 +9,55 @@ where it stops.
 from dataclasses import dataclass
 import io
 import os
+import struct
+import zlib
 
 from gyro_emulator.recording.mcap_writer import MCAP_MAGIC, RECORD_HEAD
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, Schema
 from mcap.stream_reader import breakup_chunk
+import numpy as np
 
 _VALID_OPCODES = frozenset(int(op) for op in Opcode)
+#: The footer record: opcode, length, summary_start, summary_offset_start, summary_crc.
+_FOOTER = struct.Struct('<BQQQI')
+#: The fixed fields of a chunk record after its head: start, end, uncompressed size, CRC,
+#: compression string length.
+_CHUNK_FIELDS = struct.Struct('<QQQII')
+_COMPRESSIONS = (b'', b'zstd', b'lz4')
+
+
+def summary_crc_problem(handle, size):
+    """
+    Return why the summary of a file cannot be trusted (its CRC fails), or None.
+
+    The footer's ``summary_crc`` covers every byte from the summary start
+    through the footer's ``summary_offset_start`` (MCAP specification); 0
+    means the writer stored none, which is accepted. A file without a
+    footer and closing magic is left to the caller (None).
+    """
+    footer_at = size - len(MCAP_MAGIC) - _FOOTER.size
+    if footer_at < len(MCAP_MAGIC):
+        return None
+    handle.seek(footer_at)
+    tail = handle.read(_FOOTER.size + len(MCAP_MAGIC))
+    if tail[_FOOTER.size:] != MCAP_MAGIC:
+        return None
+    opcode, length, summary_start, _, crc = _FOOTER.unpack(tail[:_FOOTER.size])
+    if opcode != Opcode.FOOTER or length != _FOOTER.size - 9:
+        return f'the footer at byte {footer_at} is corrupt'
+    if crc == 0:
+        return None
+    begin = summary_start or footer_at
+    if not len(MCAP_MAGIC) <= begin <= footer_at:
+        return (f'the footer puts the summary at byte {summary_start}, outside the file '
+                f'({size} bytes)')
+    handle.seek(begin)
+    computed = zlib.crc32(handle.read(footer_at + _FOOTER.size - 4 - begin))
+    if computed != crc:
+        return f'summary CRC mismatch (stored 0x{crc:08x}, computed 0x{computed:08x})'
+    return None
 
 
 @dataclass
@@ -37,13 +78,20 @@ class ScanReport:
     data_end : bool
         The data section ended cleanly (everything after it is summary).
     problem : str or None
-        Why the scan stopped early, if it did.
+        Why the scan stopped early or skipped data, if it did.
     messages : int
         Messages recovered.
     bad_chunks : int
         Chunks skipped because they failed to decompress or their CRC.
     last_log_time_ns : int or None
         Log time of the last recovered message.
+    summary_problem : str or None
+        Why the file's summary cannot be trusted (its CRC fails).
+    skipped_bytes : int
+        Unreadable bytes in the data section skipped to reach the next intact chunk.
+    repeated_chunks, repeated_messages : int
+        Chunks holding repeats of earlier messages (a chunk written twice,
+        or overlapping an earlier one), and the repeated messages; dropped.
 
     """
 
@@ -56,17 +104,41 @@ class ScanReport:
     messages: int = 0
     bad_chunks: int = 0
     last_log_time_ns: int = None
+    summary_problem: str = None
+    skipped_bytes: int = 0
+    repeated_chunks: int = 0
+    repeated_messages: int = 0
+
+    @property
+    def sound(self):
+        """Return True when the file is complete and nothing was skipped or dropped."""
+        return (self.complete and not self.problem and not self.summary_problem
+                and not self.repeated_messages)
 
     def describe(self):
         """Return a one-line human summary."""
-        if self.complete and not self.problem:
+        if self.sound:
             return f'{self.path}: complete, {self.messages} messages'
-        state = 'data section intact, summary missing' if self.data_end else (
-            self.problem or 'incomplete')
+        if self.summary_problem:
+            state = f'{self.summary_problem}; the index was rebuilt from the data section'
+        elif self.complete:
+            state = self.problem or 'complete'
+        elif self.data_end:
+            state = 'data section intact, summary missing'
+        else:
+            state = self.problem or 'incomplete'
         lost = self.size_bytes - self.good_bytes
-        return (f'{self.path}: {state}; recovered {self.messages} messages'
-                f'{f", skipped {self.bad_chunks} corrupt chunks" if self.bad_chunks else ""}'
-                f'{f", discarded {lost} trailing bytes" if lost > 0 else ""}')
+        parts = [f'recovered {self.messages} messages']
+        if self.bad_chunks:
+            parts.append(f'skipped {self.bad_chunks} corrupt chunks')
+        if self.skipped_bytes:
+            parts.append(f'skipped {self.skipped_bytes} unreadable bytes')
+        if self.repeated_messages:
+            parts.append(f'dropped {self.repeated_messages} repeated messages '
+                         f'of {self.repeated_chunks} duplicated chunks')
+        if lost > 0:
+            parts.append(f'discarded {lost} trailing bytes')
+        return f'{self.path}: {state}; ' + ', '.join(parts)
 
 
 def _parse_record(opcode, body):
@@ -79,6 +151,122 @@ def _parse_record(opcode, body):
     return reader.read(stream) if reader else None
 
 
+class Repeats:
+    """
+    Find chunks and messages that repeat earlier ones (a chunk written twice).
+
+    A chunk whose time range, sizes and compressed bytes (CRC-32) equal an
+    earlier chunk's is a repeat; in a chunk whose log-time range overlaps
+    an earlier chunk's, each message equal to one of that chunk's (channel,
+    sequence, log and publish time, data) is a repeat. Keeps 8 bytes per
+    message (a hash), and compares only chunks that overlap in time.
+    """
+
+    def __init__(self):
+        self._chunks = set()
+        self._starts = np.zeros(64, dtype=np.int64)
+        self._ends = np.zeros(64, dtype=np.int64)
+        self._keys = []
+        self._max_end = None
+
+    def drop(self, chunk, messages):
+        """Return ``(kept messages, repeated count, whole chunk repeated)``."""
+        key = (chunk.message_start_time, chunk.message_end_time, chunk.uncompressed_size,
+               chunk.compression, len(chunk.data), zlib.crc32(chunk.data))
+        if key in self._chunks:
+            return [], len(messages), True
+        self._chunks.add(key)
+        keys = np.fromiter((hash((m.channel_id, m.sequence, m.log_time, m.publish_time,
+                                  m.data)) for m in messages), dtype=np.int64,
+                           count=len(messages))
+        start, end = chunk.message_start_time, chunk.message_end_time
+        seen = np.zeros(len(keys), dtype=bool)
+        count = len(self._keys)
+        if count and self._max_end >= start:
+            overlap = np.flatnonzero((self._starts[:count] <= end)
+                                     & (self._ends[:count] >= start))
+            for k in overlap:
+                seen |= np.isin(keys, self._keys[k])
+        if count == len(self._starts):
+            self._starts = np.resize(self._starts, 2 * count)
+            self._ends = np.resize(self._ends, 2 * count)
+        self._starts[count], self._ends[count] = start, end
+        self._keys.append(keys)
+        self._max_end = end if self._max_end is None else max(self._max_end, end)
+        if not seen.any():
+            return messages, 0, False
+        return [m for m, s in zip(messages, seen) if not s], int(seen.sum()), False
+
+
+def _intact_chunk_at(buf, i, at, size):
+    """Return whether a plausible chunk record head is at ``buf[i]`` (file byte ``at``)."""
+    if i + 9 + _CHUNK_FIELDS.size + 4 + 8 > len(buf):
+        return False
+    opcode, length = RECORD_HEAD.unpack_from(buf, i)
+    if opcode != Opcode.CHUNK or length > size - at - 9:
+        return False
+    start, end, _, _, name_len = _CHUNK_FIELDS.unpack_from(buf, i + 9)
+    if start > end or name_len > 4:
+        return False
+    at_name = i + 9 + _CHUNK_FIELDS.size
+    if bytes(buf[at_name:at_name + name_len]) not in _COMPRESSIONS:
+        return False
+    records, = struct.unpack_from('<Q', buf, at_name + name_len)
+    return records == length - _CHUNK_FIELDS.size - name_len - 8
+
+
+def next_intact_chunk(handle, start, size, window=1 << 20):
+    """
+    Return ``(offset, chunk, records)`` of the first intact chunk at or after byte ``start``.
+
+    Intact: its head is consistent (opcode, lengths, compression) and its
+    records decompress and pass their CRC. None when there is none.
+    """
+    position = start
+    while position < size:
+        handle.seek(position)
+        buf = handle.read(window + 64)
+        i = buf.find(b'\x06')
+        while 0 <= i < min(window, len(buf)):
+            at = position + i
+            if _intact_chunk_at(buf, i, at, size):
+                handle.seek(at)
+                opcode, length = RECORD_HEAD.unpack(handle.read(9))
+                try:
+                    chunk = _parse_record(opcode, handle.read(length))
+                    records = breakup_chunk(chunk, validate_crc=True)
+                except Exception:  # noqa: B902 - not a chunk after all
+                    records = None
+                if records is not None and chunk.uncompressed_crc:
+                    return at, 9 + length, chunk, records
+            i = buf.find(b'\x06', i + 1)
+        position += window
+    return None
+
+
+def _resync(handle, report, position, size, why):
+    """Skip damaged bytes to the next intact chunk; return (position, records) or None."""
+    found = next_intact_chunk(handle, position, size)
+    if found is None:
+        return None
+    at, length, chunk, records = found
+    report.skipped_bytes += at - position
+    report.problem = f'{why}; resumed at the next intact chunk, byte {at}'
+    return at + length, chunk, records
+
+
+def _drop_repeats(repeats, chunk, records, report):
+    """Return the records of ``chunk`` without repeated messages, counted in ``report``."""
+    messages = [r for r in records if isinstance(r, Message)]
+    kept, repeated, _ = repeats.drop(chunk, messages)
+    if not repeated:
+        return records
+    report.repeated_messages += repeated
+    report.repeated_chunks += 1
+    kept = set(map(id, kept))
+    return [r for r in records if not isinstance(r, Message) or id(r) in kept]
+
+
 def scan_mcap(path, report=None):
     """
     Yield the Schema, Channel, Message and Metadata records of an MCAP file.
@@ -86,8 +274,11 @@ def scan_mcap(path, report=None):
     Reads sequentially and tolerates what a killed writer leaves: a missing
     summary, footer or magic, or a truncated final record. A chunk that fails
     to decompress or whose CRC does not match is skipped and counted; an
-    unknown opcode or a length running past the end stops the scan. The
-    outcome is recorded in ``report`` (a :class:`ScanReport`).
+    unreadable record head in the data section (an unknown opcode, a length
+    past the end) is skipped up to the next intact chunk, else the scan
+    stops there. Chunks and messages repeating earlier ones are dropped and
+    counted (:class:`Repeats`); the summary's CRC is checked. The outcome is
+    recorded in ``report`` (a :class:`ScanReport`).
 
     Parameters
     ----------
@@ -114,25 +305,30 @@ def scan_mcap(path, report=None):
         if magic != MCAP_MAGIC:
             raise ValueError(f'{path} is not an MCAP file (it does not start with the '
                              f'MCAP magic; {size} bytes)')
-        position = len(MCAP_MAGIC)
-        report.good_bytes = position
-        while True:
-            head = handle.read(9)
-            if not head:
-                report.problem = report.problem or 'the file ends without a footer'
-                return
-            if len(head) < 9:
-                report.problem = f'truncated record header at byte {position}'
-                return
-            opcode, length = RECORD_HEAD.unpack(head)
-            if opcode not in _VALID_OPCODES:
-                report.problem = f'corrupt record (opcode 0x{opcode:02x}) at byte {position}'
-                return
-            if length > size - position - 9:
-                name = Opcode(opcode).name.lower()
-                report.problem = (f'truncated {name} record at byte {position} '
-                                  f'({size - position - 9} of {length} bytes present)')
-                return
+        yield from _scan_records(handle, report, size)
+
+
+def _scan_records(handle, report, size):
+    """Walk the records of an open MCAP file after its magic (:func:`scan_mcap`)."""
+    position = len(MCAP_MAGIC)
+    report.good_bytes = position
+    repeats = Repeats()
+    while True:
+        head = handle.read(9)
+        if not head:
+            report.problem = report.problem or 'the file ends without a footer'
+            return
+        opcode, length = RECORD_HEAD.unpack(head) if len(head) == 9 else (None, 0)
+        why = None
+        if len(head) < 9:
+            why = f'truncated record header at byte {position}'
+        elif opcode not in _VALID_OPCODES:
+            why = f'corrupt record (opcode 0x{opcode:02x}) at byte {position}'
+        elif length > size - position - 9:
+            why = (f'truncated {Opcode(opcode).name.lower()} record at byte {position} '
+                   f'({size - position - 9} of {length} bytes present)')
+        record = inner = None
+        if why is None:
             body = handle.read(length)
             try:
                 record = _parse_record(opcode, body)
@@ -145,26 +341,39 @@ def scan_mcap(path, report=None):
                                       f'({type(exc).__name__}: {exc})')
                     position += 9 + length
                     continue
-                report.problem = (f'corrupt {Opcode(opcode).name.lower()} record at byte '
-                                  f'{position} ({type(exc).__name__}: {exc})')
+                why = (f'corrupt {Opcode(opcode).name.lower()} record at byte '
+                       f'{position} ({type(exc).__name__}: {exc})')
+        if why is not None:
+            found = None if report.data_end else _resync(handle, report, position, size, why)
+            if found is None:
+                report.problem = why
+                if report.data_end:
+                    report.summary_problem = f'unreadable summary: {why}'
                 return
+            position, record, inner = found
+            opcode = Opcode.CHUNK
+            handle.seek(position)
+        else:
             position += 9 + length
-            report.good_bytes = position
-            if opcode == Opcode.FOOTER:
-                report.complete = handle.read(len(MCAP_MAGIC)) == MCAP_MAGIC
-                if report.complete:
-                    report.good_bytes = size
-                else:
-                    report.problem = 'the closing magic after the footer is missing'
-                return
-            if opcode == Opcode.DATA_END:
-                report.data_end = True
-                continue
-            if report.data_end:
-                continue        # summary section: repeated schemas/channels, indexes
-            for item in (inner if inner is not None else (record,)):
-                if isinstance(item, Message):
-                    report.messages += 1
-                    report.last_log_time_ns = item.log_time
-                if isinstance(item, (Schema, Channel, Message, Metadata)):
-                    yield item
+        report.good_bytes = position
+        if opcode == Opcode.FOOTER:
+            report.complete = handle.read(len(MCAP_MAGIC)) == MCAP_MAGIC
+            if report.complete:
+                report.good_bytes = size
+                report.summary_problem = summary_crc_problem(handle, size)
+            else:
+                report.problem = 'the closing magic after the footer is missing'
+            return
+        if opcode == Opcode.DATA_END:
+            report.data_end = True
+            continue
+        if report.data_end:
+            continue        # summary section: repeated schemas/channels, indexes
+        if inner is not None:
+            inner = _drop_repeats(repeats, record, inner, report)
+        for item in (inner if inner is not None else (record,)):
+            if isinstance(item, Message):
+                report.messages += 1
+                report.last_log_time_ns = item.log_time
+            if isinstance(item, (Schema, Channel, Message, Metadata)):
+                yield item

@@ -15,7 +15,8 @@ from gyro_emulator.analysis.replay.inputs import emulate, load_inputs
 from gyro_emulator.analysis.replay.report import compare, report_text, write_report
 from gyro_emulator.emulation.emulator_bag import white_noise_sigma, write_output_bag
 from gyro_emulator.recording import record
-from gyro_emulator.sensor.config import load_sensor_config
+from gyro_emulator.recording.files import inside_bag
+from gyro_emulator.sensor.config import load_sensor_config, PRESET_NAMES
 
 #: Sensor configuration when neither the caller nor the bag names one.
 DEFAULT_CONFIG = 'paper'
@@ -35,6 +36,34 @@ class ReplayRun:
     samples: int
     report: str
     paths: list
+
+
+def bag_config(reader):
+    """
+    Return the sensor configuration a bag's ``custom_data`` names, refusing files outside it.
+
+    A bag is untrusted input: its ``sensor_config`` may be a preset name or
+    a YAML file inside the bag directory (as ``relative_file_paths``); a
+    path leaving the directory raises a one-line ValueError that shows the
+    path, never the file.
+    """
+    name = reader.custom_data.get('sensor_config', DEFAULT_CONFIG)
+    if name in PRESET_NAMES:
+        return name
+    try:
+        return inside_bag(reader.path, name, "the bag's custom_data sensor_config is")
+    except ValueError as exc:
+        raise ValueError(f'{exc} (choose the sensor with --config)') from None
+
+
+def _bag_seed(reader):
+    """Return the seed a bag's ``custom_data`` gives (0 without one)."""
+    value = reader.custom_data.get('seed', '0')
+    try:
+        return int(value)
+    except ValueError:
+        raise ValueError(f"the bag's custom_data seed {value[:40]!r} is not an integer "
+                         '(choose one with --seed)') from None
 
 
 def _ignore(note):
@@ -86,8 +115,8 @@ def replay_bag(bag_path, out_dir, config=None, seed=None, plots=True, overwrite=
     bag_dir = os.path.join(out_dir, 'emulated')
     if os.path.isdir(bag_dir) and os.listdir(bag_dir) and not overwrite:
         raise FileExistsError(f'{bag_dir} exists and is not empty (pass --overwrite)')
-    config_name = config or reader.custom_data.get('sensor_config', DEFAULT_CONFIG)
-    seed = seed if seed is not None else int(reader.custom_data.get('seed', 0))
+    config_name = config or bag_config(reader)
+    seed = seed if seed is not None else _bag_seed(reader)
     sensor_config = load_sensor_config(config_name)
     shown = len(reader.problems)
     inputs = load_inputs(reader, **input_options)

@@ -1,0 +1,246 @@
+"""
+The files of a bag: ``metadata.yaml`` read as untrusted input, and the MCAP files it names.
+
+A bag is untrusted input. :func:`load_metadata` reads ``metadata.yaml``
+with a bounded YAML load (size cap, no aliases) and checks the types of the
+fields this package uses against the rosbag2 schema; :func:`inside_bag`
+refuses a path the bag names that leaves the bag directory;
+:func:`resolve_bag` lists the MCAP files once each, and finds the files an
+interrupted ``bag repair`` left (``<file>.repair-tmp``, ``<file>.orig``).
+"""
+
+from dataclasses import dataclass, field
+import os
+
+from gyro_emulator.recording.mcap_writer import MCAP_MAGIC
+from gyro_emulator.recording.metadata import METADATA_FILE
+import yaml
+
+#: Largest ``metadata.yaml`` read, bytes (rosbag2 writes a few kB per topic).
+MAX_METADATA_BYTES = 8 << 20
+#: Suffixes of the files ``bag repair`` writes beside an MCAP file.
+REPAIR_TMP = '.repair-tmp'
+BACKUP = '.orig'
+_SCALARS = (str, int, float, bool)
+
+try:
+    _Loader = yaml.CSafeLoader
+except AttributeError:          # PyYAML built without libyaml
+    _Loader = yaml.SafeLoader
+
+
+def _yaml_document(text, path):
+    """Return the YAML document of ``text``; ValueError for aliases or malformed YAML."""
+    try:
+        for event in yaml.parse(text, Loader=_Loader):
+            if isinstance(event, yaml.AliasEvent):
+                raise ValueError(f'{path}: YAML alias *{event.anchor} refused (rosbag2 '
+                                 'metadata has none; aliases can expand without bound)')
+        return yaml.load(text, Loader=_Loader)
+    except yaml.YAMLError as exc:
+        text = ' '.join(str(exc).split())
+        raise ValueError(f'{path} is not rosbag2 metadata: malformed YAML: {text}') from None
+
+
+def _type_error(path, name, value, expected):
+    shown = repr(value)
+    shown = shown if len(shown) <= 60 else shown[:57] + '...'
+    return ValueError(f'{path}: {name} is {shown} ({type(value).__name__}): expected '
+                      f'{expected}; gyro-emulator bag repair regenerates metadata.yaml')
+
+
+def _check_fields(meta, path):
+    """Check the types of the rosbag2 fields this package reads; return ``meta``."""
+    key = 'rosbag2_bagfile_information'
+    for name, kinds, expected in (
+            ('version', (int,), 'an integer'),
+            ('message_count', (int,), 'an integer'),
+            ('storage_identifier', (str,), 'a string'),
+            ('relative_file_paths', (list,), 'a list of file names'),
+            ('files', (list,), 'a list of mappings'),
+            ('topics_with_message_count', (list,), 'a list of mappings'),
+            ('custom_data', (dict,), 'a mapping of names to strings')):
+        value = meta.get(name)
+        if value is not None and (not isinstance(value, kinds) or isinstance(value, bool)):
+            raise _type_error(path, f'{key}.{name}', value, expected)
+    for i, rel in enumerate(meta.get('relative_file_paths') or ()):
+        if not isinstance(rel, str) or not rel:
+            raise _type_error(path, f'{key}.relative_file_paths[{i}]', rel, 'a file name')
+    for name in ('files', 'topics_with_message_count'):
+        for i, item in enumerate(meta.get(name) or ()):
+            if not isinstance(item, dict):
+                raise _type_error(path, f'{key}.{name}[{i}]', item, 'a mapping')
+    for name, value in (meta.get('custom_data') or {}).items():
+        if not isinstance(name, str) or not isinstance(value, _SCALARS):
+            raise _type_error(path, f'{key}.custom_data[{name!r}]', value, 'a string')
+    return meta
+
+
+def load_metadata(path):
+    """
+    Return the ``rosbag2_bagfile_information`` mapping of a ``metadata.yaml``.
+
+    Bounded: a file over :data:`MAX_METADATA_BYTES` or with a YAML alias is
+    refused before it is built (a billion-laughs alias bomb costs nothing).
+    The types of ``version``, ``message_count``, ``relative_file_paths``,
+    ``files``, ``topics_with_message_count`` and ``custom_data`` are checked
+    (rosbag2 metadata version 9); ``custom_data`` values become strings.
+
+    Raises
+    ------
+    ValueError
+        One line naming the file, the field, its value and what was expected.
+
+    """
+    try:
+        with open(path, 'rb') as handle:
+            raw = handle.read(MAX_METADATA_BYTES + 1)
+    except OSError as exc:
+        raise ValueError(f'{path}: cannot read: {exc}') from None
+    if len(raw) > MAX_METADATA_BYTES:
+        raise ValueError(f'{path} is over {MAX_METADATA_BYTES >> 20} MiB: not rosbag2 metadata')
+    text = raw.decode('utf-8', 'replace')
+    loaded = _yaml_document(text, path)
+    meta = loaded.get('rosbag2_bagfile_information') if isinstance(loaded, dict) else None
+    if not isinstance(meta, dict):
+        shown = loaded if not isinstance(loaded, dict) else meta
+        raise _type_error(path, 'rosbag2_bagfile_information', shown, 'a mapping')
+    meta = _check_fields(dict(meta), path)
+    if meta.get('custom_data'):
+        meta['custom_data'] = {k: str(v) for k, v in meta['custom_data'].items()}
+    return meta
+
+
+def inside_bag(bag_dir, name, what):
+    """
+    Return the real path of ``name``, a path the bag gives, refusing one outside ``bag_dir``.
+
+    ``what`` says where the bag gives it (for the error, e.g. ``'metadata.yaml
+    lists'``). Absolute paths, ``..`` and symbolic links that leave the
+    directory raise a one-line ValueError that shows the path only.
+    """
+    root = os.path.realpath(bag_dir)
+    full = os.path.realpath(os.path.join(root, str(name)))
+    if os.path.isabs(str(name)) or os.path.commonpath([full, root]) != root:
+        raise ValueError(f'{what} {str(name)!r}, which is outside the bag directory '
+                         f'{bag_dir}: allowed file names inside it only')
+    return full
+
+
+@dataclass
+class BagFiles:
+    """
+    The files of one bag.
+
+    Attributes
+    ----------
+    bag_dir : str
+        The bag directory.
+    files : list of str
+        Its MCAP files, each once, in order.
+    metadata : dict or None
+        ``rosbag2_bagfile_information`` (None without ``metadata.yaml``).
+    notes : list of str
+        What was noticed on the way (a file listed twice, a file an
+        interrupted repair left in place of the original).
+    leftovers : dict of str to str
+        MCAP file (missing) -> the file of an interrupted repair read in its place.
+
+    """
+
+    bag_dir: str
+    files: list
+    metadata: dict = None
+    notes: list = field(default_factory=list)
+    leftovers: dict = field(default_factory=dict)
+
+
+def _ends_with_magic(path):
+    """Return whether ``path`` ends with the MCAP magic (a finished file)."""
+    try:
+        with open(path, 'rb') as handle:
+            handle.seek(max(0, os.fstat(handle.fileno()).st_size - len(MCAP_MAGIC)))
+            return handle.read() == MCAP_MAGIC
+    except OSError:
+        return False
+
+
+def stand_in(mcap_path):
+    """
+    Return the file an interrupted repair left for the missing ``mcap_path``, or None.
+
+    The repaired temporary file when it was finished (it ends with the MCAP
+    magic), else the original kept as ``.orig``, else an unfinished temporary file.
+    """
+    candidates = [mcap_path + REPAIR_TMP, mcap_path + BACKUP, mcap_path + REPAIR_TMP]
+    for i, candidate in enumerate(candidates):
+        if os.path.isfile(candidate) and (i > 0 or _ends_with_magic(candidate)):
+            return candidate
+    return None
+
+
+def _listed(bag_dir, meta, meta_path, result):
+    """Add the files ``metadata.yaml`` lists (each once, inside the bag) to ``result``."""
+    for rel in meta['relative_file_paths']:
+        full = inside_bag(bag_dir, rel, f'{meta_path} lists')
+        if full in result.files or full in result.leftovers:
+            result.notes.append(f'{METADATA_FILE} lists {rel} more than once: read once')
+            continue
+        if not os.path.isfile(full):
+            found = stand_in(full)
+            if found is None:
+                raise FileNotFoundError(f'{meta_path} lists {rel}, which is missing')
+            result.leftovers[full] = found
+        result.files.append(full)
+
+
+def resolve_bag(path, metadata_errors='raise'):
+    """
+    Return the :class:`BagFiles` of a bag directory, ``metadata.yaml`` or ``.mcap`` file.
+
+    Parameters
+    ----------
+    path : str
+        The bag.
+    metadata_errors : str
+        ``'raise'``: a malformed ``metadata.yaml`` raises ValueError;
+        ``'ignore'``: it is noted and the directory's ``.mcap`` files are
+        used (what ``bag repair`` does before it rewrites the file).
+
+    """
+    path = os.path.abspath(path)
+    if os.path.isfile(path):
+        if not path.endswith(METADATA_FILE):
+            return BagFiles(os.path.dirname(path), [path])
+        path = os.path.dirname(path)
+    if not os.path.isdir(path):
+        raise FileNotFoundError(f'no bag at {path} (expected a bag directory or .mcap file)')
+    result = BagFiles(path, [])
+    meta_path = os.path.join(path, METADATA_FILE)
+    if os.path.isfile(meta_path):
+        try:
+            result.metadata = load_metadata(meta_path)
+        except ValueError as exc:
+            if metadata_errors == 'raise':
+                raise
+            result.notes.append(f'{exc}: ignored, the files were listed from the directory')
+    if result.metadata is not None and result.metadata.get('relative_file_paths'):
+        _listed(path, result.metadata, meta_path, result)
+    else:
+        names = sorted(os.listdir(path))
+        result.files = [os.path.join(path, n) for n in names if n.endswith('.mcap')]
+        for name in names:
+            for suffix in (BACKUP, REPAIR_TMP):
+                full = os.path.join(path, name[:-len(suffix)])
+                if (name.endswith('.mcap' + suffix) and full not in result.files
+                        and full not in result.leftovers):
+                    result.leftovers[full] = stand_in(full)
+                    result.files.append(full)
+        result.files.sort()
+    if not result.files:
+        raise FileNotFoundError(f'no .mcap file in bag directory {path}')
+    for full, found in result.leftovers.items():
+        result.notes.append(f'{os.path.basename(full)} is missing: read '
+                            f'{os.path.basename(found)}, left by an interrupted repair '
+                            f'(gyro-emulator bag repair {path} restores it)')
+    return result
