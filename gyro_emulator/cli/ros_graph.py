@@ -13,11 +13,11 @@ import os
 import sys
 import time
 
+from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 import rclpy
 from rclpy.parameter import get_parameter_value, parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 import yaml
 
 #: How often the graph is looked at while waiting for a topic, s.

@@ -121,6 +121,8 @@ def load_description(path):
         if 'generate_launch_description' not in namespace:
             raise ValueError(f'{path}: no generate_launch_description()')
         return namespace['generate_launch_description']()
+    except ImportError as exc:
+        raise ValueError(f'{path}: {exc}') from None
     finally:
         for name, module in saved.items():
             if module is None:
