@@ -49,7 +49,12 @@ def test_run_echo_hz_list_and_param_set_against_a_running_node(tmp_path):
         rates = re.findall(r'average rate: ([0-9.]+)', hz.stdout)
         assert rates and float(rates[-1]) > 0.0, hz.stdout
         assert re.search(r'window: \d+', hz.stdout)
-        listing = ros_cli(env, 'topic', 'list').stdout.splitlines()
+        # `topic list` prints what discovery found in its --spin-time: asked again
+        # until the node's topics are in (a poll, each try a new process).
+        for _ in range(20):
+            listing = ros_cli(env, 'topic', 'list').stdout.splitlines()
+            if '/imu/data_raw [sensor_msgs/msg/Imu]' in listing:
+                break
         assert '/imu/data_raw [sensor_msgs/msg/Imu]' in listing
         # An integer for a double parameter is sent as a double, as the node wants.
         assert 'Set parameter successful' in ros_cli(
@@ -75,7 +80,7 @@ def test_run_echo_hz_list_and_param_set_against_a_running_node(tmp_path):
 def test_launch_starts_the_node_with_namespace_and_params_and_stops_it(tmp_path):
     env = ros_env()
     params = tmp_path / 'my_gyro.yaml'
-    params.write_text(yaml.safe_dump({'gyro_emulator': {'ros__parameters': {
+    params.write_text(yaml.safe_dump({'/**': {'ros__parameters': {
         'frame_id': 'launched', 'rate_hz': 100.0}}}))
     log = tmp_path / 'launch.log'
     with open(log, 'w') as handle:

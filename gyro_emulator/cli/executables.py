@@ -67,27 +67,27 @@ def run_cli():
 
 
 def run_node():
-    """Run the emulator node (``ros2 run gyro_emulator node``)."""
+    """Run the emulator node (``gyro-emulator-node``, ``ros2 run gyro_emulator node``)."""
     return _run(ROS_EXECUTABLES['node'])
 
 
 def run_scenario():
-    """Run the scenario player (``ros2 run gyro_emulator scenario``)."""
+    """Run the scenario player (``gyro-emulator-scenario``; ros2 run: ``scenario``)."""
     return _run(ROS_EXECUTABLES['scenario'])
 
 
 def run_recorder():
-    """Run the bag recorder (``ros2 run gyro_emulator recorder``)."""
+    """Run the bag recorder (``gyro-emulator-recorder``, ``ros2 run gyro_emulator recorder``)."""
     return _run(ROS_EXECUTABLES['recorder'])
 
 
 def run_replay():
-    """Run the ROS replay (``ros2 run gyro_emulator replay``)."""
+    """Run the ROS replay (``gyro-emulator-replay``, ``ros2 run gyro_emulator replay``)."""
     return _run(ROS_EXECUTABLES['replay'])
 
 
 def run_array():
-    """Run N emulator nodes from an array spec (``ros2 run gyro_emulator array``)."""
+    """Run N emulator nodes from an array spec (``gyro-emulator-array``; ros2 run: ``array``)."""
     return _run(ROS_EXECUTABLES['array'])
 
 
