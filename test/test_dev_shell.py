@@ -10,6 +10,7 @@ the venv's first on PATH; the shell reads its commands from stdin.
 
 import os
 import subprocess
+import sys
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
@@ -55,3 +56,30 @@ def test_the_shell_warns_when_bashrc_puts_a_ros_python_on_pythonpath(tmp_path):
     proc = dev_shell(tmp_path, 'exit 0\n')
     assert proc.returncode == 0, proc.stderr
     assert "PYTHONPATH holds another Python's packages" in proc.stderr
+
+
+def test_a_python312_rclpy_ahead_on_pythonpath_fails_in_the_venv(tmp_path):
+    """
+    What sourcing /opt/ros/jazzy/setup.bash (Python 3.12) does to the venv's 3.11.
+
+    setup.bash prepends ``/opt/ros/jazzy/lib/python3.12/site-packages`` to
+    PYTHONPATH. A stand-in of that directory holds rclpy with its extension
+    tagged ``cpython-312``: the venv's interpreter imports that rclpy first and
+    cannot load ``_rclpy_pybind11`` (3.11 loads only ``cpython-311``, ``abi3``
+    and untagged ``.so`` files).
+    """
+    import rclpy  # the venv's, to copy its layout
+    source = os.path.dirname(rclpy.__file__)
+    site = tmp_path / 'opt' / 'ros' / 'jazzy' / 'lib' / 'python3.12' / 'site-packages'
+    target = site / 'rclpy'
+    for dirpath, _, files in os.walk(source):
+        rel = os.path.relpath(dirpath, source)
+        (target / rel).mkdir(parents=True, exist_ok=True)
+        for name in files:
+            link = name.replace('cpython-311', 'cpython-312')
+            os.symlink(os.path.join(dirpath, name), target / rel / link)
+    env = dict(os.environ, PYTHONPATH=str(site))
+    proc = subprocess.run([sys.executable, '-c', 'import rclpy'], env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode != 0
+    assert '_rclpy_pybind11' in proc.stderr and "isn't present" in proc.stderr, proc.stderr

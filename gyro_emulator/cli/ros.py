@@ -2,7 +2,7 @@
 Stand-ins for the ros2 CLI, built on rclpy: run, launch, param, topic.
 
 The pip-only venv (Debian 12, Python 3.11, PyPI) has rclpy but no ros2cli,
-launch or launch_ros. These do what the README's ``ros2`` lines do::
+launch or launch_ros. These do what the README's ``ros2`` lines do:
 
   gyro-emulator ros run node [ARGS]          ros2 run gyro_emulator node [ARGS]
   gyro-emulator ros launch gyro_emulator gyro_emulator.launch.py [NAME:=VALUE ...]
