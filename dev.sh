@@ -4,9 +4,12 @@
 #   ./dev.sh main   set everything up, then run the main job (the paper-validation demo)
 #   ./dev.sh test   set everything up, then run the full test suite (lint + unit + ROS integration)
 #   ./dev.sh setup  only set up .venv
-#   ./dev.sh shell  a shell with the venv and ROS environment active
+#   ./dev.sh shell  a bash shell with the venv and ROS environment active
 #
-# In ./dev.sh shell, `colcon build` then `. install/setup.sh` (colcon-core's hook;
+# ./dev.sh shell reads your ~/.bashrc first and activates the venv after it, so a
+# pyenv, conda or ROS setup there cannot put another Python ahead of the venv's.
+# In it, `gyro-emulator ros --help` lists the stand-ins for the ros2 CLI (not on
+# PyPI); `colcon build` then `. install/setup.sh` (colcon-core's hook;
 # install/setup.bash would need the colcon-bash extension, which is not pinned)
 # puts the package where `ros2 run` looks.
 #
@@ -76,6 +79,26 @@ activate() {
     export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( ($$ % 90) + 10 ))}"
 }
 
+shell_rc() {
+    # The rc file of ./dev.sh shell: the user's ~/.bashrc, then activate(), so
+    # PATH edits made there (pyenv, conda) cannot hide the venv's python.
+    printf '# Written by %s/dev.sh shell at each start: ~/.bashrc, then the venv.\n' "$ROOT"
+    echo '[ -f ~/.bashrc ] && . ~/.bashrc'
+    printf 'VENV=%q\n' "$VENV"
+    declare -f activate
+    cat <<'EOF'
+activate
+unset -f activate
+case ":${PYTHONPATH:-}:" in
+    *python3.1[2-9]*)
+        echo "dev.sh shell: PYTHONPATH holds another Python's packages (a ROS" \
+            "setup.bash in ~/.bashrc?); the venv's Python 3.11 cannot load them." \
+            "See README.md, ROS 2 usage." >&2 ;;
+esac
+PS1="(gyro_emulator) ${PS1-\$ }"
+EOF
+}
+
 cmd="${1:-}"
 [ $# -gt 0 ] && shift
 case "$cmd" in
@@ -88,8 +111,12 @@ case "$cmd" in
         # testpaths=test (setup.cfg) applies when no path is given.
         exec "$VENV/bin/python" -m pytest "$@" ;;
     shell)
-        setup; activate
-        exec "${SHELL:-bash}" -i ;;
+        # bash, whatever $SHELL is: --rcfile is how the venv comes after ~/.bashrc.
+        setup
+        rc="$VENV/shell.bashrc"
+        shell_rc > "$rc.$$"
+        mv "$rc.$$" "$rc"
+        exec bash --rcfile "$rc" -i "$@" ;;
     *)
         sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'
         exit 2 ;;

@@ -1,11 +1,65 @@
-"""Build script for the gyro_emulator ament_python package."""
+"""
+Build script for the gyro_emulator ament_python package.
+
+The ROS executables have two names. ``ros2 run gyro_emulator node`` finds
+``<prefix>/lib/gyro_emulator/node``: the directory setup.cfg's
+``script_dir``/``install_scripts`` points colcon at, as for any ament_python
+package. A pip install puts console scripts on PATH (``.venv/bin``), where
+``node`` would hide Node.js; there they are ``gyro-emulator-node`` and so on.
+The console_scripts entries carry the PATH names, and the two commands that
+write them (``install_scripts`` for ``colcon build``, ``develop`` for
+``colcon build --symlink-install``) drop the ``gyro-emulator-`` prefix when
+they write into ``lib/gyro_emulator``. Wheels (pip) contain no entry-point
+scripts: pip writes them into ``bin`` under their entry names.
+"""
 
 from glob import glob
 import os
 
 from setuptools import find_packages, setup
+from setuptools.command.develop import develop
+from setuptools.command.install_scripts import install_scripts
 
 package_name = 'gyro_emulator'
+
+#: ``ros2 run gyro_emulator <name>`` -> entry point (gyro_emulator.cli.executables).
+ROS_EXECUTABLES = {
+    'node': 'run_node',
+    'scenario': 'run_scenario',
+    'recorder': 'run_recorder',
+    'replay': 'run_replay',
+    'array': 'run_array',
+}
+#: Prefix of the ROS executables' names on PATH.
+PATH_PREFIX = 'gyro-emulator-'
+
+
+def ament_script_name(directory, script_name):
+    """Return the name ``script_name`` gets in ``directory`` (short in lib/<package>)."""
+    in_ament_layout = os.path.normpath(directory).split(os.sep)[-2:] == ['lib', package_name]
+    short = script_name[len(PATH_PREFIX):]
+    if in_ament_layout and script_name.startswith(PATH_PREFIX) and short in ROS_EXECUTABLES:
+        return short
+    return script_name
+
+
+class InstallScripts(install_scripts):
+    """``setup.py install`` (colcon build): short names in lib/gyro_emulator."""
+
+    def write_script(self, script_name, contents, mode='t', *ignored):
+        """Write the script under its ament name (see the module docstring)."""
+        super().write_script(ament_script_name(self.install_dir, script_name), contents, mode,
+                             *ignored)
+
+
+class Develop(develop):
+    """``setup.py develop`` (colcon build --symlink-install): the same names."""
+
+    def write_script(self, script_name, contents, mode='t', blockers=()):
+        """Write the script under its ament name (see the module docstring)."""
+        super().write_script(ament_script_name(self.script_dir, script_name), contents, mode,
+                             blockers)
+
 
 setup(
     name=package_name,
@@ -28,14 +82,11 @@ setup(
     description='A virtual MEMS vibratory gyroscope for ROS 2, built from physics.',
     license='Apache-2.0',
     tests_require=['pytest'],
+    cmdclass={'install_scripts': InstallScripts, 'develop': Develop},
     entry_points={
         'console_scripts': [
             'gyro-emulator = gyro_emulator.cli.executables:run_cli',
-            'node = gyro_emulator.cli.executables:run_node',
-            'scenario = gyro_emulator.cli.executables:run_scenario',
-            'recorder = gyro_emulator.cli.executables:run_recorder',
-            'replay = gyro_emulator.cli.executables:run_replay',
-            'array = gyro_emulator.cli.executables:run_array',
-        ],
+        ] + [f'{PATH_PREFIX}{name} = gyro_emulator.cli.executables:{function}'
+             for name, function in ROS_EXECUTABLES.items()],
     },
 )

@@ -6,8 +6,8 @@ Start N gyro emulator nodes from an array spec (redundant IMUs).
 
 The spec (default ``config/gyro_array.yaml``) gives each instance its preset,
 parameters and tolerances (``gyro_emulator.ros.gyro_array``). Without the ``ros2``
-CLI, ``ros2 run gyro_emulator array [SPEC]`` (or
-``python -m gyro_emulator.ros.gyro_array``) starts the same nodes.
+CLI (the pip-only venv), ``gyro-emulator ros launch gyro_emulator gyro_array.launch.py``
+reads this file, and ``gyro-emulator-array [SPEC]`` starts the same nodes.
 """
 
 import os

@@ -6,8 +6,9 @@ Start the gyro emulator node with its configuration.
         namespace:=gyro use_sim_time:=true
 
 Needs the ROS 2 ``launch`` and ``launch_ros`` packages (a ROS 2 Jazzy
-install); they are not on PyPI, so the pip-only venv runs the node with
-``ros2 run``-style commands instead.
+install). They are not on PyPI; in the pip-only venv
+``gyro-emulator ros launch gyro_emulator gyro_emulator.launch.py [NAME:=VALUE ...]``
+reads this file and starts the node it names, with the same arguments.
 """
 
 import os

@@ -6,6 +6,11 @@ executable is then found exactly as ``ros2 run`` finds it: the package prefix
 from the ament index (``ament_index_python.get_package_prefix`` over
 ``AMENT_PREFIX_PATH``), then ``<prefix>/lib/gyro_emulator/<executable>``. The
 installed node and scenario run from that install, not from the source tree.
+
+The executables are named twice (issue 25): ``lib/gyro_emulator/node`` and
+its siblings for ``ros2 run``, from both ``colcon build`` and ``colcon build
+--symlink-install``; ``gyro-emulator-node`` and so on in the venv's ``bin``,
+where a bare ``node`` would hide Node.js.
 """
 
 import os
@@ -25,6 +30,20 @@ PACKAGE_FILES = ('setup.py', 'setup.cfg', 'package.xml', 'resource', 'gyro_emula
 pytestmark = pytest.mark.ros
 
 
+#: ``ros2 run gyro_emulator <name>``: what lib/gyro_emulator holds after colcon build.
+ROS_EXECUTABLES = ('array', 'node', 'recorder', 'replay', 'scenario')
+
+
+def colcon_build(ws, *options, base='install'):
+    """Run ``colcon build`` of ws/src into ws/<base>; assert it succeeded."""
+    colcon = os.path.join(os.path.dirname(sys.executable), 'colcon')
+    proc = subprocess.run(
+        [colcon, '--log-base', str(ws / 'log'), 'build', '--base-paths', str(ws / 'src'),
+         '--build-base', str(ws / ('build-' + base)), '--install-base', str(ws / base)]
+        + list(options), cwd=ws, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
 @pytest.fixture(scope='module')
 def workspace(tmp_path_factory):
     """Copy the package into src/ of a fresh workspace and colcon build it."""
@@ -38,12 +57,7 @@ def workspace(tmp_path_factory):
                             ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))
         else:
             shutil.copy(path, src / name)
-    colcon = os.path.join(os.path.dirname(sys.executable), 'colcon')
-    proc = subprocess.run(
-        [colcon, '--log-base', str(ws / 'log'), 'build', '--base-paths', str(ws / 'src'),
-         '--build-base', str(ws / 'build'), '--install-base', str(ws / 'install')],
-        cwd=ws, capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    colcon_build(ws)
     return ws
 
 
@@ -88,8 +102,9 @@ def test_ros2_run_node_publishes_imu_from_the_colcon_install(workspace, monkeypa
     try:
         from sensor_msgs.msg import Imu
         got = probe.listen(Imu, 'imu/data_raw')
-        # a fresh install compiles the numba kernels on its first start (cold cache)
-        probe.spin_until(lambda: len(got) >= 10, 120.0, 'Imu from the installed node')
+        # A hang guard, not a speed limit: the fresh install's first start compiles
+        # the numba kernels (no cache yet), over a minute on 2 busy cores.
+        probe.spin_until(lambda: len(got) >= 10, 600.0, 'Imu from the installed node')
         assert all(m.header.frame_id == 'installed' for m in got)
         # The installed scenario executable plays a short profile onto it.
         profile = tmp_path / 'short.yaml'
@@ -103,7 +118,7 @@ def test_ros2_run_node_publishes_imu_from_the_colcon_install(workspace, monkeypa
     finally:
         probe.close()
         proc.send_signal(signal.SIGINT)
-        code = proc.wait(60)
+        code = proc.wait(120)
     assert scenario.returncode == 0, scenario.stderr
     rows = [line.split() for line in scenario.stdout.splitlines()
             if line.strip().startswith(('0 ', '1 '))]
@@ -140,6 +155,39 @@ def test_sourcing_install_setup_sh_finds_the_package_and_its_executables(workspa
     assert prefix == str(workspace / 'install' / 'gyro_emulator')
     assert 'imu/data_raw' in proc.stdout and 'fault.type' in proc.stdout
     assert os.access(os.path.join(prefix, 'lib', 'gyro_emulator', 'array'), os.X_OK)
+
+
+@pytest.mark.parametrize('options,base', [((), 'install'),
+                                          (('--symlink-install',), 'install-symlink')])
+def test_lib_holds_the_ros2_run_names_and_the_venv_bin_the_prefixed_ones(workspace, options,
+                                                                         base, tmp_path):
+    """
+    Both colcon builds: setup.py install, and setup.py develop (--symlink-install).
+
+    lib/gyro_emulator holds ``node`` and its siblings (plus ``gyro-emulator``);
+    the pip-installed venv's bin holds ``gyro-emulator-node`` and no bare
+    ``node``, ``array``, ``recorder``, ``replay`` or ``scenario``.
+    """
+    if base != 'install':
+        colcon_build(workspace, *options, base=base)
+    lib = workspace / base / 'gyro_emulator' / 'lib' / 'gyro_emulator'
+    assert sorted(os.listdir(lib)) == sorted(ROS_EXECUTABLES + ('gyro-emulator',))
+    assert all(os.access(lib / name, os.X_OK) for name in ROS_EXECUTABLES)
+    proc = subprocess.run([str(lib / 'array'), '--help'], env=ros_env(), cwd=str(tmp_path),
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and 'spec' in proc.stdout, proc.stderr
+    venv_bin = os.path.join(sys.prefix, 'bin')
+    for name in ROS_EXECUTABLES:
+        assert not os.path.exists(os.path.join(venv_bin, name)), name
+        assert os.access(os.path.join(venv_bin, 'gyro-emulator-' + name), os.X_OK), name
+
+
+def test_the_venv_node_command_is_the_gyro_node_by_its_long_name(tmp_path):
+    """``gyro-emulator-node --help`` from the venv's bin prints the node's parameters."""
+    proc = subprocess.run([os.path.join(sys.prefix, 'bin', 'gyro-emulator-node'), '--help'],
+                          env=ros_env(), cwd=str(tmp_path), capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0 and 'imu/data_raw' in proc.stdout, proc.stderr
 
 
 @pytest.mark.parametrize('args,message', [

@@ -24,6 +24,7 @@ COMMANDS = (
     ('diagnose', 'gyro_emulator.cli.diagnose'),
     ('truth', 'gyro_emulator.cli.truth'),
     ('fleet', 'gyro_emulator.cli.fleet'),
+    ('ros', 'gyro_emulator.cli.ros'),
 )
 
 

@@ -17,6 +17,16 @@ import sys
 
 from gyro_emulator.interrupts import INTERRUPTED_STATUS, StartupInterrupt
 
+#: ROS executable (``ros2 run gyro_emulator <name>``) -> the module whose ``main`` runs it.
+#: On PATH (the venv's bin) each is ``gyro-emulator-<name>`` (setup.py).
+ROS_EXECUTABLES = {
+    'node': 'gyro_emulator.ros.node',
+    'scenario': 'gyro_emulator.ros.scenario',
+    'recorder': 'gyro_emulator.ros.recorder',
+    'replay': 'gyro_emulator.ros.replay',
+    'array': 'gyro_emulator.ros.gyro_array',
+}
+
 #: Environment variables that size the BLAS thread pools numpy may load.
 BLAS_THREAD_VARIABLES = ('OPENBLAS_NUM_THREADS',)
 
@@ -42,6 +52,12 @@ def _run(module_name):
         return INTERRUPTED_STATUS
 
 
+def run_executable(name, args):
+    """Run ROS executable ``name`` with ``args`` in this process (``gyro-emulator ros run``)."""
+    sys.argv = [name] + list(args)
+    return _run(ROS_EXECUTABLES[name])
+
+
 def run_cli():
     """Run ``gyro-emulator``, the command line (:mod:`gyro_emulator.cli`)."""
     limit_blas_threads()
@@ -51,28 +67,28 @@ def run_cli():
 
 
 def run_node():
-    """Run the emulator node (``ros2 run gyro_emulator node``)."""
-    return _run('gyro_emulator.ros.node')
+    """Run the emulator node (``gyro-emulator-node``, ``ros2 run gyro_emulator node``)."""
+    return _run(ROS_EXECUTABLES['node'])
 
 
 def run_scenario():
-    """Run the scenario player (``ros2 run gyro_emulator scenario``)."""
-    return _run('gyro_emulator.ros.scenario')
+    """Run the scenario player (``gyro-emulator-scenario``; ros2 run: ``scenario``)."""
+    return _run(ROS_EXECUTABLES['scenario'])
 
 
 def run_recorder():
-    """Run the bag recorder (``ros2 run gyro_emulator recorder``)."""
-    return _run('gyro_emulator.ros.recorder')
+    """Run the bag recorder (``gyro-emulator-recorder``, ``ros2 run gyro_emulator recorder``)."""
+    return _run(ROS_EXECUTABLES['recorder'])
 
 
 def run_replay():
-    """Run the ROS replay (``ros2 run gyro_emulator replay``)."""
-    return _run('gyro_emulator.ros.replay')
+    """Run the ROS replay (``gyro-emulator-replay``, ``ros2 run gyro_emulator replay``)."""
+    return _run(ROS_EXECUTABLES['replay'])
 
 
 def run_array():
-    """Run N emulator nodes from an array spec (``ros2 run gyro_emulator array``)."""
-    return _run('gyro_emulator.ros.gyro_array')
+    """Run N emulator nodes from an array spec (``gyro-emulator-array``; ros2 run: ``array``)."""
+    return _run(ROS_EXECUTABLES['array'])
 
 
 if __name__ == '__main__':

@@ -1,9 +1,10 @@
 """
 Redundant IMUs: N emulator nodes with per-instance presets and tolerances.
 
-``ros2 launch gyro_emulator gyro_array.launch.py [spec:=FILE]`` and, without
-the ``ros2`` CLI, ``ros2 run gyro_emulator array [FILE]`` (or
-``python -m gyro_emulator.ros.gyro_array``) start one node per instance of an
+``ros2 launch gyro_emulator gyro_array.launch.py [spec:=FILE]``,
+``ros2 run gyro_emulator array [FILE]`` and, without the ``ros2`` CLI,
+``gyro-emulator-array [FILE]`` (or ``gyro-emulator ros run array [FILE]``) start
+one node per instance of an
 array spec (default ``config/gyro_array.yaml``)::
 
     namespace: imu_array              # the instances live under /imu_array/<name>
@@ -174,7 +175,7 @@ def node_command(instance, params_path, extra_ros_args=()):
 
 def _parser():
     parser = argparse.ArgumentParser(
-        prog='ros2 run gyro_emulator array',
+        prog='gyro-emulator-array',
         description='Run N gyro emulator nodes from an array spec (what '
                     'gyro_array.launch.py launches), without the ros2 CLI.')
     parser.add_argument('spec', nargs='?', default=None,

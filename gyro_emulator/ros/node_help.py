@@ -13,7 +13,7 @@ from gyro_emulator.ros import params
 
 USAGE = """\
 usage: ros2 run gyro_emulator node [--help] [--ros-args ...]
-       python -m gyro_emulator.ros.node [--help] [--ros-args ...]
+       gyro-emulator-node [--help] [--ros-args ...]      (the pip venv, no ros2)
 
 The virtual MEMS gyro as a ROS 2 driver node (docs/node.md). Set parameters
 with --ros-args -p NAME:=VALUE or --params-file FILE (start from a copy of
