@@ -24,7 +24,8 @@ def _entry(cand, rmse_base, mechanisms=True):
            'parameters': selection.jackknife_parameters(eff, cand.evaluated),
            'rmse_rad_s': cand.evaluated.rmse,
            'gain': 1.0 - cand.evaluated.rmse / rmse_base,
-           'gain_step': cand.gain_step, 'p_value': cand.p_value,
+           'gain_step': cand.gain_step, 'gain_binned': cand.gain_binned,
+           'p_value': cand.p_value, 'evidence': _evidence(cand),
            'delta_bic': cand.delta_bic, 'effective_bins': cand.n_eff,
            'noise_share_of_gain': cand.null_share,
            'indistinguishable_from': list(cand.indistinguishable)}
@@ -32,6 +33,14 @@ def _entry(cand, rmse_base, mechanisms=True):
         out['mechanisms'] = list(eff.mechanisms)
         out['competitors'] = list(eff.competitors)
     return out
+
+
+def _evidence(cand):
+    """What the significance rests on: the route, its p-values and its gain."""
+    return {'route': cand.route, 'p_fold_test': cand.p_fold,
+            'p_state_space': cand.p_statespace, 'likelihood_ratio': cand.lr,
+            'gain_predictive': cand.gain_predictive,
+            'gain': 'gain_predictive' if cand.route == 'state_space' else 'gain_step'}
 
 
 def _finding(cand, rmse_base, rmse_null):
@@ -42,7 +51,8 @@ def _finding(cand, rmse_base, rmse_null):
             'parameters': selection.jackknife_parameters(cand.effect, ev),
             'rmse_rad_s': ev.rmse, 'gain': 1.0 - ev.rmse / rmse_base,
             'gain_over_recalibrated': 1.0 - ev.rmse / rmse_null,
-            'p_value': cand.p_value, 'delta_bic': cand.delta_bic,
+            'gain_binned': cand.gain_binned, 'p_value': cand.p_value,
+            'evidence': _evidence(cand), 'delta_bic': cand.delta_bic,
             'n_params': 2 + cand.effect.n_params, 'significant': cand.significant}
 
 
@@ -74,7 +84,9 @@ def _set_aside(screen, rms_all, best_gain):
 def _steps(steps):
     return [{'added': None if chosen is None else chosen.effect.effect_id,
              'candidates': [{'effect': c.effect.effect_id, 'rmse_rad_s': c.evaluated.rmse,
-                             'gain_step': c.gain_step, 'p_value': c.p_value,
+                             'gain_step': c.gain_step, 'gain_binned': c.gain_binned,
+                             'p_value': c.p_value, 'route': c.route,
+                             'p_state_space': c.p_statespace,
                              'delta_bic': c.delta_bic, 'significant': c.significant}
                             for c in cands]}
             for cands, chosen in steps]
