@@ -12,7 +12,7 @@ none is); every entry of ``selected`` has the same fields.
 import math
 
 from gyro_emulator.analysis.diagnose import baseline as base
-from gyro_emulator.analysis.diagnose import noise_model, screening, selection
+from gyro_emulator.analysis.diagnose import models, noise_model, screening, selection
 from gyro_emulator.analysis.diagnose import verdict as vd
 import numpy as np
 
@@ -105,6 +105,10 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
                               for c in steps[-1][0]], confound)
         if hint is not None:
             result = 'partly_explained' if selected else 'unexplained'
+    pair = vd.confounded_pair(cv.prep, _null_resid_bins(cv, null), confound, selected, res)
+    if pair is not None:
+        # a bias that follows temperature or time far beyond noise: never no_mismatch
+        result = 'partly_explained'
     remains = result in ('partly_explained', 'unexplained')
     best_gain = None
     if chosen and rms_all['best'] is not None:
@@ -113,6 +117,9 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
                 'noise_rad_s': res['noise']['white_sigma_rad_s']})
     res['message'] = vd.message(result, selected, res)
     res['suggestive'] = None
+    if pair is not None:
+        res['message'] += (f" The record cannot separate the two: {pair['text']}. To tell "
+                           f"them apart, {pair['experiment']}.")
     if hint is not None:
         effect, gain, p = hint
         n = len(steps[-1][0])
@@ -143,12 +150,19 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
         'verdict': result,
         'residual': res,
         'confounded': confound,
+        'confounded_pair': pair,
         'experiments': vd.experiments(selected, confound, remains, res['strongest_correlate']),
         'findings': [_finding(c, rmse_base, null.rmse) for c in steps[0][0]] if steps else [],
         'steps': _steps(steps),
         'not_tested': not_tested,
         'method': _method(cv, alpha),
     }
+
+
+def _null_resid_bins(cv, null):
+    """The recalibrated baseline's residual on the bins (its fit on every bin)."""
+    b = cv.prep.binned
+    return b.gyro - models.predict(null.model, cv.ctx, b, null.full)
 
 
 def _method(cv, alpha):
@@ -159,8 +173,12 @@ def _method(cv, alpha):
             'null_simulations': noise_model.N_SIM,
             'rmse': 'held-out, every kept sample, rad/s',
             'test': 'fold test of the held-out SSE reduction less the reduction the '
-                    "record's own noise gives, Nadeau-Bengio corrected, Bonferroni over "
-                    'the candidates of each step',
+                    "record's own noise gives, Nadeau-Bengio corrected; for causes with "
+                    'fixed columns also the likelihood ratio of a local level (white '
+                    'noise plus a random walk capped by the Allan deviation at short '
+                    'averaging times) with and without the cause on the group means, '
+                    'Bartlett-corrected by a parametric bootstrap; p = 2 min of the two; '
+                    'Bonferroni over the candidates of each step',
             'information_criterion': 'BIC on the effective number of independent bins',
             'uncertainty': 'delete-a-block jackknife over the folds, 1 sigma',
             'blocks': 'the paired test counts folds (sub_blocks = folds)'}
