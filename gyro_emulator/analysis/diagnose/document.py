@@ -3,10 +3,13 @@ The JSON document of a diagnosis.
 
 Top level: ``input``, ``device_preset``, ``calibration``, ``baseline``,
 ``recalibrated_baseline``, ``set_aside``, ``best``, ``selected``,
-``verdict``, ``residual``, ``confounded``, ``experiments``, ``findings``
+``verdict``, ``residual``, ``confounded``, ``confounded_pair``, ``experiments``, ``findings``
 (the first step's candidates, ranked), ``steps``, ``not_tested`` and
 ``method``. ``best`` is the first cause chosen (``effect: 'none'`` when
-none is); every entry of ``selected`` has the same fields.
+none is); every entry of ``selected`` has the same fields, among them the
+per-sample ``gain_step``, ``gain_binned`` (the held-out gain on the
+super-bin means, the verdict's averaging time) and ``evidence`` (which
+test, fold or likelihood, and which gain the decision rests on).
 """
 
 import math
@@ -36,7 +39,7 @@ def _entry(cand, rmse_base, mechanisms=True):
 
 
 def _evidence(cand):
-    """What the significance rests on: the route, its p-values and its gain."""
+    """Return what the significance rests on: the route, its p-values and its gain."""
     return {'route': cand.route, 'p_fold_test': cand.p_fold,
             'p_state_space': cand.p_statespace, 'likelihood_ratio': cand.lr,
             'gain_predictive': cand.gain_predictive,
@@ -160,7 +163,7 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
 
 
 def _null_resid_bins(cv, null):
-    """The recalibrated baseline's residual on the bins (its fit on every bin)."""
+    """Return the recalibrated baseline's residual on the bins (its fit on every bin)."""
     b = cv.prep.binned
     return b.gyro - models.predict(null.model, cv.ctx, b, null.full)
 

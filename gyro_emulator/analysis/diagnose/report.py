@@ -155,14 +155,14 @@ def _evidence_text(entry):
     ev = entry.get('evidence') or {}
     p_ss = ev.get('p_state_space')
     if ev.get('route') == 'state_space':
-        return (f"The decision rests on the likelihood ratio of the noise and the cause "
+        return (f'The decision rests on the likelihood ratio of the noise and the cause '
                 f"estimated jointly (LR {ev['likelihood_ratio']:.1f}, p = {p_ss:.2g}; the "
                 f"fold test gave p = {ev['p_fold_test']:.2g}) and on its gain in "
                 f"predicting the averaged residual ({100 * ev['gain_predictive']:.1f} %), "
                 'where a slow effect lives: per sample, white noise dominates.')
     return ('The decision rests on the fold test of the held-out gain per sample (p = '
             f"{ev.get('p_fold_test', entry['p_value']):.2g}"
-            + ('' if p_ss is None else f"; the joint likelihood test gave p = {p_ss:.2g}")
+            + ('' if p_ss is None else f'; the joint likelihood test gave p = {p_ss:.2g}')
             + ').')
 
 

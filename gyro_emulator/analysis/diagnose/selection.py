@@ -207,7 +207,7 @@ class Selector:
 
     def _state_space_null(self, current):
         """
-        The current model on the super-bins, for :mod:`.statespace` (None: too few groups).
+        Return the current model on the super-bins for :mod:`.statespace` (None: too few groups).
 
         Group means of the output, the current model's columns (the
         nuisance), the walk cap from the current residual's short and
@@ -234,7 +234,7 @@ class Selector:
 
     def _linear_columns(self, current, effect):
         """
-        The columns a cause adds on the super-bins, when they do not depend on a search.
+        Return the columns a cause adds on the super-bins, when no search sets them.
 
         None for a cause that changes the scale-factor column or the delay,
         a step, or a searched cause (except the search-free columns of

@@ -310,7 +310,7 @@ def lr_test(y, x0, x1, groups, rng, rw_cap=math.inf, decide_at=None, n_boot=N_BO
 
 
 def bootstrap_nulls(null, x0, groups, rng, rw_cap=math.inf, n_boot=N_BOOT):
-    """Simulated null records (differences) and their null fits, for :func:`lr_test`."""
+    """Draw null records (differences) and fit the null to each, for :func:`lr_test`."""
     sims = simulate_differences(null, groups, n_boot, rng)
     fits = [fit_level(np.r_[0.0, np.cumsum(sims[:, j])], x0, groups, rw_cap)
             for j in range(n_boot)]

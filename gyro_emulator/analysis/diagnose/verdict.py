@@ -13,6 +13,10 @@ What remains after the chosen causes, and what to say about it.
   named when structure remains.
 - :func:`confounded`: pairs of regressors that move together
   (|correlation| >= 0.9 over the bins), which no fit can separate.
+- :func:`confounded_pair`: a bias that follows temperature or time on a
+  record where the two are confounded (a one-way ramp): the pair is named
+  with both slopes and the experiment that separates them, and the verdict
+  is ``partly_explained``, never ``no_mismatch``.
 - :func:`experiments`: what measurement would separate the candidates or
   the confounded regressors, or show what the remaining structure is.
 - :func:`verdict`: ``no_mismatch`` (nothing chosen, residual at its
@@ -316,7 +320,7 @@ def _slope(x, r, w):
 
 def confounded_pair(prep, resid_bins, confound, selected, res):
     """
-    The bias follows temperature or time, and the record cannot say which.
+    Name a bias that follows temperature or time when the record cannot say which.
 
     Given when temperature and time are confounded (|r| >= :data:`PAIR_R`)
     and either a chosen cause is a bias that follows one of them or the
