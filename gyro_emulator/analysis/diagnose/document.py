@@ -3,16 +3,19 @@ The JSON document of a diagnosis.
 
 Top level: ``input``, ``device_preset``, ``calibration``, ``baseline``,
 ``recalibrated_baseline``, ``set_aside``, ``best``, ``selected``,
-``verdict``, ``residual``, ``confounded``, ``experiments``, ``findings``
+``verdict``, ``residual``, ``confounded``, ``confounded_pair``, ``experiments``, ``findings``
 (the first step's candidates, ranked), ``steps``, ``not_tested`` and
 ``method``. ``best`` is the first cause chosen (``effect: 'none'`` when
-none is); every entry of ``selected`` has the same fields.
+none is); every entry of ``selected`` has the same fields, among them the
+per-sample ``gain_step``, ``gain_binned`` (the held-out gain on the
+super-bin means, the verdict's averaging time) and ``evidence`` (which
+test, fold or likelihood, and which gain the decision rests on).
 """
 
 import math
 
 from gyro_emulator.analysis.diagnose import baseline as base
-from gyro_emulator.analysis.diagnose import noise_model, screening, selection
+from gyro_emulator.analysis.diagnose import models, noise_model, screening, selection
 from gyro_emulator.analysis.diagnose import verdict as vd
 import numpy as np
 
@@ -24,7 +27,8 @@ def _entry(cand, rmse_base, mechanisms=True):
            'parameters': selection.jackknife_parameters(eff, cand.evaluated),
            'rmse_rad_s': cand.evaluated.rmse,
            'gain': 1.0 - cand.evaluated.rmse / rmse_base,
-           'gain_step': cand.gain_step, 'p_value': cand.p_value,
+           'gain_step': cand.gain_step, 'gain_binned': cand.gain_binned,
+           'p_value': cand.p_value, 'evidence': _evidence(cand),
            'delta_bic': cand.delta_bic, 'effective_bins': cand.n_eff,
            'noise_share_of_gain': cand.null_share,
            'indistinguishable_from': list(cand.indistinguishable)}
@@ -32,6 +36,14 @@ def _entry(cand, rmse_base, mechanisms=True):
         out['mechanisms'] = list(eff.mechanisms)
         out['competitors'] = list(eff.competitors)
     return out
+
+
+def _evidence(cand):
+    """Return what the significance rests on: the route, its p-values and its gain."""
+    return {'route': cand.route, 'p_fold_test': cand.p_fold,
+            'p_state_space': cand.p_statespace, 'likelihood_ratio': cand.lr,
+            'gain_predictive': cand.gain_predictive,
+            'gain': 'gain_predictive' if cand.route == 'state_space' else 'gain_step'}
 
 
 def _finding(cand, rmse_base, rmse_null):
@@ -42,7 +54,8 @@ def _finding(cand, rmse_base, rmse_null):
             'parameters': selection.jackknife_parameters(cand.effect, ev),
             'rmse_rad_s': ev.rmse, 'gain': 1.0 - ev.rmse / rmse_base,
             'gain_over_recalibrated': 1.0 - ev.rmse / rmse_null,
-            'p_value': cand.p_value, 'delta_bic': cand.delta_bic,
+            'gain_binned': cand.gain_binned, 'p_value': cand.p_value,
+            'evidence': _evidence(cand), 'delta_bic': cand.delta_bic,
             'n_params': 2 + cand.effect.n_params, 'significant': cand.significant}
 
 
@@ -74,7 +87,9 @@ def _set_aside(screen, rms_all, best_gain):
 def _steps(steps):
     return [{'added': None if chosen is None else chosen.effect.effect_id,
              'candidates': [{'effect': c.effect.effect_id, 'rmse_rad_s': c.evaluated.rmse,
-                             'gain_step': c.gain_step, 'p_value': c.p_value,
+                             'gain_step': c.gain_step, 'gain_binned': c.gain_binned,
+                             'p_value': c.p_value, 'route': c.route,
+                             'p_state_space': c.p_statespace,
                              'delta_bic': c.delta_bic, 'significant': c.significant}
                             for c in cands]}
             for cands, chosen in steps]
@@ -93,6 +108,10 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
                               for c in steps[-1][0]], confound)
         if hint is not None:
             result = 'partly_explained' if selected else 'unexplained'
+    pair = vd.confounded_pair(cv.prep, _null_resid_bins(cv, null), confound, selected, res)
+    if pair is not None:
+        # a bias that follows temperature or time far beyond noise: never no_mismatch
+        result = 'partly_explained'
     remains = result in ('partly_explained', 'unexplained')
     best_gain = None
     if chosen and rms_all['best'] is not None:
@@ -101,6 +120,9 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
                 'noise_rad_s': res['noise']['white_sigma_rad_s']})
     res['message'] = vd.message(result, selected, res)
     res['suggestive'] = None
+    if pair is not None:
+        res['message'] += (f" The record cannot separate the two: {pair['text']}. To tell "
+                           f"them apart, {pair['experiment']}.")
     if hint is not None:
         effect, gain, p = hint
         n = len(steps[-1][0])
@@ -131,12 +153,19 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
         'verdict': result,
         'residual': res,
         'confounded': confound,
+        'confounded_pair': pair,
         'experiments': vd.experiments(selected, confound, remains, res['strongest_correlate']),
         'findings': [_finding(c, rmse_base, null.rmse) for c in steps[0][0]] if steps else [],
         'steps': _steps(steps),
         'not_tested': not_tested,
         'method': _method(cv, alpha),
     }
+
+
+def _null_resid_bins(cv, null):
+    """Return the recalibrated baseline's residual on the bins (its fit on every bin)."""
+    b = cv.prep.binned
+    return b.gyro - models.predict(null.model, cv.ctx, b, null.full)
 
 
 def _method(cv, alpha):
@@ -147,8 +176,12 @@ def _method(cv, alpha):
             'null_simulations': noise_model.N_SIM,
             'rmse': 'held-out, every kept sample, rad/s',
             'test': 'fold test of the held-out SSE reduction less the reduction the '
-                    "record's own noise gives, Nadeau-Bengio corrected, Bonferroni over "
-                    'the candidates of each step',
+                    "record's own noise gives, Nadeau-Bengio corrected; for causes with "
+                    'fixed columns also the likelihood ratio of a local level (white '
+                    'noise plus a random walk capped by the Allan deviation at short '
+                    'averaging times) with and without the cause on the group means, '
+                    'Bartlett-corrected by a parametric bootstrap; p = 2 min of the two; '
+                    'Bonferroni over the candidates of each step',
             'information_criterion': 'BIC on the effective number of independent bins',
             'uncertainty': 'delete-a-block jackknife over the folds, 1 sigma',
             'blocks': 'the paired test counts folds (sub_blocks = folds)'}

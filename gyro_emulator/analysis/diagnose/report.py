@@ -150,13 +150,30 @@ def _summary_lines(doc):
             f"on {inp['bins']} bin means of {inp['bin_s']:.3g} s.", '']
 
 
+def _evidence_text(entry):
+    """Return which test and which gain the cause rests on."""
+    ev = entry.get('evidence') or {}
+    p_ss = ev.get('p_state_space')
+    if ev.get('route') == 'state_space':
+        return (f'The decision rests on the likelihood ratio of the noise and the cause '
+                f"estimated jointly (LR {ev['likelihood_ratio']:.1f}, p = {p_ss:.2g}; the "
+                f"fold test gave p = {ev['p_fold_test']:.2g}) and on its gain in "
+                f"predicting the averaged residual ({100 * ev['gain_predictive']:.1f} %), "
+                'where a slow effect lives: per sample, white noise dominates.')
+    return ('The decision rests on the fold test of the held-out gain per sample (p = '
+            f"{ev.get('p_fold_test', entry['p_value']):.2g}"
+            + ('' if p_ss is None else f'; the joint likelihood test gave p = {p_ss:.2g}')
+            + ').')
+
+
 def _cause_lines(entry):
     """One chosen cause: its sentence, gains, test and parameter table."""
     lines = [f"### {entry['effect']} ({entry['kind']})", '', entry['cause'], '',
              f"Held-out gain {100 * entry['gain']:.1f} % against the user-calibrated baseline "
-             f"({100 * entry['gain_step']:.1f} % over the step before); p = "
-             f"{entry['p_value']:.2g}; BIC on {entry['effective_bins']:.0f} effective bins "
-             f"{entry['delta_bic']:.0f}."]
+             f"({100 * entry['gain_step']:.1f} % over the step before, per sample; "
+             f"{100 * entry['gain_binned']:.1f} % in the averaged residual the verdict "
+             f"uses); p = {entry['p_value']:.2g}; BIC on {entry['effective_bins']:.0f} "
+             f"effective bins {entry['delta_bic']:.0f}.", '', _evidence_text(entry)]
     if entry['indistinguishable_from']:
         lines += ['', 'Not separable on held-out data from: '
                   + ', '.join(f'`{e}`' for e in entry['indistinguishable_from']) + '.']
@@ -224,15 +241,20 @@ def _baseline_text(doc):
             f"{doc['recalibrated_baseline']['rmse_rad_s']:.4g} rad/s).")
 
 
+_TEST_TEXT = {'fold_test': 'fold', 'state_space': 'likelihood'}
+
+
 def _steps_lines(doc):
     """One table per selection step, then the causes not tested."""
     lines = []
     for i, st in enumerate(doc['steps'], 1):
         lines += [f"Step {i}: added `{st['added'] or 'nothing'}`.", '',
-                  '| candidate | held-out RMSE (rad/s) | gain over the step before | p | '
-                  'delta BIC | significant |', '|---|---|---|---|---|---|']
+                  '| candidate | held-out RMSE (rad/s) | gain over the step before | '
+                  'gain in averaged residual | p | test | '
+                  'delta BIC | significant |', '|---|---|---|---|---|---|---|---|']
         lines += [f"| {c['effect']} | {c['rmse_rad_s']:.4g} | {gain_text(c['gain_step'])} "
-                  f"| {c['p_value']:.2g} | {c['delta_bic']:.0f} | "
+                  f"| {gain_text(c.get('gain_binned', 0.0))} | {c['p_value']:.2g} | "
+                  f"{_TEST_TEXT[c.get('route', 'fold_test')]} | {c['delta_bic']:.0f} | "
                   f"{'yes' if c['significant'] else 'no'} |" for c in st['candidates']]
         lines.append('')
     lines += [f"- `{nt['effect']}` not tested: {nt['reason']}" for nt in doc['not_tested']]

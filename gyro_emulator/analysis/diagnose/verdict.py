@@ -13,6 +13,10 @@ What remains after the chosen causes, and what to say about it.
   named when structure remains.
 - :func:`confounded`: pairs of regressors that move together
   (|correlation| >= 0.9 over the bins), which no fit can separate.
+- :func:`confounded_pair`: a bias that follows temperature or time on a
+  record where the two are confounded (a one-way ramp): the pair is named
+  with both slopes and the experiment that separates them, and the verdict
+  is ``partly_explained``, never ``no_mismatch``.
 - :func:`experiments`: what measurement would separate the candidates or
   the confounded regressors, or show what the remaining structure is.
 - :func:`verdict`: ``no_mismatch`` (nothing chosen, residual at its
@@ -297,6 +301,57 @@ def suggestive(candidates, confound):
                 and (found is None or gain > found[1])):
             found = (effect, gain, p)
     return found
+
+
+#: |correlation| of temperature and time from which a bias that follows
+#: either is reported as the pair (a one-way ramp or a staircase of soaks).
+PAIR_R = 0.95
+#: Causes whose bias follows temperature or time.
+_PAIR_CAUSES = ('bias_temperature', 'bias_time', 'temperature_rate_bias', 'bias_hysteresis',
+                'bias_step')
+
+
+def _slope(x, r, w):
+    """Weighted least-squares slope of r on [1, x]."""
+    xc = x - np.average(x, weights=w)
+    den = float(np.sum(w * xc * xc))
+    return float(np.sum(w * xc * (r - np.average(r, weights=w)))) / den if den > 0 else 0.0
+
+
+def confounded_pair(prep, resid_bins, confound, selected, res):
+    """
+    Name a bias that follows temperature or time when the record cannot say which.
+
+    Given when temperature and time are confounded (|r| >= :data:`PAIR_R`)
+    and a chosen cause is a bias that follows one of them. ``resid_bins`` is the recalibrated
+    baseline's residual on the bins: the two slopes are fitted to it alone,
+    each the whole answer if that regressor is the cause.
+
+    Returns
+    -------
+    dict or None
+        ``correlation``, ``bias_temp_coeff_rad_s_k``, ``bias_drift_rad_s_per_h``,
+        ``experiment`` and ``text``.
+
+    """
+    pair = [c for c in confound if {c['a'], c['b']} == {'temperature', 'time'}
+            and abs(c['correlation']) >= PAIR_R]
+    # only a chosen cause names the pair: on raw ADIS16405 y stretches the
+    # residual's wander passes the structure limit against time on a ramp
+    # (3 of 12 records without an effect), which is not evidence of a bias
+    chosen = any(e['effect'] in _PAIR_CAUSES for e in selected)
+    if not pair or not chosen:
+        return None
+    b = prep.binned
+    per_k = _slope(b.temp_c, resid_bins, b.weight)
+    per_h = _slope(b.time_s, resid_bins, b.weight) * 3600.0
+    r = pair[0]['correlation']
+    deg = 180.0 / math.pi
+    text = (f'the bias follows temperature or time (r = {r:.3f}): '
+            f'{per_k * deg:.3g} deg/s/K or {per_h * deg:.3g} deg/s/h')
+    return {'correlation': r, 'bias_temp_coeff_rad_s_k': per_k,
+            'bias_drift_rad_s_per_h': per_h,
+            'experiment': _SEPARATE[frozenset({'temperature', 'time'})], 'text': text}
 
 
 def verdict(selected, consistent):
