@@ -160,11 +160,12 @@ def tilt_steps(time_s, rng, steps=16):
 
 
 def rate_step_knots(duration_s, levels_deg_s=(30, 60, 120, 240), hold_s=4.0, gap_s=4.0,
-                    accel_deg_s2=1000.0):
+                    accel_deg_s2=2e4):
     """
     Knots (times s, rates rad/s) of rate-table steps: 0 -> +r -> 0 -> -r for each level.
 
-    Ramps at ``accel_deg_s2``; the pattern repeats to cover ``duration_s``.
+    Ramps at ``accel_deg_s2`` (the default steps to 240 deg/s within 12 ms,
+    about a sample at 100 Hz); the pattern repeats to cover ``duration_s``.
     """
     kt, kr, tk = [0.0], [0.0], 0.0
     pattern = [s * r for r in levels_deg_s for s in (1, -1)]
@@ -178,45 +179,58 @@ def rate_step_knots(duration_s, levels_deg_s=(30, 60, 120, 240), hold_s=4.0, gap
     return np.asarray(kt), np.asarray(kr) * _DEG
 
 
-#: Profiles :func:`profile` builds.
-PROFILES = ('static', 'ramp', 'cycles', 'soaks', 'tilt', 'ramp_tilt', 'rate_steps',
-            'rate_steps_ramp', 'chamber')
+#: Parts of a profile :func:`profile` builds: temperature, then motion.
+TEMPERATURES = ('ramp', 'cycles', 'soaks', 'chamber')
+MOTIONS = ('tilt', 'rate_steps')
 
 
 def profile(name, time_s, rng, temp_c=None):
     """
-    Return the :class:`Inputs` of a named profile (:data:`PROFILES`) on ``time_s``.
+    Return the :class:`Inputs` of a profile on ``time_s``.
 
-    ``ramp``/``cycles``/``soaks`` set the temperature (15..55 C), ``tilt``
-    steps gravity at 25 C, ``rate_steps`` drives a rate table at 25 C,
-    ``chamber`` takes the log's own temperature ``temp_c``; ``ramp_tilt`` and
-    ``rate_steps_ramp`` combine two.
+    ``name`` is ``static`` or parts joined by ``+``: at most one of
+    :data:`TEMPERATURES` (``ramp``, ``cycles``, ``soaks``: 15..55 C;
+    ``chamber``: the log's own temperature ``temp_c``; default 25 C) and
+    any of :data:`MOTIONS` (``tilt``: gravity in steps; ``rate_steps``: a
+    rate table to 240 deg/s), e.g. ``'cycles+tilt'``.
     """
-    if name not in PROFILES:
-        raise ValueError(f'profile {name!r} is unknown: choose one of {", ".join(PROFILES)}')
+    parts = [] if name == 'static' else name.split('+')
+    unknown = [p for p in parts if p not in TEMPERATURES + MOTIONS]
+    if unknown or sum(p in TEMPERATURES for p in parts) > 1:
+        raise ValueError(f'profile {name!r}: expected static or one of {", ".join(TEMPERATURES)} '
+                         f'and any of {", ".join(MOTIONS)} joined by +')
     t = np.asarray(time_s, dtype=float)
     temp = np.full(len(t), REF_TEMP_C)
     accel = np.tile([0.0, 0.0, STANDARD_GRAVITY_M_S2], (len(t), 1))
-    knots = None
-    if name in ('ramp', 'ramp_tilt', 'rate_steps_ramp'):
+    if 'ramp' in parts:
         temp = temperature_ramp(t)
-    elif name == 'cycles':
+    elif 'cycles' in parts:
         temp = temperature_cycles(t)
-    elif name == 'soaks':
+    elif 'soaks' in parts:
         temp = temperature_soaks(t)
-    elif name == 'chamber':
+    elif 'chamber' in parts:
         if temp_c is None:
             raise ValueError('profile chamber: the log has no temperature')
         temp = np.asarray(temp_c, dtype=float)
-    if name in ('tilt', 'ramp_tilt'):
+    if 'tilt' in parts:
         accel = tilt_steps(t, rng)
-    if name.startswith('rate_steps'):
-        knots = rate_step_knots(float(t[-1] - t[0]))
-        knots = (knots[0] + t[0], knots[1])
-    inputs = Inputs(t, np.zeros(len(t)), temp, accel, knots)
-    if knots is not None:
-        inputs = Inputs(t, inputs.rate_at(t), temp, accel, knots)
-    return inputs
+    if 'rate_steps' not in parts:
+        return Inputs(t, np.zeros(len(t)), temp, accel)
+    kt, kr = rate_step_knots(float(t[-1] - t[0]))
+    knots = (kt + t[0], kr)
+    return Inputs(t, np.interp(t, *knots, left=0.0, right=0.0), temp, accel, knots)
+
+
+def block_means(time_s, values, factor):
+    """
+    Return (times, values) averaged over consecutive blocks of ``factor`` samples.
+
+    A real log at a lower output rate (as through a moving-average output
+    filter): the same part's noise, fewer samples.
+    """
+    n = len(values) // factor * factor
+    return (np.asarray(time_s[:n:factor], dtype=float),
+            np.asarray(values[:n], dtype=float).reshape(-1, factor).mean(axis=1))
 
 
 def effect_signal(inputs, effect, size, rate_rad_s=None):
