@@ -95,7 +95,7 @@ def _assert_found(doc, effect):
 
 
 def _assert_pair(doc):
-    """A bias on a one-way ramp: the temperature-or-time pair, never none or no_mismatch."""
+    """Check a bias on a one-way ramp: the temperature-or-time pair, never none or no_mismatch."""
     assert doc['verdict'] != 'no_mismatch', doc['residual']['message']
     assert RAMP_PAIR & _named(doc), (
         f'no bias cause named: verdict {doc["verdict"]}, {doc["residual"]["message"]}')

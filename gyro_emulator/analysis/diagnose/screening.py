@@ -239,7 +239,7 @@ class _SampleModel:
 
 
 def _edge_samples(data, dt_s):
-    """Samples within the settling window of a rate-step corner (``DELAY_RANGE_S``, +-1 sample)."""
+    """Return the samples within the settling window of a corner (DELAY_RANGE_S, +-1 sample)."""
     corner = np.flatnonzero(_corners(data.rate_cmd_rad_s))
     near = np.zeros(data.rows, bool)
     if not len(corner):
@@ -253,7 +253,7 @@ def _edge_samples(data, dt_s):
 
 
 def _local_level(r, usable, index, half):
-    """Median of ``r`` over the ``usable`` samples within +-half of each of ``index`` (0 if none)."""
+    """Return the median of the usable ``r`` within +-half of each of ``index`` (0: none)."""
     padded = np.pad(np.where(usable, r, np.nan), half, constant_values=np.nan)
     windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)[index]
     empty = ~np.any(np.isfinite(windows), axis=1)
@@ -263,7 +263,7 @@ def _local_level(r, usable, index, half):
 
 def _delay_estimate(t, rate, idx, excess, gain):
     """
-    The delay on ``DELAY_GRID_S`` that best explains the edge residuals (least absolute error).
+    Return the delay on ``DELAY_GRID_S`` that best explains the edge residuals (least absolute error).
 
     ``excess`` is the residual at the edge samples ``idx`` less its local
     level; ``gain`` the model's d(output)/d(rate) there. Absolute error, so
@@ -305,8 +305,8 @@ def explained_by_delay(data, r, model, keep, flag, half, tolerance):
     base = model.at(idx, rate[idx])
     u = y[idx] - base - _local_level(r, keep & ~near, idx, half)
     shift = d / dt
-    lags = [0] if abs(shift) < 0.25 else range(int(math.floor(shift - 0.5)),
-                                                 int(math.ceil(shift + 0.5)) + 1)
+    lags = [0] if abs(shift) < 0.25 else range(
+        int(math.floor(shift - 0.5)), int(math.ceil(shift + 0.5)) + 1)
     bands = [model.at(idx, rate[np.clip(idx - k, 0, data.rows - 1)]) - base for k in lags]
     lo, hi = np.min(bands, axis=0), np.max(bands, axis=0)
     out[idx] = np.abs(u - np.clip(u, lo, hi)) <= tolerance
