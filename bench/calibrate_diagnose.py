@@ -134,7 +134,8 @@ def main():
         print(f'{"":13s} verdicts {verdicts}; false causes {false}')
         total_false += false
         total_p += list(pmins)
-    _line('all', total_false, len(total_p), np.asarray(total_p), args.alpha)
+    if total_p:
+        _line('all', total_false, len(total_p), np.asarray(total_p), args.alpha)
 
 
 if __name__ == '__main__':

@@ -263,7 +263,9 @@ def _local_level(r, usable, index, half):
 
 def _delay_estimate(t, rate, idx, excess, gain):
     """
-    Return the delay on ``DELAY_GRID_S`` that best explains the edge residuals (least absolute error).
+    Return the delay on ``DELAY_GRID_S`` that best explains the edge residuals.
+
+    Least absolute error.
 
     ``excess`` is the residual at the edge samples ``idx`` less its local
     level; ``gain`` the model's d(output)/d(rate) there. Absolute error, so
