@@ -15,8 +15,10 @@ says whether the residual is at the record's own noise floor, what cannot
 be told apart and which experiment would separate it.
 """
 
+import contextlib
 import math
 import sys
+import warnings
 
 from gyro_emulator.cli.jsonout import write_json
 from gyro_emulator.physics.presets import PHYSICS_PRESETS
@@ -124,12 +126,38 @@ def run(args):
         print(f'gyro-emulator diagnose: warning: {note}', file=sys.stderr)
     effects = None if args.effects is None else [
         e.strip() for e in args.effects.split(',') if e.strip()]
-    result = diagnose(record, preset=args.preset, ref_temp_c=args.ref_temp,
-                      folds=args.folds, effects=effects, alpha=args.alpha,
-                      outlier_threshold=args.outlier_sigma, max_causes=args.max_causes)
-    _print(result.doc)
-    if args.json:
-        write_json(args.json, result.doc)
-    if args.report:
-        print(f'wrote {report.write_report(result, args.report)}')
+    with quiet_numerics():
+        result = diagnose(record, preset=args.preset, ref_temp_c=args.ref_temp,
+                          folds=args.folds, effects=effects, alpha=args.alpha,
+                          outlier_threshold=args.outlier_sigma, max_causes=args.max_causes)
+        _print(result.doc)
+        if args.json:
+            write_json(args.json, result.doc)
+        if args.report:
+            print(f'wrote {report.write_report(result, args.report)}')
     return 0
+
+
+@contextlib.contextmanager
+def quiet_numerics():
+    """
+    Keep numpy's and scipy's numerical warnings off the user's terminal.
+
+    An empty slice or a degenerate fit on an odd record is handled where it
+    happens (a NaN the verdict reads as "not measurable"); the warning that
+    came with it says nothing the report does not. A failure that is not a
+    ValueError or OSError (which :func:`gyro_emulator.cli.main` prints as one
+    line) is turned into one, naming what failed.
+    """
+    import numpy as np
+
+    with warnings.catch_warnings(), np.errstate(all='ignore'):
+        warnings.simplefilter('ignore', RuntimeWarning)
+        warnings.simplefilter('ignore', UserWarning)
+        try:
+            yield
+        except (ValueError, OSError, KeyboardInterrupt):
+            raise
+        except Exception as exc:
+            raise ValueError(f'the diagnosis failed ({type(exc).__name__}: {exc}); please '
+                             'report it with the input') from exc

@@ -38,12 +38,18 @@ import math
 
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.diagnose.data import Prepared
+from gyro_emulator.analysis.diagnose.effects import TimeDelay
 import numpy as np
 
 #: Robust standard deviations beyond which a sample is an outlier (the shared default).
 THRESHOLD = outliers.THRESHOLD
 HATS = 16
 HUBER_K = 2.0
+#: Delays (s) a rate-step edge may show before its samples can be outliers: the
+#: catalogue's time-delay search range (:class:`.effects.TimeDelay`).
+DELAY_RANGE_S = (float(TimeDelay.grid[0][0]), float(TimeDelay.grid[0][-1]))
+#: Delays tried when the record's own is estimated at its edges, s.
+DELAY_GRID_S = np.linspace(DELAY_RANGE_S[0], DELAY_RANGE_S[1], 351)
 
 
 def _hats(t, t0, t1, count=HATS):
@@ -204,7 +210,109 @@ def _flag_pass(data, prep_all, keep, ratio_fn, threshold):
     for lo, hi in outliers.stretches(t, prep.dt_s):
         flag[lo:hi] |= _corner_flags(r[lo:hi], data.rate_cmd_rad_s[lo:hi], keep[lo:hi], half,
                                      threshold)
+    if np.any(flag):
+        model = _SampleModel(prep_all, beta, ratio_fn(prep_all.binned.temp_c))
+        flag &= ~explained_by_delay(data, r, model, keep, flag, half, threshold * sigma)
     return flag, sigma
+
+
+class _SampleModel:
+    """The nuisance prediction at samples, for any applied rate put in their place."""
+
+    def __init__(self, prep_all, beta, ratio):
+        self.prep, self.beta, self.ratio = prep_all, beta, ratio
+
+    def at(self, index, rate):
+        """
+        Prediction at samples ``index`` had the applied rate been ``rate`` (rad/s).
+
+        Without the rate-derivative term: the delay it stands for is what the
+        caller models.
+        """
+        frame = self.prep.sample_frame(index)
+        frame.rate, frame.rate2, frame.rate3 = rate, rate * rate, rate ** 3
+        frame.rate_derivative = lambda: np.zeros(len(index))
+        pred = np.zeros(len(index))
+        for coef, col in zip(self.beta, nuisance_columns(self.prep, frame, self.ratio)):
+            pred += coef * col
+        return pred
+
+
+def _edge_samples(data, dt_s):
+    """Return the samples within the settling window of a corner (DELAY_RANGE_S, +-1 sample)."""
+    corner = np.flatnonzero(_corners(data.rate_cmd_rad_s))
+    near = np.zeros(data.rows, bool)
+    if not len(corner):
+        return near
+    before = int(math.ceil(-DELAY_RANGE_S[0] / dt_s)) + 1
+    after = int(math.ceil(DELAY_RANGE_S[1] / dt_s)) + 1
+    marks = np.zeros(data.rows + 1, int)
+    np.add.at(marks, np.clip(corner - before, 0, data.rows), 1)
+    np.add.at(marks, np.clip(corner + after + 1, 0, data.rows), -1)
+    return np.cumsum(marks)[:-1] > 0
+
+
+def _local_level(r, usable, index, half):
+    """Return the median of the usable ``r`` within +-half of each of ``index`` (0: none)."""
+    padded = np.pad(np.where(usable, r, np.nan), half, constant_values=np.nan)
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * half + 1)[index]
+    empty = ~np.any(np.isfinite(windows), axis=1)
+    windows = np.where(empty[:, None], 0.0, windows)
+    return np.nanmedian(windows, axis=1)
+
+
+def _delay_estimate(t, rate, idx, excess, gain):
+    """
+    Return the delay on ``DELAY_GRID_S`` that best explains the edge residuals.
+
+    Least absolute error.
+
+    ``excess`` is the residual at the edge samples ``idx`` less its local
+    level; ``gain`` the model's d(output)/d(rate) there. Absolute error, so
+    that a spike does not pull the estimate.
+    """
+    cost = [np.sum(np.abs(excess - gain * (np.interp(t[idx] - d, t, rate) - rate[idx])))
+            for d in DELAY_GRID_S]
+    return float(DELAY_GRID_S[int(np.argmin(cost))])
+
+
+def explained_by_delay(data, r, model, keep, flag, half, tolerance):
+    """
+    Return which flagged samples a delayed output explains: not outliers.
+
+    At the corners of rate steps a delayed output differs from the model
+    driven by the undelayed rate by up to the whole step, for as long as
+    the delay; set aside, those samples would take the delay's evidence
+    with them. The record's delay ``d`` is estimated from the residuals of
+    every sample near an edge (:func:`_delay_estimate`); a sample then is
+    explained when its output, less the local level of the residual, lies
+    within ``tolerance`` (the threshold times the noise scale) of the model
+    driven by the rate ``floor(d/dt)`` or ``ceil(d/dt)`` samples before it
+    (or anywhere between: within a sample the edge's timing is unknown). A
+    spike stands out from that as from the model; a record without a delay
+    gets ``d = 0`` and loses none of its flags.
+    """
+    near = _edge_samples(data, float(np.median(np.diff(data.time_s))))
+    out = np.zeros(data.rows, bool)
+    if np.count_nonzero(near & keep) < 10 or not np.any(flag & near):
+        return out
+    t, rate, y = data.time_s, data.rate_cmd_rad_s, data.gyro_rad_s
+    idx = np.flatnonzero(near & keep)
+    base = model.at(idx, rate[idx])
+    gain = (model.at(idx, rate[idx] + 1e-3) - base) / 1e-3
+    level = _local_level(r, keep & ~near, idx, half)
+    d = _delay_estimate(t, rate, idx, y[idx] - base - level, gain)
+    dt = float(np.median(np.diff(t)))
+    idx = np.flatnonzero(near & flag)
+    base = model.at(idx, rate[idx])
+    u = y[idx] - base - _local_level(r, keep & ~near, idx, half)
+    shift = d / dt
+    lags = [0] if abs(shift) < 0.25 else range(
+        int(math.floor(shift - 0.5)), int(math.ceil(shift + 0.5)) + 1)
+    bands = [model.at(idx, rate[np.clip(idx - k, 0, data.rows - 1)]) - base for k in lags]
+    lo, hi = np.min(bands, axis=0), np.max(bands, axis=0)
+    out[idx] = np.abs(u - np.clip(u, lo, hi)) <= tolerance
+    return out
 
 
 def screen(data, ratio_fn, threshold=THRESHOLD):
