@@ -550,3 +550,79 @@ def test_sensor_runs_give_unresolved_terms_as_upper_bounds(tmp_path, capsys):
         assert r['bias_instability_deg_h'] is None
     assert 'sensor runs (200 s at 100 Hz' in printed
     assert printed.count('deg/h/sqrt(h) (not resolved; model 0)') == 2
+
+
+def _killer(watcher, stop, most):
+    """Kill (SIGKILL) a worker that holds a fleet task, up to ``most`` times, until ``stop``."""
+    import signal
+    import time
+
+    kills = 0
+    while not stop.is_set() and kills < most:
+        try:
+            busy = [w for w, keys in watcher.processing().items()
+                    if any('fleet' in str(k) for k in keys)]
+            if busy:
+                pid = watcher.run(os.getpid, workers=busy[:1])[busy[0]]
+                os.kill(pid, signal.SIGKILL)
+                kills += 1
+        except Exception:       # the cluster is restarting the worker: look again
+            pass
+        stop.wait(0.05)
+
+
+def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resumes(tmp_path):
+    """
+    A LocalCluster whose scheduler gives up on a task at its first lost worker.
+
+    One kill: the run submits the task again and its rows and summary are
+    those of an in-process run. Kills without end: after TASK_ATTEMPTS the
+    run stops with one line, keeps its finished tasks, and ``resume``
+    (in-process) finishes it to the same rows and summary. Bounded: the
+    killer stops with the run, and each attempt costs one worker restart.
+    """
+    import logging
+    import threading
+
+    import dask
+    from dask.distributed import Client, LocalCluster
+
+    cfg = fleet(tolerances={'gas.pressure_pa': {'uniform': '10%'},
+                            'mismatch.sense_beam_width_m': {'uniform': 5e-9}}, exact=True,
+                specs={'split_hz': {'abs_max': 30.0}}, attribution_devices=500)
+    n = 5 * sampling.BLOCK_DEVICES + 7
+    whole = run.run_fleet(cfg, n, 3, str(tmp_path / 'whole'), scheduler='in-process')
+    with dask.config.set({'distributed.scheduler.allowed-failures': 0}):
+        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                               scheduler_port=0, dashboard_address=':0',
+                               silence_logs=logging.CRITICAL)
+    with cluster, Client(cluster.scheduler_address, set_as_default=False) as watcher:
+        stop = threading.Event()
+        killer = threading.Thread(target=_killer, args=(watcher, stop, 1))
+        killer.start()
+        try:
+            once = run.run_fleet(cfg, n, 3, str(tmp_path / 'once'),
+                                 scheduler=cluster.scheduler_address, blocks_per_task=1)
+        finally:
+            stop.set()
+            killer.join()
+        assert once['run']['tasks_resubmitted'] >= 1
+        assert _without_run(once) == _without_run(whole)
+        assert _rows(tmp_path / 'once').equals(_rows(tmp_path / 'whole'))
+        stop = threading.Event()
+        killer = threading.Thread(target=_killer, args=(watcher, stop, 100))
+        killer.start()
+        try:
+            with pytest.raises(run.FleetIncomplete, match=r'the cluster lost the task of blocks '
+                                                          r'\d+-\d+ 3 times \(KilledWorker') \
+                    as info:
+                run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'),
+                              scheduler=cluster.scheduler_address, blocks_per_task=1)
+        finally:
+            stop.set()
+            killer.join()
+    assert '\n' not in str(info.value) and 'run again with --resume' in str(info.value)
+    resumed = run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'), scheduler='in-process',
+                            resume=True)
+    assert _without_run(resumed) == _without_run(whole)
+    assert _rows(tmp_path / 'kept').equals(_rows(tmp_path / 'whole'))

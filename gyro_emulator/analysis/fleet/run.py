@@ -127,7 +127,9 @@ def local_cluster(workers):
     Start the ``local`` scheduler's ``dask.distributed.LocalCluster``.
 
     ``workers`` single-threaded worker processes with :data:`WORKER_ENVIRON`
-    and Dask's profiler off, on free ports, quiet below errors. The caller
+    and Dask's profiler off, on free ports, quiet below critical errors (a
+    worker it loses, a nanny that fails to restart one, are said by the run
+    in one line: :class:`FleetIncomplete`). The caller
     closes it. A fleet can also run on it by address (``cluster.scheduler_address``),
     as on any existing cluster.
     """
@@ -140,7 +142,7 @@ def local_cluster(workers):
                           'distributed.worker.profile.enabled': False}):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                             scheduler_port=0, dashboard_address=':0',
-                            silence_logs=logging.ERROR)
+                            silence_logs=logging.CRITICAL)
 
 
 class _DaskRun:
@@ -195,13 +197,25 @@ class _DaskRun:
                 queue.insert(0, (index, blocks[1:]))
         self.here = len(results)
         self.starter.join()
-        if self.error is not None:
-            raise self.error
+        try:
+            if self.error is not None:
+                raise self.error
+            self._on_cluster(job, queue, results, bar, finished)
+        except FleetIncomplete:
+            raise
+        except Exception as exc:     # the cluster failed to start, or went away
+            raise FleetIncomplete(f'the Dask cluster failed ({_first_line(exc)}); the '
+                                  f'{len(results)} finished tasks are kept in {job.out_dir}: '
+                                  'run again with --resume to finish') from None
+        return [results[first] for first in sorted(results)]
+
+    def _on_cluster(self, job, queue, results, bar, finished):
+        """Run the queued tasks on the cluster, a few in flight per worker."""
         limit = 2 * max(1, len(self.client.scheduler_info()['workers']))
         self._pending, self._attempts, self._tasks = None, {}, {}
         for _ in range(min(limit, len(queue))):
             self._submit(job, *queue.pop(0))
-        for future in self._pending:
+        for future in self._pending or ():
             result = self._result(job, future, len(results))
             if result is None:
                 continue
@@ -210,7 +224,6 @@ class _DaskRun:
             bar.update(sum(sampling.block_size(job.n_devices, b) for b in result['blocks']))
             if queue:
                 self._submit(job, *queue.pop(0))
-        return [results[first] for first in sorted(results)]
 
     def _submit(self, job, index, blocks):
         """Submit task ``index`` (again, under a new key, when it was lost)."""
@@ -237,10 +250,9 @@ class _DaskRun:
                 self.resubmitted += 1
                 self._submit(job, index, blocks)
                 return None
-            first_line = (str(exc).strip().splitlines() or [''])[0]
             raise FleetIncomplete(
                 f'the cluster lost the task of blocks {blocks[0]}-{blocks[-1]} '
-                f'{TASK_ATTEMPTS} times ({type(exc).__name__}: {first_line[:120]}); '
+                f'{TASK_ATTEMPTS} times ({_first_line(exc)}); '
                 f'the {done} finished tasks are kept in {job.out_dir}: run again with '
                 '--resume to finish') from None
 
@@ -259,6 +271,12 @@ class _DaskRun:
         """Wait until the cluster is closed."""
         if self.closer is not None:
             self.closer.join()
+
+
+def _first_line(exc):
+    """An exception's type and the first line of its message (at most 120 characters)."""
+    text = (str(exc).strip().splitlines() or [''])[0]
+    return f'{type(exc).__name__}: {text[:120]}' if text else type(exc).__name__
 
 
 class _NoBar:
