@@ -5,6 +5,7 @@ import glob
 import json
 import os
 
+from distributed.diagnostics.plugin import WorkerPlugin
 from gyro_emulator.analysis.fleet import config as fleet_config
 from gyro_emulator.analysis.fleet import engine, evaluate, report, run, sampling
 from gyro_emulator.cli import main
@@ -367,8 +368,8 @@ def test_impossible_parts_are_rejected_or_clipped_and_counted(tmp_path):
     ({'specs': {'exact_ratio': {'min': 0.9}}, 'exact': True},
      r'specs.exact_ratio: is a check of the first-order model, not a part spec: put it '
      r'under model_checks'),
-    ({'model_checks': {'split_hz': {'abs_max': 1}}}, r"unknown metric 'split_hz'; allowed: "
-                                                     r"exact_ratio"),
+    ({'model_checks': {'split_hz': {'abs_max': 1}}}, "unknown metric 'split_hz'; allowed: "
+                                                     r'exact_ratio'),
     ({'specs': {'split_hz': {'min': 5, 'max': 1}}}, r'min 5.0 is above max 1.0'),
     ({'factors': {'etch': {'normal': 1e-9, 'moves': {'geometry.frame_count': 1}}}},
      r'frame_count is a count'),
@@ -475,8 +476,8 @@ def test_a_fleet_larger_than_the_free_disk_is_refused_before_it_starts(tmp_path,
     estimate = resources.output_bytes(cfg, n, 2) - resources.SUMMARY_BYTES
     assert written <= estimate < 1.02 * written
     monkeypatch.setattr(resources, 'free_bytes', lambda path: 10 ** 7)
-    with pytest.raises(ValueError, match=r"fleet.out = .*: 10000000000 parts need about "
-                                         r"767 GB \(77 bytes a part\) but 0.01 GB is free") \
+    with pytest.raises(ValueError, match=r'fleet.out = .*: 10000000000 parts need about '
+                                         r'767 GB \(77 bytes a part\) but 0.01 GB is free') \
             as info:
         run.run_fleet(cfg, 10 ** 10, 1, str(tmp_path / 'b'), scheduler='in-process')
     assert '\n' not in str(info.value) and not (tmp_path / 'b').exists()
@@ -552,37 +553,45 @@ def test_sensor_runs_give_unresolved_terms_as_upper_bounds(tmp_path, capsys):
     assert printed.count('deg/h/sqrt(h) (not resolved; model 0)') == 2
 
 
-def _killer(watcher, stop, most):
-    """Kill (SIGKILL) a worker that holds a fleet task, up to ``most`` times, until ``stop``."""
-    import signal
-    import time
+class _KillFleetTasks(WorkerPlugin):
+    """
+    A Dask worker plugin: a worker that starts a fleet task dies (SIGKILL), ``times`` times.
 
-    kills = 0
-    while not stop.is_set() and kills < most:
-        try:
-            busy = [w for w, keys in watcher.processing().items()
-                    if any('fleet' in str(k) for k in keys)]
-            if busy:
-                pid = watcher.run(os.getpid, workers=busy[:1])[busy[0]]
-                os.kill(pid, signal.SIGKILL)
-                kills += 1
-        except Exception:       # the cluster is restarting the worker: look again
-            pass
-        stop.wait(0.05)
+    The count is kept in ``marker`` files, one per kill, shared by the
+    workers and the ones the nannies start in their place.
+    """
+
+    name = 'kill-fleet-tasks'
+
+    def __init__(self, marker, times):
+        self.marker, self.times = marker, times
+
+    def transition(self, key, start, finish, **kwargs):
+        """Kill this worker when a fleet task starts, until ``times`` kills are counted."""
+        import signal
+
+        if finish != 'executing' or not str(key).startswith('fleet'):
+            return
+        for k in range(self.times):
+            try:
+                os.close(os.open(f'{self.marker}.{k}', os.O_CREAT | os.O_EXCL))
+            except FileExistsError:
+                continue
+            os.kill(os.getpid(), signal.SIGKILL)
 
 
 def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resumes(tmp_path):
     """
     A LocalCluster whose scheduler gives up on a task at its first lost worker.
 
-    One kill: the run submits the task again and its rows and summary are
-    those of an in-process run. Kills without end: after TASK_ATTEMPTS the
-    run stops with one line, keeps its finished tasks, and ``resume``
-    (in-process) finishes it to the same rows and summary. Bounded: the
-    killer stops with the run, and each attempt costs one worker restart.
+    A worker plugin kills the worker that starts a fleet task. Once: the run
+    submits the task again and its rows and summary are those of an
+    in-process run. Always: after TASK_ATTEMPTS the run stops with one
+    line, keeps its finished tasks (those this process ran while the client
+    connected), and ``resume`` (in-process) finishes it to the same rows and
+    summary. Bounded: three attempts of one task, each one worker restart.
     """
     import logging
-    import threading
 
     import dask
     from dask.distributed import Client, LocalCluster
@@ -590,37 +599,25 @@ def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resum
     cfg = fleet(tolerances={'gas.pressure_pa': {'uniform': '10%'},
                             'mismatch.sense_beam_width_m': {'uniform': 5e-9}}, exact=True,
                 specs={'split_hz': {'abs_max': 30.0}}, attribution_devices=500)
-    n = 5 * sampling.BLOCK_DEVICES + 7
+    n = 8 * sampling.BLOCK_DEVICES - 9
     whole = run.run_fleet(cfg, n, 3, str(tmp_path / 'whole'), scheduler='in-process')
     with dask.config.set({'distributed.scheduler.allowed-failures': 0}):
         cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                                scheduler_port=0, dashboard_address=':0',
                                silence_logs=logging.CRITICAL)
-    with cluster, Client(cluster.scheduler_address, set_as_default=False) as watcher:
-        stop = threading.Event()
-        killer = threading.Thread(target=_killer, args=(watcher, stop, 1))
-        killer.start()
-        try:
-            once = run.run_fleet(cfg, n, 3, str(tmp_path / 'once'),
-                                 scheduler=cluster.scheduler_address, blocks_per_task=1)
-        finally:
-            stop.set()
-            killer.join()
+    with cluster, Client(cluster.scheduler_address, set_as_default=False) as client:
+        client.register_plugin(_KillFleetTasks(str(tmp_path / 'once'), 1))
+        once = run.run_fleet(cfg, n, 3, str(tmp_path / 'once'),
+                             scheduler=cluster.scheduler_address, blocks_per_task=1)
         assert once['run']['tasks_resubmitted'] >= 1
         assert _without_run(once) == _without_run(whole)
         assert _rows(tmp_path / 'once').equals(_rows(tmp_path / 'whole'))
-        stop = threading.Event()
-        killer = threading.Thread(target=_killer, args=(watcher, stop, 100))
-        killer.start()
-        try:
-            with pytest.raises(run.FleetIncomplete, match=r'the cluster lost the task of blocks '
-                                                          r'\d+-\d+ 3 times \(KilledWorker') \
-                    as info:
-                run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'),
-                              scheduler=cluster.scheduler_address, blocks_per_task=1)
-        finally:
-            stop.set()
-            killer.join()
+        client.unregister_worker_plugin(_KillFleetTasks.name)
+        client.register_plugin(_KillFleetTasks(str(tmp_path / 'always'), 10 ** 6))
+        with pytest.raises(run.FleetIncomplete, match=r'the cluster lost the task of blocks '
+                                                      r'\d+-\d+ 3 times \(KilledWorker') as info:
+            run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'),
+                          scheduler=cluster.scheduler_address, blocks_per_task=1)
     assert '\n' not in str(info.value) and 'run again with --resume' in str(info.value)
     resumed = run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'), scheduler='in-process',
                             resume=True)

@@ -45,7 +45,7 @@ def add_arguments(parser):
 
 
 def _count(text):
-    """A whole number of parts: ``1000000``, ``1_000_000`` or ``1e6``."""
+    """Parse a whole number of parts: ``1000000``, ``1_000_000`` or ``1e6``."""
     try:
         return int(text)
     except ValueError:
@@ -103,7 +103,7 @@ def run(args):
 
 
 def _model_check_lines(checks):
-    """The model-validity checks: apart from the specs, not in the yield."""
+    """Return the lines of the model-validity checks: apart from the specs, not in the yield."""
     if not checks:
         return []
     lines = ['model validity (checks of the first-order model, not part specs; not in '
@@ -116,7 +116,7 @@ def _model_check_lines(checks):
 
 
 def _bounded(run, name, unit, label):
-    """A fitted Allan term: its value when resolved, else its upper bound; and the model's."""
+    """Format a fitted Allan term: its value if resolved, else its upper bound; the model's."""
     value = run[f'{name}_{unit}']
     model = run[f'{name}_model_{unit}']
     if value is not None:

@@ -180,7 +180,7 @@ def run_task(job, blocks, progress=None):
 
 
 def sample_blocks(job, blocks):
-    """The quantile samples of ``blocks`` (recomputed: the same draws, the same metrics)."""
+    """Return the quantile samples of ``blocks`` (recomputed: the same draws, the same metrics)."""
     out = []
     for block in blocks:
         if block < QUANTILE_BLOCKS:

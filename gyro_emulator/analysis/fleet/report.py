@@ -190,7 +190,7 @@ def summary(job, results, run):
 
 
 def _bounded(spec, passed, n, name):
-    """A spec's (``yield``) or a model check's (``share``) entry: limits, count, interval."""
+    """Return a spec's (``yield``) or a model check's (``share``) entry."""
     return {'limits': {'min': None if spec.absolute else _finite(spec.low),
                        'max': _finite(spec.high), 'absolute': spec.absolute},
             'pass': passed, name: passed / n, name + '_ci95': wilson_interval(passed, n)}

@@ -39,7 +39,7 @@ SUMMARY_BYTES = 2 << 20
 
 
 def _gb(n_bytes):
-    """A size in GB, or TB from 1 TB on (three figures)."""
+    """Format a size in GB, or TB from 1 TB on (three figures)."""
     return f'{n_bytes / 1e12:.3g} TB' if n_bytes >= 1e12 else f'{n_bytes / 1e9:.3g} GB'
 
 

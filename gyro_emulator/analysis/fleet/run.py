@@ -96,9 +96,9 @@ def _start(job, tasks, overwrite, resume):
     todo = state.remaining(tasks, done)
     reclaimed = sum(resources.tree_bytes(p) if os.path.isdir(p) else os.path.getsize(p)
                     for p in earlier) if overwrite else 0
-    resources.check_disk(job.config, sum(sampling.block_size(job.n_devices, b)
-                                          for blocks in todo for b in blocks),
-                         sum(len(blocks) for blocks in todo), out_dir, job.write, reclaimed)
+    parts = sum(sampling.block_size(job.n_devices, b) for blocks in todo for b in blocks)
+    resources.check_disk(job.config, parts, sum(len(blocks) for blocks in todo), out_dir,
+                         job.write, reclaimed)
     if done:
         state.prune(out_dir, done)
     else:
@@ -241,7 +241,7 @@ class _DaskRun:
         self._pending.add(future)
 
     def _result(self, job, future, done):
-        """A finished task's result, or None when it was lost and submitted again."""
+        """Return a finished task's result, or None when it was lost and submitted again."""
         try:
             return future.result()
         except Exception as exc:   # lost worker, cancelled future, a task's own error
@@ -274,7 +274,7 @@ class _DaskRun:
 
 
 def _first_line(exc):
-    """An exception's type and the first line of its message (at most 120 characters)."""
+    """Return an exception's type and the first line of its message (at most 120 characters)."""
     text = (str(exc).strip().splitlines() or [''])[0]
     return f'{type(exc).__name__}: {text[:120]}' if text else type(exc).__name__
 

@@ -40,7 +40,7 @@ def state_dir(out_dir):
 
 
 def fingerprint(job):
-    """A digest of what makes the rows: the fleet (not its path), seed, size, rows written."""
+    """Return a digest of what makes the rows: the fleet (not its path), seed, size."""
     what = repr((replace(job.config, source=''), job.seed, job.n_devices, job.write,
                  BLOCK_DEVICES))
     return hashlib.sha256(what.encode('utf-8')).hexdigest()
@@ -104,7 +104,7 @@ def finish(out_dir):
 
 
 def remaining(tasks, results):
-    """The tasks minus the finished blocks, each split into runs of consecutive blocks."""
+    """Return the tasks minus the finished blocks, each split into runs of consecutive blocks."""
     done = {b for r in results for b in r['blocks']}
     out = []
     for blocks in tasks:
