@@ -5,6 +5,7 @@ import glob
 import json
 import os
 
+from distributed.diagnostics.plugin import WorkerPlugin
 from gyro_emulator.analysis.fleet import config as fleet_config
 from gyro_emulator.analysis.fleet import engine, evaluate, report, run, sampling
 from gyro_emulator.cli import main
@@ -363,7 +364,12 @@ def test_impossible_parts_are_rejected_or_clipped_and_counted(tmp_path):
     ({'device': {'geometry': {'flux_m': 1.0}}}, r'unknown field\(s\) flux_m'),
     ({'temperatures_c': [-100, 25]}, r'temperatures_c'),
     ({'specs': {'yield': {'min': 1}}}, r"unknown metric 'yield'"),
-    ({'specs': {'exact_ratio': {'min': 0.9}}}, r'set exact: true'),
+    ({'model_checks': {'exact_ratio': {'min': 0.9}}}, r'set exact: true'),
+    ({'specs': {'exact_ratio': {'min': 0.9}}, 'exact': True},
+     r'specs.exact_ratio: is a check of the first-order model, not a part spec: put it '
+     r'under model_checks'),
+    ({'model_checks': {'split_hz': {'abs_max': 1}}}, "unknown metric 'split_hz'; allowed: "
+                                                     r'exact_ratio'),
     ({'specs': {'split_hz': {'min': 5, 'max': 1}}}, r'min 5.0 is above max 1.0'),
     ({'factors': {'etch': {'normal': 1e-9, 'moves': {'geometry.frame_count': 1}}}},
      r'frame_count is a count'),
@@ -413,3 +419,207 @@ def test_sensor_runs_find_the_part_s_own_angle_random_walk(tmp_path):
     assert np.ptp(predicted) > 0.01                      # the parts differ
     for r in runs:                          # 20 000 samples: N to a few % (1 sigma ~1 %)
         assert r['arw_deg_sqrt_h'] == pytest.approx(r['arw_predicted_deg_sqrt_h'], rel=0.06)
+
+
+def test_model_checks_are_reported_apart_and_not_in_the_yield(tmp_path, capsys):
+    """
+    exact_ratio says where the first-order model holds, not whether the part is good.
+
+    It has its own section (summary.json ``model_checks``, the command's
+    output, a ``check_exact_ratio`` column), and neither the yield, nor
+    ``fails_most``, nor the attribution counts it.
+    """
+    path = tmp_path / 'fleet.yaml'
+    path.write_text('tolerances:\n  mismatch.sense_beam_width_m: {uniform: 5.0e-9}\n'
+                    '  gas.pressure_pa: {uniform: 10%}\nexact: true\n'
+                    'specs:\n  split_hz: {abs_max: 40}\n'
+                    'model_checks:\n  exact_ratio: {min: 0.99}\nattribution_devices: 2000\n')
+    assert main(['fleet', str(path), '--devices', '4e3', '--seed', '1', '--out',
+                 str(tmp_path / 'o')]) == 0
+    printed = capsys.readouterr().out
+    summary = json.loads((tmp_path / 'o' / 'summary.json').read_text())
+    assert list(summary['specs']) == ['split_hz'] and summary['fails_most'] == 'split_hz'
+    check = summary['model_checks']['exact_ratio']
+    assert summary['pass'] == summary['specs']['split_hz']['pass']     # only the spec
+    assert 0.0 < check['share'] < summary['yield']     # fails more often than the spec
+    assert check['share_ci95'][0] < check['share'] < check['share_ci95'][1]
+    assert list(summary['attribution']['spec_driver']) == ['split_hz']
+    assert 'model validity' in printed and 'exact_ratio            holds for' in printed
+    assert 'fails most: split_hz' in printed
+    rows = _rows(tmp_path / 'o')
+    ratio = rows['exact_ratio'].to_numpy().astype(float)
+    assert np.array_equal(rows['check_exact_ratio'].to_numpy(), ratio >= 0.99)
+    assert rows['pass'].to_numpy().sum() == summary['pass']
+
+
+def test_devices_takes_1e6_and_refuses_a_fraction(tmp_path, capsys):
+    from gyro_emulator.cli import fleet as fleet_cli
+
+    parser = __import__('argparse').ArgumentParser()
+    fleet_cli.add_arguments(parser)
+    for text, n in (('1e6', 10 ** 6), ('1000000', 10 ** 6), ('1e10', 10 ** 10), ('7', 7)):
+        assert parser.parse_args(['f.yaml', '--devices', text, '--out', 'o']).devices == n
+    with pytest.raises(SystemExit):
+        parser.parse_args(['f.yaml', '--devices', '1.5', '--out', 'o'])
+    assert 'not a whole number of parts' in capsys.readouterr().err
+
+
+def test_a_fleet_larger_than_the_free_disk_is_refused_before_it_starts(tmp_path, monkeypatch):
+    """The estimate of the output is close to what a run writes; a fake small disk refuses it."""
+    from gyro_emulator.analysis.fleet import resources
+
+    cfg = fleet(tolerances={'gas.pressure_pa': {'uniform': '10%'}},
+                specs={'split_hz': {'abs_max': 1.0}}, attribution_devices=0)
+    n = sampling.BLOCK_DEVICES + 5000
+    run.run_fleet(cfg, n, 1, str(tmp_path / 'a'), scheduler='in-process', blocks_per_task=1)
+    written = sum(os.path.getsize(p) for p in glob.glob(str(tmp_path / 'a' / 'devices' / '*')))
+    estimate = resources.output_bytes(cfg, n, 2) - resources.SUMMARY_BYTES
+    assert written <= estimate < 1.02 * written
+    monkeypatch.setattr(resources, 'free_bytes', lambda path: 10 ** 7)
+    with pytest.raises(ValueError, match=r'fleet.out = .*: 10000000000 parts need about '
+                                         r'767 GB \(77 bytes a part\) but 0.01 GB is free') \
+            as info:
+        run.run_fleet(cfg, 10 ** 10, 1, str(tmp_path / 'b'), scheduler='in-process')
+    assert '\n' not in str(info.value) and not (tmp_path / 'b').exists()
+    run.run_fleet(cfg, 100, 1, str(tmp_path / 'c'), scheduler='in-process', write=False)
+
+
+def test_sensor_runs_that_do_not_fit_in_memory_are_refused_with_the_figure(tmp_path,
+                                                                           monkeypatch):
+    """The reproducer: 1024 parts x 86400 s x 10 kHz is in range, but one part needs 147 GB."""
+    from gyro_emulator.analysis.fleet import resources
+
+    big = fleet(sensor_runs={'devices': 1024, 'duration_s': 86400.0, 'rate_hz': 10000.0})
+    monkeypatch.setattr(resources, 'available_memory_bytes', lambda: 24 * 10 ** 9)
+    with pytest.raises(ValueError, match=r'sensor_runs: one part of 86400 s at 10000 Hz holds '
+                                         r'864000000 samples, about 147 GB .* 24 GB of memory '
+                                         r'is available: allowed duration_s x rate_hz <= '
+                                         r'141176470 here') as info:
+        run.run_fleet(big, 10, 1, str(tmp_path / 'o'), scheduler='in-process')
+    assert '\n' not in str(info.value) and not (tmp_path / 'o').exists()
+
+
+def test_an_interrupted_fleet_resumes_to_the_rows_and_summary_of_an_uninterrupted_one(
+        tmp_path, monkeypatch):
+    cfg = fleet(tolerances={'gas.pressure_pa': {'uniform': '10%'},
+                            'mismatch.sense_beam_width_m': {'uniform': 5e-9}},
+                specs={'split_hz': {'abs_max': 30.0}}, attribution_devices=1000)
+    n = 3 * sampling.BLOCK_DEVICES + 10
+    whole = run.run_fleet(cfg, n, 4, str(tmp_path / 'whole'), scheduler='in-process',
+                          blocks_per_task=1)
+    real, calls = engine.run_task, []
+
+    def dies_on_the_third(job, blocks, progress=None):
+        calls.append(blocks)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return real(job, blocks, progress)
+    monkeypatch.setattr(engine, 'run_task', dies_on_the_third)
+    out = tmp_path / 'cut'
+    with pytest.raises(KeyboardInterrupt):
+        run.run_fleet(cfg, n, 4, str(out), scheduler='in-process', blocks_per_task=1)
+    monkeypatch.setattr(engine, 'run_task', real)
+    assert sorted(os.listdir(out / '.fleet-state')) == ['run.json', 'task-000000.json',
+                                                        'task-000001.json']
+    (out / 'devices' / 'part-000002.parquet.partial').write_bytes(b'half')  # a lost task
+    with pytest.raises(ValueError, match='unfinished fleet .* pass --resume'):
+        run.run_fleet(cfg, n, 4, str(out), scheduler='in-process')
+    with pytest.raises(ValueError, match='another fleet, seed or size'):
+        run.run_fleet(cfg, n, 5, str(out), scheduler='in-process', resume=True)
+    resumed = run.run_fleet(cfg, n, 4, str(out), scheduler='in-process', blocks_per_task=2,
+                            resume=True)
+    assert resumed['run']['tasks_resumed'] == 2 and not (out / '.fleet-state').exists()
+    assert _without_run(resumed) == _without_run(whole)
+    assert _rows(out).equals(_rows(tmp_path / 'whole'))
+    assert not glob.glob(str(out / 'devices' / '*.partial'))
+    with pytest.raises(ValueError, match='finished fleet: nothing to resume'):
+        run.run_fleet(cfg, n, 4, str(out), scheduler='in-process', resume=True)
+
+
+def test_sensor_runs_give_unresolved_terms_as_upper_bounds(tmp_path, capsys):
+    """A white-noise part has no B and no K: a short run bounds them, never claims them."""
+    path = tmp_path / 'fleet.yaml'
+    path.write_text('sensor_runs: {devices: 2, duration_s: 200, rate_hz: 100}\n'
+                    'attribution_devices: 0\n')
+    assert main(['fleet', str(path), '--devices', '10', '--seed', '2026', '--out',
+                 str(tmp_path / 'o'), '--no-parquet']) == 0
+    printed = capsys.readouterr().out
+    runs = json.loads((tmp_path / 'o' / 'summary.json').read_text())['sensor_runs']
+    for r in runs:
+        assert r['rrw_deg_h_sqrt_h'] is None and r['rrw_upper_deg_h_sqrt_h'] > 0.0
+        assert r['rrw_model_deg_h_sqrt_h'] == 0.0 and r['bias_instability_model_deg_h'] == 0.0
+        assert r['bias_instability_deg_h'] is None
+    assert 'sensor runs (200 s at 100 Hz' in printed
+    assert printed.count('deg/h/sqrt(h) (not resolved; model 0)') == 2
+
+
+class _KillFleetTasks(WorkerPlugin):
+    """
+    A Dask worker plugin: a worker that starts a fleet task dies (SIGKILL), ``times`` times.
+
+    The count is kept in ``marker`` files, one per kill, shared by the
+    workers and the ones the nannies start in their place.
+    """
+
+    name = 'kill-fleet-tasks'
+
+    def __init__(self, marker, times):
+        self.marker, self.times = marker, times
+
+    def transition(self, key, start, finish, **kwargs):
+        """Kill this worker when a fleet task starts, until ``times`` kills are counted."""
+        import signal
+
+        if finish != 'executing' or not str(key).startswith('fleet'):
+            return
+        for k in range(self.times):
+            try:
+                os.close(os.open(f'{self.marker}.{k}', os.O_CREAT | os.O_EXCL))
+            except FileExistsError:
+                continue
+            os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resumes(tmp_path):
+    """
+    A LocalCluster whose scheduler gives up on a task at its first lost worker.
+
+    A worker plugin kills the worker that starts a fleet task. Once: the run
+    submits the task again and its rows and summary are those of an
+    in-process run. Always: after TASK_ATTEMPTS the run stops with one
+    line, keeps its finished tasks (those this process ran while the client
+    connected), and ``resume`` (in-process) finishes it to the same rows and
+    summary. Bounded: three attempts of one task, each one worker restart.
+    """
+    import logging
+
+    import dask
+    from dask.distributed import Client, LocalCluster
+
+    cfg = fleet(tolerances={'gas.pressure_pa': {'uniform': '10%'},
+                            'mismatch.sense_beam_width_m': {'uniform': 5e-9}}, exact=True,
+                specs={'split_hz': {'abs_max': 30.0}}, attribution_devices=500)
+    n = 8 * sampling.BLOCK_DEVICES - 9
+    whole = run.run_fleet(cfg, n, 3, str(tmp_path / 'whole'), scheduler='in-process')
+    with dask.config.set({'distributed.scheduler.allowed-failures': 0}):
+        cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                               scheduler_port=0, dashboard_address=':0',
+                               silence_logs=logging.CRITICAL)
+    with cluster, Client(cluster.scheduler_address, set_as_default=False) as client:
+        client.register_plugin(_KillFleetTasks(str(tmp_path / 'once'), 1))
+        once = run.run_fleet(cfg, n, 3, str(tmp_path / 'once'),
+                             scheduler=cluster.scheduler_address, blocks_per_task=1)
+        assert once['run']['tasks_resubmitted'] >= 1
+        assert _without_run(once) == _without_run(whole)
+        assert _rows(tmp_path / 'once').equals(_rows(tmp_path / 'whole'))
+        client.unregister_worker_plugin(_KillFleetTasks.name)
+        client.register_plugin(_KillFleetTasks(str(tmp_path / 'always'), 10 ** 6))
+        with pytest.raises(run.FleetIncomplete, match=r'the cluster lost the task of blocks '
+                                                      r'\d+-\d+ 3 times \(KilledWorker') as info:
+            run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'),
+                          scheduler=cluster.scheduler_address, blocks_per_task=1)
+    assert '\n' not in str(info.value) and 'run again with --resume' in str(info.value)
+    resumed = run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'), scheduler='in-process',
+                            resume=True)
+    assert _without_run(resumed) == _without_run(whole)
+    assert _rows(tmp_path / 'kept').equals(_rows(tmp_path / 'whole'))

@@ -770,3 +770,31 @@ def test_main_job_plays_a_profile_against_the_node_and_prints_the_summary(tmp_pa
     with open(out / 'node_params.yaml') as handle:
         params = yaml.safe_load(handle)['/**']['ros__parameters']
     assert params['sensor']['thermal_time_constant_s'] == 0.05
+    assert 'Imu samples over' in proc.stdout and 'Hz); ' in proc.stdout
+    assert 'interrupted' not in proc.stdout and 'interrupted' not in doc
+
+
+def test_a_main_job_stopped_by_ctrl_c_says_the_scenario_was_interrupted(tmp_path):
+    """Ctrl-C (SIGINT to the process group) in step 2 of 2: the NaN row is explained."""
+    profile = tmp_path / 'long.yaml'
+    profile.write_text(yaml.safe_dump({
+        'name': 'long', 'grid': {'temps_c': [25.0], 'rates_rpm': [0.0, 40.0],
+                                 'hold_s': 4.0, 'settle_s': 0.3}}))
+    out = tmp_path / 'out'
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'gyro_emulator.cli.main_job', '--skip-paper', '--no-record',
+         '--profile', str(profile), '--out-dir', str(out), '--sensor-config',
+         write_sensor_yaml(str(tmp_path))],
+        env=ros_env(), cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        start_new_session=True)
+    seen = []
+    for line in proc.stdout:                 # ends when the job does: bounded by its profile
+        seen.append(line)
+        if 'step  2/2' in line:
+            os.killpg(proc.pid, signal.SIGINT)
+            break
+    text = ''.join(seen) + proc.communicate(timeout=60)[0]
+    assert 'main: the scenario was interrupted at 4.' in text, text
+    assert 's of 8 s, in step 2 of 2: step 2 was not finished' in text, text
+    doc = json.loads((out / 'summary.json').read_text())
+    assert doc['interrupted'].startswith('interrupted at 4.')

@@ -386,6 +386,36 @@ def test_summary_averages_each_step_after_its_settle_time():
     assert '10 deg/s' in table and '+1.000' in table
 
 
+def test_a_stopped_scenario_says_where_it_stopped():
+    profile = scenario.parse_scenario({'segments': [
+        {'duration_s': 2.0, 'rate_deg_s': 0.0, 'temp_c': 25.0},
+        {'duration_s': 3.0, 'rate_deg_s': 10.0, 'temp_c': 25.0},
+        {'duration_s': 1.0, 'rate_deg_s': 20.0, 'temp_c': 45.0}]})
+    start = 7 * 10 ** 9
+    note = scenario.interruption_note(profile, start, start + 2_500_000_000)
+    assert note == ('interrupted at 2.5 s of 6 s, in step 2 of 3: steps 2-3 were not '
+                    'finished (NaN where no sample was taken)')
+    assert 'in step 3 of 3: step 3 was not finished' in scenario.interruption_note(
+        profile, start, start + 5_500_000_000)
+    assert scenario.interruption_note(profile, None, start) == (
+        'interrupted before the first step: none of the 3 steps was played')
+    results = scenario.summarize(profile, start, [(start + 10 ** 9, (0.0, 0.0, 0.0))], [])
+    doc = scenario.results_json(profile, results, note)
+    assert doc['interrupted'] == note and math.isnan(doc['steps'][2]['measured_deg_s'])
+    assert 'interrupted' not in scenario.results_json(profile, results)
+
+
+def test_the_main_job_says_the_imu_rate_over_the_stamps_not_over_the_wall_time():
+    from gyro_emulator.cli import main_job
+
+    imu = [(10 ** 9 + k * 5_000_000, (0.0, 0.0, 0.0)) for k in range(6399)]
+    assert main_job.samples_line(imu, 41.7) == (
+        '6399 Imu samples over 32.0 s of stamps (200.0 Hz); 41.7 s wall with the node '
+        'start-up')
+    assert main_job.samples_line(imu[:1], 3.0) == (
+        '1 Imu samples (3.0 s wall with the node start-up)')
+
+
 # --- launch file and main job -----------------------------------------------------
 
 def _stub_launch_modules(monkeypatch):

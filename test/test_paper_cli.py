@@ -31,3 +31,18 @@ def test_paper_command_writes_table_figures_and_json(tmp_path):
     for name in ('fig5.png', 'fig6.png'):
         png = (tmp_path / name).read_bytes()
         assert png[:8] == b'\x89PNG\r\n\x1a\n' and len(png) > 10000
+
+
+def test_table1_prints_enough_digits_to_tell_ours_from_the_paper():
+    """f_x is 13997 Hz against the paper's 14000 (-0.019 %): both show, not 1.4e+04 twice."""
+    from gyro_emulator.physics import paper
+
+    text = paper.format_table1(paper.table1_rows())
+    row = {line.split()[0]: line for line in text.split('\n')[1:]}
+    for key in ('fx', 'fy'):
+        assert row[key].split()[-3:] == ['13997', '14000', '-0.019'], row[key]
+    assert '1.4e+04' not in text
+    for key, _, _, ours, theirs, _ in paper.table1_rows():
+        shown = [float(v) for v in row[key].split()[-3:-1]]
+        assert shown[0] == __import__('pytest').approx(ours, rel=5e-5)
+        assert shown[1] == theirs

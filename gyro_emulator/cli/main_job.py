@@ -101,6 +101,22 @@ def format_table(results):
     return '\n'.join(lines)
 
 
+def samples_line(imu, elapsed_s):
+    """
+    Say how many Imu samples came, over what span of their stamps, at what rate.
+
+    The rate is (n - 1) over the span from the first stamp to the last; the
+    wall time beside it also holds the node's start-up and the wait for
+    its first sample, so n over it is not the output rate.
+    """
+    if len(imu) < 2:
+        return f'{len(imu)} Imu samples ({elapsed_s:.1f} s wall with the node start-up)'
+    span_s = (imu[-1][0] - imu[0][0]) / 1e9
+    rate = (len(imu) - 1) / span_s if span_s > 0 else float('nan')
+    return (f'{len(imu)} Imu samples over {span_s:.1f} s of stamps ({rate:.1f} Hz); '
+            f'{elapsed_s:.1f} s wall with the node start-up')
+
+
 def run_scenario(opts):
     """Start node (+ recorder), play the profile, print and save the summary."""
     # rclpy (0.2 s) only for the scenario part: `--paper-only` loads no ROS.
@@ -147,15 +163,16 @@ def run_scenario(opts):
             _stop(recorder, 'recorder')
             _stop(node, 'node')
     results = player.results()
+    if player.interrupted:
+        print(f'\nmain: the scenario was {player.interrupted}')
     print(f'\nCommanded vs measured along {list(profile.axis)} (mean after each '
           f"step's settle time; physics err = Fig 6 first-order prediction at T_die):")
     print(format_table(results))
     worst = max(results, key=lambda r: abs(r.error_deg_s) if math.isfinite(
         r.error_deg_s) else -1.0)
     print(f'largest |error|: {worst.error_deg_s:+.3f} deg/s at {worst.step.label}, '
-          f'{worst.step.temp_c:g} C; {len(player.imu)} Imu samples in '
-          f'{elapsed:.1f} s')
-    doc = scenario.results_json(profile, results)
+          f'{worst.step.temp_c:g} C; {samples_line(player.imu, elapsed)}')
+    doc = scenario.results_json(profile, results, player.interrupted)
     for row, r in zip(doc['steps'], results):
         row['physics_error_deg_s'] = physics_error_deg_s(r.step.rate_rad_s, r.die_temp_c)
     summary = os.path.join(opts.out_dir, 'summary.json')

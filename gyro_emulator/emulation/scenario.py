@@ -282,10 +282,50 @@ def format_summary(results):
     return '\n'.join(lines)
 
 
-def results_json(profile, results):
-    """Return the summary as a JSON-ready dict."""
-    return {'profile': profile.name, 'axis': list(profile.axis), 'steps': [
+def interruption_note(profile, start_ns, stop_ns):
+    """
+    Say where a stopped profile stopped, and which steps it did not finish.
+
+    Parameters
+    ----------
+    profile : Scenario
+        The profile that was played.
+    start_ns, stop_ns : int or None
+        Clock times (ns) at which the first step began and the player
+        stopped; ``start_ns`` None when it stopped before the first step.
+
+    Returns
+    -------
+    str
+        One line, e.g. "interrupted at 12.3 s of 32 s, in step 3 of 8: steps
+        3-8 were not finished (NaN where no sample was taken)".
+
+    """
+    count = len(profile.steps)
+    if start_ns is None or stop_ns is None:
+        return f'interrupted before the first step: none of the {count} steps was played'
+    elapsed = (stop_ns - start_ns) / 1e9
+    end = 0.0
+    for index, step in enumerate(profile.steps):
+        end += step.duration_s
+        if elapsed < end:
+            break
+    else:
+        return f'interrupted after the last step ({elapsed:.1f} s of {profile.duration_s:g} s)'
+    steps = f'step {index + 1}' if index + 1 == count else f'steps {index + 1}-{count}'
+    return (f'interrupted at {elapsed:.1f} s of {profile.duration_s:g} s, in step '
+            f'{index + 1} of {count}: {steps} {"was" if index + 1 == count else "were"} not '
+            'finished (NaN where no sample was taken)')
+
+
+def results_json(profile, results, interrupted=None):
+    """Return the summary as a JSON-ready dict (``interrupted``: the note, when it was)."""
+    doc = {'profile': profile.name, 'axis': list(profile.axis)}
+    if interrupted:
+        doc['interrupted'] = interrupted
+    doc['steps'] = [
         {'temperature_c': r.step.temp_c, 'rate': r.step.label,
          'commanded_deg_s': r.commanded_deg_s, 'measured_deg_s': r.measured_deg_s,
          'error_deg_s': r.error_deg_s, 'std_deg_s': r.std_deg_s,
-         'die_temp_c': r.die_temp_c, 'samples': r.samples} for r in results]}
+         'die_temp_c': r.die_temp_c, 'samples': r.samples} for r in results]
+    return doc

@@ -18,6 +18,7 @@ resonance. ``gyro_emulator.physics.dynamics`` solves it exactly.
 
 from dataclasses import dataclass
 
+from gyro_emulator.physics.params import SILICON_YOUNGS_TEMP_COEFF_PER_K
 from gyro_emulator.units import (AVOGADRO_1_MOL, celsius_to_kelvin,
                                  GAS_CONSTANT_J_MOL_K, VACUUM_PERMITTIVITY_F_M)
 from gyro_emulator.validation import check_temperature_c
@@ -76,7 +77,16 @@ def mass_kg(geometry, material):
 # --- Eq 6, 7, 22: stiffness and frequency ----------------------------------
 
 def youngs_modulus_pa(material, temp_c):
-    """Young's modulus E(T) = E_s + dE/dT (T - T_s), Pa (Eq 22)."""
+    """
+    Young's modulus E(T), Pa.
+
+    ``paper``: E(T) = E_s + dE/dT (T - T_s) (Eq 22); ``silicon``: E(T) =
+    E_s (1 + a (T - T_s)), a = -60 ppm/K (single-crystal silicon; see
+    :class:`gyro_emulator.physics.params.Material`).
+    """
+    if material.youngs_modulus_law == 'silicon':
+        return _a(material.youngs_modulus_pa) * (1.0 + SILICON_YOUNGS_TEMP_COEFF_PER_K * (
+            _a(temp_c) - _a(material.youngs_ref_temp_c)))
     return _a(material.youngs_modulus_pa) + _a(material.youngs_temp_coeff_pa_k) * (
         _a(temp_c) - _a(material.youngs_ref_temp_c))
 

@@ -73,10 +73,12 @@ def table1_rows(device=PAPER_DEVICE):
 
 def format_table1(rows):
     """Format Table 1 rows as aligned text."""
+    # Five significant digits: the errors are 0.01-0.2 %, so four would print
+    # f_x = 13997 Hz and the paper's 14000 Hz both as 1.4e+04.
     lines = ['%-8s %-32s %-6s %12s %12s %8s' % (
         'quantity', 'description', 'unit', 'ours', 'paper', 'err %')]
     for key, desc, unit, ours, paper, err in rows:
-        lines.append('%-8s %-32s %-6s %12.4g %12.4g %+8.3f' % (
+        lines.append('%-8s %-32s %-6s %12.5g %12.5g %+8.3f' % (
             key, desc, unit, ours, paper, err))
     return '\n'.join(lines)
 

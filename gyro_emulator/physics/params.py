@@ -20,6 +20,12 @@ from gyro_emulator.validation import check_choice, check_range, check_temperatur
 import numpy as np
 
 VISCOSITY_LAWS = ('constant', 'sutherland')
+YOUNGS_MODULUS_LAWS = ('paper', 'silicon')
+
+#: Temperature coefficient of Young's modulus of single-crystal silicon near
+#: room temperature, 1/K (about -60 ppm/K: Hopcroft, Nix and Kenny, J. MEMS
+#: 19(2), 2010; the paper's polysilicon law, Eq 22, has -250 ppm/K).
+SILICON_YOUNGS_TEMP_COEFF_PER_K = -60e-6
 CAVITY_KINDS = ('vented', 'sealed')
 
 
@@ -93,20 +99,27 @@ class Geometry:
 @dataclass(frozen=True)
 class Material:
     """
-    Structural material: density and Young's modulus with Eq 22's law.
+    Structural material: density and Young's modulus E(T).
 
+    ``youngs_modulus_law`` ``paper`` (default) is Eq 22,
     ``E(T) = youngs_modulus_pa + youngs_temp_coeff_pa_k (T - youngs_ref_temp_c)``
-    (Eq 22; the paper's polysilicon has -0.04 GPa/K).
+    (the paper's polysilicon: -0.04 GPa/K of 160 GPa, -250 ppm/K);
+    ``silicon`` is ``E(T) = youngs_modulus_pa (1 + a (T - youngs_ref_temp_c))``
+    with a = :data:`SILICON_YOUNGS_TEMP_COEFF_PER_K` (-60 ppm/K, single-crystal
+    silicon), and ``youngs_temp_coeff_pa_k`` is not used.
     """
 
     density_kg_m3: float = _ranged(2330.0, 0.0, 3e4, 'kg/m^3')
     youngs_modulus_pa: float = _ranged(160.0e9, 1e9, 1e12, 'Pa')
     youngs_ref_temp_c: float = _ranged(25.0, -100.0, 300.0, 'C', low_open=False)
     youngs_temp_coeff_pa_k: float = _ranged(-0.04e9, -1e9, 1e9, 'Pa/K', low_open=False)
+    youngs_modulus_law: str = 'paper'
 
     def __post_init__(self):
         """Validate every field; see the class docstring for units."""
         _validate(self)
+        check_choice('Material', 'youngs_modulus_law', self.youngs_modulus_law,
+                     YOUNGS_MODULUS_LAWS)
 
 
 @dataclass(frozen=True)

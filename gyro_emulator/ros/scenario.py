@@ -28,8 +28,8 @@ import signal
 import sys
 import time
 
-from gyro_emulator.emulation.scenario import format_summary, load_scenario, results_json, \
-    summarize
+from gyro_emulator.emulation.scenario import format_summary, interruption_note, \
+    load_scenario, results_json, summarize
 from gyro_emulator.recording import topics
 from gyro_emulator.ros.codec import topic_class, topic_qos
 from gyro_emulator.ros.spinning import spin_once
@@ -82,6 +82,7 @@ class ScenarioPlayer:
                                          topic_qos(topic))
         self.start_ns = None
         self.done = False
+        self.stop_ns = None          # set when interrupted (SIGINT, SIGTERM, shutdown)
         self._ends = []
         total = 0
         for step in profile.steps:
@@ -189,6 +190,13 @@ class ScenarioPlayer:
         """Return the per-step :class:`StepResult` list of what was collected."""
         return summarize(self.profile, self.start_ns, self.imu, self.temps)
 
+    @property
+    def interrupted(self):
+        """One line saying where the profile was stopped, or None when it ran to its end."""
+        if self.stop_ns is None:
+            return None
+        return interruption_note(self.profile, self.start_ns, self.stop_ns)
+
 
 def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=None):
     """
@@ -253,12 +261,22 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
             if not spin_once(executor, 0.05):
                 break
     except (KeyboardInterrupt, ExternalShutdownException):
+        if not player.done:
+            player.stop_ns = _now_ns(node)
         player.done = True
     finally:
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
     return player
+
+
+def _now_ns(node):
+    """Return the node's clock (the profile's time base), or the system clock once it is gone."""
+    try:
+        return node.get_clock().now().nanoseconds
+    except Exception:           # the context is shut down: ROS time is system time then
+        return time.time_ns()
 
 
 def build_parser():
@@ -304,12 +322,14 @@ def main(args=None):
         print(f'  fault injected: {fault.describe()}', flush=True)
     for error in player.fault_errors:
         print(f'scenario: warning: the node refused {error}', file=sys.stderr)
+    if player.interrupted:
+        print(f'scenario: {player.interrupted}', flush=True)
     if opts.summary or opts.json:
         results = player.results()
         print(format_summary(results))
         if opts.json:
             with open(opts.json, 'w', encoding='utf-8') as handle:
-                json.dump(results_json(profile, results), handle, indent=1)
+                json.dump(results_json(profile, results, player.interrupted), handle, indent=1)
     return 0
 
 

@@ -54,7 +54,7 @@ def metric_names(config):
     return tuple(m for m in METRICS if config.exact or m not in EXACT_METRICS)
 
 
-def _table(job, block, values, invalid, clipped, metrics, per_spec, ok):
+def _table(job, block, values, invalid, clipped, metrics, per_spec, ok, per_check):
     """One block as a pyarrow Table (float32 values; flags computed in float64)."""
     config = job.config
     n = len(ok)
@@ -70,13 +70,18 @@ def _table(job, block, values, invalid, clipped, metrics, per_spec, ok):
     for spec in config.specs:
         columns['pass_' + spec.metric] = pa.array(per_spec[spec.metric])
     columns['pass'] = pa.array(ok)
+    for metric, flag in per_check.items():
+        columns['check_' + metric] = pa.array(flag)
     return pa.table(columns)
 
 
-def _counts(config, invalid, clipped, per_spec, ok):
-    return {'devices': int(len(ok)), 'invalid': int(invalid.sum()),
-            'clipped': int(clipped.sum()), 'pass': int(ok.sum()),
-            'spec_pass': {m: int(flag.sum()) for m, flag in per_spec.items()}}
+def _counts(config, invalid, clipped, per_spec, ok, per_check):
+    counts = {'devices': int(len(ok)), 'invalid': int(invalid.sum()),
+              'clipped': int(clipped.sum()), 'pass': int(ok.sum()),
+              'spec_pass': {m: int(flag.sum()) for m, flag in per_spec.items()}}
+    if per_check:
+        counts['check_pass'] = {m: int(flag.sum()) for m, flag in per_check.items()}
+    return counts
 
 
 def add_counts(total, part):
@@ -148,11 +153,14 @@ def run_task(job, blocks, progress=None):
             draw = sampling.draw_block(config, job.seed, block, n)
             values, invalid, clipped, metrics, per_spec, ok = fleet_eval.evaluate_draw(
                 config, draw)
+            per_check = fleet_eval.within(config.model_checks, metrics, invalid)
             if job.write:
-                table = _table(job, block, values, invalid, clipped, metrics, per_spec, ok)
+                table = _table(job, block, values, invalid, clipped, metrics, per_spec, ok,
+                               per_check)
                 writer = writer or _writer(job, blocks[0], table.schema)
                 writer.write_table(table)
-            add_counts(result['counts'], _counts(config, invalid, clipped, per_spec, ok))
+            add_counts(result['counts'], _counts(config, invalid, clipped, per_spec, ok,
+                                                 per_check))
             if block < QUANTILE_BLOCKS:
                 result['sample'].append((block, _sample(metrics, values, invalid)))
             if block == 0:
@@ -164,8 +172,23 @@ def run_task(job, blocks, progress=None):
     finally:
         if writer is not None:
             writer.close()
+    if writer is not None:       # whole: a task lost half way leaves only its .partial file
+        path = _part_path(job, blocks[0])
+        os.replace(path + '.partial', path)
     result['cpu_s'] = time.thread_time() - t0
     return result
+
+
+def sample_blocks(job, blocks):
+    """Return the quantile samples of ``blocks`` (recomputed: the same draws, the same metrics)."""
+    out = []
+    for block in blocks:
+        if block < QUANTILE_BLOCKS:
+            draw = sampling.draw_block(job.config, job.seed, block,
+                                       sampling.block_size(job.n_devices, block))
+            values, invalid, _, metrics, _, _ = fleet_eval.evaluate_draw(job.config, draw)
+            out.append((block, _sample(metrics, values, invalid)))
+    return out
 
 
 def _sensor_runs(config, values, metrics, invalid, seed):
@@ -177,8 +200,12 @@ def _sensor_runs(config, values, metrics, invalid, seed):
     return sensor_runs.run_parts(config, values, metrics, invalid, seed)
 
 
+def _part_path(job, first_block):
+    return os.path.join(job.out_dir, 'devices', f'part-{first_block:06d}.parquet')
+
+
 def _writer(job, first_block, schema):
-    path = os.path.join(job.out_dir, 'devices', f'part-{first_block:06d}.parquet')
+    path = _part_path(job, first_block) + '.partial'
     # Drawn values and metrics are continuous float32 whose mantissas do not
     # compress: LZ4 saved 5 % of the bytes for 35 % more write time (21 ->
     # 14 ms a block), dictionary encoding saves nothing and costs 5x, and

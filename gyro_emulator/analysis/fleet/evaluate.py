@@ -148,16 +148,22 @@ def passes(config, metrics, invalid):
         a valid part). A NaN metric fails.
 
     """
-    per_spec = {}
+    per_spec = within(config.specs, metrics, invalid)
     ok = ~invalid
-    for spec in config.specs:
+    for flag in per_spec.values():
+        ok = ok & flag
+    return per_spec, ok
+
+
+def within(bounds, metrics, invalid):
+    """Metric -> bool array (n,): the valid parts inside each bound (a NaN metric is not)."""
+    out = {}
+    for spec in bounds:
         value = metrics[spec.metric]
         if spec.absolute:
             value = np.abs(value)
-        flag = (value >= spec.low) & (value <= spec.high) & ~invalid
-        per_spec[spec.metric] = flag
-        ok = ok & flag
-    return per_spec, ok
+        out[spec.metric] = (value >= spec.low) & (value <= spec.high) & ~invalid
+    return out
 
 
 #: Parts evaluated at once: every quantity is per part, so chunks change no

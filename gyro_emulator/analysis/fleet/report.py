@@ -6,7 +6,10 @@ failing. Quantiles come from the first 131 072 parts (a random sample of
 the fleet: the parts are independent draws), so they are the same for any
 scheduler; at that size a 5 % quantile is known to about +-0.06 % in level.
 Each yield comes with its 95 % Wilson interval (the pass count is
-binomial). The attribution (which tolerance drives the yield) compares, on
+binomial). Model-validity checks (``model_checks``: does the first-order
+model hold for the part?) are counted the same way, as a ``share`` of the
+parts, apart from the specs: they are in neither the yield nor
+``fails_most``. The attribution (which tolerance drives the yield) compares, on
 the first ``attribution_devices`` parts, the pass count with each variation
 source left at its nominal against the pass count with all of them: a
 paired comparison whose gain has a 95 % interval; a source is named only
@@ -157,18 +160,15 @@ def summary(job, results, run):
     config = job.config
     counts = _merged_counts(results)
     n = counts['devices']
-    specs = {}
-    for spec in config.specs:
-        passed = counts['spec_pass'][spec.metric]
-        specs[spec.metric] = {'limits': {'min': None if spec.absolute else _finite(spec.low),
-                                         'max': _finite(spec.high),
-                                         'absolute': spec.absolute},
-                              'pass': passed, 'yield': passed / n,
-                              'yield_ci95': wilson_interval(passed, n)}
+    specs = {spec.metric: _bounded(spec, counts['spec_pass'][spec.metric], n, 'yield')
+             for spec in config.specs}
     worst = min(specs, key=lambda m: specs[m]['pass']) if specs else None
     attribution = next((r['attribution'] for r in results if r['attribution']), None)
     sample = sample_of(results)
     cpu = sum(r['cpu_s'] for r in results)
+    checks = {'model_checks': {spec.metric: _bounded(spec, counts['check_pass'][spec.metric],
+                                                     n, 'share')
+                               for spec in config.model_checks}} if config.model_checks else {}
     return {
         'devices': n, 'seed': job.seed, 'block_devices': BLOCK_DEVICES,
         'config': config.source, 'temperatures_c': list(config.temperatures_c),
@@ -179,6 +179,7 @@ def summary(job, results, run):
         'yield': counts['pass'] / n, 'yield_ci95': wilson_interval(counts['pass'], n),
         'pass': counts['pass'], 'specs': specs,
         'fails_most': worst,
+        **checks,
         'quantile_devices': int(sample['f_drive_hz'].size) if sample else 0,
         'quantiles': _quantiles(config, sample) if sample else {},
         'attribution': _attribution(config, attribution),
@@ -186,6 +187,13 @@ def summary(job, results, run):
         'run': dict(run, cpu_s=cpu, devices_per_s=n / run['wall_s'] if run['wall_s'] else None,
                     devices_per_cpu_s=n / cpu if cpu else None),
     }
+
+
+def _bounded(spec, passed, n, name):
+    """Return a spec's (``yield``) or a model check's (``share``) entry."""
+    return {'limits': {'min': None if spec.absolute else _finite(spec.low),
+                       'max': _finite(spec.high), 'absolute': spec.absolute},
+            'pass': passed, name: passed / n, name + '_ci95': wilson_interval(passed, n)}
 
 
 def _finite(value):

@@ -9,8 +9,15 @@ workers must import this package and write to ``out_dir`` (docs/fleet.md:
 worker settings). While a cluster starts, this process runs the first tasks
 itself. The default is ``in-process`` below 1e6 devices and ``local`` from
 there on.
+
+Before it starts, a run checks that its output fits on the disk and its
+sensor runs in memory (:mod:`.resources`). A task the cluster loses is
+submitted again, :data:`TASK_ATTEMPTS` times in all, then the run stops
+with one line; every finished task is kept, and ``resume`` finishes the run
+(:mod:`.state`).
 """
 
+import functools
 import json
 import logging
 import os
@@ -18,9 +25,12 @@ import shutil
 import threading
 import time
 
-from gyro_emulator.analysis.fleet import engine, report, sampling
+from gyro_emulator.analysis.fleet import engine, report, resources, sampling, state
 from gyro_emulator.validation import check_range
 from tqdm import tqdm
+
+#: Times a task is submitted before a run that keeps losing it fails.
+TASK_ATTEMPTS = 3
 
 #: Fleets of at least this many devices run on a LocalCluster by default.
 LOCAL_FROM_DEVICES = 1_000_000
@@ -49,25 +59,67 @@ def _check_scheduler(scheduler):
                      'local or a Dask scheduler address such as tcp://HOST:8786')
 
 
-def _prepare(out_dir, overwrite):
-    """Create the output directory; refuse to mix with an earlier fleet unless told to."""
-    parts = os.path.join(out_dir, 'devices')
-    earlier = [os.path.join(out_dir, name) for name in ('devices', 'summary.json', 'plots')
-               if os.path.exists(os.path.join(out_dir, name))]
-    if earlier and not overwrite:
-        raise ValueError(f'fleet.out = {out_dir!r} already holds a fleet ({earlier[0]}): '
-                         'choose another directory or pass --overwrite')
-    for path in earlier:
-        if os.path.isdir(path):
-            shutil.rmtree(path)
-        else:
-            os.remove(path)
-    os.makedirs(parts, exist_ok=True)
+class FleetIncomplete(RuntimeError):
+    """A fleet that could not finish; its finished tasks are kept for ``--resume``."""
+
+
+def _earlier(out_dir):
+    return [os.path.join(out_dir, name) for name in ('devices', 'summary.json', 'plots',
+                                                     state.STATE_DIR)
+            if os.path.exists(os.path.join(out_dir, name))]
+
+
+def _start(job, tasks, overwrite, resume):
+    """
+    Check the run can finish, prepare ``job.out_dir``; return (finished results, tasks to run).
+
+    Refuses (one line, nothing touched) a directory that holds another fleet
+    (unless ``overwrite``) or an unfinished one (unless ``resume``), sensor
+    runs that do not fit in memory and output that does not fit on the disk.
+    """
+    out_dir = job.out_dir
+    resources.check_memory(job.config)
+    earlier = _earlier(out_dir)
+    unfinished = os.path.isdir(state.state_dir(out_dir))
+    done = []
+    if resume and unfinished and not overwrite:
+        done = state.load(out_dir, job)
+    elif resume and earlier and not overwrite:
+        raise ValueError(f'fleet.out = {out_dir!r} holds a finished fleet: nothing to '
+                         'resume; choose another directory or pass --overwrite')
+    elif earlier and not overwrite:
+        what = 'an unfinished fleet' if unfinished else 'a fleet'
+        hint = 'pass --resume to finish it, or --overwrite' if unfinished else \
+            'choose another directory or pass --overwrite'
+        raise ValueError(f'fleet.out = {out_dir!r} already holds {what} ({earlier[0]}): '
+                         + hint)
+    todo = state.remaining(tasks, done)
+    reclaimed = sum(resources.tree_bytes(p) if os.path.isdir(p) else os.path.getsize(p)
+                    for p in earlier) if overwrite else 0
+    parts = sum(sampling.block_size(job.n_devices, b) for blocks in todo for b in blocks)
+    resources.check_disk(job.config, parts, sum(len(blocks) for blocks in todo), out_dir,
+                         job.write, reclaimed)
+    if done:
+        state.prune(out_dir, done)
+    else:
+        for path in earlier:
+            if os.path.isdir(path):
+                shutil.rmtree(path)
+            else:
+                os.remove(path)
+    os.makedirs(os.path.join(out_dir, 'devices'), exist_ok=True)
     os.makedirs(os.path.join(out_dir, 'plots'), exist_ok=True)
+    if not done:
+        state.begin(out_dir, job)
+    return done, todo
 
 
-def _in_process(job, tasks, bar):
-    return [engine.run_task(job, blocks, progress=bar.update) for blocks in tasks]
+def _in_process(job, tasks, bar, finished):
+    results = []
+    for blocks in tasks:
+        results.append(engine.run_task(job, blocks, progress=bar.update))
+        finished(results[-1])
+    return results
 
 
 def local_cluster(workers):
@@ -75,7 +127,9 @@ def local_cluster(workers):
     Start the ``local`` scheduler's ``dask.distributed.LocalCluster``.
 
     ``workers`` single-threaded worker processes with :data:`WORKER_ENVIRON`
-    and Dask's profiler off, on free ports, quiet below errors. The caller
+    and Dask's profiler off, on free ports, quiet below critical errors (a
+    worker it loses, a nanny that fails to restart one, are said by the run
+    in one line: :class:`FleetIncomplete`). The caller
     closes it. A fleet can also run on it by address (``cluster.scheduler_address``),
     as on any existing cluster.
     """
@@ -88,7 +142,7 @@ def local_cluster(workers):
                           'distributed.worker.profile.enabled': False}):
         return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                             scheduler_port=0, dashboard_address=':0',
-                            silence_logs=logging.ERROR)
+                            silence_logs=logging.CRITICAL)
 
 
 class _DaskRun:
@@ -104,7 +158,7 @@ class _DaskRun:
     def __init__(self, scheduler, workers):
         self.scheduler, self.workers = scheduler, workers
         self.cluster = self.client = self.error = self.closer = None
-        self.here = 0
+        self.here = self.resubmitted = 0
         self.starter = threading.Thread(target=self._start, daemon=True)
         self.starter.start()
 
@@ -120,7 +174,7 @@ class _DaskRun:
         except Exception as exc:        # raised in the caller's thread by run()
             self.error = exc
 
-    def run(self, job, tasks, bar):
+    def run(self, job, tasks, bar, finished):
         """
         Run the tasks, a few in flight per worker; return the results in block order.
 
@@ -128,36 +182,79 @@ class _DaskRun:
         block at a time (a block is about 50 ms), and hands the rest of a task
         it has begun to the cluster: a whole task here would keep the workers
         of a cluster that is already running idle for as long as it takes.
+        ``finished(result)`` is called as each task ends. A task the cluster
+        loses (its worker killed more often than the scheduler's
+        ``allowed-failures``, the cluster gone) is submitted again, up to
+        :data:`TASK_ATTEMPTS` times in all; then :class:`FleetIncomplete`.
         """
-        from dask.distributed import as_completed  # lazy: see local_cluster
-
         results = {}
         queue = list(enumerate(tasks))
         while queue and self.starter.is_alive():
             index, blocks = queue.pop(0)
             results[blocks[0]] = engine.run_task(job, blocks[:1], progress=bar.update)
+            finished(results[blocks[0]])
             if len(blocks) > 1:
                 queue.insert(0, (index, blocks[1:]))
         self.here = len(results)
         self.starter.join()
-        if self.error is not None:
-            raise self.error
-        client = self.client
-        shared = client.scatter(job, broadcast=True)
-        limit = 2 * max(1, len(client.scheduler_info()['workers']))
-        pending = as_completed()
+        try:
+            if self.error is not None:
+                raise self.error
+            self._on_cluster(job, queue, results, bar, finished)
+        except FleetIncomplete:
+            raise
+        except Exception as exc:     # the cluster failed to start, or went away
+            raise FleetIncomplete(f'the Dask cluster failed ({_first_line(exc)}); the '
+                                  f'{len(results)} finished tasks are kept in {job.out_dir}: '
+                                  'run again with --resume to finish') from None
+        return [results[first] for first in sorted(results)]
+
+    def _on_cluster(self, job, queue, results, bar, finished):
+        """Run the queued tasks on the cluster, a few in flight per worker."""
+        limit = 2 * max(1, len(self.client.scheduler_info()['workers']))
+        self._pending, self._attempts, self._tasks = None, {}, {}
         for _ in range(min(limit, len(queue))):
-            index, blocks = queue.pop(0)
-            pending.add(client.submit(engine.run_task, shared, blocks, key=f'fleet-{index}'))
-        for future in pending:
-            result = future.result()
+            self._submit(job, *queue.pop(0))
+        for future in self._pending or ():
+            result = self._result(job, future, len(results))
+            if result is None:
+                continue
             results[result['blocks'][0]] = result
+            finished(result)
             bar.update(sum(sampling.block_size(job.n_devices, b) for b in result['blocks']))
             if queue:
-                index, blocks = queue.pop(0)
-                pending.add(client.submit(engine.run_task, shared, blocks,
-                                          key=f'fleet-{index}'))
-        return [results[first] for first in sorted(results)]
+                self._submit(job, *queue.pop(0))
+
+    def _submit(self, job, index, blocks):
+        """Submit task ``index`` (again, under a new key, when it was lost)."""
+        from dask.distributed import as_completed  # lazy: see local_cluster
+
+        if self._pending is None:
+            self._pending = as_completed()
+        attempt = self._attempts.get(index, 0) + 1
+        self._attempts[index] = attempt
+        key = f'fleet-{index}' + (f'-attempt{attempt}' if attempt > 1 else '')
+        # The job goes with each task, not scattered once: data scattered to
+        # workers is lost with them, and every later task would then fail.
+        future = self.client.submit(engine.run_task, job, blocks, key=key, pure=False)
+        self._tasks[future.key] = (index, blocks)
+        self._pending.add(future)
+
+    def _result(self, job, future, done):
+        """Return a finished task's result, or None when it was lost and submitted again."""
+        try:
+            return future.result()
+        except Exception as exc:   # lost worker, cancelled future, a task's own error
+            index, blocks = self._tasks[future.key]
+            if self._attempts[index] < TASK_ATTEMPTS:
+                self.resubmitted += 1
+                self._submit(job, index, blocks)
+                return None
+            raise FleetIncomplete(
+                f'the cluster lost the task of blocks {blocks[0]}-{blocks[-1]} '
+                f'{TASK_ATTEMPTS} times ({_first_line(exc)}); '
+                f'the {done} finished tasks are kept in {job.out_dir}: run again with '
+                '--resume to finish') from None
 
     def close(self):
         """Close the client and the cluster in a thread."""
@@ -176,6 +273,12 @@ class _DaskRun:
             self.closer.join()
 
 
+def _first_line(exc):
+    """Return an exception's type and the first line of its message (at most 120 characters)."""
+    text = (str(exc).strip().splitlines() or [''])[0]
+    return f'{type(exc).__name__}: {text[:120]}' if text else type(exc).__name__
+
+
 class _NoBar:
     """Stand-in for a progress bar that shows nothing."""
 
@@ -187,7 +290,8 @@ class _NoBar:
 
 
 def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
-              blocks_per_task=None, progress=False, overwrite=False, write=True):
+              blocks_per_task=None, progress=False, overwrite=False, write=True,
+              resume=False):
     """
     Run a fleet and write its Parquet rows, ``summary.json`` and plots to ``out_dir``.
 
@@ -216,11 +320,23 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
         Replace an earlier fleet in ``out_dir``.
     write : bool
         Write the per-device Parquet rows (False: summary and plots only).
+    resume : bool
+        Finish the unfinished run in ``out_dir`` (same fleet, size, seed and
+        ``write``): its finished tasks are kept (:mod:`.state`).
 
     Returns
     -------
     dict
         The summary (also in ``summary.json``).
+
+    Raises
+    ------
+    ValueError
+        One line: bad arguments, an occupied ``out_dir``, output larger than
+        the free disk space, sensor runs larger than the available memory.
+    FleetIncomplete
+        One line: the cluster lost a task :data:`TASK_ATTEMPTS` times; the
+        finished tasks are kept for ``resume``.
 
     """
     n_devices = _whole('n_devices', n_devices, 1, MAX_DEVICES)
@@ -229,31 +345,41 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
     if scheduler == 'in-process':
         workers = 1
     workers = _whole('workers', workers or os.cpu_count() or 1, 1, 1024)
-    tasks = _tasks(n_devices, workers, blocks_per_task, scheduler)
-    _prepare(out_dir, overwrite)
     job = engine.Job(config, seed, n_devices, os.path.abspath(out_dir), write)
+    tasks = _tasks(n_devices, workers, blocks_per_task, scheduler)
+    done, todo = _start(job, tasks, overwrite, resume)
+    for result in done:
+        result['sample'] = engine.sample_blocks(job, result['blocks'])
     bar = _bar(n_devices) if progress else _NoBar()
+    bar.update(sum(r['counts']['devices'] for r in done))
     start = time.perf_counter()
-    dask_run = None if scheduler == 'in-process' else _DaskRun(scheduler, workers)
+    dask_run = None if scheduler == 'in-process' or not todo else _DaskRun(scheduler, workers)
+    finished = functools.partial(state.save, job.out_dir)
     try:
         try:
             if dask_run is None:
-                results = _in_process(job, tasks, bar)
+                results = _in_process(job, todo, bar, finished)
             else:
-                results = dask_run.run(job, tasks, bar)
+                results = dask_run.run(job, todo, bar, finished)
         finally:
             bar.close()
             if dask_run is not None:
                 dask_run.close()
         wall = time.perf_counter() - start
+        results = sorted(done + results, key=lambda r: r['blocks'][0])
         run = {'scheduler': scheduler, 'workers': workers,
                'blocks_per_task': max(len(blocks) for blocks in tasks),
                'tasks': len(results), 'tasks_here': len(results) if dask_run is None else
-               dask_run.here, 'wall_s': wall}
+               dask_run.here + len(done), 'wall_s': wall}
+        if done:
+            run['tasks_resumed'] = len(done)
+        if dask_run is not None and dask_run.resubmitted:
+            run['tasks_resubmitted'] = dask_run.resubmitted
         summary = report.summary(job, results, run)
         with open(os.path.join(out_dir, 'summary.json'), 'w', encoding='utf-8') as handle:
             json.dump(summary, handle, indent=2)
         report.plots(job, results, summary, os.path.join(out_dir, 'plots'))
+        state.finish(job.out_dir)
     finally:
         if dask_run is not None:
             dask_run.join()

@@ -29,6 +29,14 @@ import numpy as np
 #: Largest split the sensor configuration accepts, Hz.
 MAX_SPLIT_HZ = 5000.0
 
+#: Allan terms reported as a value only when the run resolves them:
+#: (fit term, key, unit, the part's model field, converter to the unit).
+_BOUNDED_TERMS = (
+    ('bias_instability', 'bias_instability', 'deg_h', 'bias_instability_rad_s',
+     units.rad_s_to_deg_h),
+    ('rrw', 'rrw', 'deg_h_sqrt_h', 'rate_random_walk_rad_s_sqrt_s',
+     units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h))
+
 
 def part_device(config, values, i):
     """Part i of a block of drawn values as a scalar Device."""
@@ -59,8 +67,12 @@ def run_part(config, values, metrics, i, seed):
     -------
     dict
         Device id, split, the predicted ARW (physics + electronics, at the
-        calibration temperature) and the fitted N, B, K (deg/sqrt(h), deg/h,
-        deg/h/sqrt(h)).
+        calibration temperature) and the fitted N (deg/sqrt(h)); B (deg/h)
+        and K (deg/h/sqrt(h)) each as the fitted value when the run resolves
+        it (its lower 95 % bound above zero), else None, with the upper 95 %
+        bound (``*_upper_*``) and the part's own model value (``*_model_*``).
+        A 600 s run cannot resolve a K below tens of deg/h/sqrt(h): the
+        fit's K there is the scatter of the longest taus, not a random walk.
 
     """
     runs = config.sensor_runs
@@ -81,13 +93,17 @@ def run_part(config, values, metrics, i, seed):
     elec = _electronics(config, values, i)['electronics_noise_rad_s_sqrt_hz']
     predicted = float(np.hypot(noise.brownian_arw_rad_s_sqrt_hz(
         device, config.calibration_temp_c), elec))
-    return {
+    out = {
         'device_id': int(i), 'split_hz': float(metrics['split_hz'][i]),
         'arw_predicted_deg_sqrt_h': float(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(predicted)),
         'arw_deg_sqrt_h': fit.arw_deg_sqrt_h,
-        'bias_instability_deg_h': fit.bias_instability_deg_h,
-        'rrw_deg_h_sqrt_h': fit.rrw_deg_h_sqrt_h,
     }
+    own = _electronics(config, values, i)
+    for term, name, unit, model_field, to_unit in _BOUNDED_TERMS:
+        out[f'{name}_{unit}'] = float(to_unit(fit.value(term))) if fit.resolved(term) else None
+        out[f'{name}_upper_{unit}'] = float(to_unit(fit.intervals[term].high))
+        out[f'{name}_model_{unit}'] = float(to_unit(own[model_field]))
+    return out
 
 
 def run_parts(config, values, metrics, invalid, seed):
