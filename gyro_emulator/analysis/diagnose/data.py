@@ -41,6 +41,9 @@ DEFAULT_MAX_BINS = 12000
 TEMP_RATE_WINDOW_S = 30.0
 #: Step of the uniform grid the temperature filters run on, at most, s.
 TEMP_GRID_STEP_S = 0.5
+#: Most points of that grid (11.6 days at 0.5 s): a longer record takes a coarser
+#: one, still far finer than its bins (:data:`DEFAULT_MAX_BINS`).
+TEMP_GRID_MAX_POINTS = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -418,7 +421,8 @@ class Prepared:
             None if data.accel_m_s2 is None else mean(data.accel_m_s2),
             mean(data.gyro_rad_s), counts)
         # uniform grid for the temperature filters (exact on that grid)
-        step = min(TEMP_GRID_STEP_S, max(bin_s, self.dt_s))
+        step = max(min(TEMP_GRID_STEP_S, max(bin_s, self.dt_s)),
+                   self.duration_s / TEMP_GRID_MAX_POINTS)
         tb = self.binned.time_s
         self.grid_t = np.arange(tb[0], tb[-1] + step, step)
         self.grid_temp = np.interp(self.grid_t, self.binned.time_s,
