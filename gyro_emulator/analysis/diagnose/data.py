@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 from gyro_emulator.recording import csvio
 from gyro_emulator.recording.record import DEFAULT_TOPICS, load_record
+from gyro_emulator.validation import GYRO_LIMIT_RAD_S, MODEL_TEMP_RANGE_C
 import numpy as np
 from scipy.signal import lfilter, lfilter_zi
 
@@ -80,7 +81,7 @@ class MeasuredData:
     recovery: tuple = ()
 
     def __post_init__(self):
-        """Check shapes, finiteness, the temperature range and monotonic time."""
+        """Check shapes, finiteness, monotonic time and the physical limits of the values."""
         n = len(np.asarray(self.time_s))
         arrays = {'time_s': self.time_s, 'rate_cmd_rad_s': self.rate_cmd_rad_s,
                   'temp_c': self.temp_c, 'gyro_rad_s': self.gyro_rad_s}
@@ -119,11 +120,24 @@ class MeasuredData:
         if self.time_s[-1] <= self.time_s[0]:
             raise ValueError('MeasuredData.time_s spans no time: allowed '
                              'last > first')
-        temp = self.temp_c
-        if temp is not None and (np.any(temp < -60.0) or np.any(temp > 200.0)):
-            raise ValueError(
-                f'MeasuredData.temp_c spans {temp.min():.2f}..{temp.max():.2f} '
-                'C: allowed [-60, 200] C (the physics model range)')
+        self._check_limits()
+
+    def _check_limits(self):
+        """Raise ValueError naming the first value beyond its physical limits, and the row."""
+        rate = (-GYRO_LIMIT_RAD_S, GYRO_LIMIT_RAD_S, 'rad/s', 'the widest MEMS full scale')
+        limits = {'rate_cmd_rad_s': rate, 'gyro_rad_s': rate,
+                  'temp_c': MODEL_TEMP_RANGE_C + ('C', 'the physics model range')}
+        for name, (low, high, unit, why) in limits.items():
+            values = getattr(self, name)
+            if values is None:
+                continue
+            outside = np.flatnonzero((values < low) | (values > high))
+            if len(outside):
+                i = int(outside[0])
+                raise ValueError(
+                    f'MeasuredData.{name} = {float(values[i])!r} at sample {i} (data row '
+                    f'{i + 1}) is beyond [{low:g}, {high:g}] {unit} ({why}; '
+                    f'{len(outside)} of {len(values)} samples beyond)')
 
     @property
     def rows(self):
