@@ -24,7 +24,7 @@ SLOPE_RAD_S_K = 2e-4
 
 
 def _log_columns(seed=26):
-    """A static 3-axis log, 60 s at 50 Hz, warming 15 -> 45 C: bias 0.01 + 2e-4 (T - 25) rad/s."""
+    """Return a static 3-axis log, 60 s at 50 Hz, 15 -> 45 C: bias 0.01 + 2e-4 (T - 25) rad/s."""
     rng = np.random.default_rng(seed)
     t = np.arange(N) / RATE_HZ
     temp = 15.0 + 30.0 * t / t[-1] + rng.normal(0.0, 0.01, N)
@@ -188,7 +188,7 @@ def _commands(path, out):
 
 
 def _result(command, out):
-    """What a command produced, to compare: the file it wrote, without the source's name."""
+    """Return what a command wrote, to compare, without the source's name."""
     name = {'allan': f'{out}.allan.json', 'noise': f'{out}.yaml', 'thermal': f'{out}.params',
             'diagnose': f'{out}.diag.json'}[command]
     if not os.path.exists(name):

@@ -421,8 +421,8 @@ def screen_at_rest(time_s, rate_rad_s, dt_s, threshold=THRESHOLD, what='the rate
     time_s = np.asarray(time_s, dtype=float)
     rate, outside = _within_limits(np.asarray(rate_rad_s, dtype=float), limits, unit, what)
     n = len(rate)
-    aside = dict(outside=int(np.count_nonzero(outside)), limits=tuple(limits), unit=unit,
-                 cause=cause)
+    aside = {'outside': int(np.count_nonzero(outside)), 'limits': tuple(limits), 'unit': unit,
+             'cause': cause}
     keep = ~outside
     spans = tuple(flag_segments(outside, time_s, dt_s)[1]) if aside['outside'] else ()
     if not math.isfinite(threshold) or n < 2 * LOCAL_MIN_SAMPLES + 1:

@@ -372,7 +372,7 @@ def _screen(log, gyro_scale, threshold):
 
 
 def _screen_notes(log, screened, temps):
-    """Notes on what was set aside: per axis its gyro, per temperature column its jumps."""
+    """Return notes on what was set aside: per axis its gyro, per temperature column its own."""
     notes = [f'axis {a}: {v.describe()}' for a, v in screened.items() if v.count or v.note]
     said = set()
     for axis, v in temps.items():
@@ -384,11 +384,12 @@ def _screen_notes(log, screened, temps):
 
 
 def _kept_ranges(log, keep, gyro_scale):
-    """(lowest, highest) kept temperature, deg C, and per axis the kept rates', rad/s."""
+    """Return the (lowest, highest) kept temperature, deg C, and per axis the kept rates'."""
     temps = np.concatenate([temp[keep[a]] for a, (_, temp, _) in log.axes.items()])
-    rates = {a: (float(np.min(rate[keep[a]] * gyro_scale)), float(np.max(rate[keep[a]]
-                                                                          * gyro_scale)))
-             for a, (_, _, rate) in log.axes.items()}
+    rates = {}
+    for axis, (_, _, rate) in log.axes.items():
+        kept = rate[keep[axis]] * gyro_scale
+        rates[axis] = (float(np.min(kept)), float(np.max(kept)))
     return (float(np.min(temps)), float(np.max(temps))), rates
 
 
