@@ -12,6 +12,10 @@ import numpy as np
 #: Die temperatures the physics model is meant for, deg C. Eq 22 (linear E(T))
 #: and the gas model are trusted over this span; outside it the node clamps.
 MODEL_TEMP_RANGE_C = (-60.0, 200.0)
+#: Largest gyro reading a record may hold, rad/s (57,000 deg/s): beyond the
+#: full-scale range of any MEMS gyro (+-20,000 deg/s for the widest, the ADXRS649).
+#: A reading beyond it is a bad cell, not a rate.
+GYRO_LIMIT_RAD_S = 1000.0
 
 
 def check_range(owner, name, value, low, high, unit='',

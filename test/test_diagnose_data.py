@@ -106,7 +106,8 @@ def test_partial_acceleration_columns_rejected(tmp_path):
 
 def test_out_of_model_temperature_rejected():
     rec = _record()
-    with pytest.raises(ValueError, match=r'temp_c spans .* allowed \[-60, 200\]'):
+    with pytest.raises(ValueError, match=r'temp_c = .* at sample 0 \(data row 1\) is beyond '
+                                         r'\[-60, 200\] C \(the physics model range'):
         MeasuredData(time_s=rec.time_s, rate_cmd_rad_s=rec.rate_cmd_rad_s,
                      temp_c=rec.temp_c + 300, gyro_rad_s=rec.gyro_rad_s)
 

@@ -28,6 +28,7 @@ crosses 6 sigma once in 5e8 samples, so a clean record loses nothing.
 from dataclasses import dataclass
 import math
 
+from gyro_emulator.validation import GYRO_LIMIT_RAD_S
 import numpy as np
 
 #: Robust standard deviations beyond which a sample is an outlier.
@@ -246,7 +247,9 @@ SHIFT_WINDOW_S = 10.0
 
 def _window_means(time_s, values, keep, window_s):
     """Means of the kept samples in consecutive windows of ``window_s`` (empty ones left out)."""
-    index = np.floor((time_s - time_s[0]) / window_s).astype(np.int64)[keep]
+    # the windows that hold samples, numbered in order: as many as the samples at
+    # most, however long the gaps between them
+    _, index = np.unique(np.floor((time_s[keep] - time_s[0]) / window_s), return_inverse=True)
     sums = np.bincount(index, weights=values[keep])
     counts = np.bincount(index)
     full = counts >= max(10, 0.5 * np.max(counts, initial=0))
@@ -291,7 +294,10 @@ class SetAside:
     aside as (start_s, end_s, samples); ``sigma_rad_s`` is the robust scale
     of the high-passed rate; ``threshold`` the robust standard deviations
     (``math.inf``: screening off); ``note`` is set when nothing was set
-    aside because too much would have been.
+    aside because too much would have been; ``outside`` counts the samples
+    set aside, always, for lying beyond the physical ``limits`` (a bad cell:
+    -1e308 in a gyro column), whose ``unit`` and ``cause`` (what the
+    stretches are) the description names.
     """
 
     keep: np.ndarray
@@ -299,6 +305,10 @@ class SetAside:
     sigma_rad_s: float
     threshold: float
     note: str = ''
+    outside: int = 0
+    limits: tuple = (-GYRO_LIMIT_RAD_S, GYRO_LIMIT_RAD_S)
+    unit: str = 'rad/s'
+    cause: str = 'spikes, motion'
 
     @property
     def count(self):
@@ -312,26 +322,46 @@ class SetAside:
 
     def as_dict(self, max_spans=50):
         """JSON-ready form (the first ``max_spans`` stretches)."""
-        return {'count': self.count, 'fraction': self.fraction,
-                'stretches': len(self.spans),
-                'spans': [list(s) for s in self.spans[:max_spans]],
-                'sigma_rad_s': self.sigma_rad_s,
-                'threshold_sigma': None if math.isinf(self.threshold) else self.threshold,
-                'note': self.note}
+        doc = {'count': self.count, 'fraction': self.fraction,
+               'stretches': len(self.spans),
+               'spans': [list(s) for s in self.spans[:max_spans]],
+               'sigma_rad_s': self.sigma_rad_s,
+               'threshold_sigma': None if math.isinf(self.threshold) else self.threshold,
+               'note': self.note}
+        if self.outside:
+            doc['outside_limits'] = {'count': self.outside, 'limits': list(self.limits),
+                                     'unit': self.unit}
+        return doc
 
     def describe(self):
         """One line for a report: how many samples, in how many stretches, and when."""
+        if self.outside:
+            return self._describe_outside()
         if math.isinf(self.threshold):
             return 'outlier screening off: every sample kept'
         if not self.count:
             return (f'no sample beyond {self.threshold:g} robust sigma of its neighbours: '
                     f'nothing set aside{"; " + self.note if self.note else ""}')
-        first = ', '.join(f'{lo:.1f}-{hi:.1f} s' if n > 1 else f'{lo:.2f} s'
-                          for lo, hi, n in self.spans[:4])
-        more = f' and {len(self.spans) - 4} more' if len(self.spans) > 4 else ''
         return (f'set aside {self.count} samples ({100 * self.fraction:.3g} %) in '
                 f'{len(self.spans)} stretches beyond {self.threshold:g} robust sigma of '
-                f'their neighbours (spikes, motion): {first}{more}')
+                f'their neighbours ({self.cause}): {self._when()}')
+
+    def _when(self):
+        first = ', '.join(f'{lo:.1f}-{hi:.1f} s' if n > 1 else f'{lo:.2f} s'
+                          for lo, hi, n in self.spans[:4])
+        return first + (f' and {len(self.spans) - 4} more' if len(self.spans) > 4 else '')
+
+    def _describe_outside(self):
+        low, high = self.limits
+        parts = [f'{self.outside} beyond the physical limits [{low:g}, {high:g}] {self.unit} '
+                 '(bad cells)']
+        if self.count > self.outside:
+            parts.append(f'{self.count - self.outside} beyond {self.threshold:g} robust sigma '
+                         f'of their neighbours ({self.cause})')
+        tail = ('; outlier screening off: every other sample kept'
+                if math.isinf(self.threshold) else f'; {self.note}' if self.note else '')
+        return (f'set aside {self.count} samples ({100 * self.fraction:.3g} %) in '
+                f'{len(self.spans)} stretches, {" and ".join(parts)}: {self._when()}{tail}')
 
 
 def _quantised_floor(rate, time_s, dt_s, threshold):
@@ -343,18 +373,23 @@ def _quantised_floor(rate, time_s, dt_s, threshold):
     return max(step / math.sqrt(12.0), clipped_scale(h, threshold))
 
 
-def screen_at_rest(time_s, rate_rad_s, dt_s, threshold=THRESHOLD):
+def screen_at_rest(time_s, rate_rad_s, dt_s, threshold=THRESHOLD, what='the rate',
+                   limits=(-GYRO_LIMIT_RAD_S, GYRO_LIMIT_RAD_S), unit='rad/s', floor=0.0,
+                   cause='spikes, motion'):
     """
     Find the spikes and motion of a record taken at rest (module docstring).
 
-    Two passes of :func:`high_pass_flags` (the second without the first's
-    flags in its fits and scale), then :func:`flag_segments`. A quantised
+    First the samples beyond the physical ``limits`` are set aside, always
+    (bad cells; they are given the median of the rest, so that no fit sees
+    them); more than :data:`MAX_FRACTION` of them is an error, naming the
+    first. Then two passes of :func:`high_pass_flags` (the second without the
+    first's flags in its fits and scale), then :func:`flag_segments`. A quantised
     output (:func:`quantisation_step`) takes as its scale at least the
     clipped standard deviation of its high-passed rate
     (:func:`clipped_scale`) and the quantisation noise LSB / sqrt(12): a part
     whose noise is about its LSB moves by whole LSBs, and that is no outlier. When more
     than :data:`MAX_FRACTION` of the record would go, it is not at rest:
-    nothing is set aside and ``note`` says so.
+    nothing else is set aside and ``note`` says so.
 
     Parameters
     ----------
@@ -363,7 +398,20 @@ def screen_at_rest(time_s, rate_rad_s, dt_s, threshold=THRESHOLD):
     dt_s : float
         Sample interval, s.
     threshold : float
-        Robust standard deviations (``math.inf``: set nothing aside).
+        Robust standard deviations (``math.inf``: set nothing aside but
+        the samples beyond ``limits``).
+    what : str
+        The column, for the error.
+    limits : (float, float)
+        Physical limits of the values, in ``unit`` (default: a gyro's,
+        :data:`gyro_emulator.validation.GYRO_LIMIT_RAD_S`).
+    unit : str
+        Unit of the values.
+    floor : float
+        Least robust scale (a quantity with no noise of its own, as a
+        temperature: the smallest jump that is an outlier, over ``threshold``).
+    cause : str
+        What the stretches set aside are, for the description.
 
     Returns
     -------
@@ -371,20 +419,42 @@ def screen_at_rest(time_s, rate_rad_s, dt_s, threshold=THRESHOLD):
 
     """
     time_s = np.asarray(time_s, dtype=float)
-    rate = np.asarray(rate_rad_s, dtype=float)
+    rate, outside = _within_limits(np.asarray(rate_rad_s, dtype=float), limits, unit, what)
     n = len(rate)
-    keep = np.ones(n, bool)
+    aside = {'outside': int(np.count_nonzero(outside)), 'limits': tuple(limits), 'unit': unit,
+             'cause': cause}
+    keep = ~outside
+    spans = tuple(flag_segments(outside, time_s, dt_s)[1]) if aside['outside'] else ()
     if not math.isfinite(threshold) or n < 2 * LOCAL_MIN_SAMPLES + 1:
-        return SetAside(keep, (), float('nan'), threshold)
-    flag = np.zeros(n, bool)
+        return SetAside(keep, spans, float('nan'), threshold, **aside)
+    flag = outside.copy()
     sigma = float('nan')
-    floor = _quantised_floor(rate, time_s, dt_s, threshold)
+    floor = max(floor, _quantised_floor(rate, time_s, dt_s, threshold))
     for _ in range(2):
         new, sigma, _ = high_pass_flags(rate, None, ~flag, time_s, dt_s, threshold, floor)
         flag |= new
-    drop, spans = flag_segments(flag, time_s, dt_s)
+    drop, found = flag_segments(flag, time_s, dt_s)
     if drop.sum() > MAX_FRACTION * n:
         note = (f'{100 * drop.mean():.0f} % of the samples stand out from their neighbours: '
                 'the record is not at rest, so nothing was set aside')
-        return SetAside(keep, (), sigma, threshold, note)
-    return SetAside(~drop, tuple(spans), sigma, threshold)
+        return SetAside(keep, spans, sigma, threshold, note, **aside)
+    return SetAside(~drop, tuple(found), sigma, threshold, **aside)
+
+
+def _within_limits(values, limits, unit, what):
+    """
+    Return (values with those beyond ``limits`` set to the median of the rest, their mask).
+
+    ValueError naming the first when more than :data:`MAX_FRACTION` are beyond.
+    """
+    low, high = limits
+    outside = ~((values >= low) & (values <= high))
+    count = int(np.count_nonzero(outside))
+    if not count:
+        return values, outside
+    i = int(np.flatnonzero(outside)[0])
+    if count > MAX_FRACTION * len(values):
+        raise ValueError(f'{what}: {count} of {len(values)} values are beyond the physical '
+                         f'limits [{low:g}, {high:g}] {unit} (the first at data row {i + 1}: '
+                         f'{float(values[i])!r}): is the column in {unit}?')
+    return np.where(outside, np.median(values[~outside]), values), outside

@@ -140,6 +140,7 @@ def run_thermal(args):
     _print_thermal(fit)
     if args.format == 'preset':
         fit = thermal.with_white_noise(fit, log)
+    thermal.check_export(fit, f'{args.out} ({args.format})')
     _write(args.out, export_thermal.write_thermal(fit, args.format, args.px4_gyro_id))
     if args.json:
         write_json(args.json, _thermal_doc(fit))

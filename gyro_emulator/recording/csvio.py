@@ -7,7 +7,8 @@ column names carry their units (``time_s``, ``gyro_x_rad_s``, ``temp_c``).
 
 Errors name the file, the column, the row (1-based line number in the file)
 and the offending value: a missing column, a value that is not a number, a
-non-finite value, or a ``time_s`` column that does not increase. A truncated
+non-finite value, a ``time_s`` column that does not increase, or one that is
+not in seconds (:func:`gyro_emulator.recording.timing.check_time_base`). A truncated
 or corrupt ``.gz`` file is one line too, never a traceback.
 """
 
@@ -16,7 +17,7 @@ import io
 import os
 import zlib
 
-from gyro_emulator.recording.timing import check_increasing
+from gyro_emulator.recording.timing import check_increasing, check_time_base
 import numpy as np
 
 #: Gyro column layouts accepted by :func:`read_gyro_csv`.
@@ -145,6 +146,7 @@ def _read_columns(path, required, time_order, only):
     if 'time_s' in columns:
         check_increasing(columns['time_s'], f'{path}: time_s',
                          strict=time_order == 'increasing')
+        check_time_base(columns['time_s'], f'{path}: time_s')
     return columns
 
 

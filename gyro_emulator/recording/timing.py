@@ -24,6 +24,69 @@ def check_increasing(time_s, what='time_s', strict=True):
                          f'{float(time_s[i + 1])!r} after {float(time_s[i])!r}{hint}')
 
 
+#: Largest |time_s|, s: 317 years, past any epoch time in seconds (an epoch time in
+#: ms, us or ns is 1.7e12, 1.7e15 or 1.7e18).
+TIME_LIMIT_S = 1e10
+#: Nominal (median) step allowed, s: 1 MHz to one sample an hour.
+STEP_RANGE_S = (1e-6, 3600.0)
+#: Units a time column is mistaken for, and what turns each into seconds.
+TIME_UNITS = (('milliseconds', 1e3), ('microseconds', 1e6), ('nanoseconds', 1e9))
+#: Epoch times in seconds from 2001 to 2096: a first stamp in this range, once
+#: divided, names the unit.
+EPOCH_RANGE_S = (1e9, 4e9)
+#: A step in this range, once divided, names the unit (10 kHz to 1 Hz).
+TYPICAL_STEP_S = (1e-4, 1.0)
+
+
+def _power(factor):
+    """Return 1e3, 1e6 or 1e9 as written by hand."""
+    return f'{factor:.0e}'.replace('e+0', 'e')
+
+
+def _unit_hint(first, step):
+    """Name the units that would make ``first`` an epoch time or ``step`` a typical one."""
+    for unit, factor in TIME_UNITS:
+        if EPOCH_RANGE_S[0] <= abs(first) / factor <= EPOCH_RANGE_S[1]:
+            return f'; looks like {unit} since the epoch: divide by {_power(factor)}'
+    if step is None:
+        return ''
+    fits = [(u, f) for u, f in TIME_UNITS
+            if TYPICAL_STEP_S[0] <= step / f <= TYPICAL_STEP_S[1]]
+    if not fits:
+        return ''
+    return ('; looks like ' + ' or '.join(u for u, _ in fits) + ': divide by '
+            + ' or '.join(_power(f) for _, f in fits))
+
+
+def check_time_base(time_s, what='time_s'):
+    """
+    Raise ValueError unless ``time_s`` (increasing) is in seconds at a plausible rate.
+
+    Every value within +-:data:`TIME_LIMIT_S` and the median positive step
+    within :data:`STEP_RANGE_S`; the message names the data row, the value,
+    the limit and the likely unit (an epoch time in ns: divide by 1e9).
+    Checked before anything is sized from the duration or the rate.
+    """
+    t = np.asarray(time_s, dtype=float)
+    if not len(t):
+        return
+    beyond = np.flatnonzero(~(np.abs(t) <= TIME_LIMIT_S))
+    step = np.diff(t)
+    positive = step[step > 0.0]
+    median = float(np.median(positive)) if len(positive) else None
+    if len(beyond):
+        i = int(beyond[0])
+        raise ValueError(f'{what}: data row {i + 1} is {float(t[i])!r}, beyond +-{TIME_LIMIT_S:g} '
+                         f's (not seconds?){_unit_hint(t[i], median)}')
+    low, high = STEP_RANGE_S
+    if median is not None and not low <= median <= high:
+        i = int(np.flatnonzero(step > 0.0)[0])
+        raise ValueError(f'{what}: the median step is {median:.6g} s (data row {i + 2}: '
+                         f'{float(t[i + 1])!r} after {float(t[i])!r}): allowed '
+                         f'[{low:g}, {high:g}] s, 1 MHz to one sample an hour'
+                         f'{_unit_hint(t[0], median)}')
+
+
 #: Median and mean time step agreeing within this share: the median is the step.
 STEP_AGREEMENT = 1e-3
 

@@ -70,7 +70,7 @@ def screened_segments(time_s, rate, gap_factor=3.0, threshold=outliers.THRESHOLD
     rate = np.asarray(rate, dtype=float)
     rate_hz, _ = timing.sample_rate_and_segments(time_s, gap_factor)
     outliers.check_not_held(rate, rate_hz, what)
-    screened = outliers.screen_at_rest(time_s, rate, 1.0 / rate_hz, threshold)
+    screened = outliers.screen_at_rest(time_s, rate, 1.0 / rate_hz, threshold, what)
     filled = rate.copy()
     cut = np.zeros(len(rate), bool)
     n_filled = 0
@@ -233,7 +233,7 @@ def analyse_record(record, axis=None, max_tau_fraction=0.25, gap_factor=3.0,
     rate, column = axis_of(record, axis)
     try:
         rate_hz, segments, screened, handled = screened_segments(
-            record.time_s, rate, gap_factor, outlier_threshold)
+            record.time_s, rate, gap_factor, outlier_threshold, what=column)
     except ValueError as exc:
         raise ValueError(f'{path}: {exc}') from None
     result, found = identify(segments, rate_hz, max_tau_fraction)

@@ -36,6 +36,7 @@ from gyro_emulator.analysis.allan import analyse as allan_record
 from gyro_emulator.analysis.calibrate.noise import detect_lsb
 from gyro_emulator.recording import csvio, timing
 from gyro_emulator.recording.record import DEFAULT_TOPICS
+from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
 
 #: Smallest temperature span (K) for each polynomial order.
@@ -48,6 +49,10 @@ MAX_ORDER = 3
 SIGNIFICANCE = 3.0
 #: |corr(temperature, time)| above this: temperature and time are confounded.
 CONFOUNDED = 0.9
+#: Least robust scale of a temperature, K: a die temperature has no noise of its
+#: own, so a sample is an outlier when it jumps 6 x 0.2 = 1.2 K off its neighbours'
+#: local mean (a 60 K/min ramp moves that mean 1 K at the end of a stretch).
+TEMP_SCALE_FLOOR_K = 0.2
 AXES = ('x', 'y', 'z')
 
 
@@ -57,11 +62,13 @@ class ThermalLog:
     Static gyro samples with their die temperature: per axis (time_s, temp_c, rate_rad_s).
 
     Built from loaded records by :func:`thermal_log`; it reads no file.
+    ``temp_columns[axis]`` names where its temperature came from.
     """
 
     sources: tuple
     axes: dict
     columns: dict
+    temp_columns: dict = field(default_factory=dict)
 
 
 #: CSV columns a thermal log must have (:func:`gyro_emulator.recording.record.load_record`).
@@ -84,7 +91,7 @@ def _bag_axes(rec):
                          'messages: need >= 2')
     temp_c = np.interp(rec.time_s, rec.temp.time_s, rec.temp.values)
     return ({a: (rec.time_s, temp_c, rate) for a, rate in rec.gyro.items()},
-            dict(rec.gyro_sources))
+            dict(rec.gyro_sources), {a: f'{rec.path}: {rec.temp.source}' for a in rec.gyro})
 
 
 def thermal_log(recs):
@@ -98,9 +105,8 @@ def thermal_log(recs):
         raise ValueError(f'thermal log: {len(recs)} files given: give one 3-axis file or '
                          'one to three one-axis files (x, y, z in that order)')
     if len(recs) == 1 and recs[0].is_bag:
-        axes, columns = _bag_axes(recs[0].require_gyro())
-        return ThermalLog(paths, axes, columns)
-    axes, columns = {}, {}
+        return ThermalLog(paths, *_bag_axes(recs[0].require_gyro()))
+    axes, columns, temps = {}, {}, {}
     for i, rec in enumerate(recs):
         path = rec.path
         if rec.is_bag:
@@ -114,7 +120,8 @@ def thermal_log(recs):
                 raise ValueError(f'{path}: axis {axis} is given twice ({columns[axis]})')
             axes[axis] = (rec.time_s, rec.temp.values, rec.gyro[named])
             columns[axis] = f'{path}:{name}'
-    return ThermalLog(paths, axes, columns)
+            temps[axis] = f'{path}: {rec.temp.source}'
+    return ThermalLog(paths, axes, columns, temps)
 
 
 @dataclass(frozen=True)
@@ -131,7 +138,16 @@ class Groups:
 
 
 def _windows(time_s, a, b, window_s):
-    """Index bounds of the windows of ``window_s`` over samples a..b (3 or more samples each)."""
+    """
+    Index bounds of the windows of ``window_s`` over samples a..b (3 or more samples each).
+
+    At most one window per sample is ever made: a stretch longer than its
+    samples' count of windows is cut where samples are.
+    """
+    if (time_s[b - 1] - time_s[a]) / window_s > b - a:
+        index = np.floor((time_s[a:b] - time_s[a]) / window_s)
+        cuts = a + np.flatnonzero(np.r_[True, index[1:] != index[:-1], True])
+        return [(int(lo), int(hi)) for lo, hi in zip(cuts[:-1], cuts[1:]) if hi - lo >= 3]
     edges = np.arange(time_s[a], time_s[b - 1] + window_s, window_s)
     idx = a + np.searchsorted(time_s[a:b], edges)
     return [(int(lo), int(hi)) for lo, hi in zip(idx[:-1], idx[1:]) if hi - lo >= 3]
@@ -246,6 +262,9 @@ class ThermalFit:
     ``arw_rad_s_sqrt_hz[axis]`` (N, rad/s/sqrt(Hz)) and the grid
     ``lsb_rad_s`` of the samples are None until :func:`with_white_noise`
     adds them (what the ``preset`` export needs beside the polynomial).
+    ``data_temp_c`` is the (lowest, highest) temperature of the samples kept
+    and ``data_rate_rad_s[axis]`` the same of their rates: the range
+    :func:`check_export` holds a file to.
     """
 
     sources: tuple
@@ -269,6 +288,8 @@ class ThermalFit:
     set_aside: dict = field(default_factory=dict)
     arw_rad_s_sqrt_hz: dict = None
     lsb_rad_s: float = None
+    data_temp_c: tuple = None
+    data_rate_rad_s: dict = None
 
     @property
     def groups_temp_c(self):
@@ -295,28 +316,81 @@ def _order_for(groups, temp_ref, order):
     return 1, []
 
 
+#: Temperature units a column is mistaken for: (name, offset, scale, the fix);
+#: value x scale + offset is deg C.
+TEMP_UNITS = (('kelvin', -273.15, 1.0, 'subtract 273.15'),
+              ('millidegrees C', 0.0, 1e-3, 'divide by 1000'))
+
+
+def screen_temperature(time_s, temp_c, dt_s, threshold=outliers.THRESHOLD, what='temp_c'):
+    """
+    Set aside the temperatures beyond physical limits, then the jumps (a SetAside).
+
+    The limits are the physics model's, :data:`gyro_emulator.validation.MODEL_TEMP_RANGE_C`,
+    the rule ``diagnose`` applies; the jumps are those of
+    :func:`gyro_emulator.analysis.outliers.screen_at_rest`, at least 6 x
+    :data:`TEMP_SCALE_FLOOR_K` off the neighbours. A column mostly beyond
+    the limits is an error that names the unit it seems to be in.
+    """
+    try:
+        return outliers.screen_at_rest(time_s, temp_c, dt_s, threshold, what,
+                                       MODEL_TEMP_RANGE_C, 'C', TEMP_SCALE_FLOOR_K,
+                                       'temperature jumps')
+    except ValueError as exc:
+        low, high = MODEL_TEMP_RANGE_C
+        middle = float(np.median(temp_c))
+        hints = [f'looks like {name}: {how}' for name, offset, scale, how in TEMP_UNITS
+                 if low <= middle * scale + offset <= high]
+        raise ValueError('; '.join([str(exc)] + hints[:1])) from None
+
+
 def _screen(log, gyro_scale, threshold):
     """
-    Leave out stuck axes, and find each other axis's spikes and motion.
+    Leave out stuck axes, and find each other axis's spikes and motion, and temperature jumps.
 
-    Returns (the log without its stuck or saturated axes, their
-    :class:`gyro_emulator.analysis.outliers.SetAside` per axis, notes on the
-    axes left out); with no axis left, ValueError.
+    Returns (the log without its stuck or saturated axes, their gyro and
+    their temperature :class:`gyro_emulator.analysis.outliers.SetAside` per
+    axis, notes on the axes left out); with no axis left, ValueError.
     """
-    screened, notes = {}, []
-    for axis, (t, _, rate) in log.axes.items():
+    screened, temps, notes = {}, {}, []
+    for axis, (t, temp, rate) in log.axes.items():
         rate_hz, _ = timing.sample_rate_and_segments(t)
         try:
             outliers.check_not_held(rate, rate_hz, f'axis {axis}')
         except outliers.HeldOutput as exc:
             notes.append(f'{exc}: left out')
             continue
-        screened[axis] = outliers.screen_at_rest(t, rate * gyro_scale, 1.0 / rate_hz, threshold)
+        screened[axis] = outliers.screen_at_rest(t, rate * gyro_scale, 1.0 / rate_hz, threshold,
+                                                 log.columns.get(axis, f'axis {axis}'))
+        temps[axis] = screen_temperature(t, temp, 1.0 / rate_hz, threshold,
+                                         log.temp_columns.get(axis, 'temp_c'))
     if not screened:
         raise ValueError('thermal log: no axis to fit: ' + '; '.join(notes))
     kept = replace(log, axes={a: log.axes[a] for a in screened},
                    columns={a: log.columns[a] for a in screened})
-    return kept, screened, notes
+    return kept, screened, temps, notes
+
+
+def _screen_notes(log, screened, temps):
+    """Return notes on what was set aside: per axis its gyro, per temperature column its own."""
+    notes = [f'axis {a}: {v.describe()}' for a, v in screened.items() if v.count or v.note]
+    said = set()
+    for axis, v in temps.items():
+        column = log.temp_columns.get(axis, 'temp_c')
+        if (v.count or v.note) and column not in said:
+            said.add(column)
+            notes.append(f'{column}: {v.describe()}')
+    return notes
+
+
+def _kept_ranges(log, keep, gyro_scale):
+    """Return the (lowest, highest) kept temperature, deg C, and per axis the kept rates'."""
+    temps = np.concatenate([temp[keep[a]] for a, (_, temp, _) in log.axes.items()])
+    rates = {}
+    for axis, (_, _, rate) in log.axes.items():
+        kept = rate[keep[axis]] * gyro_scale
+        rates[axis] = (float(np.min(kept)), float(np.max(kept)))
+    return (float(np.min(temps)), float(np.max(temps))), rates
 
 
 def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
@@ -350,8 +424,9 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
         raise ValueError(f'window_s = {window_s!r} is out of range: allowed [1, 86400] s')
     if not (np.isfinite(gyro_scale) and 0.01 <= gyro_scale <= 100.0):
         raise ValueError(f'gyro_scale = {gyro_scale!r} is out of range: allowed [0.01, 100]')
-    log, screened, skipped = _screen(log, gyro_scale, outlier_threshold)
-    groups = {a: group_means(t, temp, rate * gyro_scale, window_s, keep=screened[a].keep)
+    log, screened, temp_screened, skipped = _screen(log, gyro_scale, outlier_threshold)
+    keep = {a: screened[a].keep & temp_screened[a].keep for a in screened}
+    groups = {a: group_means(t, temp, rate * gyro_scale, window_s, keep=keep[a])
               for a, (t, temp, rate) in log.axes.items()}
     # the range the fit covers: group means (a glitch in the temperature column
     # moves one group's mean a little, not TMIN or TMAX)
@@ -376,14 +451,16 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
         noise[axis] = float(np.sqrt(np.mean(g.sem_rad_s ** 2)))
     corr = float(np.corrcoef(first.temp_c, first.time_s)[0, 1]) if span > 0 else 0.0
     notes = _notes(coefs, errs, rms, noise, corr, chosen, significant, gyro_scale)
-    notes += [f'axis {a}: {v.describe()}' for a, v in screened.items() if v.count or v.note]
+    notes += _screen_notes(log, screened, temp_screened)
     notes += skipped
+    data_temp, data_rate = _kept_ranges(log, keep, gyro_scale)
     return ThermalFit(sources=log.sources, columns=log.columns, temp_ref_c=temp_ref,
                       temp_min_c=t_min, temp_max_c=t_max, order=chosen, order_reason=reason,
                       coefficients=coefs, errors=errs, groups=groups, residual_rms=rms,
                       group_noise=noise, span_k=span, distinct_temps=distinct,
                       correlation=corr, grouping=first.how, gyro_scale=float(gyro_scale),
-                      notes=tuple(notes), set_aside=screened)
+                      notes=tuple(notes), set_aside=screened, data_temp_c=data_temp,
+                      data_rate_rad_s=data_rate)
 
 
 def _notes(coefs, errs, rms, noise, corr, order, significant, gyro_scale):
@@ -405,6 +482,50 @@ def _notes(coefs, errs, rms, noise, corr, order, significant, gyro_scale):
     if gyro_scale != 1.0:
         notes.append(f'the logged rates were multiplied by {gyro_scale:g} first (--gyro-scale)')
     return notes
+
+
+#: A written bias may leave the kept rates' range by this many times its width.
+EXPORT_RATE_MARGIN = 1.0
+
+
+def check_export(fit, what='the thermal calibration'):
+    """
+    Refuse (ValueError) a fit whose file would hold values the data cannot give.
+
+    Every value written (TREF, TMIN, TMAX, the coefficients, the residual)
+    must be finite; TMIN and TMAX within the kept samples' temperatures;
+    and the bias the polynomial predicts over [TMIN, TMAX] within the kept
+    rates' range widened by :data:`EXPORT_RATE_MARGIN` times its width each
+    side (group means are means of those samples: a polynomial far outside
+    them is a bad fit, not a bias). The message names the axis, the value
+    and the limit.
+    """
+    values = [('TREF', fit.temp_ref_c), ('TMIN', fit.temp_min_c), ('TMAX', fit.temp_max_c)]
+    for axis, coef in fit.coefficients.items():
+        values += [(f'axis {axis} coefficient {k}', float(c)) for k, c in enumerate(coef)]
+        values.append((f'axis {axis} residual rms', fit.residual_rms[axis]))
+    for name, value in values:
+        if not np.isfinite(value):
+            raise ValueError(f'refusing to write {what}: {name} = {value!r} is not finite')
+    if fit.data_temp_c is None:
+        return
+    low, high = fit.data_temp_c
+    for name, value in values[1:3]:
+        if not low - 1e-9 * abs(low) <= value <= high + 1e-9 * abs(high):
+            raise ValueError(f'refusing to write {what}: {name} = {value:.6g} C is outside '
+                             f'the kept temperatures [{low:.6g}, {high:.6g}] C')
+    temps = np.linspace(fit.temp_min_c, fit.temp_max_c, 101)
+    for axis in fit.coefficients:
+        r_low, r_high = fit.data_rate_rad_s[axis]
+        margin = EXPORT_RATE_MARGIN * (r_high - r_low)
+        bias = fit.bias(axis, temps)
+        worst = int(np.argmax(np.maximum(r_low - margin - bias, bias - r_high - margin)))
+        if not r_low - margin <= bias[worst] <= r_high + margin:
+            raise ValueError(
+                f'refusing to write {what}: axis {axis}: the fit predicts a bias of '
+                f'{bias[worst]:.6g} rad/s at {temps[worst]:.2f} C, outside the kept rates '
+                f'[{r_low:.6g}, {r_high:.6g}] rad/s widened by {EXPORT_RATE_MARGIN:g} x '
+                'their range each side')
 
 
 def px4_offset(params, axis, temp_c):

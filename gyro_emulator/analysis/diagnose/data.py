@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 from gyro_emulator.recording import csvio
 from gyro_emulator.recording.record import DEFAULT_TOPICS, load_record
+from gyro_emulator.validation import GYRO_LIMIT_RAD_S, MODEL_TEMP_RANGE_C
 import numpy as np
 from scipy.signal import lfilter, lfilter_zi
 
@@ -41,6 +42,9 @@ DEFAULT_MAX_BINS = 12000
 TEMP_RATE_WINDOW_S = 30.0
 #: Step of the uniform grid the temperature filters run on, at most, s.
 TEMP_GRID_STEP_S = 0.5
+#: Most points of that grid (11.6 days at 0.5 s): a longer record takes a coarser
+#: one, still far finer than its bins (:data:`DEFAULT_MAX_BINS`).
+TEMP_GRID_MAX_POINTS = 2_000_000
 
 
 @dataclass(frozen=True)
@@ -77,7 +81,7 @@ class MeasuredData:
     recovery: tuple = ()
 
     def __post_init__(self):
-        """Check shapes, finiteness, the temperature range and monotonic time."""
+        """Check shapes, finiteness, monotonic time and the physical limits of the values."""
         n = len(np.asarray(self.time_s))
         arrays = {'time_s': self.time_s, 'rate_cmd_rad_s': self.rate_cmd_rad_s,
                   'temp_c': self.temp_c, 'gyro_rad_s': self.gyro_rad_s}
@@ -116,11 +120,24 @@ class MeasuredData:
         if self.time_s[-1] <= self.time_s[0]:
             raise ValueError('MeasuredData.time_s spans no time: allowed '
                              'last > first')
-        temp = self.temp_c
-        if temp is not None and (np.any(temp < -60.0) or np.any(temp > 200.0)):
-            raise ValueError(
-                f'MeasuredData.temp_c spans {temp.min():.2f}..{temp.max():.2f} '
-                'C: allowed [-60, 200] C (the physics model range)')
+        self._check_limits()
+
+    def _check_limits(self):
+        """Raise ValueError naming the first value beyond its physical limits, and the row."""
+        rate = (-GYRO_LIMIT_RAD_S, GYRO_LIMIT_RAD_S, 'rad/s', 'the widest MEMS full scale')
+        limits = {'rate_cmd_rad_s': rate, 'gyro_rad_s': rate,
+                  'temp_c': MODEL_TEMP_RANGE_C + ('C', 'the physics model range')}
+        for name, (low, high, unit, why) in limits.items():
+            values = getattr(self, name)
+            if values is None:
+                continue
+            outside = np.flatnonzero((values < low) | (values > high))
+            if len(outside):
+                i = int(outside[0])
+                raise ValueError(
+                    f'MeasuredData.{name} = {float(values[i])!r} at sample {i} (data row '
+                    f'{i + 1}) is beyond [{low:g}, {high:g}] {unit} ({why}; '
+                    f'{len(outside)} of {len(values)} samples beyond)')
 
     @property
     def rows(self):
@@ -418,7 +435,8 @@ class Prepared:
             None if data.accel_m_s2 is None else mean(data.accel_m_s2),
             mean(data.gyro_rad_s), counts)
         # uniform grid for the temperature filters (exact on that grid)
-        step = min(TEMP_GRID_STEP_S, max(bin_s, self.dt_s))
+        step = max(min(TEMP_GRID_STEP_S, max(bin_s, self.dt_s)),
+                   self.duration_s / TEMP_GRID_MAX_POINTS)
         tb = self.binned.time_s
         self.grid_t = np.arange(tb[0], tb[-1] + step, step)
         self.grid_temp = np.interp(self.grid_t, self.binned.time_s,
