@@ -42,6 +42,16 @@ def test_a_coarse_clock_gets_every_sample_at_its_own_time():
         assert clock.caught_up == 499 * (per_tick - 1)
 
 
+
+def test_on_a_simulators_clock_the_grid_keeps_its_period_whatever_the_phase():
+    """A drifting part (4.995 ms) on /clock steps of 10 ms: every interval one period."""
+    clock = SampleClock(0.004995, follow_timer=False)
+    out = run(clock, [k * 10 * MS for k in range(1, 2001)])
+    times = np.array([t for _, due in out for t in due.times_ns])
+    assert set(np.diff(times)) <= {4_995_000}
+    assert len(times) == (20_000 - 10) * MS // 4_995_000 + 1 and clock.dropped == 0
+
+
 def test_fifo_bursts_are_bounded_and_the_backlog_catches_up():
     clock = SampleClock(0.001, 'fifo', max_burst=8, depth=1000)
     clock.due(0)

@@ -24,11 +24,14 @@ Dropped samples are still run through the model (:attr:`Due.skipped`, with
 the input held), so its noise processes see the time that passed. Timing
 rules:
 
-* The first tick anchors the grid at its ``now_ns``. A tick that finds no
-  sample due while the next one is less than a period ahead moves the grid
-  back to ``now_ns`` (the timer fired earlier than the grid: its latency
-  dropped), so a timer in step with the grid hands out exactly one sample
-  per tick and a sample time is never in the future.
+* The first tick anchors the grid at its ``now_ns``; a sample time is never
+  in the future. On a wall clock (``follow_timer``), a tick that finds no
+  sample due while the next one is less than half a period ahead moves the
+  grid back to ``now_ns``: the timer fired earlier than the grid (its
+  latency dropped below the first tick's), and a grid anchored at the
+  least latency gives exactly one sample per tick to a timer in step. On a
+  simulator's clock the ticks come at the ``/clock`` instants, so the grid
+  stays where it is.
 * A clock that jumps back (``now_ns`` before the previous tick), or forward
   by more than :data:`MAX_GAP_S`, re-anchors the grid at ``now_ns``
   (:attr:`Due.restart`); the samples of a forward jump are not run.
@@ -82,6 +85,8 @@ class SampleClock:
         Most samples published by one tick (``fifo``).
     depth : int
         Most samples waiting in the backlog (``fifo``); older ones are dropped.
+    follow_timer : bool
+        Move the grid back to an early tick (wall clock; False under sim time).
 
     Attributes
     ----------
@@ -97,11 +102,12 @@ class SampleClock:
 
     """
 
-    def __init__(self, period_s, policy='fifo', max_burst=32, depth=1000):
+    def __init__(self, period_s, policy='fifo', max_burst=32, depth=1000, follow_timer=True):
         self.period_ns = float(period_s) * NS_PER_S
         self.policy = policy
         self.max_burst = max(1, int(max_burst))
         self.depth = max(1, int(depth))
+        self.follow_timer = bool(follow_timer)
         self._anchor = None
         self._k = 0
         self._last_now = None
@@ -149,7 +155,7 @@ class SampleClock:
         following = self._time(self._k)
         if following > now_ns:
             newer = self._last_ns is None or now_ns > self._last_ns
-            if following - now_ns >= self.period_ns or not newer:
+            if not (self.follow_timer and newer and following - now_ns < 0.5 * self.period_ns):
                 self.backlog = 0
                 return Due(restart=restart)
             self._anchor, self._k = now_ns, 0       # the timer runs ahead of the grid

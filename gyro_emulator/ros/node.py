@@ -60,6 +60,7 @@ from gyro_emulator.sensor.streams import seed_from_name
 from gyro_emulator.units import NS_PER_S
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock as RosClock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -150,11 +151,13 @@ class GyroEmulatorNode(Node):
         self._previous_input = None
         self._rate_refused = None
         self._timer = None
+        self._drain_timer = None
         self._samples = None
         if not self._imu_mode:
             self._samples = SampleClock(self._stepper.model.sample_period_s,
-                                      p['overrun_policy'], p['max_burst_samples'],
-                                      p['fifo_depth_samples'])
+                                        p['overrun_policy'], p['max_burst_samples'],
+                                        p['fifo_depth_samples'],
+                                        not self.get_parameter('use_sim_time').value)
             # The part's clock drift sets its output data rate (sample period), so
             # the stamps stay tied to the ROS clock (issue 14).
             self._timer = self.create_timer(self._stepper.model.sample_period_s, self._tick)
@@ -470,6 +473,26 @@ class GyroEmulatorNode(Node):
         elif due.restart == 'gap':
             self._restart(f'the clock jumped ahead {(now_ns - self._last_tick_ns) * 1e-9:.3f} s')
         self._last_tick_ns = now_ns
+        self._publish_due(due, now_ns)
+
+    @_while_up
+    def _drain(self):
+        """Publish the next burst of the backlog (a steady timer: also while /clock stands)."""
+        if not self._samples.backlog:
+            self._drain_timer.cancel()
+            return
+        self._publish_due(self._samples.due(self._last_tick_ns), self._last_tick_ns)
+
+    def _publish_due(self, due, now_ns):
+        """Run the model through the dropped samples and publish the due ones."""
+        if self._samples.backlog:
+            # The rest of the burst goes out one period later, whatever the node clock does.
+            if self._drain_timer is None:
+                self._drain_timer = self.create_timer(
+                    self._samples.period_ns / NS_PER_S, self._drain,
+                    clock=RosClock(clock_type=ClockType.STEADY_TIME))
+            elif self._drain_timer.is_canceled():
+                self._drain_timer.reset()
         if not due.times_ns:
             return
         self._intake.take(now_ns, self._limits)
