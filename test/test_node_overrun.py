@@ -43,7 +43,7 @@ def last_diag(diags):
 
 
 def command_args(*extra):
-    """A wall-clock node with reliable, deep Imu and truth outputs, no stamp jitter."""
+    """Return node arguments: reliable, deep Imu and truth outputs, no jitter or drift."""
     args = ['-p', 'sensor_config:=consumer', '-p', 'sensor.terms.timestamp_jitter:=false',
             '-p', 'sensor.terms.clock_drift:=false',
             '-p', 'diagnostics_period_s:=0.2', *extra]

@@ -42,7 +42,6 @@ def test_a_coarse_clock_gets_every_sample_at_its_own_time():
         assert clock.caught_up == 499 * (per_tick - 1)
 
 
-
 def test_on_a_simulators_clock_the_grid_keeps_its_period_whatever_the_phase():
     """A drifting part (4.995 ms) on /clock steps of 10 ms: every interval one period."""
     clock = SampleClock(0.004995, follow_timer=False)
