@@ -1,7 +1,8 @@
 """A simulator's ideal-IMU time line (emulation.imu_timeline) and the model's rate changes."""
 
 from gyro_emulator.emulation.block_stepper import BlockStepper
-from gyro_emulator.emulation.imu_timeline import InputTimeline, MAX_GAP_S, StampNotNewer
+from gyro_emulator.emulation.imu_timeline import (InputTimeline, MAX_GAP_S, MAX_RATE_HZ,
+                                                  SpacingRefused, StampNotNewer)
 from gyro_emulator.sensor.config import SensorConfig
 from gyro_emulator.sensor.model import GyroModel
 import numpy as np
@@ -92,3 +93,24 @@ def test_restarted_filters_start_from_steady_state_at_the_next_input():
     model.restart_filters()
     settled = model.step((0.0, 0.0, 1.0), 25.0).gyro_rad_s[2]
     assert settled == pytest.approx(1.0, abs=1e-12)
+
+
+def test_stamps_closer_than_the_top_rate_are_refused_and_the_time_line_runs_on():
+    """Two imu/ideal messages 1 ns apart must not set a 1 GHz period (issue 26)."""
+    timeline = InputTimeline(200.0)
+    timeline.advance(10**9)
+    with pytest.raises(SpacingRefused, match='1 ns after the previous one: allowed at least '
+                       '200000 ns'):
+        timeline.advance(10**9 + 1)
+    steps = [timeline.advance(10**9 + k * 5 * MS) for k in range(1, 200)]
+    assert [s.samples for s in steps] == [1] * 199
+    assert timeline.rate_hz == pytest.approx(200.0) and timeline.period_s == pytest.approx(0.005)
+    # A faster input is thinned to MAX_RATE_HZ: every other 10 kHz stamp is refused.
+    fast = InputTimeline(200.0)
+    refused = 0
+    for k in range(1000):
+        try:
+            fast.advance(k * 100_000)
+        except SpacingRefused:
+            refused += 1
+    assert refused == 500 and fast.rate_hz == pytest.approx(MAX_RATE_HZ)

@@ -21,6 +21,9 @@ therefore costs what ``step`` costs, and a held rate a few microseconds.
 
 import numpy as np
 
+#: Most samples of one model call that runs dropped samples (:meth:`BlockStepper.skip`).
+SKIP_CHUNK = 10000
+
 
 class BlockStepper:
     """
@@ -121,6 +124,25 @@ class BlockStepper:
         self.model_calls += 1
         self.model.run(np.tile(np.asarray(key[0], dtype=float), (n, 1)), np.full(n, key[1]),
                        accel)
+
+    def skip(self, count, rate_rad_s, ambient_temp_c, accel_m_s2=None):
+        """
+        Run ``count`` samples of a held input whose output nobody reads (dropped samples).
+
+        The model advances as ``count`` calls of :meth:`step` would move it,
+        in calls of at most :data:`SKIP_CHUNK` samples (bounded memory).
+        """
+        self.sync()
+        rate = np.asarray(rate_rad_s, dtype=float)
+        accel = None if accel_m_s2 is None else np.asarray(accel_m_s2, dtype=float)
+        left = int(count)
+        while left > 0:
+            n = min(left, SKIP_CHUNK)
+            self.model_calls += 1
+            self.model.run(np.tile(rate, (n, 1)), np.full(n, float(ambient_temp_c)), accel)
+            left -= n
+        self._last_key = None
+        self._held = 0
 
     def sync(self):
         """Drop the samples computed ahead so the model stands at the current tick."""

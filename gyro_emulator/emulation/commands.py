@@ -36,7 +36,7 @@ REJECT_REASONS = (
     'non_finite_rate', 'rate_too_large', 'non_finite_temperature',
     'below_absolute_zero', 'temperature_out_of_range',
     'non_finite_acceleration', 'acceleration_too_large', 'out_of_order',
-    'future_stamp', 'queue_overflow')
+    'future_stamp', 'queue_overflow', 'stamp_spacing')
 
 #: Inputs accepted after modification.
 CLAMP_REASONS = ('temperature_clamped',)

@@ -21,6 +21,12 @@ model has to do:
   jumped back): the filters restart, with a warning. A gap longer than
   :data:`MAX_GAP_S` restarts them too, instead of running through it. A
   repeated stamp is refused: it carries no new time.
+* A spacing shorter than 1 / :data:`MAX_RATE_HZ` (the top of ``rate_hz``'s
+  range) is refused (:class:`SpacingRefused`, counted by the node as
+  ``stamp_spacing``) and the stamp is not taken: the model's period stays
+  within the allowed rates, so two messages 1 ns apart cannot set a 1 GHz
+  period. A faster input is thinned to that rate. The longest spacing
+  that sets a period is :data:`MAX_GAP_S` (1 Hz, the bottom of the range).
 * A paused simulation sends nothing, so nothing is published.
 """
 
@@ -35,6 +41,8 @@ REPLAN_TOLERANCE = 0.01
 WINDOW = 32
 #: Longest gap between stamps that the model runs through, s.
 MAX_GAP_S = 1.0
+#: Highest input rate followed (``rate_hz``'s upper limit), Hz: closer stamps are refused.
+MAX_RATE_HZ = 5000.0
 
 
 @dataclass(frozen=True)
@@ -63,6 +71,10 @@ class Advance:
 
 class StampNotNewer(ValueError):
     """An input stamp equal to the previous one (nothing to sample)."""
+
+
+class SpacingRefused(ValueError):
+    """An input stamp closer to the previous one than 1 / :data:`MAX_RATE_HZ`."""
 
 
 class InputTimeline:
@@ -100,15 +112,24 @@ class InputTimeline:
         """
         Return the :class:`Advance` for a message stamped ``stamp_ns`` (ns).
 
-        Raises :class:`StampNotNewer` for a stamp equal to the previous one.
+        Raises :class:`StampNotNewer` for a stamp equal to the previous one and
+        :class:`SpacingRefused` for one less than 1 / :data:`MAX_RATE_HZ` after
+        it; neither stamp is taken.
         """
-        last, self.last_ns = self.last_ns, int(stamp_ns)
+        last, stamp_ns = self.last_ns, int(stamp_ns)
         if last is None:
+            self.last_ns = stamp_ns
             return Advance(1)
-        dt_ns = self.last_ns - last
+        dt_ns = stamp_ns - last
         if dt_ns == 0:
             raise StampNotNewer(f'imu/ideal: stamp {stamp_ns * 1e-9:.9f} s repeats the '
                                 'previous one')
+        if 0 < dt_ns < NS_PER_S / MAX_RATE_HZ:
+            raise SpacingRefused(
+                f'imu/ideal: stamp {stamp_ns * 1e-9:.9f} s is {dt_ns} ns after the previous '
+                f'one: allowed at least {NS_PER_S / MAX_RATE_HZ:.0f} ns '
+                f'({MAX_RATE_HZ:g} Hz, the highest rate_hz)')
+        self.last_ns = stamp_ns
         if dt_ns < 0 or dt_ns > MAX_GAP_S * NS_PER_S:
             self.restarts += 1
             self._spacings.clear()

@@ -5,13 +5,14 @@ Diagnostics bookkeeping of the node and its diagnostic_msgs/DiagnosticArray.
 inputs and model errors; :meth:`DiagnosticsBook.report` turns the counts
 since the previous report and the node's current situation into one status:
 
-* ERROR: the model raised on a sample in the period (nothing published), or
+* ERROR: the model raised on a sample in the period (nothing published),
   an injected fault that invalidates the output is acting (stuck, dropout,
-  saturate).
+  saturate), or the self-recording (``record_dir``) stopped on a write error
+  (a full disk); the node keeps publishing.
 * WARN: an injected fault that degrades the output is acting (bias_step,
   drift, spike, noise_burst), stale rate command, inputs rejected or temperatures clamped in the
-  period, saturation in the period, or (wall clock only) an achieved rate
-  below 90 % of ``rate_hz``.
+  period, samples dropped by the overrun policy in the period, saturation in
+  the period, or (wall clock only) an achieved rate below 90 % of ``rate_hz``.
 * OK otherwise.
 
 Counters in the key/values are cumulative since start; the message names
@@ -49,11 +50,16 @@ class DiagnosticsBook:
         self.saturated = [0, 0, 0]
         self.model_errors = 0
         self.last_model_error = ''
+        self.dropped = 0
         self._mark = self._snapshot()
 
     def _snapshot(self):
         return (dict(self.rejected), dict(self.clamped), self.samples,
-                list(self.saturated), self.model_errors)
+                list(self.saturated), self.model_errors, self.dropped)
+
+    def drop(self, count):
+        """Count samples the overrun policy dropped (due, never published)."""
+        self.dropped += int(count)
 
     def reject(self, reason):
         """Count one rejected input."""
@@ -93,7 +99,7 @@ class DiagnosticsBook:
             Warn on a low achieved rate (False under use_sim_time).
 
         """
-        rejected0, clamped0, samples0, saturated0, errors0 = self._mark
+        rejected0, clamped0, samples0, saturated0, errors0, dropped0 = self._mark
         self._mark = self._snapshot()
         achieved = (self.samples - samples0) / elapsed_s if elapsed_s > 0 else 0.0
         level, notes = OK, []
@@ -101,6 +107,9 @@ class DiagnosticsBook:
         if errors:
             level = ERROR
             notes.append(f'model refused {errors} sample(s): {self.last_model_error}')
+        if situation.get('recording_error'):
+            level = ERROR
+            notes.append(f'recording stopped: {situation["recording_error"]}')
         fault_level = situation.get('fault_level', 0)
         if fault_level:
             level = max(level, ERROR if fault_level >= ERROR else WARN)
@@ -111,6 +120,11 @@ class DiagnosticsBook:
             policy = situation.get('stale_policy', 'zero')
             held = 'rate held at zero' if policy == 'zero' else 'last rate held'
             notes.append(f'stale rate command ({age:.2f} s old): {held}')
+        dropped = self.dropped - dropped0
+        if dropped:
+            level = max(level, WARN)
+            notes.append(f'{dropped} sample(s) dropped by the overrun policy '
+                         f'({situation.get("overrun_policy", "fifo")}): the timer fell behind')
         new_rejects = {r: n - rejected0.get(r, 0) for r, n in self.rejected.items()
                        if n - rejected0.get(r, 0)}
         if new_rejects:

@@ -28,10 +28,15 @@ noise, not the part.
 
 This module reads the spec and builds each instance's parameters (no ROS
 imports); :func:`main` runs the nodes as child processes and stops them
-together on SIGINT/SIGTERM.
+together on SIGINT/SIGTERM. The nodes run in a process group of their own,
+so a Ctrl-C in the terminal reaches the array only, and the array passes
+exactly one SIGINT to each node. A stop by signal is a normal end: exit 0
+when every node stopped cleanly (a node stopped while starting up, status
+130, counts as clean here); otherwise the worst node status.
 """
 
 import argparse
+import ctypes
 from dataclasses import dataclass
 import os
 import signal
@@ -40,6 +45,7 @@ import sys
 import tempfile
 import time
 
+from gyro_emulator.interrupts import INTERRUPTED_STATUS
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.ros import params
 from gyro_emulator.sensor import config as sensor_config
@@ -48,6 +54,11 @@ import numpy as np
 import yaml
 
 DEFAULT_SPEC = 'gyro_array.yaml'
+#: prctl option: the signal a child gets when its parent dies (linux/prctl.h).
+PR_SET_PDEATHSIG = 1
+#: Node exit statuses that mean "stopped by the signal the array passed on".
+STOPPED_STATUSES = (0, INTERRUPTED_STATUS, -signal.SIGINT, -signal.SIGTERM,
+                    128 + signal.SIGTERM)
 #: Error terms a spec's tolerances may spread, with their unit.
 TOLERANCES = {'scale_factor_error': 'ratio', 'turn_on_bias_rad_s': 'rad/s',
               'misalignment': 'rad'}
@@ -173,6 +184,14 @@ def node_command(instance, params_path, extra_ros_args=()):
             *extra_ros_args]
 
 
+def _end_with_parent():
+    """In a node process (Linux): SIGTERM when the array dies, even by SIGKILL."""
+    try:
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    except (AttributeError, OSError):
+        pass                              # not Linux: the nodes outlive a killed array
+
+
 def _parser():
     parser = argparse.ArgumentParser(
         prog='gyro-emulator-array',
@@ -208,7 +227,10 @@ def main(args=None):
             path = os.path.join(tmp, f'instance_{k}.yaml')
             with open(path, 'w', encoding='utf-8') as handle:
                 handle.write(params_file_text(instance))
-            procs.append(subprocess.Popen(node_command(instance, path, ros_args)))
+            # A group of their own: the terminal's Ctrl-C goes to the array, which
+            # passes one SIGINT on (else each node would get two).
+            procs.append(subprocess.Popen(node_command(instance, path, ros_args),
+                                          process_group=0, preexec_fn=_end_with_parent))
         print(f'array: {len(procs)} gyro emulator nodes: '
               + ', '.join(i.node_name for i in instances), flush=True)
         while not stop and all(p.poll() is None for p in procs):
@@ -223,7 +245,25 @@ def main(args=None):
             except subprocess.TimeoutExpired:
                 p.kill()
                 codes.append(p.wait())
-    return max(abs(c) for c in codes)
+    return exit_status(codes, stopped=bool(stop))
+
+
+def exit_status(codes, stopped):
+    """
+    Return the array's exit status from its nodes' statuses.
+
+    Parameters
+    ----------
+    codes : list of int
+        ``Popen.returncode`` of each node (negative: killed by that signal).
+    stopped : bool
+        The array was stopped by SIGINT/SIGTERM and passed it on.
+
+    """
+    if stopped:
+        codes = [0 if c in STOPPED_STATUSES else c for c in codes]
+    worst = max(codes, key=abs)
+    return 128 + abs(worst) if worst < 0 else worst
 
 
 if __name__ == '__main__':

@@ -2,11 +2,15 @@
 ``ros2 run gyro_emulator node``: the sensor model as a ROS 2 gyro driver.
 
 With ``input_source: command`` (the default) a timer on the node clock (sim
-time under ``use_sim_time``) advances the error model one sample per tick,
-1 / ``rate_hz`` each (the part's period, with its clock drift), with the
-commands in force at that tick. With ``input_source: imu`` the node follows
-a simulator instead: one sample per ``imu/ideal`` message
-(sensor_msgs/Imu), the time step from the stamps
+time under ``use_sim_time``) wakes the node once per sample period,
+1 / ``rate_hz`` (the part's period, with its clock drift), and the node
+publishes every sample whose sample time has passed
+(:mod:`gyro_emulator.emulation.sample_clock`): one per tick when the timer
+keeps up, a burst stamped with each sample's own time when it was late (CPU
+load, a coarse ``/clock``), or only the newest with ``overrun_policy: drop``.
+Each sample takes the commands in force at its sample time. With
+``input_source: imu`` the node follows a simulator instead: one sample per
+``imu/ideal`` message (sensor_msgs/Imu), the time step from the stamps
 (:mod:`gyro_emulator.emulation.imu_timeline`). Either way it publishes:
 
 * ``imu/data_raw`` (sensor_msgs/Imu, REP 145/103): the gyro output in rad/s,
@@ -42,7 +46,8 @@ from gyro_emulator.emulation.block_stepper import BlockStepper
 from gyro_emulator.emulation.commands import (check_acceleration, check_rate, InputLimits,
                                               InputRejected, Throttle)
 from gyro_emulator.emulation.fault_state import FaultState
-from gyro_emulator.emulation.imu_timeline import InputTimeline, StampNotNewer
+from gyro_emulator.emulation.imu_timeline import InputTimeline, SpacingRefused, StampNotNewer
+from gyro_emulator.emulation.sample_clock import SampleClock
 from gyro_emulator.recording import topics
 from gyro_emulator.ros import codec, diagnostics, node_help, params, spinning
 from gyro_emulator.ros.intake import INBOX_DEPTH, Intake
@@ -55,6 +60,7 @@ from gyro_emulator.sensor.streams import seed_from_name
 from gyro_emulator.units import NS_PER_S
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock as RosClock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -133,6 +139,8 @@ class GyroEmulatorNode(Node):
                               p['default_linear_acceleration_m_s2'],
                               p['command_queue_size'], self._reject, self._clamped)
         self._last_tick_ns = None
+        self._last_stamp_ns = None
+        self._stamps_clamped = 0
         self._last_sample = None
         self._ambient_c = p['initial_temperature_c']
         self._stale = False
@@ -143,7 +151,13 @@ class GyroEmulatorNode(Node):
         self._previous_input = None
         self._rate_refused = None
         self._timer = None
+        self._drain_timer = None
+        self._samples = None
         if not self._imu_mode:
+            self._samples = SampleClock(self._stepper.model.sample_period_s,
+                                        p['overrun_policy'], p['max_burst_samples'],
+                                        p['fifo_depth_samples'],
+                                        not self.get_parameter('use_sim_time').value)
             # The part's clock drift sets its output data rate (sample period), so
             # the stamps stay tied to the ROS clock.
             self._timer = self.create_timer(self._stepper.model.sample_period_s, self._tick)
@@ -189,7 +203,11 @@ class GyroEmulatorNode(Node):
                                                 [float(v) for v in value.value])
         self._p = {}
         for spec in params.NODE_PARAMS:
-            value = self.declare_parameter(spec.name, defaults[spec.name],
+            default = defaults[spec.name]
+            if spec.name == 'temperature_rate_hz':
+                # The shipped 10 Hz must not refuse a slower rate_hz (1 Hz is allowed).
+                default = min(default, self._p['rate_hz'])
+            value = self.declare_parameter(spec.name, default,
                                            params.descriptor(spec)).value
             self._p[spec.name] = params.check_value(spec, value)
         if self._p['temperature_rate_hz'] > self._p['rate_hz']:
@@ -278,6 +296,10 @@ class GyroEmulatorNode(Node):
         changed_model = config is not self._config or p['noise_enabled'] != old_noise
         self._p, self._sensor_values, self._config, self._limits = (
             p, sensor_values, config, limits)
+        if self._samples is not None:
+            self._samples.policy = p['overrun_policy']
+            self._samples.max_burst = p['max_burst_samples']
+            self._samples.depth = p['fifo_depth_samples']
         if changed_model:
             self._stepper.update_config(self._effective_config())
             self._fault.range_rad_s = np.asarray(config.range_rad_s, dtype=float)
@@ -317,6 +339,7 @@ class GyroEmulatorNode(Node):
         if self._timer is None:
             return
         period_s = self._stepper.model.sample_period_s
+        self._samples.set_period(period_s)
         if abs(self._timer.timer_period_ns - period_s * NS_PER_S) >= 1.0:
             self.destroy_timer(self._timer)
             self._timer = self.create_timer(period_s, self._tick)
@@ -417,12 +440,13 @@ class GyroEmulatorNode(Node):
         self._stepper.sync()
         self._stepper.model.restart_filters()
         self._intake.reset_clock()
+        self._last_stamp_ns = None
         self.get_logger().warning(f'{why}: command stamps forgotten, filters restarted')
 
     def _inputs(self, now_ns):
+        """Return the (rate, ambient, acceleration) in force at sample time ``now_ns``."""
         p = self._p
         intake = self._intake
-        intake.take(now_ns, self._limits)
         rate = intake.rate.advance(now_ns)
         age = intake.rate.age_s(now_ns)
         temp = intake.temperature.advance(now_ns)
@@ -441,13 +465,51 @@ class GyroEmulatorNode(Node):
 
     @_while_up
     def _tick(self):
+        """Publish the samples that came due since the last tick (see SampleClock)."""
         now_ns = self._now_ns()
-        if self._last_tick_ns is not None and now_ns < self._last_tick_ns:
+        due = self._samples.due(now_ns)
+        if due.restart == 'jump_back':
             self._restart('clock jumped back', now_ns - self._last_tick_ns)
+        elif due.restart == 'gap':
+            self._restart(f'the clock jumped ahead {(now_ns - self._last_tick_ns) * 1e-9:.3f} s')
         self._last_tick_ns = now_ns
-        rate, temp, accel = self._inputs(now_ns)
-        shown = accel if self._intake.accel.accepted else None
-        self._sample(rate, temp, accel, now_ns, now_ns, shown)
+        self._publish_due(due, now_ns)
+
+    @_while_up
+    def _drain(self):
+        """Publish the next burst of the backlog (a steady timer: also while /clock stands)."""
+        if not self._samples.backlog:
+            self._drain_timer.cancel()
+            return
+        self._publish_due(self._samples.due(self._last_tick_ns), self._last_tick_ns)
+
+    def _publish_due(self, due, now_ns):
+        """Run the model through the dropped samples and publish the due ones."""
+        if self._samples.backlog:
+            # The rest of the burst goes out one period later, whatever the node clock does.
+            if self._drain_timer is None:
+                self._drain_timer = self.create_timer(
+                    self._samples.period_ns / NS_PER_S, self._drain,
+                    clock=RosClock(clock_type=ClockType.STEADY_TIME))
+            elif self._drain_timer.is_canceled():
+                self._drain_timer.reset()
+        if not due.times_ns:
+            return
+        self._intake.take(now_ns, self._limits)
+        if due.skipped:
+            self._book.drop(due.skipped)
+            # The part sampled them: run the model through with the input held.
+            first_ns = due.times_ns[0] - int(round(due.skipped * self._samples.period_ns))
+            rate, temp, accel = self._inputs(first_ns)
+            try:
+                self._stepper.skip(due.skipped, rate, temp, accel)
+            except ValueError as exc:
+                self._book.model_error(str(exc))
+        shown_accel = self._intake.accel.accepted
+        for sample_ns in due.times_ns:
+            rate, temp, accel = self._inputs(sample_ns)
+            self._sample(rate, temp, accel, sample_ns, sample_ns,
+                         accel if shown_accel else None)
 
     def _sample(self, rate, temp, accel, sample_ns, base_ns, shown_accel):
         """Step the model once and publish; ``base_ns`` + output delay is the Imu stamp."""
@@ -466,9 +528,15 @@ class GyroEmulatorNode(Node):
         out.set_accel(shown_accel, self._p['pass_through_linear_acceleration']
                       or self._imu_mode)
         delay_ns = int(round(s.output_delay_s * NS_PER_S)) if s.output_delay_s else 0
+        stamp_ns = base_ns + delay_ns
+        if self._last_stamp_ns is not None and stamp_ns <= self._last_stamp_ns:
+            # A shorter latency set at run time: stamps never go back (the
+            # model bounds the jitter by half a period, so only this can).
+            stamp_ns = self._last_stamp_ns + 1
+            self._stamps_clamped += 1
+        self._last_stamp_ns = stamp_ns
         value, publish, pinned = self._fault.apply(sample_ns, s.gyro_rad_s)
-        out.publish(s, sample_ns, base_ns + delay_ns, value, publish,
-                    self._p['publish_truth'])
+        out.publish(s, sample_ns, stamp_ns, value, publish, self._p['publish_truth'])
         if self._fault.changed:
             self._publish_fault(sample_ns)
         self._book.sample(s.saturated if pinned is None else s.saturated | pinned)
@@ -489,6 +557,9 @@ class GyroEmulatorNode(Node):
             return
         except StampNotNewer as exc:
             self._reject(InputRejected('out_of_order', str(exc)))
+            return
+        except SpacingRefused as exc:
+            self._reject(InputRejected('stamp_spacing', str(exc)))
             return
         if step.restart:
             why = ('the input clock jumped back' if step.restart == 'jump_back'
@@ -559,14 +630,28 @@ class GyroEmulatorNode(Node):
             else self._timer.timer_period_ns / NS_PER_S,
             'model_calls': self._stepper.model_calls,
             'model_rewinds': self._stepper.rewinds,
+            'stamps_clamped': self._stamps_clamped,
             'sensor_config': p['sensor_config'],
             'seed': self.seed,
         }
+        clock = self._samples
+        if clock is not None:
+            out.update({'overrun_policy': clock.policy, 'overruns': clock.overruns,
+                        'samples_due': clock.due_total,
+                        'samples_caught_up': clock.caught_up,
+                        'samples_dropped': clock.dropped,
+                        'emitted_ratio': clock.emitted_ratio,
+                        'largest_burst': clock.largest_burst, 'backlog': clock.backlog,
+                        'clock_restarts': clock.restarts})
         if self._timeline is not None:
             out.update({'input_rate_hz': self._timeline.rate_hz,
                         'input_restarts': self._timeline.restarts,
                         'input_replans': self._timeline.replans,
                         'input_gap_samples': self._timeline.filled})
+        recorder = self._self_recorder
+        if recorder is not None:
+            out['recording'] = recorder.path
+            out['recording_error'] = recorder.error
         out.update(self._fault.situation())
         return out
 
@@ -583,8 +668,13 @@ class GyroEmulatorNode(Node):
     def summary(self):
         """One line of totals for the shutdown log."""
         book = self._book
-        return (f'{book.samples} samples, {sum(book.rejected.values())} inputs rejected, '
+        line = (f'{book.samples} samples, {sum(book.rejected.values())} inputs rejected, '
                 f'{sum(book.clamped.values())} clamped, {book.model_errors} model errors')
+        clock = self._samples
+        if clock is not None and clock.due_total:
+            line += (f', {clock.caught_up} caught up, {clock.dropped} dropped '
+                     f'({clock.emitted} of {clock.due_total} due samples out)')
+        return line
 
 
 def main(args=None):

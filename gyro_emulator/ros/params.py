@@ -24,6 +24,8 @@ import array
 from dataclasses import dataclass, fields, replace
 import math
 
+from gyro_emulator.emulation.imu_timeline import MAX_RATE_HZ
+from gyro_emulator.emulation.sample_clock import OVERRUN_POLICIES
 from gyro_emulator.recording import topics
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.sensor import config as sensor_config
@@ -88,7 +90,7 @@ class ParamSpec:
 NODE_PARAMS = (
     ParamSpec('rate_hz', 'double', 'Output data rate, Hz (one model sample per tick; '
               'with input_source imu, the rate until the input stamps give one)',
-              True, 1.0, 5000.0),
+              True, 1.0, MAX_RATE_HZ),
     ParamSpec('frame_id', 'string', 'header.frame_id of imu/data_raw (REP 145: the '
               'sensor frame)', True),
     ParamSpec('seed', 'integer', 'Seed of the numpy random generator of every noise '
@@ -140,7 +142,16 @@ NODE_PARAMS = (
     ParamSpec('publish_truth', 'bool', 'Publish ~/truth/rate, ~/truth/bias and '
               '~/truth/scale_factor each sample'),
     ParamSpec('temperature_rate_hz', 'double', 'Rate of imu/temperature, Hz (at most '
-              'rate_hz)', True, 0.1, 5000.0),
+              'rate_hz; the default is lowered to rate_hz when rate_hz is below it)', True,
+              0.1, 5000.0),
+    ParamSpec('overrun_policy', 'string', 'Samples that came due while the timer was late '
+              '(CPU load, a coarse /clock): fifo publishes every one in a burst, each '
+              'stamped with its own sample time; drop publishes the newest only and counts '
+              'the rest', False, choices=OVERRUN_POLICIES),
+    ParamSpec('max_burst_samples', 'integer', 'fifo: most samples published by one timer '
+              'tick; the rest wait for the next tick', False, 1, 10000),
+    ParamSpec('fifo_depth_samples', 'integer', 'fifo: most samples waiting to be '
+              'published; beyond, the oldest are dropped and counted', False, 1, 1000000),
     ParamSpec('diagnostics_period_s', 'double', 'Period of /diagnostics (steady clock), '
               's', True, 0.05, 60.0),
     ParamSpec('block_samples', 'integer', 'Samples the model computes ahead per call '
@@ -193,7 +204,8 @@ SENSOR_DESCRIPTIONS = {
     'lsb_rad_s': 'Quantisation step (x, y, z), rad/s (0 = none)',
     'range_rad_s': 'Full-scale range (x, y, z), rad/s; beyond it the output saturates',
     'latency_s': 'Output delay added to the imu/data_raw stamp, s',
-    'timestamp_jitter_s': 'Sigma of the Gaussian stamp jitter, s',
+    'timestamp_jitter_s': 'Sigma of the Gaussian stamp jitter, s; each draw is clipped '
+                          'to +-0.45 sample periods, so stamps stay strictly increasing',
     'clock_drift_ppm': 'Sensor clock error, ppm: sets the output data rate, not the stamps',
     'initial_die_temp_c': 'Die temperature at the first sample, deg C (NaN = in '
                           'equilibrium with ambient)',

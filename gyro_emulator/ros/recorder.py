@@ -18,6 +18,10 @@ node's ``~/truth`` namespace.
 Crash safety: chunks are flushed at least every ``--flush-interval`` seconds
 (a timer flushes even when messages stop), so SIGKILL loses at most that much;
 SIGINT and SIGTERM finish the bag (summary, footer, metadata.yaml).
+
+A write error (a full disk, a file-size limit) ends the run with one line
+``recorder: error: cannot write ...`` and exit status 2; every chunk flushed
+before it stays in the bag, which ``gyro-emulator bag repair`` finishes.
 """
 
 import argparse
@@ -109,6 +113,7 @@ class TopicRecorder:
         self.exclude = set(exclude)
         self.subscriptions = {}
         self.counts = {}
+        self.failed = False
         self._last_discovery = -1e9
         self._timer = node.create_timer(0.1, self._tick)
         self.discover()
@@ -124,7 +129,11 @@ class TopicRecorder:
         return self.record_all and name not in self.IGNORED
 
     def _tick(self):
-        self.writer.flush_if_due()
+        try:
+            self.writer.flush_if_due()
+        except OSError as exc:
+            self.failed = True
+            raise _write_error(self.writer, exc) from None
         now = time.monotonic()
         if now - self._last_discovery >= DISCOVERY_PERIOD_S:
             self.discover()
@@ -165,8 +174,19 @@ class TopicRecorder:
         publish = None
         if isinstance(info, dict):
             publish = info.get('source_timestamp') or None
-        self.writer.write(cid, data, log_time, publish)
+        try:
+            self.writer.write(cid, data, log_time, publish)
+        except OSError as exc:
+            self.failed = True
+            raise _write_error(self.writer, exc) from None
         self.counts[name] += 1
+
+
+def _write_error(writer, exc):
+    """Return the one-line OSError of a failed bag write (a full disk)."""
+    return OSError(f'cannot write {writer.path} ({exc.strerror or exc}): recording '
+                   f'stopped after {writer.message_count} messages; recover the bag with: '
+                   f'gyro-emulator bag repair {writer.path}')
 
 
 def default_output():
@@ -225,7 +245,15 @@ def _finish(writer, recorder):
     signal.signal(signal.SIGTERM, signal.SIG_IGN)
     if writer is None:
         return
-    writer.finish()
+    try:
+        writer.finish()
+    except OSError as exc:
+        if recorder is not None and recorder.failed:
+            return                      # already said: the write that failed
+        print(f'recorder: error: cannot finish {writer.path} ({exc.strerror or exc}); '
+              f'recover the bag with: gyro-emulator bag repair {writer.path}',
+              file=sys.stderr, flush=True)
+        return
     counts = ', '.join(f'{k}: {v}' for k, v in sorted(recorder.counts.items())) \
         if recorder is not None else ''
     print(f'recorder: wrote {writer.message_count} messages to {writer.path}'

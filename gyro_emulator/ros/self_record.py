@@ -14,12 +14,18 @@ the recorder: the bag is finished when the node is destroyed
 (``destroy_node`` calls :meth:`SelfRecorder.finish`) or the process exits
 (SIGINT, SIGTERM); chunks are flushed every 0.5 s, so after SIGKILL
 ``gyro-emulator bag repair`` recovers all but the last half second.
+
+A write error (a full disk, a file-size limit) stops the recording, never
+the node: one ERROR line in the log, :attr:`SelfRecorder.error` for
+``/diagnostics`` (level ERROR), and the bag keeps every chunk flushed before
+the error (``gyro-emulator bag repair`` finishes it).
 """
 
 import atexit
 import datetime
 import functools
 import os
+import sys
 
 from gyro_emulator.recording import bag, topics
 from gyro_emulator.ros import codec
@@ -70,6 +76,7 @@ class SelfRecorder:
                              f'({exc.strerror or exc}): allowed a writable directory') from None
         self.path = self.writer.path
         self.finished = False
+        self.error = None
         self.counts = {}
         rate_source = custom.get('rate_source', 'angular_velocity')
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
@@ -87,22 +94,56 @@ class SelfRecorder:
             self._subscriptions.append(node.create_subscription(
                 codec.message_class(type_name), topic,
                 functools.partial(self._on_message, topic, cid), qos, raw=True))
-        self._timer = node.create_timer(0.1, self.writer.flush_if_due)
+        self._timer = node.create_timer(0.1, self._flush_if_due)
         atexit.register(self.finish)
         node.get_logger().info(f'recording inputs, outputs and truth to {self.path}')
 
     def _on_message(self, topic, cid, data):
         if self.finished:
             return
-        self.writer.write(cid, data, self.node.get_clock().now().nanoseconds)
+        try:
+            self.writer.write(cid, data, self.node.get_clock().now().nanoseconds)
+        except OSError as exc:
+            self._stop(exc)
+            return
         self.counts[topic] += 1
+
+    def _flush_if_due(self):
+        if self.finished:
+            return
+        try:
+            self.writer.flush_if_due()
+        except OSError as exc:
+            self._stop(exc)
+
+    def _stop(self, exc):
+        """Stop recording after a write error; the node runs on."""
+        self.finished = True
+        self._timer.cancel()
+        self.error = (f'cannot write {self.path} ({exc.strerror or exc}): recording '
+                      f'stopped after {sum(self.counts.values())} messages; recover the bag '
+                      f'with: gyro-emulator bag repair {self.path}')
+        self.node.get_logger().error(self.error)
+        try:
+            self.writer.finish()             # closes the file; the summary may not fit
+        except OSError:
+            pass
+        self._unregister()
 
     def finish(self):
         """Finish the bag (summary, footer, metadata.yaml). Safe to call twice."""
         if self.finished:
             return
         self.finished = True
-        self.writer.finish()
+        try:
+            self.writer.finish()
+        except OSError as exc:
+            self.error = (f'cannot finish {self.path} ({exc.strerror or exc}); recover the '
+                          f'bag with: gyro-emulator bag repair {self.path}')
+            print(f'[gyro_emulator] recording: {self.error}', file=sys.stderr)
+        self._unregister()
+
+    def _unregister(self):
         try:
             atexit.unregister(self.finish)
         except Exception:  # noqa: B902 - interpreter shutting down

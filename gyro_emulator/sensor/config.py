@@ -192,7 +192,9 @@ class SensorConfig:
     lsb_rad_s, range_rad_s : tuple
         Quantisation step (0 = none) and full-scale range.
     latency_s, timestamp_jitter_s, clock_drift_ppm : float
-        Output delay, its Gaussian jitter (sigma) and the sensor clock error.
+        Output delay, its Gaussian jitter (sigma; each draw clipped to +-0.45 of
+        a sample period, so stamps stay strictly increasing) and the sensor
+        clock error.
     initial_die_temp_c : float or None
         Die temperature at the first sample (None: in equilibrium with it).
 

@@ -40,6 +40,8 @@ import numpy as np
 (F_THERMAL, F_SF, F_MIS, F_NONLIN, F_DYN, F_BIAS_T, F_GSENS, F_FLICKER,
  F_RRW, F_WHITE, F_MECH, F_LPF, F_SAT, F_QUANT, F_JITTER, F_DRIFT) = range(16)
 FLAG_COUNT = 16
+#: Largest timestamp jitter, in sample periods (stamps stay strictly increasing).
+JITTER_BOUND = 0.45
 #: Scalars (float64).
 (S_PHI, S_GAIN, S_HEAT, S_INIT_DIE, S_LOW_C, S_STEPS, S_SQRT_FS, S_LATENCY,
  S_JITTER, S_DT, S_DRIFT, S_TEMP_LO, S_TEMP_HI) = range(13)
@@ -441,10 +443,19 @@ def _tdf2_rows(b, a, z, x):
 
 @numba.njit(cache=True, error_model='numpy')
 def _delays(jitter_normals, sc, on, delay):
-    """Latency + timestamp jitter (clipped at 0) of each sample of the block, s."""
+    """
+    Latency + timestamp jitter of each sample of the block, s.
+
+    The jitter is clipped to +-JITTER_BOUND dt and the delay at 0: two
+    stamps then differ by more than (1 - 2 JITTER_BOUND) dt > 0, so the
+    stamps increase strictly even for a sigma of many periods (a driver's
+    stamp jitter cannot reorder its samples).
+    """
     latency, jitter = sc[S_LATENCY], sc[S_JITTER]
     if not on[F_JITTER]:
         delay[:] = latency
         return
+    bound = JITTER_BOUND * sc[S_DT]
     for j in range(delay.shape[0]):
-        delay[j] = max(latency + jitter * jitter_normals[j], 0.0)
+        shift = min(max(jitter * jitter_normals[j], -bound), bound)
+        delay[j] = max(latency + shift, 0.0)
