@@ -15,7 +15,7 @@ LSM_X = os.path.join(REAL, 'lsm6dsm_thermal_chamber', 'lsm6dsm_tvc_x.csv')
 
 
 def _res(excess=1.001, slow=1.094, r2=0.26, r2_limit=0.05, margin=0.22, tau=35.8, b=0.0):
-    """A residual dict shaped as :func:`.verdict.residual_floor` returns (MPU-6050 z)."""
+    """Return a residual dict shaped as :func:`.verdict.residual_floor` returns (MPU-6050 z)."""
     return {'excess': excess, 'excess_limit': 1.02, 'excess_slow': slow,
             'excess_slow_limit': 1.067, 'averaging_s': 0.935, 'rms_rad_s': 1.63e-3,
             'floor_rad_s': 1.63e-3, 'wander_measured_to_s': tau,
@@ -90,7 +90,7 @@ def test_temperature_polynomials_follow_the_rule_of_calibrate(span, count):
         rule = 1                                   # diagnose keeps a linear term
     assert order == rule
     assert (note is None) == (order == 2)
-    cut = dict((e.effect_id, e) for e in generic.with_polynomial_order(generic.CATALOGUE, order))
+    cut = {e.effect_id: e for e in generic.with_polynomial_order(generic.CATALOGUE, order)}
     for name in ('bias_temperature', 'scale_factor_temperature'):
         assert len(cut[name].params) == order == cut[name].n_columns
     # the catalogue itself is not changed

@@ -74,8 +74,8 @@ def polynomial_order(span_k, temps_c, requested=TemperaturePolynomial.order):
     k = order + 1
     return order, (f'temperature polynomials cut to order {order}: the record spans '
                    f'{span_k:.1f} K with {distinct} distinct temperatures, and order {k} '
-                   f'needs {thermal.MIN_SPAN_K[k]:g} K and {k + 3} distinct temperatures (the rule '
-                   'of calibrate)')
+                   f'needs {thermal.MIN_SPAN_K[k]:g} K and {k + 3} distinct temperatures '
+                   '(the rule of calibrate)')
 
 
 def with_polynomial_order(catalogue, order):

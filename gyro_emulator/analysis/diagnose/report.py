@@ -245,7 +245,7 @@ def _baseline_text(doc):
             f"{cal['scale_factor']:.5g}"
             + ('' if cal['scale_factor_calibrated'] else
                ' (nominal: no rate excitation near the reference temperature)')
-            + f", from {calibration_samples_text(doc)}. Held-out "
+            + f', from {calibration_samples_text(doc)}. Held-out '
             f"RMSE {doc['baseline']['rmse_rad_s']:.4g} rad/s (recalibrated "
             'on all training data: '
             f"{doc['recalibrated_baseline']['rmse_rad_s']:.4g} rad/s).")

@@ -365,7 +365,7 @@ def coverage_text(tested, total):
     """Return "2 of 15 causes could be tested (a, b)", or None when every cause could."""
     if len(tested) >= total:
         return None
-    return (f"{len(tested)} of {total} causes could be tested"
+    return (f'{len(tested)} of {total} causes could be tested'
             + (f" ({', '.join(tested)})" if tested else ''))
 
 
@@ -385,7 +385,7 @@ def structure_text(res):
     if f['r2'] > f['r2_limit']:
         return (f"{means} follow {what} (R^2 = {f['r2']:.2f}; noise alone reaches "
                 f"{f['r2_limit']:.2f})")
-    return (f"{means} follow no regressor beyond what noise does (the closest is {what}, "
+    return (f'{means} follow no regressor beyond what noise does (the closest is {what}, '
             f"R^2 = {f['r2']:.2f}; noise alone reaches {f['r2_limit']:.2f})")
 
 
@@ -447,7 +447,7 @@ def message(result, selected, res, coverage=None):
     noise = res['noise']
     if (failed and res['wander_measured_to_s'] >= res['averaging_s']
             and noise['bias_instability_rad_s'] == 0.0 and noise['rrw_rad_s_sqrt_s'] == 0.0):
-        above += (f" (the floor holds no wander: none shows up to {res['wander_measured_to_s']:.3g}"
-                  ' s, so wander slower than the record can measure would do this as well '
-                  'as a drift)')
+        above += (' (the floor holds no wander: none shows up to '
+                  f"{res['wander_measured_to_s']:.3g} s, so wander slower than the record can "
+                  'measure would do this as well as a drift)')
     return f'{lead}: {level}{above}' + (f'; {structure}.' if structure else '.')
