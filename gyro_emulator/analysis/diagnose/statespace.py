@@ -66,6 +66,7 @@ class Groups:
         Kept duration of each group, n_i dt, s.
     time_s : numpy.ndarray
         Mean time of each group (increasing), s.
+
     """
 
     count: np.ndarray
