@@ -96,6 +96,9 @@ def _print(doc):
               f"p {e['p_value']:.1e}{alike}")
         for name, p in e['parameters'].items():
             print(f"  {name} = {p['value']:.5g} +- {p['sigma']:.2g} {p['unit']}")
+    note = (doc.get('temperature_polynomial') or {}).get('note')
+    if note:
+        print(f'note: {note}')
     if not doc['selected']:
         print(f"best: {best['effect']}")
     print(doc['residual']['message'])

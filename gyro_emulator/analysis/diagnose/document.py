@@ -118,7 +118,10 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
         best_gain = 1.0 - rms_all['best'] / rms_all['baseline']
     res.update({'structure_remains': remains, 'excess_over_noise': res['excess'],
                 'noise_rad_s': res['noise']['white_sigma_rad_s']})
-    res['message'] = vd.message(result, selected, res)
+    tested = [c.effect.effect_id for c in steps[0][0]] if steps else []
+    res['message'] = vd.message(result, selected, res, vd.coverage_text(
+        tested, len(tested) + len(not_tested)))
+    res['causes_tested'] = tested
     res['suggestive'] = None
     if pair is not None:
         res['message'] += (f" The record cannot separate the two: {pair['text']}. To tell "
@@ -127,8 +130,9 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
         effect, gain, p = hint
         n = len(steps[-1][0])
         res['suggestive'] = {'effect': effect, 'gain': gain, 'p_value': p}
-        res['message'] = res['message'].replace(
-            'No cause in the catalogue explains the mismatch', 'No cause is established')
+        for lead in ('No cause in the catalogue explains the mismatch',
+                     'No cause explains the mismatch'):
+            res['message'] = res['message'].replace(lead, 'No cause is established')
         res['message'] += (
             f' {effect} removes {100 * gain:.0f} % of the held-out error (p = {p:.2g} before '
             f'the correction for the {n} candidates; the bar is {alpha / n:.2g}): suggestive, '
@@ -154,7 +158,7 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
         'residual': res,
         'confounded': confound,
         'confounded_pair': pair,
-        'experiments': vd.experiments(selected, confound, remains, res['strongest_correlate']),
+        'experiments': vd.experiments(selected, confound, remains, vd.follows(res)),
         'findings': [_finding(c, rmse_base, null.rmse) for c in steps[0][0]] if steps else [],
         'steps': _steps(steps),
         'not_tested': not_tested,

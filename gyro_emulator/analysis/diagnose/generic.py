@@ -14,6 +14,9 @@ mechanisms instead of guessing one.
 :data:`CATALOGUE` holds every candidate, physical and generic.
 """
 
+import copy
+
+from gyro_emulator.analysis.calibrate import thermal
 from gyro_emulator.analysis.diagnose.effects import (cached, Effect, NULL, Param,
                                                      physical_causes, slow_temp)
 from gyro_emulator.emulation.truth.effects import CATALOGUE_TRUTHS
@@ -21,7 +24,69 @@ from gyro_emulator.units import SECONDS_PER_HOUR
 import numpy as np
 
 
-class BiasTemperature(Effect):
+class TemperaturePolynomial(Effect):
+    """
+    A cause polynomial in dT = T - T_ref: its order follows the span (:func:`polynomial_order`).
+
+    ``params`` lists the coefficients in ascending order; :meth:`at_order`
+    keeps the first ``order`` of them, so a term the span cannot carry is
+    neither fitted nor reported.
+    """
+
+    order = 2
+
+    def at_order(self, order):
+        """Return this cause with its polynomial cut to ``order`` (1 or 2)."""
+        out = copy.copy(self)
+        out.order = int(order)
+        out.params = type(self).params[:out.order]
+        return out
+
+    def powers(self, ctx, frame):
+        """[dT, dT^2, ...] up to the order, on the bins (slow)."""
+        dt = frame.slow(slow_temp(frame) - ctx.ref_temp_c)
+        return [dt ** k for k in range(1, self.order + 1)]
+
+
+def polynomial_order(span_k, temps_c, requested=TemperaturePolynomial.order):
+    """
+    Order of the temperature polynomials a record carries: the rule of ``calibrate``.
+
+    :func:`gyro_emulator.analysis.calibrate.thermal.allowed_order`: order k
+    needs a span of 5, 15 or 25 K and k + 3 distinct temperatures
+    (:data:`~gyro_emulator.analysis.calibrate.thermal.DISTINCT_K` apart).
+    ``diagnose`` tests a linear term from its own smaller span (a held-out
+    test, not an export), so below the rule's order 1 it keeps order 1.
+
+    Returns
+    -------
+    (int, str or None)
+        The order, and a sentence when a term was dropped.
+
+    """
+    distinct = thermal.distinct_temperatures(temps_c)
+    try:
+        order = thermal.allowed_order(span_k, distinct, requested)
+    except ValueError:
+        order = 1
+    if order >= requested:
+        return order, None
+    k = order + 1
+    return order, (f'temperature polynomials cut to order {order}: the record spans '
+                   f'{span_k:.1f} K with {distinct} distinct temperatures, and order {k} '
+                   f'needs {thermal.MIN_SPAN_K[k]:g} K and {k + 3} distinct temperatures '
+                   '(the rule of calibrate)')
+
+
+def with_polynomial_order(catalogue, order):
+    """Return ``catalogue`` with every temperature polynomial cut to ``order`` (None: as is)."""
+    if order is None:
+        return tuple(catalogue)
+    return tuple(e.at_order(min(order, e.order)) if isinstance(e, TemperaturePolynomial)
+                 else e for e in catalogue)
+
+
+class BiasTemperature(TemperaturePolynomial):
     """Zero-rate bias linear + quadratic in temperature."""
 
     effect_id = 'bias_temperature'
@@ -39,9 +104,8 @@ class BiasTemperature(Effect):
                   'or a drift in time (bias_time)')
 
     def columns(self, ctx, frame, phi, basis):
-        """[dT, dT^2], dT = T - T_ref."""
-        dt = frame.slow(slow_temp(frame) - ctx.ref_temp_c)
-        return [dt, dt * dt]
+        """[dT, dT^2] up to the order, dT = T - T_ref."""
+        return self.powers(ctx, frame)
 
 
 class ScaleFactorNonlinearity(Effect):
@@ -90,7 +154,7 @@ class GSensitivity(Effect):
         return [frame.accel[:, k] for k in range(3)]
 
 
-class ScaleFactorTemperature(Effect):
+class ScaleFactorTemperature(TemperaturePolynomial):
     """Scale factor a polynomial in temperature: SF(T) = s0 R(T) (1 + c1 dT + c2 dT^2)."""
 
     effect_id = 'scale_factor_temperature'
@@ -109,15 +173,13 @@ class ScaleFactorTemperature(Effect):
                   'a thermal lag of the structure (thermal_lag) on slow ramps')
 
     def columns(self, ctx, frame, phi, basis):
-        """[s Omega dT, s Omega dT^2]."""
-        dt = frame.slow(slow_temp(frame) - ctx.ref_temp_c)
-        return [basis.sr * dt, basis.sr * dt * dt]
+        """[s Omega dT, s Omega dT^2] up to the order."""
+        return [basis.sr * p for p in self.powers(ctx, frame)]
 
     def report(self, coef, phi, s0):
-        """c1 = k1/s0, c2 = k2/s0."""
+        """c1 = k1/s0, c2 = k2/s0 (those fitted)."""
         s0 = s0 if s0 != 0.0 else np.nan
-        return {'sf_temp_coeff_per_k': float(coef[0] / s0),
-                'sf_temp_coeff2_per_k2': float(coef[1] / s0)}
+        return {p.name: float(c / s0) for p, c in zip(self.params, coef)}
 
 
 def _hours_from_mid(ctx, frame):

@@ -78,6 +78,16 @@ def _all_samples_rms(cv, kept_rmse, predict_at):
     return math.sqrt(sse / prep.data.rows)
 
 
+def _polynomial_order(prep, have):
+    """Return the order of the temperature polynomials the record carries, with its reason."""
+    if 'temp' not in have:
+        return {'order': None, 'span_k': None, 'note': None}
+    temps = prep.binned.temp_c
+    span = float(temps.max() - temps.min())
+    order, note = generic.polynomial_order(span, temps)
+    return {'order': order, 'span_k': span, 'note': note}
+
+
 def _testable(catalogue, have, data):
     """Split the catalogue into the causes the record can show and the others (with reasons)."""
     testable, not_tested = [], []
@@ -136,6 +146,8 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     rmse_base, cals = _baseline_rmse(cv)
     null = cv.evaluate(models.Model(()))
     have = selection.excitation(prep, data)
+    poly = _polynomial_order(prep, have)
+    catalogue = generic.with_polynomial_order(catalogue, poly['order'])
     testable, not_tested = _testable(catalogue, have, data)
     superbins = SuperBins(prep.binned, cv.fold_of_bin, prep.dt_s)
     selector = selection.Selector(cv, superbins, alpha, seed)
@@ -152,6 +164,7 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
                 chosen[0].evaluated.model, ctx, f, chosen[0].evaluated.fits[k]))}
     doc = document.build(data, preset, cv, screen, rmse_base, null, steps, res, confound,
                          not_tested, rms_all, alpha)
+    doc['temperature_polynomial'] = poly
     b = prep.binned
     cal_all = base.calibrate(b, ctx.phys)
     before = b.gyro - base.baseline_prediction(b, ctx.phys, cal_all)

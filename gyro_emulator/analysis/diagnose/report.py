@@ -198,9 +198,20 @@ def _verdict_lines(doc):
     lines += [f"Noise of the final residual: {noise['white_sigma_rad_s']:.3g} rad/s per sample; "
               f"N = {noise['arw_rad_s_sqrt_hz']:.3g} rad/s/sqrt(Hz), B = "
               f"{noise['bias_instability_rad_s']:.3g} rad/s, K = "
-              f"{noise['rrw_rad_s_sqrt_s']:.3g} rad/s/sqrt(s) (robust Allan deviation up to "
-              f"{noise['allan_tau_max_s']:.3g} s).", '']
+              f"{noise['rrw_rad_s_sqrt_s']:.3g} rad/s/sqrt(s) ({allan_text(noise)}).", '']
+    poly = doc.get('temperature_polynomial') or {}
+    if poly.get('note'):
+        lines += [poly['note'][0].upper() + poly['note'][1:] + '.', '']
     return lines
+
+
+def allan_text(noise):
+    """Return what the fitted N, B, K rest on: the Allan deviation's reach, or that it has none."""
+    if noise['allan_tau_max_s'] > 0.0:
+        return f"robust Allan deviation up to {noise['allan_tau_max_s']:.3g} s"
+    return ('no Allan deviation: no stretch of the record holds enough bins for three '
+            'averaging times, so B and K are not measured (0) and N is the short-term '
+            'spread: the floor holds the fast noise only')
 
 
 def _confound_lines(doc):
@@ -234,11 +245,20 @@ def _baseline_text(doc):
             f"{cal['scale_factor']:.5g}"
             + ('' if cal['scale_factor_calibrated'] else
                ' (nominal: no rate excitation near the reference temperature)')
-            + f", from {cal['samples']} samples within "
-            f"{cal['window_c']:.2f} C of {cal['ref_temp_c']:.1f} C. Held-out "
+            + f', from {calibration_samples_text(doc)}. Held-out '
             f"RMSE {doc['baseline']['rmse_rad_s']:.4g} rad/s (recalibrated "
             'on all training data: '
             f"{doc['recalibrated_baseline']['rmse_rad_s']:.4g} rad/s).")
+
+
+def calibration_samples_text(doc):
+    """Return which samples the calibration used: the temperature window, or all of them."""
+    cal = doc['calibration']
+    if not doc['input']['has_temp']:
+        return (f"all {cal['samples']} samples (the record has no temperature reading, so "
+                f"no window about {cal['ref_temp_c']:.1f} C could be chosen)")
+    return (f"{cal['samples']} samples within {cal['window_c']:.2f} C of "
+            f"{cal['ref_temp_c']:.1f} C")
 
 
 _TEST_TEXT = {'fold_test': 'fold', 'state_space': 'likelihood'}

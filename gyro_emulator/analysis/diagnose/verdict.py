@@ -361,11 +361,63 @@ def verdict(selected, consistent):
     return 'no_mismatch' if consistent else 'unexplained'
 
 
-def message(result, selected, res):
-    """One paragraph on the verdict, the residual and what remains."""
+def coverage_text(tested, total):
+    """Return "2 of 15 causes could be tested (a, b)", or None when every cause could."""
+    if len(tested) >= total:
+        return None
+    return (f'{len(tested)} of {total} causes could be tested'
+            + (f" ({', '.join(tested)})" if tested else ''))
+
+
+def structure_text(res):
+    """
+    Return what the averaged residual follows, in the numbers the verdict's rule used.
+
+    The rule (:func:`structure_limit`) compares the R^2 of the super-bin means
+    against one regressor with what noise alone reaches; a regressor is said
+    to be followed only past that point.
+    """
+    f = res['follows']
+    if f['regressor'] is None:
+        return None
+    what = _CORRELATE_TEXT[_kind(f['regressor'])]
+    means = f"its {res['averaging_s']:.3g} s means"
+    if f['r2'] > f['r2_limit']:
+        return (f"{means} follow {what} (R^2 = {f['r2']:.2f}; noise alone reaches "
+                f"{f['r2_limit']:.2f})")
+    return (f'{means} follow no regressor beyond what noise does (the closest is {what}, '
+            f"R^2 = {f['r2']:.2f}; noise alone reaches {f['r2_limit']:.2f})")
+
+
+def follows(res):
+    """Return the regressor the averaged residual follows past its noise-alone limit, or None."""
+    f = res['follows']
+    return _kind(f['regressor']) if f['regressor'] and f['r2'] > f['r2_limit'] else None
+
+
+def _failed(res):
+    """Return which comparisons put the residual above its floor, as a phrase (or None)."""
+    out = []
+    if res['excess'] > res['excess_limit']:
+        out.append('per sample')
+    if res['excess_slow'] > res['excess_slow_limit']:
+        out.append(f"in {res['averaging_s']:.3g} s means")
+    if res['follows']['margin'] >= STRUCTURE_MARGIN:
+        out.append('in what those means follow')
+    return (', '.join(out[:-1]) + ' and ' + out[-1] if len(out) > 1 else
+            out[0] if out else None)
+
+
+def message(result, selected, res, coverage=None):
+    """
+    One paragraph on the verdict, the residual and what remains.
+
+    Every comparison is given with what noise alone reaches, the one that
+    decides is named, and a regressor is said to be followed only past its
+    own noise-alone point. ``coverage`` (:func:`coverage_text`) says how
+    few causes the record could test.
+    """
     names = ', '.join(e['effect'] for e in selected)
-    what = _CORRELATE_TEXT[res['strongest_correlate']]
-    share = res['r2'][res['strongest_correlate']]
     level = (f"the held-out residual is {res['excess']:.3f}x its noise floor "
              f"({res['rms_rad_s']:.3g} vs {res['floor_rad_s']:.3g} rad/s; noise alone "
              f"reaches {res['excess_limit']:.3f}x), {res['excess_slow']:.2f}x in "
@@ -374,15 +426,28 @@ def message(result, selected, res):
     if res['wander_measured_to_s'] < res['averaging_s']:
         level += ('; the record is too short or gappy to measure its slow wander, so '
                   'the floor holds its fast noise only')
+    structure = structure_text(res)
     if result == 'no_mismatch':
+        if coverage:
+            return (f'{coverage}; nothing testable was found: none of them improves the '
+                    f'held-out fit significantly and {level}. The baseline explains what '
+                    'could be tested.')
         return ('No cause improves the held-out fit significantly and ' + level
                 + ': the baseline explains the data.')
     if result == 'explained':
         return f'Explained by {names}: ' + level + '.'
-    lead = (f'Partly explained by {names}' if result == 'partly_explained' else
-            'No cause in the catalogue explains the mismatch')
-    if share < 0.1:
-        return (f'{lead}: {level}; structure remains, and no regressor of the record '
-                f'explains it (the largest share is {share:.2f}, {what}).')
-    return (f'{lead}: {level}; structure remains, and its strongest correlate is '
-            f'{what} (R^2 = {share:.2f}).')
+    if result == 'partly_explained':
+        lead = f'Partly explained by {names}'
+    elif coverage:
+        lead = f'No cause explains the mismatch; {coverage}'
+    else:
+        lead = 'No cause in the catalogue explains the mismatch'
+    failed = _failed(res)
+    above = '' if failed is None else f'; it exceeds what noise alone reaches {failed}'
+    noise = res['noise']
+    if (failed and res['wander_measured_to_s'] >= res['averaging_s']
+            and noise['bias_instability_rad_s'] == 0.0 and noise['rrw_rad_s_sqrt_s'] == 0.0):
+        above += (' (the floor holds no wander: none shows up to '
+                  f"{res['wander_measured_to_s']:.3g} s, so wander slower than the record can "
+                  'measure would do this as well as a drift)')
+    return f'{lead}: {level}{above}' + (f'; {structure}.' if structure else '.')
