@@ -369,7 +369,10 @@ def node_defaults(path=None):
 # --- the error model as parameters ------------------------------------------
 
 def _config_fields():
-    return [f.name for f in fields(sensor_config.SensorConfig) if f.name != 'terms']
+    # ``extended`` (sensor.extensions) is structural: it comes from the
+    # sensor_config YAML only and is not a runtime parameter.
+    return [f.name for f in fields(sensor_config.SensorConfig)
+            if f.name not in ('terms', 'extended')]
 
 
 def sensor_param_values(config):

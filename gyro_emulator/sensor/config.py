@@ -24,6 +24,7 @@ from gyro_emulator import units
 from gyro_emulator.physics.params import Device, from_mapping
 from gyro_emulator.physics.presets import DEFAULT_PRESET, physics_preset, PHYSICS_PRESETS
 from gyro_emulator.resources import config_dir, read_yaml
+from gyro_emulator.sensor.extensions import ExtendedTerms
 from gyro_emulator.validation import check_range
 import numpy as np
 
@@ -197,6 +198,10 @@ class SensorConfig:
         clock error.
     initial_die_temp_c : float or None
         Die temperature at the first sample (None: in equilibrium with it).
+    extended : ExtendedTerms
+        The terms of the causes diagnose names beyond these (bias hysteresis,
+        polynomials in time, steps, pressure drift, ...; all off by default:
+        :mod:`gyro_emulator.sensor.extensions`). YAML key ``extended``.
 
     """
 
@@ -226,10 +231,15 @@ class SensorConfig:
     timestamp_jitter_s: float = 0.0
     clock_drift_ppm: float = 0.0
     initial_die_temp_c: float = None
+    extended: ExtendedTerms = field(default_factory=ExtendedTerms)
 
     def __post_init__(self):
         """Normalise per-axis fields to tuples and validate every field."""
         object.__setattr__(self, 'device', _devices(self.device))
+        if not isinstance(self.extended, ExtendedTerms):
+            raise ValueError(
+                f'SensorConfig.extended = {self.extended!r} is not allowed: expected '
+                'an ExtendedTerms')
         if not isinstance(self.terms, ErrorTerms):
             raise ValueError(
                 f'SensorConfig.terms = {self.terms!r} is not allowed: expected '
@@ -462,6 +472,11 @@ def config_from_mapping(mapping, source=''):
                     f'{source}: unknown term(s) {", ".join(map(str, unknown))} in terms;'
                     f' allowed: {", ".join(ErrorTerms.names())}')
             kwargs['terms'] = ErrorTerms(**value)
+        elif key == 'extended':
+            try:
+                kwargs['extended'] = ExtendedTerms.from_mapping(value or {}, 'extended')
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f'{source}: {exc}') from None
         elif key in field_names:
             if key in kwargs:
                 raise ValueError(f'{source}: {key} is set twice (directly and by an '

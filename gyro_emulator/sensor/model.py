@@ -56,7 +56,7 @@ import copy
 from dataclasses import dataclass
 import math
 
-from gyro_emulator.sensor import kernel, noise, streams
+from gyro_emulator.sensor import extensions, kernel, noise, streams
 from gyro_emulator.sensor.config import SensorConfig
 from gyro_emulator.sensor.plan import Plan, TemperatureTable
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
@@ -147,6 +147,7 @@ class _State:
             flicker=np.zeros((3, 1)),           # (axes, sections)
             rrw=np.zeros(3))
         self.flicker_key = None
+        self.extended = extensions.new_state()
 
 
 class GyroModel:
@@ -239,6 +240,10 @@ class GyroModel:
                 st.flicker_key = key
         st.kernel = state
         self._plan = plan
+        self._ext = None
+        if config.extended.active():
+            self._ext = extensions.ExtendedPlan(config.extended, config.device,
+                                                plan.cal_temp_c, self.dt_s)
 
     def set_sample_rate(self, sample_rate_hz):
         """
@@ -261,6 +266,7 @@ class GyroModel:
         except ValueError:
             self.sample_rate_hz, self.dt_s = old
             raise
+        extensions.rebase(self._state.extended, old[1])
 
     def restart_filters(self):
         """
@@ -424,17 +430,24 @@ class GyroModel:
             return fields
         plan, st = self._plan, self._state
         accel = _NO_ACCEL if accel is None else _kernel_input(accel)
+        xbias = xgain = _NO_ACCEL
+        if self._ext is not None:
+            xbias, xgain, ext_state = self._ext.evaluate(temp, st.extended)
         normals = st.normals
         for start in range(0, n, streams.BLOCK):
             stop = min(start + streams.BLOCK, n)
             normals.reserve(plan.streams, stop - start)
-            bad = kernel.advance(rate, temp, accel, plan.coefficients, st.kernel,
+            bad = kernel.advance(rate, temp, accel, xbias, xgain, plan.coefficients, st.kernel,
                                  normals.buffer, normals.pos, out, start, stop)
             if bad:
                 lo, hi = MODEL_TEMP_RANGE_C
                 raise ValueError(f'GyroModel: die temperature {float(out.die[bad - 1]):g} C '
                                  '(ambient + self_heating_c) is out of range: allowed '
                                  f'[{lo}, {hi}] C')
+        if self._ext is not None:
+            st.extended = ext_state
+        else:   # the record time runs on while the extended terms are off
+            st.extended[extensions.Z_COUNT] += n
         return fields
 
     def _check_temp(self, temp):

@@ -1,0 +1,462 @@
+"""
+Extended error terms: every cause :mod:`gyro_emulator.analysis.diagnose` can name.
+
+Each term is a frozen, validated dataclass named after the diagnose cause it
+models, with that cause's parameters in its units (``effect.params`` of
+:mod:`gyro_emulator.analysis.diagnose.generic` and ``.effects``). A term is
+off unless it is given (``None`` by default) and on while its ``enabled``
+switch is true. With no term on, the model skips this stage entirely.
+
+The terms form an additive bias b_x and a scale-factor multiplier s_x of
+axis i at sample n (``T`` the temperature input of the model: the record's
+temperature reading, as diagnose uses it; ``t`` the record time of the
+sample, ``t = start_time_s + elapsed``; ``th = (t - time_origin_s) / 3600``)::
+
+    b_x = A_h (p - T)/w                                  bias_hysteresis
+        + A_w exp(-(t - start_time_s)/tau_w) + d th      bias_time
+        + B H(t - t_b)                                   bias_step
+        + kappa (T - T_g)/tau_g                          temperature_rate_bias
+    s_x = Y(T, P(t))/Y(T, P_ref)                         pressure_drift
+          (1 + c1 dT + c2 dT^2                           scale_factor_temperature
+             + k1 th + k2 th^2                           scale_factor_time
+             + k H(t - t_s))                             scale_factor_step
+
+* p is the play (backlash) operator of half width w,
+  p[n] = min(T[n] + w, max(T[n] - w, p[n-1])), p[0] = T[0]
+  (Krasnosel'skii & Pokrovskii; :func:`gyro_emulator.analysis.diagnose.generic.play`).
+* T_g is T through a first-order lag tau_g, exact for a temperature linear
+  between samples: T_g[n] = a T_g[n-1] + (1 - c) T[n] + (c - a) T[n-1],
+  a = exp(-dt/tau_g), c = tau_g (1 - a)/dt, started in equilibrium (the
+  discretisation of diagnose's ``lagged_temp_on_bins``).
+* P(t) = 1 + k_p (t - start_time_s)/3600 (relative to the device's cavity
+  pressure, clipped to [0.05, 5]); Y is the first-order sense scale factor
+  (Eq 8-11: Knudsen number -> slide-film and comb damping), tabulated on
+  0.25 K x 1 % of ln P and interpolated bilinearly (diagnose's
+  ``DevicePhysics.pressure_factor``). The sense dynamics and the Brownian
+  noise stay at the reference pressure.
+* dT = T - T_ref, T_ref = ``ref_temp_c`` or the axis device's calibration
+  temperature. The bias polynomial in temperature (diagnose's
+  ``bias_temperature``) is the existing ``SensorConfig.bias_temp_coeff_*``
+  pair (about the calibration temperature, on the die temperature).
+
+The model adds b_x to the bias and multiplies the gain by s_x inside the
+compiled kernel (:mod:`gyro_emulator.sensor.kernel`), so they pass the sense
+dynamics, output filter, saturation and quantisation like the other terms.
+"""
+
+from dataclasses import dataclass, fields
+import functools
+import math
+
+from gyro_emulator.physics import first_order
+from gyro_emulator.units import SECONDS_PER_HOUR
+from gyro_emulator.validation import check_range, MODEL_TEMP_RANGE_C
+import numba
+import numpy as np
+
+#: Largest |record time| accepted, s (about 30 years).
+TIME_LIMIT_S = 1e9
+
+
+def _axis(owner, name, value, low, high, unit):
+    """Return a per-axis value (a number or 3) as a tuple of 3 checked floats."""
+    if isinstance(value, (bool, str, np.bool_)) or (
+            isinstance(value, (list, tuple)) and any(isinstance(v, (bool, str)) for v in value)):
+        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list of 3 numbers')
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list of 3 '
+                         'numbers') from None
+    if arr.ndim == 0:
+        arr = np.full(3, float(arr))
+    if arr.shape != (3,):
+        raise ValueError(f'{owner}.{name} = {value!r} has shape {arr.shape}: expected a '
+                         'number or a list of 3 (x, y, z)')
+    check_range(owner, name, arr, low, high, unit, low_open=False)
+    return tuple(float(v) for v in arr)
+
+
+def _scalar(owner, name, value, low, high, unit, low_open):
+    if isinstance(value, (bool, str, np.bool_)) or value is None:
+        raise ValueError(f'{owner}.{name} = {value!r} is not a number')
+    return check_range(owner, name, value, low, high, unit, low_open)
+
+
+@dataclass(frozen=True)
+class _Term:
+    """Base of a term: fields checked against ``RANGES`` (name -> kind, low, high, unit)."""
+
+    RANGES = {}
+
+    def __post_init__(self):
+        """Check every field against its range; per-axis fields become 3-tuples."""
+        owner = type(self).__name__
+        for name, (kind, low, high, unit) in self.RANGES.items():
+            value = getattr(self, name)
+            if kind == 'axis':
+                value = _axis(owner, name, value, low, high, unit)
+            elif kind == 'optional' and value is None:
+                continue
+            else:
+                value = _scalar(owner, name, value, low, high, unit, kind == 'open')
+            object.__setattr__(self, name, value)
+        if not isinstance(self.enabled, (bool, np.bool_)):
+            raise ValueError(f'{owner}.enabled = {self.enabled!r} is not allowed: choose '
+                             'true or false')
+        object.__setattr__(self, 'enabled', bool(self.enabled))
+
+
+_T = (-TIME_LIMIT_S, TIME_LIMIT_S, 's')
+
+
+@dataclass(frozen=True)
+class BiasHysteresis(_Term):
+    """Bias A (p - T)/w, p the play of the temperature (diagnose ``bias_hysteresis``)."""
+
+    hysteresis_width_k: float = 1.0
+    bias_hysteresis_rad_s: tuple = (0.0, 0.0, 0.0)
+    enabled: bool = True
+    RANGES = {'hysteresis_width_k': ('open', 0.0, 100.0, 'K'),
+              'bias_hysteresis_rad_s': ('axis', -1.0, 1.0, 'rad/s')}
+
+
+@dataclass(frozen=True)
+class ScaleFactorTemperature(_Term):
+    """Relative SF change c1 dT + c2 dT^2 (diagnose ``scale_factor_temperature``)."""
+
+    sf_temp_coeff_per_k: tuple = (0.0, 0.0, 0.0)
+    sf_temp_coeff2_per_k2: tuple = (0.0, 0.0, 0.0)
+    ref_temp_c: float = None
+    enabled: bool = True
+    RANGES = {'sf_temp_coeff_per_k': ('axis', -0.01, 0.01, '1/K'),
+              'sf_temp_coeff2_per_k2': ('axis', -1e-3, 1e-3, '1/K^2'),
+              'ref_temp_c': ('optional',) + MODEL_TEMP_RANGE_C + ('C',)}
+
+
+@dataclass(frozen=True)
+class ScaleFactorTime(_Term):
+    """Relative SF change k1 th + k2 th^2, th in hours (diagnose ``scale_factor_time``)."""
+
+    sf_drift_per_h: tuple = (0.0, 0.0, 0.0)
+    sf_drift2_per_h2: tuple = (0.0, 0.0, 0.0)
+    time_origin_s: float = 0.0
+    enabled: bool = True
+    RANGES = {'sf_drift_per_h': ('axis', -1.0, 1.0, '1/h'),
+              'sf_drift2_per_h2': ('axis', -1.0, 1.0, '1/h^2'),
+              'time_origin_s': ('closed',) + _T}
+
+
+@dataclass(frozen=True)
+class BiasTime(_Term):
+    """Warm-up A exp(-(t - t_start)/tau) plus d th (diagnose ``bias_time``)."""
+
+    warmup_time_constant_s: float = 1.0
+    warmup_rad_s: tuple = (0.0, 0.0, 0.0)
+    bias_drift_rad_s_per_h: tuple = (0.0, 0.0, 0.0)
+    time_origin_s: float = 0.0
+    enabled: bool = True
+    RANGES = {'warmup_time_constant_s': ('open', 0.0, 1e7, 's'),
+              'warmup_rad_s': ('axis', -1.0, 1.0, 'rad/s'),
+              'bias_drift_rad_s_per_h': ('axis', -1.0, 1.0, 'rad/s/h'),
+              'time_origin_s': ('closed',) + _T}
+
+
+@dataclass(frozen=True)
+class BiasStep(_Term):
+    """Bias change B from the first sample at t >= step_time_s (diagnose ``bias_step``)."""
+
+    step_time_s: float = 0.0
+    bias_step_rad_s: tuple = (0.0, 0.0, 0.0)
+    enabled: bool = True
+    RANGES = {'step_time_s': ('closed',) + _T,
+              'bias_step_rad_s': ('axis', -10.0, 10.0, 'rad/s')}
+
+
+@dataclass(frozen=True)
+class ScaleFactorStep(_Term):
+    """Relative SF change k from t >= step_time_s (diagnose ``scale_factor_step``)."""
+
+    step_time_s: float = 0.0
+    sf_step: tuple = (0.0, 0.0, 0.0)
+    enabled: bool = True
+    RANGES = {'step_time_s': ('closed',) + _T,
+              'sf_step': ('axis', -0.5, 0.5, '')}
+
+
+@dataclass(frozen=True)
+class PressureDrift(_Term):
+    """Cavity pressure P = P_ref (1 + k (t - t_start)/3600), Eq 8-11 (``pressure_drift``)."""
+
+    pressure_rate_per_h: float = 0.0
+    enabled: bool = True
+    RANGES = {'pressure_rate_per_h': ('closed', -3.0, 3.0, '1/h')}
+
+
+@dataclass(frozen=True)
+class TemperatureRateBias(_Term):
+    """Bias kappa dT_g/dt, T_g the temperature through a lag (``temperature_rate_bias``)."""
+
+    gradient_time_constant_s: float = 10.0
+    bias_per_temp_rate_rad_s_per_k_s: tuple = (0.0, 0.0, 0.0)
+    enabled: bool = True
+    RANGES = {'gradient_time_constant_s': ('open', 0.0, 1e5, 's'),
+              'bias_per_temp_rate_rad_s_per_k_s': ('axis', -10.0, 10.0, 'rad/s per K/s')}
+
+
+#: Term class of every cause id, in the order of the model's equations.
+TERM_TYPES = {'bias_hysteresis': BiasHysteresis, 'bias_time': BiasTime,
+              'bias_step': BiasStep, 'temperature_rate_bias': TemperatureRateBias,
+              'pressure_drift': PressureDrift, 'scale_factor_temperature': ScaleFactorTemperature,
+              'scale_factor_time': ScaleFactorTime, 'scale_factor_step': ScaleFactorStep}
+
+
+@dataclass(frozen=True)
+class ExtendedTerms:
+    """
+    The extended terms of a sensor (each None = off) and the record-time origin.
+
+    Attributes
+    ----------
+    start_time_s : float
+        Record time of the model's first sample, s (times of the terms are
+        record times: diagnose's ``step_time_s``, ``time_origin_s``).
+    bias_hysteresis, bias_time, ... : term or None
+        One field per cause id of :data:`TERM_TYPES`.
+
+    """
+
+    start_time_s: float = 0.0
+    bias_hysteresis: BiasHysteresis = None
+    bias_time: BiasTime = None
+    bias_step: BiasStep = None
+    temperature_rate_bias: TemperatureRateBias = None
+    pressure_drift: PressureDrift = None
+    scale_factor_temperature: ScaleFactorTemperature = None
+    scale_factor_time: ScaleFactorTime = None
+    scale_factor_step: ScaleFactorStep = None
+
+    def __post_init__(self):
+        """Check the start time and the type of every term."""
+        object.__setattr__(self, 'start_time_s', _scalar(
+            'ExtendedTerms', 'start_time_s', self.start_time_s, *_T, False))
+        for name, cls in TERM_TYPES.items():
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, cls):
+                raise ValueError(f'ExtendedTerms.{name} = {value!r} is not allowed: expected '
+                                 f'a {cls.__name__} or None')
+
+    def active(self):
+        """Return the cause ids of the terms that are given and enabled."""
+        return tuple(n for n in TERM_TYPES
+                     if getattr(self, n) is not None and getattr(self, n).enabled)
+
+    def get(self, name):
+        """Return term ``name`` if it is active, else None."""
+        term = getattr(self, name)
+        return term if term is not None and term.enabled else None
+
+    @classmethod
+    def from_mapping(cls, mapping, source='extended'):
+        """
+        Build from parsed YAML: ``{start_time_s: s, <cause id>: {<param>: value, ...}}``.
+
+        Unknown causes and parameters raise ValueError naming them.
+        """
+        if not isinstance(mapping, dict):
+            raise ValueError(f'{source} = {mapping!r} must be a mapping of cause: parameters')
+        kwargs = {}
+        for key, value in mapping.items():
+            if key == 'start_time_s':
+                kwargs[key] = value
+                continue
+            if key not in TERM_TYPES:
+                raise ValueError(f'{source}: unknown term {key!r}; allowed: start_time_s, '
+                                 f'{", ".join(TERM_TYPES)}')
+            term = TERM_TYPES[key]
+            if value is None:
+                continue
+            if not isinstance(value, dict):
+                raise ValueError(f'{source}.{key} = {value!r} must be a mapping of parameters')
+            allowed = [f.name for f in fields(term)]
+            unknown = sorted(set(map(str, value)) - set(allowed))
+            if unknown:
+                raise ValueError(f'{source}.{key}: unknown parameter(s) {", ".join(unknown)};'
+                                 f' allowed: {", ".join(allowed)}')
+            kwargs[key] = term(**value)
+        return cls(**kwargs)
+
+
+# --- evaluation -----------------------------------------------------------
+
+#: Switches (int64 0/1), scalars and per-axis rows of the compiled evaluation.
+(E_HYST, E_TIME, E_BSTEP, E_GRAD, E_PRESS, E_SFT, E_SFTIME, E_SFSTEP) = range(8)
+(X_DT, X_START, X_WIDTH, X_TAU_W, X_ORIGIN_B, X_T_BSTEP, X_TAU_G, X_PRATE, X_ORIGIN_S,
+ X_T_SFSTEP, X_LN_P0, X_LN_P_STEP, X_T0, X_T_STEP) = range(14)
+(R_HYST, R_WARM, R_DRIFT, R_BSTEP, R_GRAD, R_REF, R_C1, R_C2, R_K1, R_K2, R_SFSTEP) = range(11)
+#: Mutable state: ready flag, play, lagged T, previous T, samples since the
+#: last rate change, elapsed time at that change (s).
+(Z_READY, Z_PLAY, Z_LAG, Z_PREV, Z_COUNT, Z_BASE) = range(6)
+#: Pressure table: ln P from ln 0.05 to ln 5 in steps of 0.01, T every 0.25 K.
+LN_P = np.linspace(math.log(0.05), math.log(5.0), 461)
+TABLE_TEMP_C = np.linspace(MODEL_TEMP_RANGE_C[0], MODEL_TEMP_RANGE_C[1],
+                           int(round((MODEL_TEMP_RANGE_C[1] - MODEL_TEMP_RANGE_C[0]) / 0.25)) + 1)
+
+
+@functools.lru_cache(maxsize=8)
+def pressure_table(device):
+    """Y_sense(T, P)/Y_sense(T, P_ref) on :data:`LN_P` x :data:`TABLE_TEMP_C` (Eq 8-11)."""
+    p_ref = device.gas.pressure_pa
+    ref = first_order.sense_scale_factor_m_per_rad_s(device, TABLE_TEMP_C)
+    rows = [first_order.sense_scale_factor_m_per_rad_s(
+        device.with_gas(pressure_pa=p_ref * float(np.exp(v))), TABLE_TEMP_C) for v in LN_P]
+    table = np.asarray(rows) / ref[None, :]
+    table.flags.writeable = False
+    return table
+
+
+class ExtendedPlan:
+    """Coefficients of the active extended terms for one configuration and rate."""
+
+    def __init__(self, ext, devices, cal_temp_c, dt):
+        self.active = ext.active()
+        flags = np.zeros(8, dtype=np.int64)
+        sc = np.zeros(14)
+        ax = np.zeros((11, 3))
+        sc[X_DT], sc[X_START] = dt, ext.start_time_s
+        for flag, name in enumerate(TERM_TYPES):
+            flags[flag] = name in self.active
+        h, w, s, g = (ext.get('bias_hysteresis'), ext.get('bias_time'), ext.get('bias_step'),
+                      ext.get('temperature_rate_bias'))
+        if h:
+            sc[X_WIDTH], ax[R_HYST] = h.hysteresis_width_k, h.bias_hysteresis_rad_s
+        if w:
+            sc[X_TAU_W], sc[X_ORIGIN_B] = w.warmup_time_constant_s, w.time_origin_s
+            ax[R_WARM], ax[R_DRIFT] = w.warmup_rad_s, w.bias_drift_rad_s_per_h
+        if s:
+            sc[X_T_BSTEP], ax[R_BSTEP] = s.step_time_s, s.bias_step_rad_s
+        if g:
+            sc[X_TAU_G] = g.gradient_time_constant_s
+            ax[R_GRAD] = g.bias_per_temp_rate_rad_s_per_k_s
+        self._scale_factor(ext, devices, cal_temp_c, sc, ax)
+        self.flags, self.scalars, self.axis = flags, sc, ax
+        self.bias_on = bool(flags[:4].any())
+        self.gain_on = bool(flags[4:].any())
+
+    def _scale_factor(self, ext, devices, cal_temp_c, sc, ax):
+        st, sd, ss, p = (ext.get('scale_factor_temperature'), ext.get('scale_factor_time'),
+                         ext.get('scale_factor_step'), ext.get('pressure_drift'))
+        if st:
+            ax[R_REF] = cal_temp_c if st.ref_temp_c is None else st.ref_temp_c
+            ax[R_C1], ax[R_C2] = st.sf_temp_coeff_per_k, st.sf_temp_coeff2_per_k2
+        if sd:
+            sc[X_ORIGIN_S] = sd.time_origin_s
+            ax[R_K1], ax[R_K2] = sd.sf_drift_per_h, sd.sf_drift2_per_h2
+        if ss:
+            sc[X_T_SFSTEP], ax[R_SFSTEP] = ss.step_time_s, ss.sf_step
+        self.table = np.zeros((3, 2, 2))
+        if p:
+            sc[X_PRATE] = p.pressure_rate_per_h / SECONDS_PER_HOUR
+            self.table = np.ascontiguousarray([pressure_table(d) for d in devices])
+        sc[X_LN_P0], sc[X_LN_P_STEP] = LN_P[0], LN_P[1] - LN_P[0]
+        sc[X_T0], sc[X_T_STEP] = TABLE_TEMP_C[0], TABLE_TEMP_C[1] - TABLE_TEMP_C[0]
+
+    def evaluate(self, temp_c, state):
+        """
+        Return (bias (n, 3), gain (n, 3)) of the samples at ``temp_c`` and the new state.
+
+        An array is (0, 3) when no term of its kind is on; ``state`` is not changed.
+        """
+        n = len(temp_c)
+        new = state.copy()
+        bias = np.zeros((n if self.bias_on else 0, 3))
+        gain = np.ones((n if self.gain_on else 0, 3))
+        _evaluate(temp_c, self.flags, self.scalars, self.axis, self.table, new, bias, gain)
+        return bias, gain, new
+
+
+def new_state():
+    """Return the state of a model before its first sample."""
+    return np.zeros(6)
+
+
+def rebase(state, old_dt):
+    """Fold the samples since the last rate change into the elapsed time (rate change)."""
+    state[Z_BASE] += state[Z_COUNT] * old_dt
+    state[Z_COUNT] = 0.0
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _pressure_factor(table, axis, temp, ln_p, sc):
+    """Bilinear interpolation of the pressure table of ``axis``."""
+    x = (ln_p - sc[X_LN_P0]) / sc[X_LN_P_STEP]
+    i = min(max(int(x), 0), table.shape[1] - 2)
+    f = min(max(x - i, 0.0), 1.0)
+    y = (temp - sc[X_T0]) / sc[X_T_STEP]
+    j = min(max(int(y), 0), table.shape[2] - 2)
+    g = min(max(y - j, 0.0), 1.0)
+    lo = table[axis, i, j] * (1.0 - g) + table[axis, i, j + 1] * g
+    hi = table[axis, i + 1, j] * (1.0 - g) + table[axis, i + 1, j + 1] * g
+    return lo * (1.0 - f) + hi * f
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _evaluate(temp, on, sc, ax, table, state, bias, gain):
+    """One pass over the samples (equations: module docstring); updates ``state``."""
+    dt = sc[X_DT]
+    if state[Z_READY] == 0.0 and temp.shape[0] > 0:
+        state[Z_PLAY], state[Z_LAG], state[Z_PREV] = temp[0], temp[0], temp[0]
+        state[Z_READY] = 1.0
+    a_g = math.exp(-dt / sc[X_TAU_G]) if on[E_GRAD] else 0.0
+    c_g = sc[X_TAU_G] * (1.0 - a_g) / dt if on[E_GRAD] else 0.0
+    play, lag, prev = state[Z_PLAY], state[Z_LAG], state[Z_PREV]
+    for j in range(temp.shape[0]):
+        temp_j = temp[j]
+        elapsed = state[Z_BASE] + (state[Z_COUNT] + j) * dt
+        t = sc[X_START] + elapsed
+        if on[E_HYST]:
+            play = min(temp_j + sc[X_WIDTH], max(temp_j - sc[X_WIDTH], play))
+            rel = (play - temp_j) / sc[X_WIDTH]
+            for i in range(3):
+                bias[j, i] += ax[R_HYST, i] * rel
+        if on[E_TIME]:
+            warm = math.exp(-elapsed / sc[X_TAU_W])
+            th = (t - sc[X_ORIGIN_B]) / SECONDS_PER_HOUR
+            for i in range(3):
+                bias[j, i] += ax[R_WARM, i] * warm + ax[R_DRIFT, i] * th
+        if on[E_BSTEP] and t >= sc[X_T_BSTEP]:
+            for i in range(3):
+                bias[j, i] += ax[R_BSTEP, i]
+        if on[E_GRAD]:
+            lag = a_g * lag + (1.0 - c_g) * temp_j + (c_g - a_g) * prev
+            rate = (temp_j - lag) / sc[X_TAU_G]
+            for i in range(3):
+                bias[j, i] += ax[R_GRAD, i] * rate
+        prev = temp_j
+        _gain(gain, j, temp_j, t, elapsed, on, sc, ax, table)
+    state[Z_PLAY], state[Z_LAG], state[Z_PREV] = play, lag, prev
+    state[Z_COUNT] += temp.shape[0]
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _gain(gain, j, temp, t, elapsed, on, sc, ax, table):
+    """Scale-factor multiplier of sample ``j`` (no-op when ``gain`` is empty)."""
+    if gain.shape[0] == 0:
+        return
+    th = (t - sc[X_ORIGIN_S]) / SECONDS_PER_HOUR
+    step = on[E_SFSTEP] and t >= sc[X_T_SFSTEP]
+    ln_p = 0.0
+    if on[E_PRESS]:
+        ln_p = math.log(min(max(1.0 + sc[X_PRATE] * elapsed, 0.05), 5.0))
+    for i in range(3):
+        rel = 1.0
+        if on[E_SFT]:
+            d = temp - ax[R_REF, i]
+            rel += ax[R_C1, i] * d + ax[R_C2, i] * d * d
+        if on[E_SFTIME]:
+            rel += ax[R_K1, i] * th + ax[R_K2, i] * th * th
+        if step:
+            rel += ax[R_SFSTEP, i]
+        if on[E_PRESS]:
+            rel *= _pressure_factor(table, i, temp, ln_p, sc)
+        gain[j, i] = rel
