@@ -154,3 +154,31 @@ def test_bad_values_name_field_and_range(mapping, words):
     with pytest.raises(ValueError) as err:
         config_from_mapping({'extended': mapping}, 'f.yaml')
     assert words in str(err.value) and '\n' not in str(err.value)
+
+
+def test_record_time_follows_a_rate_change_and_a_new_configuration():
+    """Warm-up A exp(-t/tau) on the true elapsed time across set_sample_rate and update_config."""
+    tau = 3.0
+    config = replace(SensorConfig.ideal(), extended=ex.ExtendedTerms(
+        bias_time=ex.BiasTime(tau, A)))
+    model = GyroModel(config, 100.0, np.random.default_rng(1))
+    first = model.run(RATE[:150], TEMP[:150])               # 0 .. 1.49 s
+    model.set_sample_rate(200.0)
+    second = model.run(RATE[:300], TEMP[:300])              # 1.5 .. 2.995 s
+    model.update_config(replace(config, extended=ex.ExtendedTerms(
+        bias_time=ex.BiasTime(2 * tau, A))))
+    third = model.run(RATE[:10], TEMP[:10])                 # 3.0 .. 3.045 s
+    t1, t2, t3 = np.arange(150) / 100.0, 1.5 + np.arange(300) / 200.0, 3.0 + np.arange(10) / 200.0
+    np.testing.assert_allclose(first.bias_rad_s, A * np.exp(-t1 / tau)[:, None], rtol=1e-12)
+    np.testing.assert_allclose(second.bias_rad_s, A * np.exp(-t2 / tau)[:, None], rtol=1e-12)
+    np.testing.assert_allclose(third.bias_rad_s, A * np.exp(-t3 / (2 * tau))[:, None],
+                               rtol=1e-12)
+
+
+def test_copy_continues_identically():
+    config = replace(load_sensor_config('consumer'), extended=_all_terms())
+    model = GyroModel(config, 200.0, np.random.default_rng(3))
+    model.run(RATE[:500], TEMP[:500])
+    twin = model.copy()
+    a, b = model.run(RATE[500:], TEMP[500:]), twin.run(RATE[500:], TEMP[500:])
+    assert np.array_equal(a.gyro_rad_s, b.gyro_rad_s)

@@ -56,6 +56,8 @@ import numpy as np
 
 #: Largest |record time| accepted, s (about 30 years).
 TIME_LIMIT_S = 1e9
+#: Hours per second.
+PER_HOUR = 1.0 / SECONDS_PER_HOUR
 
 
 def _axis(owner, name, value, low, high, unit):
@@ -295,10 +297,18 @@ class ExtendedTerms:
  X_T_SFSTEP, X_LN_P0, X_LN_P_STEP, X_T0, X_T_STEP) = range(14)
 (R_HYST, R_WARM, R_DRIFT, R_BSTEP, R_GRAD, R_REF, R_C1, R_C2, R_K1, R_K2, R_SFSTEP) = range(11)
 #: Mutable state: ready flag, play, lagged T, previous T, samples since the
-#: last rate change, elapsed time at that change (s).
-(Z_READY, Z_PLAY, Z_LAG, Z_PREV, Z_COUNT, Z_BASE) = range(6)
+#: last rate change, elapsed time at that change (s), warm-up factor and
+#: whether it is valid (0 after a configuration change).
+(Z_READY, Z_PLAY, Z_LAG, Z_PREV, Z_COUNT, Z_BASE, Z_WARM, Z_WARM_READY) = range(8)
+STATE_SIZE = 8
+#: The warm-up exp(-t/tau) is evaluated exactly every WARMUP_ANCHOR (a power of 2) samples
+#: (of the sample count) and by its exact one-sample ratio exp(-dt/tau) in
+#: between: at most WARMUP_ANCHOR roundings (< 1e-12 relative).
+WARMUP_ANCHOR = 1024
 #: Pressure table: ln P from ln 0.05 to ln 5 in steps of 0.01, T every 0.25 K.
 LN_P = np.linspace(math.log(0.05), math.log(5.0), 461)
+#: The grid's pressures and the inverse widths of its cells (piecewise linear in P).
+P_CELLS = np.array([np.exp(LN_P), np.r_[1.0 / np.diff(np.exp(LN_P)), 0.0]])
 TABLE_TEMP_C = np.linspace(MODEL_TEMP_RANGE_C[0], MODEL_TEMP_RANGE_C[1],
                            int(round((MODEL_TEMP_RANGE_C[1] - MODEL_TEMP_RANGE_C[0]) / 0.25)) + 1)
 
@@ -342,6 +352,18 @@ class ExtendedPlan:
         self.flags, self.scalars, self.axis = flags, sc, ax
         self.bias_on = bool(flags[:4].any())
         self.gain_on = bool(flags[4:].any())
+        self.buffers = None
+
+    def buffers_for(self, n):
+        """
+        Return (bias, gain) buffers for blocks of ``n``, (0, 3) for a kind with no term on.
+
+        One spare row: the kernel reads each row as four doubles.
+        """
+        if self.buffers is None:
+            self.buffers = (np.zeros((n + 1 if self.bias_on else 0, 3)),
+                            np.zeros((n + 1 if self.gain_on else 0, 3)))
+        return self.buffers
 
     def _scale_factor(self, ext, devices, cal_temp_c, sc, ax):
         st, sd, ss, p = (ext.get('scale_factor_temperature'), ext.get('scale_factor_time'),
@@ -357,27 +379,29 @@ class ExtendedPlan:
         self.table = np.zeros((3, 2, 2))
         if p:
             sc[X_PRATE] = p.pressure_rate_per_h / SECONDS_PER_HOUR
-            self.table = np.ascontiguousarray([pressure_table(d) for d in devices])
+            distinct = list(dict.fromkeys(devices))
+            # one table when every axis has the same device
+            self.table = np.ascontiguousarray([pressure_table(d) for d in (
+                distinct if len(distinct) == 1 else devices)])
         sc[X_LN_P0], sc[X_LN_P_STEP] = LN_P[0], LN_P[1] - LN_P[0]
-        sc[X_T0], sc[X_T_STEP] = TABLE_TEMP_C[0], TABLE_TEMP_C[1] - TABLE_TEMP_C[0]
+        sc[X_T0], sc[X_T_STEP] = TABLE_TEMP_C[0], 1.0 / (TABLE_TEMP_C[1] - TABLE_TEMP_C[0])
 
-    def evaluate(self, temp_c, state):
+    def evaluate(self, temp_c, state, bias, gain):
         """
-        Return (bias (n, 3), gain (n, 3)) of the samples at ``temp_c`` and the new state.
+        Write the bias and gain of the samples at ``temp_c`` and advance ``state``.
 
-        An array is (0, 3) when no term of its kind is on; ``state`` is not changed.
+        ``bias`` and ``gain`` are (>= n, 3) buffers whose first n rows are
+        written (only while a term of their kind is on: see ``bias_on``,
+        ``gain_on``); called block by block, the result does not depend on
+        the blocks.
         """
-        n = len(temp_c)
-        new = state.copy()
-        bias = np.zeros((n if self.bias_on else 0, 3))
-        gain = np.ones((n if self.gain_on else 0, 3))
-        _evaluate(temp_c, self.flags, self.scalars, self.axis, self.table, new, bias, gain)
-        return bias, gain, new
+        _evaluate(temp_c, self.flags, self.scalars, self.axis, self.table, P_CELLS, state,
+                  bias, gain)
 
 
 def new_state():
     """Return the state of a model before its first sample."""
-    return np.zeros(6)
+    return np.zeros(STATE_SIZE)
 
 
 def rebase(state, old_dt):
@@ -387,76 +411,127 @@ def rebase(state, old_dt):
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _pressure_factor(table, axis, temp, ln_p, sc):
-    """Bilinear interpolation of the pressure table of ``axis``."""
-    x = (ln_p - sc[X_LN_P0]) / sc[X_LN_P_STEP]
-    i = min(max(int(x), 0), table.shape[1] - 2)
-    f = min(max(x - i, 0.0), 1.0)
-    y = (temp - sc[X_T0]) / sc[X_T_STEP]
-    j = min(max(int(y), 0), table.shape[2] - 2)
-    g = min(max(y - j, 0.0), 1.0)
-    lo = table[axis, i, j] * (1.0 - g) + table[axis, i, j + 1] * g
-    hi = table[axis, i + 1, j] * (1.0 - g) + table[axis, i + 1, j + 1] * g
-    return lo * (1.0 - f) + hi * f
-
-
-@numba.njit(cache=True, error_model='numpy')
-def _evaluate(temp, on, sc, ax, table, state, bias, gain):
+def _evaluate(temp, on, sc, ax, table, cells, state, bias, gain):
     """One pass over the samples (equations: module docstring); updates ``state``."""
-    dt = sc[X_DT]
-    if state[Z_READY] == 0.0 and temp.shape[0] > 0:
+    dt, n = sc[X_DT], temp.shape[0]
+    if state[Z_READY] == 0.0 and n > 0:
         state[Z_PLAY], state[Z_LAG], state[Z_PREV] = temp[0], temp[0], temp[0]
         state[Z_READY] = 1.0
-    a_g = math.exp(-dt / sc[X_TAU_G]) if on[E_GRAD] else 0.0
-    c_g = sc[X_TAU_G] * (1.0 - a_g) / dt if on[E_GRAD] else 0.0
-    play, lag, prev = state[Z_PLAY], state[Z_LAG], state[Z_PREV]
-    for j in range(temp.shape[0]):
+    hyst, warm_on, bstep, grad = (on[E_HYST] != 0, on[E_TIME] != 0, on[E_BSTEP] != 0,
+                                  on[E_GRAD] != 0)
+    sft, sftime, sfstep, press = (on[E_SFT] != 0, on[E_SFTIME] != 0, on[E_SFSTEP] != 0,
+                                  on[E_PRESS] != 0)
+    bias_on, gain_on = hyst or warm_on or bstep or grad, sft or sftime or sfstep or press
+    a_g = math.exp(-dt / sc[X_TAU_G]) if grad else 0.0
+    c_g = sc[X_TAU_G] * (1.0 - a_g) / dt if grad else 0.0
+    q_w = math.exp(-dt / sc[X_TAU_W]) if warm_on else 0.0
+    play, lag, prev, warm = state[Z_PLAY], state[Z_LAG], state[Z_PREV], state[Z_WARM]
+    base, count, start = state[Z_BASE], state[Z_COUNT], sc[X_START]
+    width, tau_g, origin_b, t_bstep = sc[X_WIDTH], sc[X_TAU_G], sc[X_ORIGIN_B], sc[X_T_BSTEP]
+    inv_width = 1.0 / width if hyst else 0.0
+    inv_tau_g = 1.0 / tau_g if grad else 0.0
+    h, w, d, s, r = (_row(ax, R_HYST), _row(ax, R_WARM), _row(ax, R_DRIFT), _row(ax, R_BSTEP),
+                     _row(ax, R_GRAD))
+    anchored, icount = state[Z_WARM_READY] != 0.0, int(count)
+    for j in range(n if bias_on else 0):
         temp_j = temp[j]
-        elapsed = state[Z_BASE] + (state[Z_COUNT] + j) * dt
-        t = sc[X_START] + elapsed
-        if on[E_HYST]:
-            play = min(temp_j + sc[X_WIDTH], max(temp_j - sc[X_WIDTH], play))
-            rel = (play - temp_j) / sc[X_WIDTH]
-            for i in range(3):
-                bias[j, i] += ax[R_HYST, i] * rel
-        if on[E_TIME]:
-            warm = math.exp(-elapsed / sc[X_TAU_W])
-            th = (t - sc[X_ORIGIN_B]) / SECONDS_PER_HOUR
-            for i in range(3):
-                bias[j, i] += ax[R_WARM, i] * warm + ax[R_DRIFT, i] * th
-        if on[E_BSTEP] and t >= sc[X_T_BSTEP]:
-            for i in range(3):
-                bias[j, i] += ax[R_BSTEP, i]
-        if on[E_GRAD]:
+        elapsed = base + (count + j) * dt
+        t = start + elapsed
+        b0 = b1 = b2 = 0.0
+        if hyst:
+            play = min(temp_j + width, max(temp_j - width, play))
+            rel = (play - temp_j) * inv_width
+            b0, b1, b2 = h[0] * rel, h[1] * rel, h[2] * rel
+        if warm_on:
+            if anchored and (icount + j) & (WARMUP_ANCHOR - 1) != 0:
+                warm = warm * q_w
+            else:
+                warm, anchored = math.exp(-elapsed / sc[X_TAU_W]), True
+            th = (t - origin_b) * PER_HOUR
+            b0 += w[0] * warm + d[0] * th
+            b1 += w[1] * warm + d[1] * th
+            b2 += w[2] * warm + d[2] * th
+        if bstep and t >= t_bstep:
+            b0, b1, b2 = b0 + s[0], b1 + s[1], b2 + s[2]
+        if grad:
             lag = a_g * lag + (1.0 - c_g) * temp_j + (c_g - a_g) * prev
-            rate = (temp_j - lag) / sc[X_TAU_G]
-            for i in range(3):
-                bias[j, i] += ax[R_GRAD, i] * rate
+            rate = (temp_j - lag) * inv_tau_g
+            b0, b1, b2 = b0 + r[0] * rate, b1 + r[1] * rate, b2 + r[2] * rate
         prev = temp_j
-        _gain(gain, j, temp_j, t, elapsed, on, sc, ax, table)
-    state[Z_PLAY], state[Z_LAG], state[Z_PREV] = play, lag, prev
-    state[Z_COUNT] += temp.shape[0]
+        bias[j, 0], bias[j, 1], bias[j, 2] = b0, b1, b2
+    if gain_on:
+        _gains(temp, sft, sftime, sfstep, press, sc, ax, table, cells, base, count, gain)
+    state[Z_PLAY], state[Z_LAG], state[Z_PREV], state[Z_WARM] = play, lag, prev, warm
+    state[Z_WARM_READY] = 1.0 if anchored else 0.0
+    state[Z_COUNT] += n
+
+
+@numba.njit(cache=True, error_model='numpy', inline='always')
+def _row(ax, row):
+    return ax[row, 0], ax[row, 1], ax[row, 2]
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _gain(gain, j, temp, t, elapsed, on, sc, ax, table):
-    """Scale-factor multiplier of sample ``j`` (no-op when ``gain`` is empty)."""
-    if gain.shape[0] == 0:
-        return
-    th = (t - sc[X_ORIGIN_S]) / SECONDS_PER_HOUR
-    step = on[E_SFSTEP] and t >= sc[X_T_SFSTEP]
-    ln_p = 0.0
-    if on[E_PRESS]:
-        ln_p = math.log(min(max(1.0 + sc[X_PRATE] * elapsed, 0.05), 5.0))
-    for i in range(3):
-        rel = 1.0
-        if on[E_SFT]:
-            d = temp - ax[R_REF, i]
-            rel += ax[R_C1, i] * d + ax[R_C2, i] * d * d
-        if on[E_SFTIME]:
-            rel += ax[R_K1, i] * th + ax[R_K2, i] * th * th
-        if step:
-            rel += ax[R_SFSTEP, i]
-        if on[E_PRESS]:
-            rel *= _pressure_factor(table, i, temp, ln_p, sc)
-        gain[j, i] = rel
+def _pressure_cell(pressure, cells, sc):
+    """Return the cell i of the ln P grid with P_i <= P < P_i+1 (the last for P = 5)."""
+    p = min(max(pressure, 0.05), 5.0)
+    last = cells.shape[1] - 2
+    i = min(max(int((math.log(p) - sc[X_LN_P0]) / sc[X_LN_P_STEP]), 0), last)
+    while i > 0 and p < cells[0, i]:
+        i -= 1
+    while i < last and p >= cells[0, i + 1]:
+        i += 1
+    return i
+
+
+@numba.njit(cache=True, error_model='numpy')
+def _gains(temp, sft, sftime, sfstep, press, sc, ax, table, cells, base, count, gain):
+    """Write the scale-factor multiplier of every sample (equations: module docstring)."""
+    ref, c1, c2 = _row(ax, R_REF), _row(ax, R_C1), _row(ax, R_C2)
+    k1, k2, ks = _row(ax, R_K1), _row(ax, R_K2), _row(ax, R_SFSTEP)
+    dt, start, origin, t_step, rate = (sc[X_DT], sc[X_START], sc[X_ORIGIN_S], sc[X_T_SFSTEP],
+                                       sc[X_PRATE])
+    t0, t_scale, last, top = sc[X_T0], sc[X_T_STEP], cells.shape[1] - 2, table.shape[2] - 2
+    ip = _pressure_cell(1.0 + rate * (base + count * dt), cells, sc) if press else 0
+    shared = table.shape[0] == 1
+    for j in range(temp.shape[0]):
+        temp_j = temp[j]
+        elapsed = base + (count + j) * dt
+        t = start + elapsed
+        g0 = g1 = g2 = 1.0
+        if sft:
+            d0, d1, d2 = temp_j - ref[0], temp_j - ref[1], temp_j - ref[2]
+            g0 += c1[0] * d0 + c2[0] * d0 * d0
+            g1 += c1[1] * d1 + c2[1] * d1 * d1
+            g2 += c1[2] * d2 + c2[2] * d2 * d2
+        if sftime:
+            th = (t - origin) * PER_HOUR
+            g0 += k1[0] * th + k2[0] * th * th
+            g1 += k1[1] * th + k2[1] * th * th
+            g2 += k1[2] * th + k2[2] * th * th
+        if sfstep and t >= t_step:
+            g0, g1, g2 = g0 + ks[0], g1 + ks[1], g2 + ks[2]
+        if press:       # bilinear: linear in P within a cell of the ln P grid, and in T
+            p = min(max(1.0 + rate * elapsed, 0.05), 5.0)
+            while ip > 0 and p < cells[0, ip]:
+                ip -= 1
+            while ip < last and p >= cells[0, ip + 1]:
+                ip += 1
+            f = min((p - cells[0, ip]) * cells[1, ip], 1.0)
+            y = (temp_j - t0) * t_scale
+            it = min(max(int(y), 0), top)
+            u = min(max(y - it, 0.0), 1.0)
+            f0 = _bilinear(table, 0, ip, it, f, u)
+            if shared:  # one device on every axis: one table
+                g0, g1, g2 = g0 * f0, g1 * f0, g2 * f0
+            else:
+                g0, g1, g2 = (g0 * f0, g1 * _bilinear(table, 1, ip, it, f, u),
+                              g2 * _bilinear(table, 2, ip, it, f, u))
+        gain[j, 0], gain[j, 1], gain[j, 2] = g0, g1, g2
+
+
+@numba.njit(cache=True, error_model='numpy', inline='always')
+def _bilinear(table, i, ip, it, f, u):
+    lo = table[i, ip, it] * (1.0 - u) + table[i, ip, it + 1] * u
+    hi = table[i, ip + 1, it] * (1.0 - u) + table[i, ip + 1, it + 1] * u
+    return lo * (1.0 - f) + hi * f

@@ -81,9 +81,11 @@ def advance(rate, amb, accel, xbias, xgain, coef, state, normals, pos, out, star
     Advance the model over samples ``start:stop`` of a record.
 
     ``rate`` (n, 3), ``amb`` (n,) and ``accel`` ((n, 3), (1, 3) held, or
-    (0, 3) for none) are the whole record; ``xbias`` and ``xgain`` ((n, 3),
-    or (0, 3) for none) are the extended terms' additive bias and gain
-    multiplier (:mod:`gyro_emulator.sensor.extensions`); ``stop - start`` must not exceed
+    (0, 3) for none) are the whole record; ``xbias`` and ``xgain`` (rows 0 to
+    ``stop - start - 1`` for samples ``start:stop`` and at least one row
+    more, read four doubles at a time; or (0, 3) for none) are the extended
+    terms' additive bias and gain multiplier of the block
+    (:mod:`gyro_emulator.sensor.extensions`); ``stop - start`` must not exceed
     the unread normals of any used stream. The call with ``start == 0`` first
     computes and checks the die temperature of the WHOLE record: it returns
     1 + the index of the first one outside the model range, having written
@@ -174,9 +176,8 @@ def _samples(rate, accel, xbias, xgain, coef, state, normals, pos, out, start, s
     # spare lane touches the next row's first element, written later).
     wide = stop - start if stop < rate.shape[0] else stop - start - 1
     walk = _loop(rate[start:stop], accel if accel.shape[0] <= 1 else accel[start:stop],
-                 xbias[start:stop] if xbias.shape[0] else xbias,
-                 xgain[start:stop] if xgain.shape[0] else xgain, coef, state.ints, normals,
-                 pos, out, start, stop, wide, on, const, rows,
+                 xbias, xgain, coef, state.ints, normals, pos, out, start, stop, wide, on,
+                 const, rows,
                  lb, la, fl, dz, lz, vpack(state.rrw[0], state.rrw[1], state.rrw[2]))
     _lanes_out(fl, state.flicker)
     _lanes_out(dz, state.dyn_z)
@@ -227,8 +228,8 @@ def _loop(rate, accel, xbias, xgain, coef, ints, normals, pos, out, start, stop,
         elif on[F_SF]:
             g = (vpack(sf[tx, 0, c], sf[ty, 0, c], sf[tz, 0, c])
                  + u * vpack(sf[tx, 1, c], sf[ty, 1, c], sf[tz, 1, c])) * g
-        if use_xg:                      # extended terms' gain multiplier
-            g = g * vpack(xgain[j, 0], xgain[j, 1], xgain[j, 2])
+        if use_xg:                      # extended terms' gain multiplier (padded rows)
+            g = g * vget(xgain, j, stop)
         vput(gain, j, g, wide)
         s = x * g
         if on[F_DYN]:
@@ -237,8 +238,8 @@ def _loop(rate, accel, xbias, xgain, coef, ints, normals, pos, out, start, stop,
                 zd0, zd1, dyn_fresh, ints[I_DYN_READY] = vload4(dz, 0), vload4(dz, 1), False, 1
             s, zd0, zd1 = _tdf2(s, zd0, zd1, b0, b1, b2, a1, a2)
         e = _static_bias(d, turn_on, cal, c1, c2, on)
-        if use_xb:                      # extended terms' bias
-            e = e + vpack(xbias[j, 0], xbias[j, 1], xbias[j, 2])
+        if use_xb:                      # extended terms' bias (padded rows)
+            e = e + vget(xbias, j, stop)
         if use_g:
             e = e + (g_held if held else vsplat(accel[j, 0]) * g0 + vsplat(accel[j, 1]) * g1
                      + vsplat(accel[j, 2]) * g2)

@@ -241,6 +241,7 @@ class GyroModel:
         st.kernel = state
         self._plan = plan
         self._ext = None
+        st.extended[extensions.Z_WARM_READY] = 0.0     # re-anchor the warm-up exponential
         if config.extended.active():
             self._ext = extensions.ExtendedPlan(config.extended, config.device,
                                                 plan.cal_temp_c, self.dt_s)
@@ -431,12 +432,15 @@ class GyroModel:
         plan, st = self._plan, self._state
         accel = _NO_ACCEL if accel is None else _kernel_input(accel)
         xbias = xgain = _NO_ACCEL
-        if self._ext is not None:
-            xbias, xgain, ext_state = self._ext.evaluate(temp, st.extended)
+        ext, ext_state = self._ext, st.extended.copy()
+        if ext is not None:
+            xbias, xgain = ext.buffers_for(streams.BLOCK)
         normals = st.normals
         for start in range(0, n, streams.BLOCK):
             stop = min(start + streams.BLOCK, n)
             normals.reserve(plan.streams, stop - start)
+            if ext is not None:
+                ext.evaluate(temp[start:stop], ext_state, xbias, xgain)
             bad = kernel.advance(rate, temp, accel, xbias, xgain, plan.coefficients, st.kernel,
                                  normals.buffer, normals.pos, out, start, stop)
             if bad:
@@ -444,10 +448,9 @@ class GyroModel:
                 raise ValueError(f'GyroModel: die temperature {float(out.die[bad - 1]):g} C '
                                  '(ambient + self_heating_c) is out of range: allowed '
                                  f'[{lo}, {hi}] C')
-        if self._ext is not None:
-            st.extended = ext_state
-        else:   # the record time runs on while the extended terms are off
-            st.extended[extensions.Z_COUNT] += n
+        if ext is None:     # the record time runs on while the extended terms are off
+            ext_state[extensions.Z_COUNT] += n
+        st.extended = ext_state
         return fields
 
     def _check_temp(self, temp):
