@@ -182,3 +182,46 @@ def test_copy_continues_identically():
     twin = model.copy()
     a, b = model.run(RATE[500:], TEMP[500:]), twin.run(RATE[500:], TEMP[500:])
     assert np.array_equal(a.gyro_rad_s, b.gyro_rad_s)
+
+
+#: Each term with the figures diagnose must find in the emulator's output.
+DIAGNOSE_CASES = {
+    'bias_hysteresis': ex.BiasHysteresis(2.0, 2e-3),
+    'bias_time': ex.BiasTime(900.0, 3e-3, 1e-3, 7200.0),
+    'bias_step': ex.BiasStep(5000.0, 2e-3),
+    'scale_factor_step': ex.ScaleFactorStep(5000.0, 3e-3),
+    'scale_factor_temperature': ex.ScaleFactorTemperature(1e-4, 2e-6),
+    'scale_factor_time': ex.ScaleFactorTime(2e-3, 0.0, 7200.0),
+    'pressure_drift': ex.PressureDrift(0.2),
+    'temperature_rate_bias': ex.TemperatureRateBias(60.0, 0.05),
+}
+
+
+@pytest.mark.parametrize('name', list(DIAGNOSE_CASES))
+def test_diagnose_finds_the_term_with_its_parameters(name):
+    """The emulator's term, diagnosed: the same cause, parameters and units (issue 24)."""
+    from gyro_emulator.analysis.diagnose.data import MeasuredData
+    from gyro_emulator.analysis.diagnose.pipeline import diagnose
+    fs = 10.0
+    t = np.arange(int(4 * 3600 * fs)) / fs
+    temp = 25.0 + 30.0 * np.clip(1.5 * np.sin(2 * np.pi * t / 5400.0), -1.0, 1.0)
+    rate = 0.5 * np.sign(np.sin(2 * np.pi * t / 60.0))
+    term = DIAGNOSE_CASES[name]
+    config = replace(SensorConfig.ideal().with_terms(scale_factor_temperature=True,
+                                                     electronics_noise=True),
+                     electronics_noise_rad_s_sqrt_hz=1e-4,
+                     extended=ex.ExtendedTerms(**{name: term}))
+    out = GyroModel(config, fs, np.random.default_rng(2)).run(
+        np.column_stack([0 * t, 0 * t, rate]), temp)
+    doc = diagnose(MeasuredData(t, rate, temp, out.gyro_rad_s[:, 2]), effects=[name]).doc
+    assert doc['verdict'] == 'explained' and [s['effect'] for s in doc['selected']] == [name]
+    found = {k: v['value'] for k, v in doc['selected'][0]['parameters'].items()}
+    for key, value in found.items():
+        planted = getattr(term, key)
+        planted = planted[2] if isinstance(planted, tuple) else planted
+        if key == 'step_time_s':
+            assert abs(value - planted) <= 1.0, (key, value, planted)
+        elif planted == 0.0:
+            assert abs(value) < 1e-5, (key, value)
+        else:
+            assert value == pytest.approx(planted, rel=0.06), (key, value, planted)
