@@ -157,11 +157,12 @@ class SensorConfig:
     The output of axis i is (see :mod:`gyro_emulator.sensor.model`)::
 
         x     = (I + misalignment) omega
-        s     = H_sense[ SF_i(T_die) (1 + scale_factor_error_i) (x_i + nonlinearity_i x_i^2) ]
-        bias  = turn_on + c1 dT + c2 dT^2 + G a + flicker(B) + random walk(K)
+        s     = H_sense[ SF_i(T_die) (1 + scale_factor_error_i) s_x (x_i + nonlinearity_i x_i^2) ]
+        bias  = turn_on + c1 dT + c2 dT^2 + G a + flicker(B) + random walk(K) + b_x
         y     = Q( sat( H_filter[ s + bias + white(N_mech(T_die), N_elec) ] ) )
 
-    with dT = T_die - calibration temperature of the axis's device.
+    with dT = T_die - calibration temperature of the axis's device, and b_x,
+    s_x the extended terms (0 and 1 unless ``extended`` sets some).
 
     Attributes
     ----------

@@ -42,6 +42,17 @@ sample, ``t = start_time_s + elapsed``; ``th = (t - time_origin_s) / 3600``)::
 The model adds b_x to the bias and multiplies the gain by s_x inside the
 compiled kernel (:mod:`gyro_emulator.sensor.kernel`), so they pass the sense
 dynamics, output filter, saturation and quantisation like the other terms.
+They are evaluated block by block by a compiled pass of their own
+(:func:`_evaluate`) whose state (play, lag, record time) lives in the model,
+so :meth:`GyroModel.run` in any blocks equals :meth:`GyroModel.step` sample
+by sample, bit for bit. In a sensor YAML (per-axis amplitudes: a number or
+three)::
+
+    extended:
+      start_time_s: 0.0                 # record time of the first sample
+      bias_hysteresis: {hysteresis_width_k: 2.0, bias_hysteresis_rad_s: 2.0e-3}
+      pressure_drift: {pressure_rate_per_h: 0.2}
+      bias_step: {step_time_s: 5000.0, bias_step_rad_s: [2.0e-3, 0, 0], enabled: false}
 """
 
 from dataclasses import dataclass, fields

@@ -32,6 +32,9 @@ specific force a; SI units)::
 * The die temperature follows T[n] = phi T[n-1] + (1 - phi) T_target[n],
   phi = exp(-dt / tau): the exact response of a first-order lag to an input
   held over each sample period.
+* The extended terms (``SensorConfig.extended``, all off by default: the
+  causes diagnose names, :mod:`gyro_emulator.sensor.extensions`) add a bias
+  b_x to b_i and multiply g_i by s_x; with none on, that stage is skipped.
 * Latency, timestamp jitter and clock drift do not change the samples; they
   are reported per sample in ``output_delay_s`` for the publisher to stamp.
 
@@ -432,8 +435,9 @@ class GyroModel:
         plan, st = self._plan, self._state
         accel = _NO_ACCEL if accel is None else _kernel_input(accel)
         xbias = xgain = _NO_ACCEL
-        ext, ext_state = self._ext, st.extended.copy()
-        if ext is not None:
+        ext = self._ext
+        if ext is not None:     # evaluated on a copy of the state, kept on success
+            ext_state = st.extended.copy()
             xbias, xgain = ext.buffers_for(streams.BLOCK)
         normals = st.normals
         for start in range(0, n, streams.BLOCK):
@@ -449,8 +453,9 @@ class GyroModel:
                                  '(ambient + self_heating_c) is out of range: allowed '
                                  f'[{lo}, {hi}] C')
         if ext is None:     # the record time runs on while the extended terms are off
-            ext_state[extensions.Z_COUNT] += n
-        st.extended = ext_state
+            st.extended[extensions.Z_COUNT] += n
+        else:
+            st.extended = ext_state
         return fields
 
     def _check_temp(self, temp):
