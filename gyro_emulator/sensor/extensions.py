@@ -60,6 +60,7 @@ import functools
 import math
 
 from gyro_emulator.physics import first_order
+from gyro_emulator.sensor.simd import vpack, vrow, vsplat, vstore4
 from gyro_emulator.units import SECONDS_PER_HOUR
 from gyro_emulator.validation import check_range, MODEL_TEMP_RANGE_C
 import numba
@@ -441,45 +442,36 @@ def _evaluate(temp, on, sc, ax, table, cells, state, bias, gain):
     width, tau_g, origin_b, t_bstep = sc[X_WIDTH], sc[X_TAU_G], sc[X_ORIGIN_B], sc[X_T_BSTEP]
     inv_width = 1.0 / width if hyst else 0.0
     inv_tau_g = 1.0 / tau_g if grad else 0.0
-    h, w, d, s, r = (_row(ax, R_HYST), _row(ax, R_WARM), _row(ax, R_DRIFT), _row(ax, R_BSTEP),
-                     _row(ax, R_GRAD))
+    h, w, d, s, r = (vrow(ax, R_HYST), vrow(ax, R_WARM), vrow(ax, R_DRIFT), vrow(ax, R_BSTEP),
+                     vrow(ax, R_GRAD))
+    zero = vsplat(0.0)
     anchored, icount = state[Z_WARM_READY] != 0.0, int(count)
     for j in range(n if bias_on else 0):
         temp_j = temp[j]
         elapsed = base + (count + j) * dt
         t = start + elapsed
-        b0 = b1 = b2 = 0.0
+        e = zero
         if hyst:
             play = min(temp_j + width, max(temp_j - width, play))
-            rel = (play - temp_j) * inv_width
-            b0, b1, b2 = h[0] * rel, h[1] * rel, h[2] * rel
+            e = h * vsplat((play - temp_j) * inv_width)
         if warm_on:
             if anchored and (icount + j) & (WARMUP_ANCHOR - 1) != 0:
                 warm = warm * q_w
             else:
                 warm, anchored = math.exp(-elapsed / sc[X_TAU_W]), True
-            th = (t - origin_b) * PER_HOUR
-            b0 += w[0] * warm + d[0] * th
-            b1 += w[1] * warm + d[1] * th
-            b2 += w[2] * warm + d[2] * th
+            e = e + (w * vsplat(warm) + d * vsplat((t - origin_b) * PER_HOUR))
         if bstep and t >= t_bstep:
-            b0, b1, b2 = b0 + s[0], b1 + s[1], b2 + s[2]
+            e = e + s
         if grad:
             lag = a_g * lag + (1.0 - c_g) * temp_j + (c_g - a_g) * prev
-            rate = (temp_j - lag) * inv_tau_g
-            b0, b1, b2 = b0 + r[0] * rate, b1 + r[1] * rate, b2 + r[2] * rate
+            e = e + r * vsplat((temp_j - lag) * inv_tau_g)
         prev = temp_j
-        bias[j, 0], bias[j, 1], bias[j, 2] = b0, b1, b2
+        vstore4(bias, j, e)     # the spare lane goes to the next row, written next
     if gain_on:
         _gains(temp, sft, sftime, sfstep, press, sc, ax, table, cells, base, count, gain)
     state[Z_PLAY], state[Z_LAG], state[Z_PREV], state[Z_WARM] = play, lag, prev, warm
     state[Z_WARM_READY] = 1.0 if anchored else 0.0
     state[Z_COUNT] += n
-
-
-@numba.njit(cache=True, error_model='numpy', inline='always')
-def _row(ax, row):
-    return ax[row, 0], ax[row, 1], ax[row, 2]
 
 
 @numba.njit(cache=True, error_model='numpy')
@@ -498,8 +490,8 @@ def _pressure_cell(pressure, cells, sc):
 @numba.njit(cache=True, error_model='numpy')
 def _gains(temp, sft, sftime, sfstep, press, sc, ax, table, cells, base, count, gain):
     """Write the scale-factor multiplier of every sample (equations: module docstring)."""
-    ref, c1, c2 = _row(ax, R_REF), _row(ax, R_C1), _row(ax, R_C2)
-    k1, k2, ks = _row(ax, R_K1), _row(ax, R_K2), _row(ax, R_SFSTEP)
+    ref, c1, c2 = vrow(ax, R_REF), vrow(ax, R_C1), vrow(ax, R_C2)
+    k1, k2, ks, one = vrow(ax, R_K1), vrow(ax, R_K2), vrow(ax, R_SFSTEP), vsplat(1.0)
     dt, start, origin, t_step, rate = (sc[X_DT], sc[X_START], sc[X_ORIGIN_S], sc[X_T_SFSTEP],
                                        sc[X_PRATE])
     t0, t_scale, last, top = sc[X_T0], sc[X_T_STEP], cells.shape[1] - 2, table.shape[2] - 2
@@ -509,19 +501,15 @@ def _gains(temp, sft, sftime, sfstep, press, sc, ax, table, cells, base, count, 
         temp_j = temp[j]
         elapsed = base + (count + j) * dt
         t = start + elapsed
-        g0 = g1 = g2 = 1.0
+        g = one
         if sft:
-            d0, d1, d2 = temp_j - ref[0], temp_j - ref[1], temp_j - ref[2]
-            g0 += c1[0] * d0 + c2[0] * d0 * d0
-            g1 += c1[1] * d1 + c2[1] * d1 * d1
-            g2 += c1[2] * d2 + c2[2] * d2 * d2
+            d = vsplat(temp_j) - ref
+            g = g + (c1 * d + c2 * d * d)
         if sftime:
-            th = (t - origin) * PER_HOUR
-            g0 += k1[0] * th + k2[0] * th * th
-            g1 += k1[1] * th + k2[1] * th * th
-            g2 += k1[2] * th + k2[2] * th * th
+            th = vsplat((t - origin) * PER_HOUR)
+            g = g + (k1 * th + k2 * th * th)
         if sfstep and t >= t_step:
-            g0, g1, g2 = g0 + ks[0], g1 + ks[1], g2 + ks[2]
+            g = g + ks
         if press:       # bilinear: linear in P within a cell of the ln P grid, and in T
             p = min(max(1.0 + rate * elapsed, 0.05), 5.0)
             while ip > 0 and p < cells[0, ip]:
@@ -534,11 +522,11 @@ def _gains(temp, sft, sftime, sfstep, press, sc, ax, table, cells, base, count, 
             u = min(max(y - it, 0.0), 1.0)
             f0 = _bilinear(table, 0, ip, it, f, u)
             if shared:  # one device on every axis: one table
-                g0, g1, g2 = g0 * f0, g1 * f0, g2 * f0
+                g = g * vsplat(f0)
             else:
-                g0, g1, g2 = (g0 * f0, g1 * _bilinear(table, 1, ip, it, f, u),
-                              g2 * _bilinear(table, 2, ip, it, f, u))
-        gain[j, 0], gain[j, 1], gain[j, 2] = g0, g1, g2
+                g = g * vpack(f0, _bilinear(table, 1, ip, it, f, u),
+                              _bilinear(table, 2, ip, it, f, u))
+        vstore4(gain, j, g)     # the spare lane goes to the next row, written next
 
 
 @numba.njit(cache=True, error_model='numpy', inline='always')
