@@ -225,3 +225,23 @@ def test_diagnose_finds_the_term_with_its_parameters(name):
             assert abs(value) < 1e-5, (key, value)
         else:
             assert value == pytest.approx(planted, rel=0.06), (key, value, planted)
+
+
+RANGE_CASES = [(cause, name, spec) for cause, cls in ex.TERM_TYPES.items()
+               for name, spec in cls.RANGES.items()]
+
+
+@pytest.mark.parametrize('cause, name, spec', RANGE_CASES,
+                         ids=[f'{c}.{n}' for c, n, _ in RANGE_CASES])
+def test_every_extended_field_is_checked_against_its_range(cause, name, spec):
+    """Each bound: inside is accepted; just outside is a one-line error naming field and range."""
+    kind, low, high = spec[:3]
+    cls = ex.TERM_TYPES[cause]
+    for bound, outside in ((low, low - 1e-3 * max(1.0, abs(low))),
+                           (high, high + 1e-3 * max(1.0, abs(high)))):
+        inside = bound if kind != 'open' or bound != low else 0.5 * (low + high)
+        cls(**{name: inside})
+        with pytest.raises(ValueError) as err:
+            cls(**{name: outside})
+        text = str(err.value)
+        assert f'{cls.__name__}.{name} = ' in text and 'allowed' in text and '\n' not in text
