@@ -26,12 +26,15 @@ sample drawn alone on its SFC64 streams:
 and the start-up time of a fresh process (import, model, first sample)
 with an empty numba cache (JIT compile) and with the cache filled. Targets
 (issue 16): >= 7.5 million 3-axis samples per CPU-second in batch, and at
-least 0.7 of the RNG floor measured in the same run.
+least 0.7 of the RNG floor measured in the same run; with the 8 extended
+terms of :mod:`gyro_emulator.sensor.extensions` on, within 15 % of that
+(issue 24).
 
 Usage: ``.venv/bin/python bench/bench_sensor.py [--samples N] [--json PATH]``
 """
 
 import argparse
+from dataclasses import replace
 import json
 import math
 import os
@@ -45,13 +48,24 @@ os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 
 from gyro_emulator import units  # noqa: E402
 from gyro_emulator.physics import dynamics, first_order  # noqa: E402
-from gyro_emulator.sensor import noise, streams  # noqa: E402
+from gyro_emulator.sensor import extensions as ext, noise, streams  # noqa: E402
 from gyro_emulator.sensor.config import load_sensor_config  # noqa: E402
 from gyro_emulator.sensor.model import GyroModel, TemperatureTable  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import signal  # noqa: E402
 
 FS = 200.0
+
+#: Every extended term on (sensor.extensions), with the figures of a real part.
+EXTENDED = ext.ExtendedTerms(
+    bias_hysteresis=ext.BiasHysteresis(1.5, 2e-4),
+    bias_time=ext.BiasTime(600.0, 1e-3, 1e-4, 3600.0),
+    bias_step=ext.BiasStep(2000.0, 5e-4),
+    temperature_rate_bias=ext.TemperatureRateBias(60.0, 0.05),
+    pressure_drift=ext.PressureDrift(0.05),
+    scale_factor_temperature=ext.ScaleFactorTemperature(1e-4, 1e-6),
+    scale_factor_time=ext.ScaleFactorTime(1e-4, 1e-5, 3600.0),
+    scale_factor_step=ext.ScaleFactorStep(4000.0, 1e-3))
 
 
 def inputs(n):
@@ -200,6 +214,11 @@ def main():
     model.run(rate[:50_000], temp[:50_000], accel[:50_000])          # warm up
     t_batch = best_of(3, lambda: GyroModel(config, FS, np.random.default_rng(1)).run(
         rate, temp, accel))
+    extended = replace(config, extended=EXTENDED)
+    GyroModel(extended, FS, np.random.default_rng(0)).run(
+        rate[:50_000], temp[:50_000], accel[:50_000])
+    t_extended = best_of(3, lambda: GyroModel(extended, FS, np.random.default_rng(1)).run(
+        rate, temp, accel))
 
     n = args.step_samples
     model = GyroModel(config, FS, np.random.default_rng(1))
@@ -229,6 +248,7 @@ def main():
         cold = startup_s(cache)
         warm = min(startup_s(cache) for _ in range(2))
     rows = (('batch GyroModel.run', args.samples, t_batch),
+            ('batch, + 8 extended terms', args.samples, t_extended),
             ('streaming GyroModel.step', n, t_step),
             ('naive per-sample Python loop', n_naive, t_naive))
     load = os.getloadavg()[0] if hasattr(os, 'getloadavg') else float('nan')
@@ -254,6 +274,11 @@ def main():
           f'({batch_cpu / 7.5e6:.2f} of target per CPU-second); batch / RNG floor '
           f'{batch_cpu / floor_cpu:.2f} (target 0.70: '
           f'{"met" if batch_cpu >= 0.7 * floor_cpu else "NOT met"})')
+    ext_cpu = args.samples / t_extended[1]
+    print(f'batch with the 8 extended terms on (sensor.extensions): {ext_cpu:,.0f} samples '
+          f'per CPU-second, {ext_cpu / floor_cpu:.2f} of the RNG floor, '
+          f'{100 * (1 - ext_cpu / batch_cpu):.1f} % below the batch without them (target: '
+          f'within 15 %: {"met" if ext_cpu >= 0.85 * batch_cpu else "NOT met"})')
     print(f'start-up of a fresh process (wall): import {cold[0]:.2f} s + model and first '
           f'sample {cold[1]:.2f} s with an empty numba cache (JIT compile); import '
           f'{warm[0]:.2f} s + {warm[1]:.2f} s cached')
@@ -265,6 +290,7 @@ def main():
         figures['rng_floor_samples_per_s'] = floor_cpu
         figures['batch_over_rng_floor'] = batch_cpu / floor_cpu
         figures['compiled_draw_samples_per_s'] = compiled_cpu
+        figures['batch_extended_samples_per_s'] = ext_cpu
         figures['batch_over_compiled_draw'] = batch_cpu / compiled_cpu
         figures['startup_cold_s'] = list(cold)
         figures['startup_cached_s'] = list(warm)

@@ -801,3 +801,26 @@ def test_a_main_job_stopped_by_ctrl_c_says_the_scenario_was_interrupted(tmp_path
     assert 's of 8 s, in step 2 of 2: step 2 was not finished' in text, text
     doc = json.loads((out / 'summary.json').read_text())
     assert doc['interrupted'].startswith('interrupted at 4.')
+
+
+def test_node_publishes_the_extended_terms_of_its_sensor_config(tmp_path):
+    """sensor_config with an extended term: the node's output carries it (issue 24)."""
+    path = str(tmp_path / 'part.yaml')
+    with open(path, 'w') as handle:
+        yaml.safe_dump({'terms': dict.fromkeys(sensor_config.ErrorTerms.names(), False),
+                        'extended': {'bias_step': {'step_time_s': 0.0,
+                                                   'bias_step_rad_s': [0.25, -0.5, 0.0]}}},
+                       handle)
+    env = ros_env()
+    node = NodeProcess(env, str(tmp_path / 'node.log'), '-r', '__ns:=/ext', '-p',
+                       f'sensor_config:={path}', '-p', 'rate_hz:=100')
+    probe = Probe(env)
+    try:
+        imu = probe.listen(Imu, '/ext/imu/data_raw')
+        probe.spin_until(lambda: len(imu) > 20, 30.0, 'Imu messages of the extended part')
+        rates = np.array([vector(m.angular_velocity) for m in imu])
+        np.testing.assert_allclose(rates, np.tile([0.25, -0.5, 0.0], (len(rates), 1)),
+                                   atol=1e-12)
+    finally:
+        probe.close()
+        node.stop()

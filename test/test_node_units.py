@@ -553,3 +553,17 @@ def test_fault_state_moves_pending_active_ended_and_follows_a_jump_back():
     # Ends 20 ms of fault time after it began: at k = 30, on the new time line.
     assert seen == [('pending', 0), ('active', 10 * ms), ('ended', 15 * ms)]
     assert published and pinned is None
+
+
+def test_extended_terms_come_from_sensor_config_and_survive_the_parameters(tmp_path):
+    """The extended terms are structural: read from the YAML, never a sensor.* parameter."""
+    path = tmp_path / 'part.yaml'
+    path.write_text('extended:\n  bias_step: {step_time_s: 2.0, bias_step_rad_s: 0.01}\n')
+    base = sensor_config.load_sensor_config(str(path))
+    values = params.sensor_param_values(base)
+    assert not any(name.startswith('sensor.extended') for name in values)
+    values['sensor.lsb_rad_s'] = [0.0, 0.0, 0.0]
+    config = params.apply_sensor_params(base, values)
+    assert config.extended == base.extended and config.extended.active() == ('bias_step',)
+    with pytest.raises(ValueError, match='unknown error-model parameter'):
+        params.apply_sensor_params(base, {'sensor.extended': 1.0})

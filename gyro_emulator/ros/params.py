@@ -14,7 +14,10 @@ Two families of parameters:
   the values of the configuration named by ``sensor_config`` (a preset or a
   YAML path), so choosing a preset never fights hard-coded numbers; a params
   file may override any of them. 3x3 matrices are 9 numbers, row-major;
-  ``sensor.initial_die_temp_c`` = NaN means "in equilibrium".
+  ``sensor.initial_die_temp_c`` = NaN means "in equilibrium". The extended
+  terms (``SensorConfig.extended``, :mod:`gyro_emulator.sensor.extensions`)
+  are structural: they come from the ``sensor_config`` YAML only and are not
+  parameters (a changed ``sensor.*`` parameter keeps them).
 
 Descriptors carry ranges for rclpy to enforce; :func:`check_value` adds the
 choices and the message format used everywhere (field, value, allowed range).
@@ -177,6 +180,8 @@ NODE_SPECS = {spec.name: spec for spec in NODE_PARAMS}
 
 #: One line per SensorConfig field for the parameter descriptors.
 SENSOR_DESCRIPTIONS = {
+    'extended': 'Extended terms (sensor.extensions: the causes diagnose names); structural: '
+                'set in the sensor_config YAML under extended:, not a runtime parameter',
     'device': 'Physics device of every axis: a physics preset name (paper, '
               'paper_sutherland, paper_sealed); empty = the sensor_config one',
     'mode_split_hz': 'Drive/sense frequency split of the sense dynamics (x, y, z), Hz',
@@ -369,7 +374,10 @@ def node_defaults(path=None):
 # --- the error model as parameters ------------------------------------------
 
 def _config_fields():
-    return [f.name for f in fields(sensor_config.SensorConfig) if f.name != 'terms']
+    # ``extended`` (sensor.extensions) is structural: it comes from the
+    # sensor_config YAML only and is not a runtime parameter.
+    return [f.name for f in fields(sensor_config.SensorConfig)
+            if f.name not in ('terms', 'extended')]
 
 
 def sensor_param_values(config):

@@ -24,6 +24,7 @@ from gyro_emulator import units
 from gyro_emulator.physics.params import Device, from_mapping
 from gyro_emulator.physics.presets import DEFAULT_PRESET, physics_preset, PHYSICS_PRESETS
 from gyro_emulator.resources import config_dir, read_yaml
+from gyro_emulator.sensor.extensions import ExtendedTerms
 from gyro_emulator.validation import check_range
 import numpy as np
 
@@ -156,11 +157,12 @@ class SensorConfig:
     The output of axis i is (see :mod:`gyro_emulator.sensor.model`)::
 
         x     = (I + misalignment) omega
-        s     = H_sense[ SF_i(T_die) (1 + scale_factor_error_i) (x_i + nonlinearity_i x_i^2) ]
-        bias  = turn_on + c1 dT + c2 dT^2 + G a + flicker(B) + random walk(K)
+        s     = H_sense[ SF_i(T_die) (1 + scale_factor_error_i) s_x (x_i + nonlinearity_i x_i^2) ]
+        bias  = turn_on + c1 dT + c2 dT^2 + G a + flicker(B) + random walk(K) + b_x
         y     = Q( sat( H_filter[ s + bias + white(N_mech(T_die), N_elec) ] ) )
 
-    with dT = T_die - calibration temperature of the axis's device.
+    with dT = T_die - calibration temperature of the axis's device, and b_x,
+    s_x the extended terms (0 and 1 unless ``extended`` sets some).
 
     Attributes
     ----------
@@ -197,6 +199,10 @@ class SensorConfig:
         clock error.
     initial_die_temp_c : float or None
         Die temperature at the first sample (None: in equilibrium with it).
+    extended : ExtendedTerms
+        The terms of the causes diagnose names beyond these (bias hysteresis,
+        polynomials in time, steps, pressure drift, ...; all off by default:
+        :mod:`gyro_emulator.sensor.extensions`). YAML key ``extended``.
 
     """
 
@@ -226,10 +232,15 @@ class SensorConfig:
     timestamp_jitter_s: float = 0.0
     clock_drift_ppm: float = 0.0
     initial_die_temp_c: float = None
+    extended: ExtendedTerms = field(default_factory=ExtendedTerms)
 
     def __post_init__(self):
         """Normalise per-axis fields to tuples and validate every field."""
         object.__setattr__(self, 'device', _devices(self.device))
+        if not isinstance(self.extended, ExtendedTerms):
+            raise ValueError(
+                f'SensorConfig.extended = {self.extended!r} is not allowed: expected '
+                'an ExtendedTerms')
         if not isinstance(self.terms, ErrorTerms):
             raise ValueError(
                 f'SensorConfig.terms = {self.terms!r} is not allowed: expected '
@@ -462,6 +473,11 @@ def config_from_mapping(mapping, source=''):
                     f'{source}: unknown term(s) {", ".join(map(str, unknown))} in terms;'
                     f' allowed: {", ".join(ErrorTerms.names())}')
             kwargs['terms'] = ErrorTerms(**value)
+        elif key == 'extended':
+            try:
+                kwargs['extended'] = ExtendedTerms.from_mapping(value or {}, 'extended')
+            except (TypeError, ValueError) as exc:
+                raise ValueError(f'{source}: {exc}') from None
         elif key in field_names:
             if key in kwargs:
                 raise ValueError(f'{source}: {key} is set twice (directly and by an '

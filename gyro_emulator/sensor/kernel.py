@@ -76,12 +76,16 @@ def consumed_streams(flags):
 
 
 @numba.njit(cache=True, error_model='numpy')
-def advance(rate, amb, accel, coef, state, normals, pos, out, start, stop):
+def advance(rate, amb, accel, xbias, xgain, coef, state, normals, pos, out, start, stop):
     """
     Advance the model over samples ``start:stop`` of a record.
 
     ``rate`` (n, 3), ``amb`` (n,) and ``accel`` ((n, 3), (1, 3) held, or
-    (0, 3) for none) are the whole record; ``stop - start`` must not exceed
+    (0, 3) for none) are the whole record; ``xbias`` and ``xgain`` (rows 0 to
+    ``stop - start - 1`` for samples ``start:stop`` and at least one row
+    more, read four doubles at a time; or (0, 3) for none) are the extended
+    terms' additive bias and gain multiplier of the block
+    (:mod:`gyro_emulator.sensor.extensions`); ``stop - start`` must not exceed
     the unread normals of any used stream. The call with ``start == 0`` first
     computes and checks the die temperature of the WHOLE record: it returns
     1 + the index of the first one outside the model range, having written
@@ -91,7 +95,7 @@ def advance(rate, amb, accel, coef, state, normals, pos, out, start, stop):
         bad = _die_temperatures(amb, coef, state, out.die)
         if bad:
             return bad
-    _samples(rate, accel, coef, state, normals, pos, out, start, stop)
+    _samples(rate, accel, xbias, xgain, coef, state, normals, pos, out, start, stop)
     n = stop - start
     for k in coef.streams:
         pos[k] += n
@@ -133,7 +137,7 @@ def _switches(flags):
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _samples(rate, accel, coef, state, normals, pos, out, start, stop):
+def _samples(rate, accel, xbias, xgain, coef, state, normals, pos, out, start, stop):
     """
     Every term of samples ``start:stop``, whose die temperatures are in ``out.die``.
 
@@ -172,7 +176,8 @@ def _samples(rate, accel, coef, state, normals, pos, out, start, stop):
     # spare lane touches the next row's first element, written later).
     wide = stop - start if stop < rate.shape[0] else stop - start - 1
     walk = _loop(rate[start:stop], accel if accel.shape[0] <= 1 else accel[start:stop],
-                 coef, state.ints, normals, pos, out, start, stop, wide, on, const, rows,
+                 xbias, xgain, coef, state.ints, normals, pos, out, start, stop, wide, on,
+                 const, rows,
                  lb, la, fl, dz, lz, vpack(state.rrw[0], state.rrw[1], state.rrw[2]))
     _lanes_out(fl, state.flicker)
     _lanes_out(dz, state.dyn_z)
@@ -184,8 +189,8 @@ def _samples(rate, accel, coef, state, normals, pos, out, start, stop):
 
 
 @numba.njit(cache=True, error_model='numpy')
-def _loop(rate, accel, coef, ints, normals, pos, out, start, stop, wide, on, const, rows,
-          lb, la, fl, dz, lz, walk):
+def _loop(rate, accel, xbias, xgain, coef, ints, normals, pos, out, start, stop, wide, on,
+          const, rows, lb, la, fl, dz, lz, walk):
     """Run the per-sample pass of :func:`_samples` (equations: sensor.model)."""
     (sf1, nl, cal, c1, c2, turn_on, fb, walk_step, elec, sigma, lsb, quantise, full, limit,
      neg_limit, sqrt_fs, g_held) = const
@@ -199,6 +204,7 @@ def _loop(rate, accel, coef, ints, normals, pos, out, start, stop, wide, on, con
     low_c, steps, last_cell = (coef.scalars[S_LOW_C], coef.scalars[S_STEPS],
                                (sf.shape[2] if on[F_SF] else mech.shape[2]) - 2)
     use_g, held = on[F_GSENS] and accel.shape[0] > 0, accel.shape[0] == 1
+    use_xb, use_xg = xbias.shape[0] > 0, xgain.shape[0] > 0
     phi, gains, sections = coef.flicker_phi, coef.flicker_gains, fl.shape[0]
     ps, qs, xs = _section_lanes(phi, gains, fl)
     lpf = lb.shape[0] - 1 if on[F_LPF] else 0
@@ -222,6 +228,8 @@ def _loop(rate, accel, coef, ints, normals, pos, out, start, stop, wide, on, con
         elif on[F_SF]:
             g = (vpack(sf[tx, 0, c], sf[ty, 0, c], sf[tz, 0, c])
                  + u * vpack(sf[tx, 1, c], sf[ty, 1, c], sf[tz, 1, c])) * g
+        if use_xg:                      # extended terms' gain multiplier (padded rows)
+            g = g * vget(xgain, j, stop)
         vput(gain, j, g, wide)
         s = x * g
         if on[F_DYN]:
@@ -230,6 +238,8 @@ def _loop(rate, accel, coef, ints, normals, pos, out, start, stop, wide, on, con
                 zd0, zd1, dyn_fresh, ints[I_DYN_READY] = vload4(dz, 0), vload4(dz, 1), False, 1
             s, zd0, zd1 = _tdf2(s, zd0, zd1, b0, b1, b2, a1, a2)
         e = _static_bias(d, turn_on, cal, c1, c2, on)
+        if use_xb:                      # extended terms' bias (padded rows)
+            e = e + vget(xbias, j, stop)
         if use_g:
             e = e + (g_held if held else vsplat(accel[j, 0]) * g0 + vsplat(accel[j, 1]) * g1
                      + vsplat(accel[j, 2]) * g2)

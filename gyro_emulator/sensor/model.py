@@ -32,6 +32,9 @@ specific force a; SI units)::
 * The die temperature follows T[n] = phi T[n-1] + (1 - phi) T_target[n],
   phi = exp(-dt / tau): the exact response of a first-order lag to an input
   held over each sample period.
+* The extended terms (``SensorConfig.extended``, all off by default: the
+  causes diagnose names, :mod:`gyro_emulator.sensor.extensions`) add a bias
+  b_x to b_i and multiply g_i by s_x; with none on, that stage is skipped.
 * Latency, timestamp jitter and clock drift do not change the samples; they
   are reported per sample in ``output_delay_s`` for the publisher to stamp.
 
@@ -56,7 +59,7 @@ import copy
 from dataclasses import dataclass
 import math
 
-from gyro_emulator.sensor import kernel, noise, streams
+from gyro_emulator.sensor import extensions, kernel, noise, streams
 from gyro_emulator.sensor.config import SensorConfig
 from gyro_emulator.sensor.plan import Plan, TemperatureTable
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
@@ -147,6 +150,7 @@ class _State:
             flicker=np.zeros((3, 1)),           # (axes, sections)
             rrw=np.zeros(3))
         self.flicker_key = None
+        self.extended = extensions.new_state()
 
 
 class GyroModel:
@@ -239,6 +243,11 @@ class GyroModel:
                 st.flicker_key = key
         st.kernel = state
         self._plan = plan
+        self._ext = None
+        st.extended[extensions.Z_WARM_READY] = 0.0     # re-anchor the warm-up exponential
+        if config.extended.active():
+            self._ext = extensions.ExtendedPlan(config.extended, config.device,
+                                                plan.cal_temp_c, self.dt_s)
 
     def set_sample_rate(self, sample_rate_hz):
         """
@@ -261,6 +270,7 @@ class GyroModel:
         except ValueError:
             self.sample_rate_hz, self.dt_s = old
             raise
+        extensions.rebase(self._state.extended, old[1])
 
     def restart_filters(self):
         """
@@ -424,17 +434,28 @@ class GyroModel:
             return fields
         plan, st = self._plan, self._state
         accel = _NO_ACCEL if accel is None else _kernel_input(accel)
+        xbias = xgain = _NO_ACCEL
+        ext = self._ext
+        if ext is not None:     # evaluated on a copy of the state, kept on success
+            ext_state = st.extended.copy()
+            xbias, xgain = ext.buffers_for(streams.BLOCK)
         normals = st.normals
         for start in range(0, n, streams.BLOCK):
             stop = min(start + streams.BLOCK, n)
             normals.reserve(plan.streams, stop - start)
-            bad = kernel.advance(rate, temp, accel, plan.coefficients, st.kernel,
+            if ext is not None:
+                ext.evaluate(temp[start:stop], ext_state, xbias, xgain)
+            bad = kernel.advance(rate, temp, accel, xbias, xgain, plan.coefficients, st.kernel,
                                  normals.buffer, normals.pos, out, start, stop)
             if bad:
                 lo, hi = MODEL_TEMP_RANGE_C
                 raise ValueError(f'GyroModel: die temperature {float(out.die[bad - 1]):g} C '
                                  '(ambient + self_heating_c) is out of range: allowed '
                                  f'[{lo}, {hi}] C')
+        if ext is None:     # the record time runs on while the extended terms are off
+            st.extended[extensions.Z_COUNT] += n
+        else:
+            st.extended = ext_state
         return fields
 
     def _check_temp(self, temp):
