@@ -20,8 +20,9 @@ Among the significant candidates the lowest held-out RMSE leads. Those the
 fold test cannot tell from it (p >= ``ALPHA_TIE`` that it is better) are
 *indistinguishable*. A physical cause is named only when it beats every
 generic competitor it has (:mod:`.generic`) with p < ``ALPHA_TIE``; among
-the rest the lowest RMSE is named, except that between physical causes the
-data cannot separate the one with fewer parameters is preferred. The
+the rest the lowest RMSE is named, except that between causes of one kind
+(physical, or generic) the data cannot separate the one with fewer
+parameters is preferred. The
 chosen cause joins the model and the next step starts (without the
 candidates that made the held-out prediction worse with p >= 0.5);
 selection stops when no candidate is significant or ``max_causes`` are in.
@@ -352,7 +353,7 @@ class Selector:
         eligible = [c for c in near if self._beats_competitors(c, by_id)] or \
             [c for c in near if c.effect.kind == 'generic'] or near
         chosen = eligible[0]
-        simpler = [c for c in eligible if c.effect.kind == 'physical' == chosen.effect.kind
+        simpler = [c for c in eligible if c.effect.kind == chosen.effect.kind
                    and c.effect.n_params < chosen.effect.n_params]
         if simpler:
             chosen = min(simpler, key=lambda c: (c.effect.n_params, c.evaluated.rmse))
