@@ -36,6 +36,12 @@ def add_arguments(parser):
     parser.add_argument('--json', metavar='OUT', help='write the findings as JSON')
     parser.add_argument('--report', metavar='DIR',
                         help='write report.md and residual PNGs into DIR')
+    parser.add_argument('--write-config', metavar='OUT.yaml', default=None,
+                        help='write the paper baseline plus every selected cause as a sensor '
+                             'YAML the emulator loads (extended terms, fitted values, '
+                             'provenance comments)')
+    parser.add_argument('--overwrite', action='store_true',
+                        help='let --write-config replace an existing file')
     parser.add_argument('--axis', default=None, choices=('x', 'y', 'z'),
                         help='sense axis: the gyro_<axis>_rad_s column of a 3-axis CSV, or the '
                              'axis of a bag (default: gyro_rad_s; z for a bag)')
@@ -77,6 +83,10 @@ def _check(args):
         check_range('diagnose', 'outlier_sigma', args.outlier_sigma, 3.0, 1e6, 'sigma',
                     low_open=False)
     check_range('diagnose', 'max_causes', args.max_causes, 1, 20, '', low_open=False)
+    if args.write_config:
+        from gyro_emulator.analysis.diagnose import export
+
+        export.check_target(args.write_config, args.overwrite)
 
 
 def _print(doc):
@@ -138,7 +148,25 @@ def run(args):
             write_json(args.json, result.doc)
         if args.report:
             print(f'wrote {report.write_report(result, args.report)}')
+    if args.write_config:
+        _write_config(args, result.doc)
     return 0
+
+
+def _write_config(args, doc):
+    """Write the extended model (:mod:`gyro_emulator.analysis.diagnose.export`)."""
+    from gyro_emulator.analysis.diagnose import export
+
+    # the per-axis amplitudes go to the diagnosed axis: --axis, else z (a bag's default)
+    text, commented = export.extended_model(doc, 'paper', axis=args.axis or 'z',
+                                            config_name=f"sensor preset 'paper', device "
+                                                        f'{args.preset!r}',
+                                            device=args.preset)
+    export.write_text(args.write_config, text, args.overwrite)
+    for cause, why in commented:
+        print(f'gyro-emulator diagnose: warning: {cause} written commented out: {why}',
+              file=sys.stderr)
+    print(f'wrote {args.write_config}')
 
 
 @contextlib.contextmanager
