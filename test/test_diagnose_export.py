@@ -147,3 +147,24 @@ def test_cli_planted_hysteresis_round_trips_into_the_emulator(tmp_path):
     proc = _cli('diagnose', str(csv), '--write-config', str(part))
     assert proc.returncode == 2 and 'exists: give --overwrite' in proc.stderr
     assert 'Traceback' not in proc.stderr and part.read_text() == text
+    # the closed loop: against the written model the record shows no further cause,
+    # and the baseline is where the first run's extension was
+    again, part2 = tmp_path / 'd2.json', tmp_path / 'part2.yaml'
+    proc = _cli('diagnose', str(csv), '--config', str(part), '--json', str(again),
+                '--write-config', str(part2))
+    assert proc.returncode == 0, proc.stderr
+    doc2 = json.loads(again.read_text())
+    assert doc2['selected'] == [] and doc2['verdict'] in ('no_mismatch', 'explained')
+    assert doc2['baseline']['rmse_rad_s'] == pytest.approx(
+        doc['selected'][0]['rmse_rad_s'], rel=0.02)
+    assert load_sensor_config(str(part2)).extended == load_sensor_config(str(part)).extended
+
+
+def test_cli_config_with_a_term_the_baseline_cannot_carry(tmp_path):
+    csv, bad = tmp_path / 'm.csv', tmp_path / 'lat.yaml'
+    bad.write_text('device: paper\nlatency_s: 0.01\n')
+    proc = _cli('truth', str(csv), '--effect', 'none', '--seed', '1', '--duration', '600')
+    assert proc.returncode == 0, proc.stderr
+    proc = _cli('diagnose', str(csv), '--config', str(bad))
+    assert proc.returncode == 2 and 'Traceback' not in proc.stderr
+    assert proc.stderr.count('\n') == 1 and 'latency_s = 0.01' in proc.stderr

@@ -36,10 +36,15 @@ def add_arguments(parser):
     parser.add_argument('--json', metavar='OUT', help='write the findings as JSON')
     parser.add_argument('--report', metavar='DIR',
                         help='write report.md and residual PNGs into DIR')
+    parser.add_argument('--config', metavar='NAME|FILE', default=None,
+                        help='baseline: the deterministic output (noise off) of this sensor '
+                             "config (preset or YAML) on the record's inputs, with the user's "
+                             'bias and scale-factor calibration (default: the paper physics '
+                             'of --preset)')
     parser.add_argument('--write-config', metavar='OUT.yaml', default=None,
-                        help='write the paper baseline plus every selected cause as a sensor '
-                             'YAML the emulator loads (extended terms, fitted values, '
-                             'provenance comments)')
+                        help='write the starting config (--config, else the paper preset) plus '
+                             'every selected cause as a sensor YAML the emulator loads '
+                             '(extended terms, fitted values, provenance comments)')
     parser.add_argument('--overwrite', action='store_true',
                         help='let --write-config replace an existing file')
     parser.add_argument('--axis', default=None, choices=('x', 'y', 'z'),
@@ -142,7 +147,8 @@ def run(args):
     with quiet_numerics():
         result = diagnose(record, preset=args.preset, ref_temp_c=args.ref_temp,
                           folds=args.folds, effects=effects, alpha=args.alpha,
-                          outlier_threshold=args.outlier_sigma, max_causes=args.max_causes)
+                          outlier_threshold=args.outlier_sigma, max_causes=args.max_causes,
+                          config=args.config, axis=args.axis or 'z')
         _print(result.doc)
         if args.json:
             write_json(args.json, result.doc)
@@ -158,10 +164,12 @@ def _write_config(args, doc):
     from gyro_emulator.analysis.diagnose import export
 
     # the per-axis amplitudes go to the diagnosed axis: --axis, else z (a bag's default)
-    text, commented = export.extended_model(doc, 'paper', axis=args.axis or 'z',
-                                            config_name=f"sensor preset 'paper', device "
-                                                        f'{args.preset!r}',
-                                            device=args.preset)
+    if args.config is None:
+        start = {'config': 'paper', 'device': args.preset,
+                 'config_name': f"sensor preset 'paper', device {args.preset!r}"}
+    else:
+        start = {'config': args.config, 'config_name': args.config}
+    text, commented = export.extended_model(doc, axis=args.axis or 'z', **start)
     export.write_text(args.write_config, text, args.overwrite)
     for cause, why in commented:
         print(f'gyro-emulator diagnose: warning: {cause} written commented out: {why}',
