@@ -168,3 +168,23 @@ def test_cli_config_with_a_term_the_baseline_cannot_carry(tmp_path):
     proc = _cli('diagnose', str(csv), '--config', str(bad))
     assert proc.returncode == 2 and 'Traceback' not in proc.stderr
     assert proc.stderr.count('\n') == 1 and 'latency_s = 0.01' in proc.stderr
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('planted,found', [('bias_step', 'bias_step'),
+                                           ('electronics_sf_tempco', 'scale_factor_temperature'),
+                                           ('pressure_drift', 'pressure_drift')])
+def test_the_loop_closes_on_planted_causes(tmp_path, planted, found):
+    from gyro_emulator.analysis.diagnose import diagnose
+    from gyro_emulator.emulation.truth.generator import make_truth
+
+    record, _ = make_truth(planted, seed=5)
+    first = diagnose(record).doc
+    assert [e['effect'] for e in first['selected']] == [found]
+    part = tmp_path / 'part.yaml'
+    export.write_text(str(part), export.extended_model(first, 'paper')[0])
+    second = diagnose(record, config=str(part)).doc
+    assert second['selected'] == [] and second['verdict'] in ('no_mismatch', 'explained')
+    # the emulator's own output scores what diagnose claimed for the extension
+    assert second['baseline']['rmse_rad_s'] == pytest.approx(
+        first['selected'][0]['rmse_rad_s'], rel=0.01)
