@@ -36,6 +36,17 @@ def add_arguments(parser):
     parser.add_argument('--json', metavar='OUT', help='write the findings as JSON')
     parser.add_argument('--report', metavar='DIR',
                         help='write report.md and residual PNGs into DIR')
+    parser.add_argument('--config', metavar='NAME|FILE', default=None,
+                        help='baseline: the deterministic output (noise off) of this sensor '
+                             "config (preset or YAML) on the record's inputs, with the user's "
+                             'bias and scale-factor calibration (default: the paper physics '
+                             'of --preset)')
+    parser.add_argument('--write-config', metavar='OUT.yaml', default=None,
+                        help='write the starting config (--config, else the paper preset) plus '
+                             'every selected cause as a sensor YAML the emulator loads '
+                             '(extended terms, fitted values, provenance comments)')
+    parser.add_argument('--overwrite', action='store_true',
+                        help='let --write-config replace an existing file')
     parser.add_argument('--axis', default=None, choices=('x', 'y', 'z'),
                         help='sense axis: the gyro_<axis>_rad_s column of a 3-axis CSV, or the '
                              'axis of a bag (default: gyro_rad_s; z for a bag)')
@@ -77,6 +88,10 @@ def _check(args):
         check_range('diagnose', 'outlier_sigma', args.outlier_sigma, 3.0, 1e6, 'sigma',
                     low_open=False)
     check_range('diagnose', 'max_causes', args.max_causes, 1, 20, '', low_open=False)
+    if args.write_config:
+        from gyro_emulator.analysis.diagnose import export
+
+        export.check_target(args.write_config, args.overwrite)
 
 
 def _print(doc):
@@ -132,13 +147,34 @@ def run(args):
     with quiet_numerics():
         result = diagnose(record, preset=args.preset, ref_temp_c=args.ref_temp,
                           folds=args.folds, effects=effects, alpha=args.alpha,
-                          outlier_threshold=args.outlier_sigma, max_causes=args.max_causes)
+                          outlier_threshold=args.outlier_sigma, max_causes=args.max_causes,
+                          config=args.config, axis=args.axis or 'z')
         _print(result.doc)
         if args.json:
             write_json(args.json, result.doc)
         if args.report:
             print(f'wrote {report.write_report(result, args.report)}')
+    if args.write_config:
+        _write_config(args, result.doc)
     return 0
+
+
+def _write_config(args, doc):
+    """Write the extended model (:mod:`gyro_emulator.analysis.diagnose.export`)."""
+    from gyro_emulator.analysis.diagnose import export
+
+    # the per-axis amplitudes go to the diagnosed axis: --axis, else z (a bag's default)
+    if args.config is None:
+        start = {'config': 'paper', 'device': args.preset,
+                 'config_name': f"sensor preset 'paper', device {args.preset!r}"}
+    else:
+        start = {'config': args.config, 'config_name': args.config}
+    text, commented = export.extended_model(doc, axis=args.axis or 'z', **start)
+    export.write_text(args.write_config, text, args.overwrite)
+    for cause, why in commented:
+        print(f'gyro-emulator diagnose: warning: {cause} written commented out: {why}',
+              file=sys.stderr)
+    print(f'wrote {args.write_config}')
 
 
 @contextlib.contextmanager

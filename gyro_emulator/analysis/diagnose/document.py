@@ -68,6 +68,7 @@ def _none_entry(rmse_base):
 def _input(data, cv):
     prep = cv.prep
     return {'source': data.source, 'rows': data.rows, 'duration_s': prep.duration_s,
+            'time_span_s': [float(data.time_s[0]), float(data.time_s[-1])],
             'sample_interval_s': prep.dt_s, 'bins': cv.n_rows, 'bin_s': prep.bin_s,
             'temp_range_c': ([float(data.temp_c.min()), float(data.temp_c.max())]
                              if data.has_temp else None),

@@ -15,7 +15,8 @@ from dataclasses import dataclass
 import math
 
 from gyro_emulator.analysis.diagnose import baseline as base
-from gyro_emulator.analysis.diagnose import document, generic, models, screening, selection
+from gyro_emulator.analysis.diagnose import (document, emulated, generic, models, screening,
+                                             selection)
 from gyro_emulator.analysis.diagnose import verdict as vd
 from gyro_emulator.analysis.diagnose.cv import CrossValidation
 from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, measured, Prepared
@@ -39,13 +40,17 @@ class Diagnosis:
     after_label: str = ''
 
 
-def _setup(data, preset, ref_temp_c, folds, max_bins, outlier_threshold):
-    """Screen, bin and cut the folds; return (cv, screening result)."""
-    check_range('diagnose', 'folds', folds, 3, 50, '', low_open=False)
-    device = physics_preset(preset)
+def _physics(data, device, ref_temp_c):
+    """Return the baseline's DevicePhysics of ``device`` for the record."""
     tref = device.calibration_temp_c if ref_temp_c is None else float(ref_temp_c)
     temps = data.temp_c if data.has_temp else np.array([tref])
-    phys = base.DevicePhysics(device, tref, float(temps.min()), float(temps.max()))
+    return base.DevicePhysics(device, tref, float(temps.min()), float(temps.max()))
+
+
+def _setup(data, phys, folds, max_bins, outlier_threshold):
+    """Screen, bin and cut the folds; return (cv, screening result)."""
+    check_range('diagnose', 'folds', folds, 3, 50, '', low_open=False)
+    tref = phys.ref_temp_c
     screen = screening.screen(data, phys.ratio, outlier_threshold)
     prep = Prepared(data, max_bins=max_bins, keep=screen['keep'], fill_temp_c=tref)
     ctx = Context(phys=phys, ref_temp_c=tref,
@@ -103,7 +108,8 @@ def _testable(catalogue, have, data):
 
 def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
              max_bins=DEFAULT_MAX_BINS, effects=None, alpha=selection.ALPHA,
-             outlier_threshold=screening.THRESHOLD, max_causes=selection.MAX_CAUSES, seed=0):
+             outlier_threshold=screening.THRESHOLD, max_causes=selection.MAX_CAUSES, seed=0,
+             config=None, axis='z'):
     """
     Diagnose a measured record against the paper's physics.
 
@@ -131,6 +137,11 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
         Most causes forward selection adds.
     seed : int
         Seed of the noise simulations (the result is deterministic).
+    config : str, optional
+        A sensor configuration (preset name or YAML file) whose deterministic
+        output is the baseline (:mod:`.emulated`); ``preset`` is then unused.
+    axis : str
+        The configuration's axis the record measures ('x', 'y' or 'z').
 
     Returns
     -------
@@ -141,7 +152,13 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     catalogue = generic.CATALOGUE if effects is None else tuple(
         generic.effect(e) for e in effects)
     data = measured(data)
-    cv, screen = _setup(data, preset, ref_temp_c, folds, max_bins, outlier_threshold)
+    if config is None:
+        phys = _physics(data, physics_preset(preset), ref_temp_c)
+    else:
+        sensor = emulated.load(config)
+        phys = _physics(data, sensor.device[emulated.AXES.index(axis)], ref_temp_c)
+        data = emulated.transform(data, sensor, axis, phys.ratio)
+    cv, screen = _setup(data, phys, folds, max_bins, outlier_threshold)
     prep, ctx = cv.prep, cv.ctx
     rmse_base, cals = _baseline_rmse(cv)
     null = cv.evaluate(models.Model(()))
@@ -165,6 +182,11 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     doc = document.build(data, preset, cv, screen, rmse_base, null, steps, res, confound,
                          not_tested, rms_all, alpha)
     doc['temperature_polynomial'] = poly
+    if config is not None:
+        doc['config'] = str(config)
+        doc['baseline']['model'] = (
+            f'the deterministic output of sensor config {str(config)!r} (axis {axis}, noise '
+            'off), one bias and one scale factor calibrated at the reference temperature')
     b = prep.binned
     cal_all = base.calibrate(b, ctx.phys)
     before = b.gyro - base.baseline_prediction(b, ctx.phys, cal_all)
