@@ -30,6 +30,7 @@ messages with equal times keep the bag's order).
 """
 
 from dataclasses import dataclass, field
+import math
 import os
 from types import MappingProxyType
 
@@ -202,10 +203,13 @@ def grid_step(values, max_unique=200_000):
     smallest = float(np.min(gaps))
     if not smallest > 0.0:
         return 0.0, len(unique)
-    counts = np.round(gaps / smallest)
-    step = float(np.sum(gaps) / np.sum(counts))
-    offsets = (unique - unique[0]) / step
-    if np.max(np.abs(offsets - np.round(offsets))) > GRID_TOLERANCE:
+    # A subnormal smallest gap or values near the float limits overflow: no grid.
+    with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+        counts = np.round(gaps / smallest)
+        step = float(np.sum(gaps) / np.sum(counts))
+        offsets = (unique - unique[0]) / step
+        misfit = np.max(np.abs(offsets - np.round(offsets)))
+    if not (math.isfinite(step) and step > 0.0 and misfit <= GRID_TOLERANCE):
         return 0.0, len(unique)
     return step, len(unique)
 

@@ -110,7 +110,8 @@ def quantisation(rate, max_unique=200_000):
     it (an LSB of 4 sigma read N 25 % high in a review).
     """
     step, distinct = grid_step(rate, max_unique)
-    spread = float(np.std(rate))
+    with np.errstate(over='ignore', invalid='ignore'):  # a 1e308 sample: an infinite spread
+        spread = float(np.std(rate))
     if step <= 0.5 * spread:
         return (step if distinct >= 8 else 0.0), None
     return 0.0, (f'the samples lie on a grid of {step:.4g} rad/s, coarser than half their '
