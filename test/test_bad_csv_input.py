@@ -228,6 +228,7 @@ def _mutations(rng, count):
         yield f'{column}[{row}] = {value!r}', columns
 
 
+@pytest.mark.filterwarnings('error::RuntimeWarning')  # a numpy warning would reach the terminal
 def test_fuzz_csv_mutations_end_in_a_count_or_one_line_never_a_silent_difference(
         tmp_path, capsys):
     rng = np.random.default_rng(2026)
