@@ -191,6 +191,23 @@ def test_an_effect_hidden_in_real_noise_is_found(index):
     assert doc['set_aside']['fraction'] < 0.001
 
 
+@pytest.mark.parametrize('axis,size,seed', [
+    ('x', 0.0, 1), ('z', 0.0, 3), ('y', -DS['sf_tempco'], 5), ('z', DS['sf_tempco'] / 3, 6)])
+def test_the_parts_own_sf_tempco_is_read_against_the_physics(axis, size, seed):
+    # rate and temperature together: a real part (flat SF, or the injected
+    # tempco) does not follow the paper's +545 ppm/K, so scale_factor_temperature
+    # is named relative to the physics; the part's own slope must be the injected one
+    effects = {'sf_tempco': size} if size else {}
+    doc = diagnose(_record('mpu', axis, 'cycles+rate_steps', effects, seed, 440.0)).doc
+    entry = next(e for e in doc['selected'] if e['effect'] == 'scale_factor_temperature')
+    own = entry['part_sf_temp_coeff_per_k']
+    assert own['compensated'] and own['physics_per_k'] > 3e-4
+    assert own['sigma'] < 5e-6  # resolves a third of the datasheet figure
+    assert abs(own['value'] - size) < 4.0 * own['sigma'], own
+    assert entry['mechanisms'][0].startswith('factory temperature compensation')
+    assert 'temperature-compensated part' in doc['residual']['message']
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize('axis,scale', [('x', 1.0), ('y', 1 / 3)])
 def test_lsm6dsm_chamber_cooling_names_the_bias_pair(axis, scale):

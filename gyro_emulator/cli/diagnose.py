@@ -111,6 +111,10 @@ def _print(doc):
               f"p {e['p_value']:.1e}{alike}")
         for name, p in e['parameters'].items():
             print(f"  {name} = {p['value']:.5g} +- {p['sigma']:.2g} {p['unit']}")
+        own = e.get('part_sf_temp_coeff_per_k')
+        if own is not None:
+            print(f"  the part's own SF tempco = {own['value']:.5g} +- {own['sigma']:.2g} 1/K "
+                  f"(the physics: {own['physics_per_k']:.5g} 1/K)")
     note = (doc.get('temperature_polynomial') or {}).get('note')
     if note:
         print(f'note: {note}')

@@ -190,3 +190,49 @@ def _method(cv, alpha):
             'information_criterion': 'BIC on the effective number of independent bins',
             'uncertainty': 'delete-a-block jackknife over the folds, 1 sigma',
             'blocks': 'the paired test counts folds (sub_blocks = folds)'}
+
+
+#: A part whose own SF tempco is below this share of the physics' reads as compensated.
+COMPENSATED_SHARE = 1.0 / 3.0
+#: Compensation is read only where the physics' slope is this many sigma of the fitted one.
+COMPENSATED_SIGMAS = 5.0
+
+
+def note_compensation(doc, phys):
+    """
+    Give a chosen ``scale_factor_temperature`` the part's own SF tempco; name compensation.
+
+    The cause's c1 is relative to the baseline's R(T) (Eq 13-20): the part's
+    own relative slope at T_ref is c1 + R'(T_ref) (R(T_ref) = 1), its
+    1-sigma that of c1. Where the physics predicts a slope many sigma from
+    zero and the part's own slope is below :data:`COMPENSATED_SHARE` of it,
+    the part behaves as a temperature-compensated one (real parts are
+    trimmed in temperature at the factory): that mechanism is listed first
+    and the verdict's message says so.
+    """
+    ref = phys.ref_temp_c
+    physics = float((phys.ratio(ref + 0.5) - phys.ratio(ref - 0.5)) / 1.0)
+    for entry in [doc['best']] + doc['selected']:
+        if entry['effect'] != 'scale_factor_temperature':
+            continue
+        c1 = entry['parameters']['sf_temp_coeff_per_k']
+        own = c1['value'] + physics
+        entry['part_sf_temp_coeff_per_k'] = {
+            'value': own, 'sigma': c1['sigma'], 'physics_per_k': physics,
+            'meaning': "the part's own relative SF slope at T_ref: c1 plus the physics' "
+                       'R\'(T_ref)'}
+        sigma = c1['sigma'] if math.isfinite(c1['sigma'] or math.nan) else math.inf
+        compensated = (abs(physics) > COMPENSATED_SIGMAS * sigma
+                       and abs(own) < COMPENSATED_SHARE * abs(physics))
+        entry['part_sf_temp_coeff_per_k']['compensated'] = compensated
+        if not compensated:
+            continue
+        first = [m for m in entry['mechanisms'] if m.startswith('factory')]
+        entry['mechanisms'] = first + [m for m in entry['mechanisms'] if m not in first]
+        sentence = (f" The part's own scale-factor tempco is {1e6 * own:+.3g} +- "
+                    f'{1e6 * sigma:.2g} ppm/K at {ref:g} C, far below the '
+                    f"{1e6 * physics:+.3g} ppm/K of the paper's physics: it behaves as a "
+                    'temperature-compensated part (scale_factor_temperature is relative to '
+                    'the physics).')
+        if entry is not doc['best'] and sentence not in doc['residual']['message']:
+            doc['residual']['message'] += sentence

@@ -182,7 +182,9 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     doc = document.build(data, preset, cv, screen, rmse_base, null, steps, res, confound,
                          not_tested, rms_all, alpha)
     doc['temperature_polynomial'] = poly
-    if config is not None:
+    if config is None:
+        document.note_compensation(doc, ctx.phys)
+    else:
         doc['config'] = str(config)
         doc['baseline']['model'] = (
             f'the deterministic output of sensor config {str(config)!r} (axis {axis}, noise '
