@@ -220,7 +220,7 @@ def note_compensation(doc, phys):
         entry['part_sf_temp_coeff_per_k'] = {
             'value': own, 'sigma': c1['sigma'], 'physics_per_k': physics,
             'meaning': "the part's own relative SF slope at T_ref: c1 plus the physics' "
-                       'R\'(T_ref)'}
+                       "R'(T_ref)"}
         sigma = c1['sigma'] if math.isfinite(c1['sigma'] or math.nan) else math.inf
         compensated = (abs(physics) > COMPENSATED_SIGMAS * sigma
                        and abs(own) < COMPENSATED_SHARE * abs(physics))
