@@ -31,7 +31,7 @@ Parameter uncertainties are delete-a-block jackknife standard deviations
 over the per-fold fits.
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 
 from gyro_emulator.analysis.diagnose import cv as cvmod
@@ -256,17 +256,43 @@ class Selector:
         cols = [cols[i] for i in pick] if pick is not None else cols
         return np.column_stack([self.superbins.aggregate(c) for c in cols])
 
-    def state_space_test(self, current, effect, m):
+    def _step_columns(self, current, effect, candidate_eval):
+        """
+        Return (column, positions) of a scale-factor step at its fitted time, on the super-bins.
+
+        The step time the least-squares search found on the whole record
+        (``candidate_eval.full``) is moved to the nearest super-bin start, so
+        the statistic is one of ``positions`` (the super-bins) and a
+        Bonferroni factor of ``positions`` bounds its search. Only the
+        scale-factor step: its column is the applied rate, which the output's
+        wander does not follow; a bias step is one more step of a random
+        walk and stays with the fold test.
+        """
+        if effect.effect_id != 'scale_factor_step':
+            return None
+        starts = self.superbins.start_s
+        t0 = float(candidate_eval.full.phis[-1][0])
+        snapped = float(starts[int(np.argmin(np.abs(starts - t0)))])
+        b = self.cv.prep.binned
+        basis = current.model.basis(self.ctx, b, current.full.phis)
+        col = effect.columns(self.ctx, b, (snapped,), basis)[0]
+        return self.superbins.aggregate(col)[:, None], len(starts)
+
+    def state_space_test(self, current, effect, m, candidate_eval=None):
         """
         Likelihood ratio of ``effect``'s columns on the super-bin means (:mod:`.statespace`).
 
         The noise (white plus a random walk capped by the Allan bound) and
         the effect are estimated jointly, so an effect cannot hide in the
         wander it inflates. The bootstrap runs only where it can move p
-        across the decision level alpha / (2 m). Returns a
+        across the decision level alpha / (2 m). A scale-factor step is
+        tested at its fitted time with p multiplied by the positions it was
+        searched over (:meth:`_step_columns`). Returns a
         :class:`.statespace.LrResult`, or None when the route does not apply.
         """
-        cols = self._linear_columns(current, effect)
+        cols, positions = self._linear_columns(current, effect), 1
+        if cols is None and candidate_eval is not None:
+            cols, positions = self._step_columns(current, effect, candidate_eval) or (None, 1)
         st = None if cols is None else self._state_space_null(current)
         if st is None:
             return None
@@ -278,9 +304,12 @@ class Selector:
                     st['cap'])
             return st['boot']
 
-        return statespace.lr_test(st['y'], st['x0'], cols, st['groups'], None, st['cap'],
-                                  decide_at=0.5 * self.alpha / max(m, 1), null_sims=boot,
-                                  null=st['null'])
+        lr = statespace.lr_test(st['y'], st['x0'], cols, st['groups'], None, st['cap'],
+                                decide_at=0.5 * self.alpha / max(m, 1) / positions,
+                                null_sims=boot, null=st['null'])
+        if positions == 1:
+            return lr
+        return replace(lr, p_value=min(1.0, positions * lr.p_value))
 
     def binned_gain(self, ref_resid, new_resid):
         """
@@ -307,7 +336,7 @@ class Selector:
         if measured:
             p_sim = cvmod.tail_bound(float(np.sum(current.sse_fold - ev.sse_fold)), totals)
             p_fold = min(1.0, 2.0 * min(p_fold, p_sim))
-        lr = self.state_space_test(current, effect, m)
+        lr = self.state_space_test(current, effect, m, ev)
         p, route = p_fold, 'fold_test'
         if lr is not None:
             # either route may establish the cause: Bonferroni over the two
@@ -329,7 +358,11 @@ class Selector:
         # swamped by any slow effect not yet in the model: -14 % for a
         # g-sensitivity at LR 100 beside an unmodelled ramp)
         if route == 'state_space':
-            enough = cand.gain_predictive >= MIN_GAIN
+            # ... but a cause that predicts the held-out folds significantly
+            # worse than the model without it fits some other mismatch
+            # (a polynomial in the rate taking up an SF step: -140 %)
+            worse = cvmod.fold_test(ev.sse_fold, current.sse_fold) < ALPHA_TIE
+            enough = cand.gain_predictive >= MIN_GAIN and not worse
         else:
             enough = gain >= MIN_GAIN and dbic < DELTA_BIC_MAX
         cand.significant = bool(enough and p < self.alpha / max(m, 1))
