@@ -191,6 +191,23 @@ def test_an_effect_hidden_in_real_noise_is_found(index):
     assert doc['set_aside']['fraction'] < 0.001
 
 
+@pytest.mark.parametrize('axis,scale,seed,duration', [
+    ('x', 1.0, 41, 300.0), ('y', 1 / 3, 42, 440.0), ('x', -1 / 3, 44, 440.0)])
+def test_an_sf_step_is_named_as_a_step_at_its_time(axis, scale, seed, duration):
+    # the fold test alone missed it (p 0.07: the fold holding the step cannot
+    # place it) and a rate polynomial that predicted the folds 140 % worse took
+    # its place; the likelihood route now tests the step at its fitted time
+    size = scale * DS['sf_step']
+    doc = diagnose(_record('mpu', axis, 'rate_steps', {'sf_step': size}, seed, duration)).doc
+    first = doc['selected'][0]
+    assert first['effect'] == 'scale_factor_step', doc['residual']['message']
+    got = first['parameters']['sf_step']
+    assert abs(got['value'] - size) < 4.0 * got['sigma'] + 0.05 * abs(size), got
+    start, end = doc['input']['time_span_s']
+    assert abs(first['parameters']['step_time_s']['value'] - (start + end) / 2) < 10.0
+    assert all(e['effect'] != 'scale_factor_nonlinearity' for e in doc['selected'])
+
+
 @pytest.mark.parametrize('axis,size,seed', [
     ('x', 0.0, 1), ('z', 0.0, 3), ('y', -DS['sf_tempco'], 5), ('z', DS['sf_tempco'] / 3, 6)])
 def test_the_parts_own_sf_tempco_is_read_against_the_physics(axis, size, seed):
