@@ -152,9 +152,9 @@ CASES = [
     ('adis', 'z', 'cycles', {'bias_tempco': DS['bias_tempco']}, None),
     ('adis', 'x', 'cycles', {'bias_tempco': DS['bias_tempco'] / 3}, None),
     # a known miss: a one-way staircase of soaks at 1/3 of the datasheet tempco,
-    # p 0.11 against the log's own wander; with a flicker term in the null it is
-    # still p_LR 0.02-0.03 after the bootstrap (docs/diagnose.md, 'What one
-    # record cannot show'), the record's own slow wander is too poorly known
+    # p 0.11 against the log's own wander; nulls with a flicker term give p_LR
+    # 0.0012-0.09, short of 0.001 (docs/diagnose.md, 'What one record cannot
+    # show'; bench/study_null_soaks.py): the record's slow wander is too poorly known
     ('adis', 'y', 'soaks', {'bias_tempco': DS['bias_tempco'] / 3}, None),
     ('adis', 'z', 'tilt', {'g_sensitivity': DS['g_sensitivity'] / 3}, 3600.0),
     ('adis', 'y', 'cycles+tilt', {'bias_tempco': DS['bias_tempco'] / 3,
