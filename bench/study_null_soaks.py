@@ -23,7 +23,7 @@ The flicker model has a dense covariance of the group differences (one
 Cholesky factor per likelihood), which is why it is a study and not the
 test. Prints LR, bootstrap factor and p for each.
 
-Usage: python bench/study_null_soaks.py [--boot N] [--seed S]
+Usage: python bench/study_null_soaks.py [--boot N] [--seed S] [--axis A] [--profile P] [--scale F]
 """
 
 import argparse
@@ -46,12 +46,12 @@ LOG = os.path.join(REAL, 'adis16405_static', 'adis16405_run1_100hz.csv.gz')
 DEG = math.pi / 180.0
 
 
-def _record(effects, seed):
-    """Return the test's record: the whole ADIS16405 y log as 10 Hz block means, soaks."""
+def _record(effects, seed, axis='y', profile='soaks'):
+    """Return the test's record: the whole ADIS16405 log as 10 Hz block means, soaks."""
     rng = np.random.default_rng(seed)
-    t, y, _ = inj.load_real(LOG, 'y')
+    t, y, _ = inj.load_real(LOG, axis)
     t, y = inj.block_means(t, y, 10)
-    return inj.inject(y, inj.profile('soaks', t, rng), effects,
+    return inj.inject(y, inj.profile(profile, t, rng), effects,
                       sf_error=float(rng.uniform(-5e-3, 5e-3)))
 
 
@@ -187,12 +187,18 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument('--boot', type=int, default=32, help='bootstrap draws per null')
     ap.add_argument('--seed', type=int, default=112, help='seed of the record (the test: 112)')
+    ap.add_argument('--axis', default='y', choices=('x', 'y', 'z'))
+    ap.add_argument('--profile', default='soaks', help='temperature profile (the test: soaks)')
+    ap.add_argument('--scale', type=float, default=1 / 3,
+                    help='tempco as a share of the datasheet figure (the test: 1/3)')
     args = ap.parse_args()
     if not os.path.exists(LOG):
         print(f'{LOG} is absent: nothing to study')
         return
-    doc, st = _capture(_record({'bias_tempco': inj.DATASHEET['bias_tempco'] / 3}, args.seed))
-    _, st0 = _capture(_record({}, args.seed))
+    where = (args.seed, args.axis, args.profile)
+    doc, st = _capture(_record({'bias_tempco': inj.DATASHEET['bias_tempco'] * args.scale},
+                               *where))
+    _, st0 = _capture(_record({}, *where))
     res = st['lr']
     print(f'diagnose: verdict {doc["verdict"]}; white + walk (K capped): LR {res.lr:.2f}, '
           f'K null {_k_deg([0, 0, res.null.rw_var_rad2_s3]):.5f}, alternative '
