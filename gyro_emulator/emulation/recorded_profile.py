@@ -97,6 +97,8 @@ class RecordedProfile:
 def _on_record_times(channel, t, width):
     """Interpolate a channel's values from its own times to ``t``: shape (N,) or (N, width)."""
     values = np.asarray(channel.values, dtype=float)
+    if len(channel.time_s) == len(t) and np.array_equal(channel.time_s, t):
+        return values.copy()                # a CSV: the record's own times
     if values.ndim == 1:
         return np.interp(t, channel.time_s, values)
     return np.column_stack([np.interp(t, channel.time_s, values[:, k]) for k in range(width)])

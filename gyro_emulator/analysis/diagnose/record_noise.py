@@ -18,7 +18,9 @@ of e, not of y: a bias that follows temperature, now a term of the model,
 would otherwise be counted twice (as the term, and as bias instability and
 rate random walk in the Allan deviation of y). The LSB is that of y (the
 output is quantised, e is not: :func:`~gyro_emulator.analysis.calibrate.noise.detect_lsb`).
-The mean of e over the
+The record must give the terms: the fit must span at least
+:data:`MIN_TAU_SPAN` in tau and resolve N (else a one-line error says which
+is missing). The mean of e over the
 samples the identification keeps is the turn-on bias, so that the emulator's
 mean follows the record's.
 """
@@ -35,6 +37,9 @@ from gyro_emulator.recording.record import Record
 from gyro_emulator.sensor.config import config_from_mapping
 import numpy as np
 import yaml
+
+#: Shortest tau span (longest / shortest tau used) that separates N from B and K.
+MIN_TAU_SPAN = 10.0
 
 
 @dataclass(frozen=True)
@@ -115,4 +120,21 @@ def identify(text, data, axis, outlier_threshold):
         fields = export_noise.twin_noise(cal)
     except ValueError as exc:
         raise ValueError(f'--noise: the record cannot give its noise terms: {exc}') from None
+    _check_span(cal)
     return RecordNoise(axis, cal, fields, scale)
+
+
+def _check_span(cal):
+    """Raise a one-line ValueError when the fit cannot separate the terms (module docstring)."""
+    fit = cal.axes[0].fit
+    lo, hi = fit.tau_range_s
+    why = None
+    if hi < MIN_TAU_SPAN * lo:
+        why = (f'its Allan fit spans tau {lo:.3g} .. {hi:.3g} s, less than the factor '
+               f'{MIN_TAU_SPAN:g} that separates white noise from bias instability and random '
+               f'walk ({cal.duration_s:.3g} s at {cal.rate_hz:.4g} Hz: record longer)')
+    elif not fit.resolved('arw'):
+        why = ('its white noise N is not resolved (the 95 % interval reaches 0): record '
+               'longer or at a higher rate')
+    if why:
+        raise ValueError(f'--noise: the record cannot give its noise terms: {why}')
