@@ -115,8 +115,9 @@ def main(argv=None):
     p = chain(args.log, args.axis, args.out_dir)
     d1, d2 = (json.load(open(p[k], encoding='utf-8')) for k in ('d1.json', 'd2.json'))
     ext = d1['selected'][-1]
-    print(f"first run  (config twin.yaml): baseline held-out RMSE {d1['baseline']['rmse_rad_s']:.4g}"
-          f" rad/s; verdict {d1['verdict']}; causes {[e['effect'] for e in d1['selected']]}")
+    print(f'first run  (config twin.yaml): baseline held-out RMSE '
+          f"{d1['baseline']['rmse_rad_s']:.4g} rad/s; verdict {d1['verdict']}; causes "
+          f"{[e['effect'] for e in d1['selected']]}")
     print(f"  claimed for the extension: RMSE {ext['rmse_rad_s']:.4g} rad/s, 95 % "
           f"[{ext['rmse_interval_rad_s'][0]:.4g}, {ext['rmse_interval_rad_s'][1]:.4g}]; gain "
           f"{100 * ext['gain']:.2f} % [{100 * ext['gain_interval'][0]:.2f}, "
@@ -134,8 +135,9 @@ def main(argv=None):
     rows = binned_difference(temp, measured, emulated)
     z = rows[:, 1] / rows[:, 2]
     print(f'measured - emulated per {BIN_K:g} K bin ({len(rows)} bins): mean differences '
-          f'{1e3 * np.abs(rows[:, 1]).max():.3g} mrad/s at most, rms z {np.sqrt(np.mean(z ** 2)):.2f}'
-          f' (|z| max {np.abs(z).max():.2f}; 1 = the noise of the bin means)')
+          f'{1e3 * np.abs(rows[:, 1]).max():.3g} mrad/s at most, rms z '
+          f'{np.sqrt(np.mean(z ** 2)):.2f} (|z| max {np.abs(z).max():.2f}; 1 = the noise of '
+          'the bin means)')
     print(f'  whole record: mean {1e3 * np.mean(measured - emulated):+.3g} mrad/s; std measured '
           f'{1e3 * np.std(measured):.4g}, emulated {1e3 * np.std(emulated):.4g} mrad/s; '
           f'twin.yaml alone: mean - measured {1e3 * np.mean(twin - measured):+.3g} mrad/s, '

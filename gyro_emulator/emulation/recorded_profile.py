@@ -73,13 +73,13 @@ class RecordedProfile:
 
     @property
     def sample_period_s(self):
-        """The median positive sample interval, s (the model's step)."""
+        """Return the median positive sample interval, s (the model's step)."""
         dt = np.diff(self.time_s)
         return float(np.median(dt[dt > 0.0]))
 
     @property
     def rate_hz(self):
-        """The record's nominal sample rate, Hz."""
+        """Return the record's nominal sample rate, Hz."""
         return 1.0 / self.sample_period_s
 
     def grid_index(self, period_s):
@@ -89,7 +89,7 @@ class RecordedProfile:
         return np.maximum.accumulate(k - n) + n
 
     def samples(self):
-        """Return the inputs at the record's samples (:class:`~.profiles.ProfileSamples`)."""
+        """Return what the part saw at each record sample, as ``ProfileSamples``."""
         return ProfileSamples(rate_rad_s=self.rate_rad_s, temp_c=self.temp_c,
                               accel_m_s2=self.accel_m_s2)
 

@@ -178,7 +178,7 @@ def _iter_recorded(config, profile, seed, chunk_samples, faults):
 
 
 def _grid_inputs(time_s, record_time_s, inputs, at, rows):
-    """Inputs on the grid: the record's own at its samples (``at``), interpolated between."""
+    """Return the grid's inputs: the record's own at its samples (``at``), interpolated between."""
     out = []
     for values in (inputs.rate_rad_s, inputs.temp_c, inputs.accel_m_s2):
         grid = (np.interp(time_s, record_time_s, values) if values.ndim == 1 else np.column_stack(

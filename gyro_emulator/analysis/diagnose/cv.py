@@ -88,10 +88,12 @@ class CrossValidation:
 
     def interval(self, sse_fold, sse_ref=None, level=INTERVAL_LEVEL):
         """
-        Return the jackknife interval (low, high) of the held-out RMSE, rad/s (module docstring).
+        Delete-a-fold jackknife interval of a held-out RMSE, rad/s (module docstring).
 
-        With ``sse_ref`` (a reference's SSE on the same folds) the interval is
-        that of the gain 1 - RMSE / RMSE_ref. Fewer than 3 used folds: None.
+        ``sse_fold`` is the SSE per used fold; with ``sse_ref`` (a
+        reference's, on the same folds) the interval is that of the gain
+        1 - RMSE / RMSE_ref. Returns (low, high), or None with fewer than 3
+        used folds.
         """
         n = np.bincount(self.fold_of_sample,
                         minlength=max(self.used_folds) + 1)[self.used_folds].astype(float)
