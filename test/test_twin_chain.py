@@ -13,6 +13,7 @@ Issue 24 point 4: the loop closes on real noise, and the twin chain reproduces a
 The real-log cases skip when ``../shared/data/real`` is absent.
 """
 
+import functools
 import json
 import os
 import subprocess
@@ -60,11 +61,17 @@ def _loop(record, tmp_path, axis='z'):
     return first, diagnose(record, config=str(part), axis=axis).doc
 
 
+@functools.lru_cache(maxsize=None)
+def _planted_step():
+    """A planted bias step (seed 5) and its diagnosis, shared by the tests below."""
+    record, _ = make_truth('bias_step', seed=5)
+    return record, diagnose(record).doc
+
+
 # -- the interval the claim is checked against ------------------------------------
 
 def test_the_intervals_hold_the_claim_and_are_not_degenerate():
-    record, _ = make_truth('bias_step', seed=5)
-    doc = diagnose(record).doc
+    _, doc = _planted_step()
     entry = doc['selected'][0]
     lo, hi = entry['rmse_interval_rad_s']
     assert lo < entry['rmse_rad_s'] < hi and hi - lo > 0.0
@@ -106,8 +113,7 @@ def test_the_loop_closes_on_real_noise_injections(tmp_path, log, axis, profile_n
 # -- --noise ----------------------------------------------------------------------
 
 def test_noise_terms_come_from_the_calibrate_fit_of_what_the_model_leaves(tmp_path):
-    record, _ = make_truth('bias_step', seed=5)
-    doc = diagnose(record).doc
+    record, doc = _planted_step()
     text, _ = export.extended_model(doc, 'paper')
     from gyro_emulator.analysis.diagnose.data import measured
 
