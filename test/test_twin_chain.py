@@ -115,6 +115,12 @@ def test_the_loop_closes_on_real_noise_injections(tmp_path, log, axis, profile_n
 def test_noise_terms_come_from_the_calibrate_fit_of_what_the_model_leaves(tmp_path):
     record, doc = _planted_step()
     text, _ = export.extended_model(doc, 'paper')
+    plain = load_sensor_config(str(_write(tmp_path, text)))
+    start = load_sensor_config('paper')
+    # without --noise the starting configuration's noise stays as it is
+    for name in ('electronics_noise_rad_s_sqrt_hz', 'bias_instability_rad_s',
+                 'rate_random_walk_rad_s_sqrt_s', 'turn_on_bias_rad_s', 'terms'):
+        assert getattr(plain, name) == getattr(start, name)
     from gyro_emulator.analysis.diagnose.data import measured
 
     data = measured(record)
@@ -124,7 +130,6 @@ def test_noise_terms_come_from_the_calibrate_fit_of_what_the_model_leaves(tmp_pa
     part = tmp_path / 'part.yaml'
     part.write_text(with_noise)
     config = load_sensor_config(str(part))
-    start = load_sensor_config('paper')
     n_fit = noise.fields.twin.per_axis['z'][0]
     assert config.electronics_noise_rad_s_sqrt_hz[2] == pytest.approx(n_fit, rel=1e-9)
     # the other axes keep the starting configuration's noise
@@ -136,7 +141,7 @@ def test_noise_terms_come_from_the_calibrate_fit_of_what_the_model_leaves(tmp_pa
     # the provenance gives the IEEE 952 intervals
     assert 'IEEE Std 952' in with_noise and '95 % intervals' in with_noise
     # the extension itself is unchanged by --noise
-    assert config.extended == load_sensor_config(str(_write(tmp_path, text))).extended
+    assert config.extended == plain.extended
 
 
 def _write(tmp_path, text):
