@@ -15,7 +15,8 @@ then prints the figures (held-out RMSE before and after with their 95 %
 intervals, the second run's verdict, the mean difference between the
 measured and the emulated output per 0.5 K temperature bin against the
 standard error of the bin means) and draws the measured and emulated
-outputs against temperature and time side by side. Default LOG: the
+outputs against temperature and time side by side (samples as dots, the
+mean of each stretch between the log's gaps as markers). Default LOG: the
 LSM6DSM chamber log (x axis) of ``../shared/data/real``.
 """
 
@@ -79,6 +80,12 @@ def binned_difference(temp_c, measured, emulated):
     return np.array(rows)
 
 
+def burst_means(t, *columns, gap_s=10.0):
+    """Return the mean of each column over each stretch of samples between gaps > ``gap_s``."""
+    edges = np.r_[0, np.flatnonzero(np.diff(t) > gap_s) + 1, len(t)]
+    return [np.array([c[i:j].mean() for i, j in zip(edges[:-1], edges[1:])]) for c in columns]
+
+
 def plot(t, temp, measured, emulated, twin, path, title):
     """Measured and emulated output against temperature and against time, side by side."""
     from gyro_emulator import plotting
@@ -86,10 +93,14 @@ def plot(t, temp, measured, emulated, twin, path, title):
     plt = plotting.pyplot()
     fig, (a, b) = plt.subplots(1, 2, figsize=(12, 4.5))
     deg = 180.0 / np.pi
-    for ax, x in ((a, temp), (b, t / 3600.0)):
-        ax.plot(x, twin * deg, ',', color='0.7', label='twin.yaml (noise only)')
-        ax.plot(x, measured * deg, ',', color='C0', label='measured', alpha=0.6)
-        ax.plot(x, emulated * deg, ',', color='C1', label='emulated (part.yaml)', alpha=0.6)
+    means = burst_means(t, t / 3600.0, temp, measured * deg, emulated * deg, twin * deg)
+    for ax, x, xm in ((a, temp, means[1]), (b, t / 3600.0, means[0])):
+        ax.plot(x, twin * deg, ',', color='0.75')
+        ax.plot(x, measured * deg, ',', color='C0', alpha=0.5)
+        ax.plot(x, emulated * deg, ',', color='C1', alpha=0.5)
+        ax.plot(xm, means[4], 's', color='0.5', ms=4, label='twin.yaml (noise only): means')
+        ax.plot(xm, means[2], 'o', color='C0', mfc='none', ms=7, label='measured: means')
+        ax.plot(xm, means[3], 'x', color='C1', ms=6, label='emulated (part.yaml): means')
     a.invert_xaxis()
     lo, hi = np.percentile(np.r_[measured, emulated, twin] * deg, [0.05, 99.95])
     for ax in (a, b):
@@ -97,8 +108,6 @@ def plot(t, temp, measured, emulated, twin, path, title):
     plotting.label(a, 'temperature, C (axis reversed: the chamber cools, time runs left to right)',
                    'gyro output, deg/s', title)
     plotting.label(b, 'time, h', 'gyro output, deg/s', title)
-    for ax in (a, b):
-        ax.legend(loc='best', fontsize=8, markerscale=20)
     plotting.save(fig, path)
 
 
