@@ -63,7 +63,7 @@ def _loop(record, tmp_path, axis='z'):
 
 @functools.lru_cache(maxsize=None)
 def _planted_step():
-    """A planted bias step (seed 5) and its diagnosis, shared by the tests below."""
+    """Return a planted bias step (seed 5) and its diagnosis, shared by the tests below."""
     record, _ = make_truth('bias_step', seed=5)
     return record, diagnose(record).doc
 
