@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import os
 
 from gyro_emulator.emulation.profiles import LEVEL_ACCEL_M_S2, ProfileSamples
-from gyro_emulator.recording.record import is_bag, load_record
+from gyro_emulator.recording.record import DEFAULT_TOPICS, is_bag, load_record
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
 
@@ -134,7 +134,10 @@ def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     temp_c : float
         Temperature of a record without one, deg C.
     topics : dict, optional
-        Bag roles -> topics, as for :func:`~gyro_emulator.recording.record.load_record`.
+        Bag roles (gyro: the sample times; rate, temp, accel) -> topics, as
+        for :func:`~gyro_emulator.recording.record.load_record` (default:
+        the bag's one Imu topic and the emulator's command topics,
+        :data:`~gyro_emulator.recording.record.DEFAULT_TOPICS`).
 
     Returns
     -------
@@ -143,7 +146,8 @@ def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     """
     if axis not in AXES:
         raise ValueError(f'simulate.axis = {axis!r} is not allowed: choose x, y or z')
-    record = load_record(path, topics)
+    roles = topics or {role: DEFAULT_TOPICS[role] for role in ('gyro', 'rate', 'temp', 'accel')}
+    record = load_record(path, roles)
     t = np.asarray(record.time_s, dtype=float)
     if len(t) < 2 or np.any(np.diff(t) < 0.0) or t[-1] <= t[0]:
         raise ValueError(f'{path}: time_s must not go back and must span at least 2 samples '
