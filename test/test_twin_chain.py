@@ -101,7 +101,8 @@ def _injected(log, axis, profile_name, effects, duration_s, seed):
 @needs_real
 @pytest.mark.parametrize('log,axis,profile_name,effects,duration_s', [
     ('adis', 'z', 'cycles', {'bias_tempco': DS['bias_tempco']}, 1800.0),
-    ('mpu', 'x', 'cycles+rate_steps', {'sf_tempco': DS['sf_tempco']}, 300.0),
+    pytest.param('mpu', 'x', 'cycles+rate_steps', {'sf_tempco': DS['sf_tempco']}, 300.0,
+                 marks=pytest.mark.slow),
     ('mpu', 'y', 'tilt', {'g_sensitivity': DS['g_sensitivity']}, 300.0),
 ], ids=['adis-bias-tempco-cycles', 'mpu-sf-tempco-cycles-rate-steps', 'mpu-g-sensitivity-tilt'])
 def test_the_loop_closes_on_real_noise_injections(tmp_path, log, axis, profile_name, effects,
@@ -217,6 +218,7 @@ def test_simulate_over_its_own_bag_reproduces_the_run(tmp_path):
 # -- the twin chain on the LSM6DSM chamber log ------------------------------------
 
 @needs_real
+@pytest.mark.slow
 def test_the_twin_chain_reproduces_the_lsm6dsm_log(tmp_path):
     p = {n: str(tmp_path / n) for n in ('twin.yaml', 'part.yaml', 'd1.json', 'd2.json',
                                         'emu.csv')}
