@@ -188,3 +188,6 @@ def test_the_loop_closes_on_planted_causes(tmp_path, planted, found):
     # the emulator's own output scores what diagnose claimed for the extension
     assert second['baseline']['rmse_rad_s'] == pytest.approx(
         first['selected'][0]['rmse_rad_s'], rel=0.01)
+    # ... within the interval diagnose reported for it (issue 24 point 4)
+    lo, hi = first['selected'][0]['rmse_interval_rad_s']
+    assert lo <= second['baseline']['rmse_rad_s'] <= hi

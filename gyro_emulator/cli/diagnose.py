@@ -45,6 +45,11 @@ def add_arguments(parser):
                         help='write the starting config (--config, else the paper preset) plus '
                              'every selected cause as a sensor YAML the emulator loads '
                              '(extended terms, fitted values, provenance comments)')
+    parser.add_argument('--noise', action='store_true',
+                        help="with --write-config: also write the record's noise terms (N, B, "
+                             'K, turn-on bias, LSB of the diagnosed axis), from the IEEE 952 '
+                             'fit of calibrate noise on the record minus the written model '
+                             "(default: the starting config's noise stays)")
     parser.add_argument('--overwrite', action='store_true',
                         help='let --write-config replace an existing file')
     parser.add_argument('--axis', default=None, choices=('x', 'y', 'z'),
@@ -88,6 +93,9 @@ def _check(args):
         check_range('diagnose', 'outlier_sigma', args.outlier_sigma, 3.0, 1e6, 'sigma',
                     low_open=False)
     check_range('diagnose', 'max_causes', args.max_causes, 1, 20, '', low_open=False)
+    if args.noise and not args.write_config:
+        raise ValueError('diagnose: --noise writes noise terms into the --write-config file: '
+                         'give --write-config OUT.yaml too')
     if args.write_config:
         from gyro_emulator.analysis.diagnose import export
 
@@ -159,11 +167,11 @@ def run(args):
         if args.report:
             print(f'wrote {report.write_report(result, args.report)}')
     if args.write_config:
-        _write_config(args, result.doc)
+        _write_config(args, result.doc, record)
     return 0
 
 
-def _write_config(args, doc):
+def _write_config(args, doc, record):
     """Write the extended model (:mod:`gyro_emulator.analysis.diagnose.export`)."""
     from gyro_emulator.analysis.diagnose import export
 
@@ -173,7 +181,14 @@ def _write_config(args, doc):
                  'config_name': f"sensor preset 'paper', device {args.preset!r}"}
     else:
         start = {'config': args.config, 'config_name': args.config}
-    text, commented = export.extended_model(doc, axis=args.axis or 'z', **start)
+    axis = args.axis or 'z'
+    text, commented = export.extended_model(doc, axis=axis, **start)
+    if args.noise:
+        from gyro_emulator.analysis.diagnose import record_noise
+
+        with quiet_numerics():
+            noise = record_noise.identify(text, record, axis, args.outlier_sigma)
+        text, commented = export.extended_model(doc, axis=axis, noise=noise, **start)
     export.write_text(args.write_config, text, args.overwrite)
     for cause, why in commented:
         print(f'gyro-emulator diagnose: warning: {cause} written commented out: {why}',

@@ -4,7 +4,10 @@ Simulate the gyro over a scripted profile and write the record as CSV.
 Profiles: ``static`` (zero rate), ``steps`` (rate table about z at 0, 10, 20,
 40 RPM and back to 0), ``temp-ramp`` (60 deg/s about z while the ambient goes
 from 25 to 85 C, the paper's Fig 6 conditions) or a YAML profile file (see
-``gyro_emulator.emulation.profiles``). The CSV columns are time_s, rate_{x,y,z}_rad_s
+``gyro_emulator.emulation.profiles``), or a measured record (CSV, CSV.gz or
+rosbag2 bag: its applied rate, temperature and acceleration on its own
+times, the output at its sample times; ``--static`` for a record without a
+rate; ``gyro_emulator.emulation.recorded_profile``). The CSV columns are time_s, rate_{x,y,z}_rad_s
 (true rate), temp_c (ambient) and gyro_{x,y,z}_rad_s (sensor output).
 An ``--out`` path not ending in .csv/.csv.gz is a rosbag2 MCAP bag directory
 with the node's topics (see ``gyro_emulator.analysis.replay``), stamped from
@@ -26,8 +29,16 @@ def add_arguments(parser):
                         help='sensor preset (paper, consumer, tactical) or YAML file '
                              '(default: %(default)s)')
     parser.add_argument('--profile', default='static', metavar='PROFILE',
-                        help='static, steps, temp-ramp or a YAML profile '
-                             '(default: %(default)s)')
+                        help='static, steps, temp-ramp, a YAML profile, or a measured '
+                             'record (.csv, .csv.gz, bag): its inputs on its own times, the '
+                             'output at its sample times (--duration-s and --rate-hz are '
+                             "the record's) (default: %(default)s)")
+    parser.add_argument('--axis', default='z', choices=('x', 'y', 'z'),
+                        help="a measured profile: the sense axis of a CSV's single "
+                             'rate_cmd_rad_s column (default: %(default)s)')
+    parser.add_argument('--static', action='store_true',
+                        help='a measured profile without an applied rate: the part was at '
+                             'rest (zero rate); without it such a record is refused')
     parser.add_argument('--duration-s', type=float, default=60.0, metavar='S',
                         help='duration, s (default: %(default)s)')
     parser.add_argument('--rate-hz', type=float, default=200.0, metavar='R',
@@ -76,17 +87,26 @@ def run(args):
     """Run the simulation and write the record."""
     # The sensor model (numba: 1.4 s, 2.5 s cold) is imported here, not at the
     # top: `gyro-emulator --help` imports every command module.
-    from gyro_emulator.emulation import simulate
+    from gyro_emulator.emulation import recorded_profile, simulate
     from gyro_emulator.sensor import faults
 
     started = time.monotonic()
+    profile, measured = args.profile, recorded_profile.is_record_path(args.profile)
+    if measured:
+        profile = recorded_profile.recorded_profile(args.profile, args.axis, args.static,
+                                                    args.temp_c)
+    elif args.static:
+        raise ValueError('simulate: --static is for a measured --profile without an applied '
+                         "rate; the built-in profile 'static' is zero rate")
     start_ns = simulate.parse_start_time(args.start_time)
     schedule = faults.load_schedule(args.faults) if args.faults else ()
-    rows = simulate.write_record(args.out, args.config, args.profile, args.duration_s,
+    rows = simulate.write_record(args.out, args.config, profile, args.duration_s,
                                  args.rate_hz, seed=args.seed, temp_c=args.temp_c,
                                  overwrite=args.overwrite, progress=Progress(),
                                  start_time_ns=start_ns, faults=schedule)
-    print(f'wrote {args.out}: {rows} samples at {args.rate_hz:g} Hz '
-          f'({args.duration_s:g} s, profile {args.profile}, config {args.config}) in '
+    rate_hz, duration_s = ((profile.rate_hz, profile.duration_s) if measured
+                           else (args.rate_hz, args.duration_s))
+    print(f'wrote {args.out}: {rows} samples at {rate_hz:g} Hz '
+          f'({duration_s:g} s, profile {args.profile}, config {args.config}) in '
           f'{time.monotonic() - started:.1f} s')
     return 0

@@ -25,6 +25,7 @@ import time
 
 from gyro_emulator.emulation.emulator_bag import simulation_custom_data, write_simulation_bag
 from gyro_emulator.emulation.profiles import make_profile, Profile, ProfileSamples
+from gyro_emulator.emulation.recorded_profile import RecordedProfile
 from gyro_emulator.recording import csvio
 from gyro_emulator.sensor import faults as sensor_faults
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
@@ -109,6 +110,9 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
     SimulationChunk
 
     """
+    if isinstance(profile, RecordedProfile):
+        yield from _iter_recorded(config, profile, seed, chunk_samples, faults)
+        return
     config, profile, n, rate_hz = _resolve(config, profile, duration_s, rate_hz, temp_c)
     rng = np.random.default_rng(seed)
     model = GyroModel(config, rate_hz, rng)
@@ -127,6 +131,61 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
                             saturated=batch.saturated | effect.saturated)
             published = effect.published
         yield SimulationChunk(time_s, samples, batch, published)
+
+
+def _iter_recorded(config, profile, seed, chunk_samples, faults):
+    """
+    Simulate over a measured record's inputs; output at the record's sample times.
+
+    The model runs at the record's median rate on the grid of
+    :meth:`RecordedProfile.grid_index` (inputs interpolated to the grid
+    times); the grid samples of the record's samples are published with the
+    record's times, the others withheld. The extended terms' clock starts at
+    the record's first sample (``extended.start_time_s``), as in
+    ``diagnose --config``.
+    """
+    if not isinstance(config, SensorConfig):
+        config = load_sensor_config(config)
+    config = replace(config, extended=replace(config.extended,
+                                              start_time_s=float(profile.time_s[0])))
+    rng = np.random.default_rng(seed)
+    model = GyroModel(config, profile.rate_hz, rng)
+    period = model.sample_period_s
+    index = profile.grid_index(period)
+    if index[-1] + 1 > MAX_SAMPLES:
+        raise ValueError(f'{profile.name}: {index[-1] + 1} samples at {profile.rate_hz:g} Hz '
+                         f'is out of range: allowed <= {MAX_SAMPLES}')
+    injector = sensor_faults.Injector(
+        faults, config.range_rad_s, sensor_faults.fault_generator(rng.bit_generator.seed_seq)
+    ) if faults else None
+    t0, inputs = profile.time_s[0], profile.samples()
+    for start in range(0, int(index[-1]) + 1, int(chunk_samples)):
+        grid = np.arange(start, min(int(index[-1]) + 1, start + int(chunk_samples)))
+        time_s = t0 + grid * period
+        lo, hi = np.searchsorted(index, [grid[0], grid[-1] + 1])
+        at = index[lo:hi] - start
+        samples = _grid_inputs(time_s, profile.time_s, inputs, at, slice(lo, hi))
+        time_s[at] = profile.time_s[lo:hi]
+        batch = model.run(samples.rate_rad_s, samples.temp_c, samples.accel_m_s2)
+        published = np.zeros(len(grid), bool)
+        published[at] = True
+        if injector is not None:
+            effect = injector.apply(time_s, batch.gyro_rad_s)
+            batch = replace(batch, gyro_rad_s=effect.gyro_rad_s,
+                            saturated=batch.saturated | effect.saturated)
+            published &= effect.published
+        yield SimulationChunk(time_s, samples, batch, published)
+
+
+def _grid_inputs(time_s, record_time_s, inputs, at, rows):
+    """Return the grid's inputs: the record's own at its samples (``at``), interpolated between."""
+    out = []
+    for values in (inputs.rate_rad_s, inputs.temp_c, inputs.accel_m_s2):
+        grid = (np.interp(time_s, record_time_s, values) if values.ndim == 1 else np.column_stack(
+            [np.interp(time_s, record_time_s, values[:, k]) for k in range(values.shape[1])]))
+        grid[at] = values[rows]
+        out.append(grid)
+    return ProfileSamples(*out)
 
 
 def sample_count(duration_s, rate_hz):
@@ -298,16 +357,19 @@ def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
     """
     start_ns = time.time_ns() if start_time_ns is None else int(start_time_ns)
     sensor = config if isinstance(config, SensorConfig) else load_sensor_config(config)
+    total = sample_count(duration_s, rate_hz)
+    if isinstance(profile, RecordedProfile):
+        duration_s, rate_hz, total = profile.duration_s, profile.rate_hz, len(profile.time_s)
     if is_csv_path(out):
         writer = write_simulation_csv
     else:
-        custom = simulation_custom_data(config, profile, duration_s, rate_hz, seed, temp_c)
+        custom = simulation_custom_data(config, getattr(profile, 'name', profile), duration_s,
+                                        rate_hz, seed, temp_c)
         custom['start_time_ns'] = str(start_ns)
         if faults:
             custom['faults'] = '; '.join(f.describe() for f in faults)
         writer = functools.partial(write_simulation_bag, config=sensor, rate_hz=rate_hz,
                                    custom_data=custom, start_ns=start_ns)
-    total = sample_count(duration_s, rate_hz)
     chunks = iter_simulation(sensor, profile, duration_s, rate_hz, seed=seed, temp_c=temp_c,
                              faults=faults)
     with staged_output(out, overwrite) as partial:

@@ -512,22 +512,71 @@ def flicker_band(calibration):
     return low, high
 
 
+@dataclass(frozen=True)
+class TwinNoise:
+    """
+    The sensor YAML noise fields of a calibration (what ``--format preset`` writes).
+
+    ``per_axis`` maps each calibrated axis to its fields in datasheet units
+    (``electronics_arw_deg_sqrt_h``, ``bias_instability_deg_h``,
+    ``rate_random_walk_deg_h_sqrt_h``, ``turn_on_bias_deg_s``); ``shared``
+    holds the fields of every axis (the flicker band, terms per decade, the
+    LSB when found); ``terms_on`` the :class:`ErrorTerms` switched on
+    (every other noise term off); ``twin`` the emulator fit behind them.
+    """
+
+    per_axis: dict
+    shared: dict
+    terms_on: frozenset
+    twin: object
+
+
+#: Noise terms of :class:`ErrorTerms` a noise calibration decides (on or off).
+NOISE_SWITCHES = ('mechanical_noise', 'electronics_noise', 'bias_instability',
+                  'rate_random_walk', 'turn_on_bias', 'quantization')
+
+
+def twin_noise(calibration, inflate=1.0):
+    """
+    Return the emulator's noise fields of a calibration (:class:`TwinNoise`).
+
+    The values come from :func:`~gyro_emulator.analysis.calibrate.twin.emulator_fit`
+    (the emulator's own noise model fitted to the log's Allan curves, over
+    the flicker band of :func:`flicker_band`), times ``inflate``; the
+    turn-on bias is the axis's mean. The measured N carries the whole white
+    noise, so ``mechanical_noise`` is off.
+    """
+    export_noise(calibration, inflate)          # checks inflate
+    twin = emulator_fit(calibration, flicker_band(calibration))
+    per_axis = {}
+    for item in calibration.axes:
+        n, b, k = twin.per_axis[item.axis]
+        per_axis[item.axis] = {
+            'electronics_arw_deg_sqrt_h': units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(n * inflate),
+            'bias_instability_deg_h': units.rad_s_to_deg_h(b * inflate),
+            'rate_random_walk_deg_h_sqrt_h': units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h(k * inflate),
+            'turn_on_bias_deg_s': units.rad_s_to_deg_s(item.mean_rad_s)}
+    on = {'electronics_noise', 'bias_instability', 'rate_random_walk', 'turn_on_bias'}
+    shared = {'bias_instability_band_s': tuple(twin.band_s),
+              'bias_instability_per_decade': PER_DECADE}
+    if calibration.lsb_rad_s > 0.0:
+        on.add('quantization')
+        shared['lsb_deg_s'] = units.rad_s_to_deg_s(calibration.lsb_rad_s)
+    return TwinNoise(per_axis, shared, frozenset(on), twin)
+
+
 def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
     """
     Write this emulator's sensor YAML: the twin's N, B, K per axis, flicker band, LSB.
 
-    The values come from :func:`~gyro_emulator.analysis.calibrate.twin.emulator_fit`
-    (the emulator's own noise model fitted to the log); the IEEE Std 952
-    values are in the comments. Every term the log does not measure is off.
+    The values come from :func:`twin_noise` (the emulator's own noise model
+    fitted to the log); the IEEE Std 952 values are in the comments. Every
+    term the log does not measure is off.
     """
-    twin = emulator_fit(calibration, flicker_band(calibration))
-    axes = [twin.per_axis.get(name) or next(iter(twin.per_axis.values()))
+    fields = twin_noise(calibration, inflate)
+    twin = fields.twin
+    axes = [fields.per_axis.get(name) or next(iter(fields.per_axis.values()))
             for name in ('x', 'y', 'z')]
-    means = {a.axis: a.mean_rad_s for a in calibration.axes}
-    mean = [means.get(name, next(iter(means.values()))) for name in ('x', 'y', 'z')]
-    on = {'electronics_noise', 'bias_instability', 'rate_random_walk', 'turn_on_bias'}
-    if calibration.lsb_rad_s > 0.0:
-        on.add('quantization')
     convention = (_CONTINUOUS + ' The emulator discretises exactly at the rate given to '
                   'simulate or the node: white sigma N / sqrt(dt), walk K sqrt(dt), flicker '
                   'as Gauss-Markov terms across bias_instability_band_s.')
@@ -549,18 +598,17 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
     if len(twin.per_axis) < 3:
         lines.append(f'Axes {", ".join(n for n in "xyz" if n not in twin.per_axis)} copy '
                      f'axis {next(iter(twin.per_axis))} (not in the calibration).')
-    data = {'device': 'paper', 'terms': {name: name in on for name in ErrorTerms.names()},
-            'electronics_arw_deg_sqrt_h': Flow(
-                Figure(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v[0] * inflate)) for v in axes),
-            'bias_instability_deg_h': Flow(
-                Figure(units.rad_s_to_deg_h(v[1] * inflate)) for v in axes),
-            'bias_instability_band_s': Flow(Figure(t) for t in twin.band_s),
-            'bias_instability_per_decade': Figure(PER_DECADE),
-            'rate_random_walk_deg_h_sqrt_h': Flow(
-                Figure(units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h(v[2] * inflate)) for v in axes),
-            'turn_on_bias_deg_s': Flow(Figure(units.rad_s_to_deg_s(m)) for m in mean)}
-    if calibration.lsb_rad_s > 0.0:
-        data['lsb_deg_s'] = Figure(units.rad_s_to_deg_s(calibration.lsb_rad_s))
+    data = {'device': 'paper',
+            'terms': {name: name in fields.terms_on for name in ErrorTerms.names()}}
+    for name in ('electronics_arw_deg_sqrt_h', 'bias_instability_deg_h'):
+        data[name] = Flow(Figure(a[name]) for a in axes)
+    data['bias_instability_band_s'] = Flow(
+        Figure(t) for t in fields.shared['bias_instability_band_s'])
+    data['bias_instability_per_decade'] = Figure(fields.shared['bias_instability_per_decade'])
+    for name in ('rate_random_walk_deg_h_sqrt_h', 'turn_on_bias_deg_s'):
+        data[name] = Flow(Figure(a[name]) for a in axes)
+    if 'lsb_deg_s' in fields.shared:
+        data['lsb_deg_s'] = Figure(fields.shared['lsb_deg_s'])
     return as_comments(lines) + dump_yaml(data)
 
 

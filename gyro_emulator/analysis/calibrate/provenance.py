@@ -35,25 +35,29 @@ def _term(fit, name, to, unit):
     return text
 
 
+def axis_lines(item):
+    """Provenance of one calibrated axis: taus used, N, B, K with intervals, warnings."""
+    fit = item.fit
+    lo, hi = fit.tau_range_s
+    lines = [f'Axis {item.axis} ({item.column}): tau {lo:.3g} .. {hi:.4g} s used; '
+             f'{fit.band.note if fit.band is not None else ""}',
+             f'  N {_term(fit, "arw", units.rad_s_sqrt_hz_to_arw_deg_sqrt_h, "deg/sqrt(h)")}'
+             f', B {_term(fit, "bias_instability", units.rad_s_to_deg_h, "deg/h")}'
+             f', K {_term(fit, "rrw", units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h, "deg/h/sqrt(h)")}'
+             f' ({100 * fit.ci:.0f} % intervals, IEEE Std 952)']
+    if item.set_aside is not None:
+        lines.append(f'  {item.set_aside["description"]}')
+    lines += [f'  warning: {warning}' for warning in fit.warnings]
+    return lines
+
+
 def noise_lines(calibration, exported, tool, convention):
     """Provenance of a noise export: source, tau range, fitted terms, convention, inflation."""
     lines = [f'Written by `gyro-emulator calibrate noise --format {tool}`.',
              f'Source log: {calibration.source} ({calibration.rate_hz:.6g} Hz, '
              f'{calibration.duration_s:.1f} s).']
     for item in calibration.axes:
-        fit = item.fit
-        lo, hi = fit.tau_range_s
-        lines.append(f'Axis {item.axis} ({item.column}): tau {lo:.3g} .. {hi:.4g} s used; '
-                     f'{fit.band.note if fit.band is not None else ""}')
-        lines.append(
-            f'  N {_term(fit, "arw", units.rad_s_sqrt_hz_to_arw_deg_sqrt_h, "deg/sqrt(h)")}'
-            f', B {_term(fit, "bias_instability", units.rad_s_to_deg_h, "deg/h")}'
-            f', K {_term(fit, "rrw", units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h, "deg/h/sqrt(h)")}'
-            f' ({100 * fit.ci:.0f} % intervals, IEEE Std 952)')
-        if item.set_aside is not None:
-            lines.append(f'  {item.set_aside["description"]}')
-        for warning in fit.warnings:
-            lines.append(f'  warning: {warning}')
+        lines += axis_lines(item)
     for note in calibration.skipped:
         lines.append(f'Axis left out: {note}')
     for note in calibration.timing:

@@ -17,7 +17,14 @@ evidence is counted in folds, not samples:
 - :func:`effective_bic`: BIC on the bin means with the number of
   observations replaced by the effective number of independent bins,
   n (1 - rho) / (1 + rho), rho the lag-1 autocorrelation of the richer
-  model's bin residuals.
+  model's bin residuals;
+- :meth:`CrossValidation.interval`: the delete-a-fold jackknife interval of
+  a held-out RMSE, or of the gain 1 - RMSE / RMSE_ref over a reference
+  scored on the same folds (Efron & Stein 1981: sigma^2 = (K - 1)/K
+  sum_k (theta_(k) - mean theta_(.))^2; theta_(k) the figure with fold k
+  left out; half width t_{K-1} sigma at :data:`INTERVAL_LEVEL`). It is the
+  spread the claimed figure has over the record's own blocks: an emulator
+  that reproduces the extension scores within it.
 """
 
 from dataclasses import dataclass
@@ -25,7 +32,10 @@ import math
 
 from gyro_emulator.analysis.diagnose import models
 import numpy as np
-from scipy.special import stdtr
+from scipy.special import stdtr, stdtrit
+
+#: Two-sided level of the held-out RMSE and gain intervals.
+INTERVAL_LEVEL = 0.95
 
 
 @dataclass
@@ -75,6 +85,34 @@ class CrossValidation:
         sse = np.bincount(self.fold_of_sample, weights=resid * resid,
                           minlength=max(self.used_folds) + 1)[self.used_folds]
         return resid, sse
+
+    def interval(self, sse_fold, sse_ref=None, level=INTERVAL_LEVEL):
+        """
+        Delete-a-fold jackknife interval of a held-out RMSE, rad/s (module docstring).
+
+        ``sse_fold`` is the SSE per used fold; with ``sse_ref`` (a
+        reference's, on the same folds) the interval is that of the gain
+        1 - RMSE / RMSE_ref. Returns (low, high), or None with fewer than 3
+        used folds.
+        """
+        n = np.bincount(self.fold_of_sample,
+                        minlength=max(self.used_folds) + 1)[self.used_folds].astype(float)
+        sse = np.asarray(sse_fold, dtype=float)
+        ref = None if sse_ref is None else np.asarray(sse_ref, dtype=float)
+        k = len(n)
+        if k < 3:
+            return None
+
+        def figure(keep):
+            rmse = math.sqrt(float(np.sum(sse[keep]) / np.sum(n[keep])))
+            return rmse if ref is None else 1.0 - rmse / math.sqrt(
+                float(np.sum(ref[keep]) / np.sum(n[keep])))
+
+        full = figure(np.ones(k, bool))
+        loo = np.array([figure(np.arange(k) != j) for j in range(k)])
+        sigma = math.sqrt((k - 1) / k * float(np.sum((loo - loo.mean()) ** 2)))
+        half = float(stdtrit(k - 1, 0.5 + level / 2.0)) * sigma
+        return (full - half, full + half)
 
     def evaluate(self, model, fixed_by_fold=None, fixed_full=None):
         """

@@ -9,7 +9,10 @@ Top level: ``input``, ``device_preset``, ``calibration``, ``baseline``,
 none is); every entry of ``selected`` has the same fields, among them the
 per-sample ``gain_step``, ``gain_binned`` (the held-out gain on the
 super-bin means, the verdict's averaging time) and ``evidence`` (which
-test, fold or likelihood, and which gain the decision rests on).
+test, fold or likelihood, and which gain the decision rests on), and
+``rmse_interval_rad_s`` and ``gain_interval``: the 95 % delete-a-fold
+jackknife intervals of its held-out RMSE and of its gain over the baseline
+(:meth:`.cv.CrossValidation.interval`); ``baseline`` has the RMSE's too.
 """
 
 import math
@@ -20,7 +23,16 @@ from gyro_emulator.analysis.diagnose import verdict as vd
 import numpy as np
 
 
-def _entry(cand, rmse_base, mechanisms=True):
+def _intervals(cv, sse_fold, sse_base):
+    """Return the 95 % jackknife intervals of a held-out RMSE and of its gain (cv.interval)."""
+    if cv is None or sse_base is None:
+        return {}
+    rmse, gain = cv.interval(sse_fold), cv.interval(sse_fold, sse_base)
+    return {'rmse_interval_rad_s': None if rmse is None else list(rmse),
+            'gain_interval': None if gain is None else list(gain)}
+
+
+def _entry(cand, rmse_base, mechanisms=True, cv=None, sse_base=None):
     """One chosen cause: the JSON fields of ``best`` and ``selected``."""
     eff = cand.effect
     out = {'effect': eff.effect_id, 'cause': eff.cause, 'kind': eff.kind,
@@ -31,7 +43,8 @@ def _entry(cand, rmse_base, mechanisms=True):
            'p_value': cand.p_value, 'evidence': _evidence(cand),
            'delta_bic': cand.delta_bic, 'effective_bins': cand.n_eff,
            'noise_share_of_gain': cand.null_share,
-           'indistinguishable_from': list(cand.indistinguishable)}
+           'indistinguishable_from': list(cand.indistinguishable),
+           **_intervals(cv, cand.evaluated.sse_fold, sse_base)}
     if mechanisms:
         out['mechanisms'] = list(eff.mechanisms)
         out['competitors'] = list(eff.competitors)
@@ -97,10 +110,10 @@ def _steps(steps):
 
 
 def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_tested,
-          rms_all, alpha):
+          rms_all, alpha, sse_base=None):
     """Return the JSON document (see the module docstring)."""
     chosen = [c for _, c in steps if c is not None]
-    selected = [_entry(c, rmse_base) for c in chosen]
+    selected = [_entry(c, rmse_base, cv=cv, sse_base=sse_base) for c in chosen]
     result = vd.verdict(selected, res['consistent'])
     hint = None
     if steps and steps[-1][1] is None:
@@ -148,6 +161,8 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
         'device_preset': preset,
         'calibration': cal_all.as_dict(),
         'baseline': {'rmse_rad_s': rmse_base,
+                     'rmse_interval_rad_s': _intervals(cv, sse_base, sse_base).get(
+                         'rmse_interval_rad_s'),
                      'model': 'paper first-order physics (preset '
                               f'{preset!r}), one bias and one scale factor '
                               'calibrated at the reference temperature'},

@@ -117,6 +117,7 @@ def _add_bias_temperature(mapping, config, values, axis, doc):
         old = list(_canonical(mapping, target, config))
         old[i] += add
         mapping[target] = Flow([Figure(v, '') for v in old])
+    _switch_on(mapping, 'bias_temperature')
 
 
 def _add_g_sensitivity(mapping, config, values, axis):
@@ -126,13 +127,50 @@ def _add_g_sensitivity(mapping, config, values, axis):
     for j, a in enumerate(AXES):
         rows[i][j] += values[f'g_sensitivity_{a}_rad_s_per_m_s2']
     mapping['g_sensitivity_rad_s_m_s2'] = [Flow([Figure(v, '') for v in r]) for r in rows]
+    _switch_on(mapping, 'g_sensitivity')
+
+
+def _switch_on(mapping, term):
+    """Switch ``term`` on where the starting config switched it off (a twin has it off)."""
+    terms = mapping.get('terms')
+    if isinstance(terms, dict) and terms.get(term) is False:
+        mapping['terms'] = dict(terms, **{term: True})
+
+
+def _add_noise(mapping, config, noise, axis):
+    """
+    Write the record's noise terms (:mod:`.record_noise`) into ``mapping``.
+
+    The diagnosed axis gets N, B, K, the turn-on bias and the LSB; the other
+    two keep the starting configuration's values. The flicker band and the
+    switches are shared by the axes: the band is the record's; the terms
+    the record measures are switched on and mechanical_noise off (the
+    measured N carries the whole white noise), as ``calibrate noise --format
+    preset`` does. An axis whose record shows no LSB gets 0.
+    """
+    i = AXES.index(axis)
+    values = dict(noise.fields.per_axis[axis])
+    lsb = noise.fields.shared.get('lsb_deg_s', 0.0)
+    for key, value in list(values.items()) + [('lsb_deg_s', lsb)]:
+        target, convert = YAML_ALIASES[key]
+        old = list(_canonical(mapping, target, config))
+        old[i] = convert(value)
+        mapping[target] = Flow([Figure(v, '') for v in old])
+    for key in ('bias_instability_band_s', 'bias_instability_per_decade'):
+        value = noise.fields.shared[key]
+        mapping[key] = (Flow([Figure(v, '') for v in value]) if isinstance(value, tuple)
+                        else Figure(value, ''))
+    terms = dict(mapping.get('terms') or {})
+    terms.update(dict.fromkeys(sorted(noise.fields.terms_on), True))
+    terms['mechanical_noise'] = False       # the measured N is the whole white noise
+    mapping['terms'] = terms
 
 
 def _flow_text(values):
     return '{' + ', '.join(f'{k}: {v:.6g}' for k, v in values.items()) + '}'
 
 
-def extended_model(doc, config, axis='z', config_name='paper', device=None):
+def extended_model(doc, config, axis='z', config_name='paper', device=None, noise=None):
     """
     Return the text of the extended sensor YAML and the causes written commented out.
 
@@ -149,6 +187,10 @@ def extended_model(doc, config, axis='z', config_name='paper', device=None):
     device : str, optional
         Physics preset that replaces the configuration's ``device`` (the
         device diagnose's baseline used).
+    noise : gyro_emulator.analysis.diagnose.record_noise.RecordNoise, optional
+        The record's noise terms (``--noise``): written to the diagnosed
+        axis, with their intervals in the provenance comment. Without it the
+        noise fields of the starting configuration stay as they are.
 
     Returns
     -------
@@ -197,7 +239,11 @@ def extended_model(doc, config, axis='z', config_name='paper', device=None):
         start_s = ext.pop('start_time_s', Figure(doc['input']['time_span_s'][0], ''))
         ext = {'start_time_s': start_s, **ext}
     mapping['extended'] = ext or None
-    text = _header(doc, config_name, axis, active) + dump(mapping, _comments(axis))
+    header = _header(doc, config_name, axis, active)
+    if noise is not None:
+        _add_noise(mapping, start, noise, axis)
+        header += ''.join(f'# {line}\n' for line in noise.comment_lines())
+    text = header + dump(mapping, _comments(axis))
     if commented:
         text += ''.join(f'  # {c}: {v}   # not active: {why}\n' for c, v, why in commented)
     config_from_mapping(yaml.safe_load(text), source='the written config')   # it loads

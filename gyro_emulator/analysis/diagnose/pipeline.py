@@ -65,7 +65,7 @@ def _baseline_rmse(cv):
     cals = {k: base.calibrate(prep.binned, phys, rows=cv.fold_of_bin != k)
             for k in cv.used_folds}
     _, sse = cv.held_out(lambda k: base.baseline_prediction(prep.samples, phys, cals[k]))
-    return math.sqrt(float(np.sum(sse)) / len(cv.y)), cals
+    return math.sqrt(float(np.sum(sse)) / len(cv.y)), cals, sse
 
 
 def _all_samples_rms(cv, kept_rmse, predict_at):
@@ -160,7 +160,7 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
         data = emulated.transform(data, sensor, axis, phys.ratio)
     cv, screen = _setup(data, phys, folds, max_bins, outlier_threshold)
     prep, ctx = cv.prep, cv.ctx
-    rmse_base, cals = _baseline_rmse(cv)
+    rmse_base, cals, sse_base = _baseline_rmse(cv)
     null = cv.evaluate(models.Model(()))
     have = selection.excitation(prep, data)
     poly = _polynomial_order(prep, have)
@@ -180,7 +180,7 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
             cv, chosen[0].evaluated.rmse, lambda k, f: models.predict(
                 chosen[0].evaluated.model, ctx, f, chosen[0].evaluated.fits[k]))}
     doc = document.build(data, preset, cv, screen, rmse_base, null, steps, res, confound,
-                         not_tested, rms_all, alpha)
+                         not_tested, rms_all, alpha, sse_base=sse_base)
     doc['temperature_polynomial'] = poly
     if config is None:
         document.note_compensation(doc, ctx.phys)

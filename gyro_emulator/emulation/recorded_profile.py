@@ -1,0 +1,167 @@
+"""
+A measured record as a ``simulate`` profile: its inputs at its own sample times.
+
+``simulate --profile LOG`` (a CSV, CSV.gz or rosbag2 bag that
+:func:`gyro_emulator.recording.record.load_record` reads) drives the
+emulator with what the part saw, in the vocabulary of
+:mod:`gyro_emulator.emulation.profiles` (:class:`~.profiles.ProfileSamples`,
+the model's temperature range, :data:`~.profiles.LEVEL_ACCEL_M_S2`):
+
+* the applied rate: a vector channel as it is; a CSV's single
+  ``rate_cmd_rad_s`` column about the sense axis ``axis``. A record with no
+  applied rate is refused unless ``static`` says the part was at rest (zero
+  rate), as ``diagnose --static`` does;
+* the temperature, interpolated from its own times to the record's
+  (without one: ``temp_c``, constant);
+* the specific force likewise (without one: level, z up).
+
+The output is written at the record's sample times. The model runs on a
+uniform grid at the record's median sample interval from its first sample
+(the model is a sampled system: its noise and filters need one rate); each
+record sample takes the grid sample nearest to it, moved on by one where two
+would share one (:meth:`RecordedProfile.grid_index`), so every record
+sample has its own output and time-dependent terms see the record's clock.
+"""
+
+from dataclasses import dataclass
+import os
+
+from gyro_emulator.emulation.profiles import LEVEL_ACCEL_M_S2, ProfileSamples
+from gyro_emulator.recording.record import DEFAULT_TOPICS, is_bag, load_record
+from gyro_emulator.validation import MODEL_TEMP_RANGE_C
+import numpy as np
+
+AXES = ('x', 'y', 'z')
+
+
+def is_record_path(path):
+    """Return whether ``path`` names a measured record: a CSV (``.csv``, ``.csv.gz``) or a bag."""
+    text = str(path)
+    return text.endswith(('.csv', '.csv.gz', '.mcap')) or (
+        os.path.isdir(text) and is_bag(text))
+
+
+@dataclass(frozen=True)
+class RecordedProfile:
+    """
+    A record's inputs on its own times (module docstring).
+
+    Attributes
+    ----------
+    name : str
+        The record's path.
+    time_s : numpy.ndarray
+        Record sample times, s, non-decreasing (a repeated stamp, from a
+        logger's clock resolution, is accepted), shape (N,).
+    rate_rad_s, accel_m_s2 : numpy.ndarray
+        Applied rate (rad/s) and specific force (m/s^2), shape (N, 3).
+    temp_c : numpy.ndarray
+        Temperature, deg C, shape (N,).
+
+    """
+
+    name: str
+    time_s: np.ndarray
+    rate_rad_s: np.ndarray
+    temp_c: np.ndarray
+    accel_m_s2: np.ndarray
+
+    @property
+    def duration_s(self):
+        """First to last sample plus one interval, s."""
+        return float(self.time_s[-1] - self.time_s[0]) + self.sample_period_s
+
+    @property
+    def sample_period_s(self):
+        """Return the median positive sample interval, s (the model's step)."""
+        dt = np.diff(self.time_s)
+        return float(np.median(dt[dt > 0.0]))
+
+    @property
+    def rate_hz(self):
+        """Return the record's nominal sample rate, Hz."""
+        return 1.0 / self.sample_period_s
+
+    def grid_index(self, period_s):
+        """Return the model grid sample of each record sample: nearest, strictly increasing."""
+        k = np.rint((self.time_s - self.time_s[0]) / period_s).astype(np.int64)
+        n = np.arange(len(k))
+        return np.maximum.accumulate(k - n) + n
+
+    def samples(self):
+        """Return what the part saw at each record sample, as ``ProfileSamples``."""
+        return ProfileSamples(rate_rad_s=self.rate_rad_s, temp_c=self.temp_c,
+                              accel_m_s2=self.accel_m_s2)
+
+
+def _on_record_times(channel, t, width):
+    """Interpolate a channel's values from its own times to ``t``: shape (N,) or (N, width)."""
+    values = np.asarray(channel.values, dtype=float)
+    if len(channel.time_s) == len(t) and np.array_equal(channel.time_s, t):
+        return values.copy()                # a CSV: the record's own times
+    if values.ndim == 1:
+        return np.interp(t, channel.time_s, values)
+    return np.column_stack([np.interp(t, channel.time_s, values[:, k]) for k in range(width)])
+
+
+def _rate(record, t, axis, static):
+    rate = np.zeros((len(t), 3))
+    if record.rate is None:
+        if not static:
+            raise ValueError(f'{record.path}: the record has no applied rate (rate_cmd_rad_s or '
+                             'a rate topic): give --static if the part was at rest (zero rate)')
+        return rate
+    values = _on_record_times(record.rate, t, 3)
+    if values.ndim == 1:
+        rate[:, AXES.index(axis)] = values
+    else:
+        rate[:] = values
+    return rate
+
+
+def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
+    """
+    Read a measured record as a profile (module docstring).
+
+    Parameters
+    ----------
+    path : str
+        CSV (``.csv``, ``.csv.gz``) or rosbag2 bag (directory or ``.mcap``).
+    axis : str
+        Sense axis a CSV's single ``rate_cmd_rad_s`` column is about: x, y or z.
+    static : bool
+        The part was at rest: a record without an applied rate gets zero rate.
+    temp_c : float
+        Temperature of a record without one, deg C.
+    topics : dict, optional
+        Bag roles (gyro: the sample times; rate, temp, accel) -> topics, as
+        for :func:`~gyro_emulator.recording.record.load_record` (default:
+        the bag's one Imu topic and the emulator's command topics,
+        :data:`~gyro_emulator.recording.record.DEFAULT_TOPICS`).
+
+    Returns
+    -------
+    RecordedProfile
+
+    """
+    if axis not in AXES:
+        raise ValueError(f'simulate.axis = {axis!r} is not allowed: choose x, y or z')
+    roles = topics or {role: DEFAULT_TOPICS[role] for role in ('gyro', 'rate', 'temp', 'accel')}
+    record = load_record(path, roles)
+    t = np.asarray(record.time_s, dtype=float)
+    if len(t) < 2 or np.any(np.diff(t) < 0.0) or t[-1] <= t[0]:
+        raise ValueError(f'{path}: time_s must not go back and must span at least 2 samples '
+                         f'to drive the model ({len(t)} samples)')
+    temp = (np.full(len(t), float(temp_c)) if record.temp is None
+            else _on_record_times(record.temp, t, 1))
+    lo, hi = MODEL_TEMP_RANGE_C
+    if not (np.all(np.isfinite(temp)) and lo <= temp.min() and temp.max() <= hi):
+        raise ValueError(f'{path}: temp_c = {temp.min():.4g} .. {temp.max():.4g} C is out of '
+                         f'range: allowed [{lo}, {hi}] C')
+    accel = (np.tile(LEVEL_ACCEL_M_S2, (len(t), 1)) if record.accel is None
+             else _on_record_times(record.accel, t, 3))
+    rate = _rate(record, t, axis, static)
+    for name, values in (('rate', rate), ('accel', accel)):
+        if not np.all(np.isfinite(values)):
+            raise ValueError(f'{path}: the {name} channel has values that are not finite')
+    return RecordedProfile(str(path), t, rate, temp, accel)
