@@ -260,3 +260,13 @@ def test_a_record_built_from_arrays_is_the_measured_data_it_holds():
     for name in ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s', 'accel_m_s2'):
         np.testing.assert_array_equal(getattr(back, name), getattr(rec, name))
     assert dd.measured(back) is back
+
+
+def test_a_stuck_output_is_refused_in_one_line(tmp_path):
+    # was LAPACK's 'DLASCL parameter 4' on stderr and 'SVD did not converge'
+    t = np.arange(0.0, 60.0, 0.01)
+    path = tmp_path / 'stuck.csv'
+    np.savetxt(path, np.column_stack([t, 0 * t, 25 + 0 * t, 1e-3 + 0 * t]), delimiter=',',
+               header='time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', comments='')
+    with pytest.raises(ValueError, match=r'gyro_rad_s = 0\.001 in all 6000 samples: a stuck'):
+        load_measured(str(path))
