@@ -1,6 +1,7 @@
 """The diagnose CSV contract, bag input and the decimated view."""
 
 from gyro_emulator.analysis.diagnose import data as dd
+from gyro_emulator.analysis.diagnose import diagnose
 from gyro_emulator.analysis.diagnose.data import (load_measured, MeasuredData, Prepared,
                                                   write_measured_csv)
 import numpy as np
@@ -269,4 +270,4 @@ def test_a_stuck_output_is_refused_in_one_line(tmp_path):
     np.savetxt(path, np.column_stack([t, 0 * t, 25 + 0 * t, 1e-3 + 0 * t]), delimiter=',',
                header='time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', comments='')
     with pytest.raises(ValueError, match=r'gyro_rad_s = 0\.001 in all 6000 samples: a stuck'):
-        load_measured(str(path))
+        diagnose(load_measured(str(path)))

@@ -121,11 +121,6 @@ class MeasuredData:
             raise ValueError('MeasuredData.time_s spans no time: allowed '
                              'last > first')
         self._check_limits()
-        if np.ptp(self.gyro_rad_s) == 0.0:
-            raise ValueError(
-                f'MeasuredData.gyro_rad_s = {float(self.gyro_rad_s[0])!r} in all {n} samples: a '
-                'stuck or unconnected output has no noise to diagnose against; allowed: an '
-                'output that varies')
 
     def _check_limits(self):
         """Raise ValueError naming the first value beyond its physical limits, and the row."""

@@ -152,6 +152,11 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     catalogue = generic.CATALOGUE if effects is None else tuple(
         generic.effect(e) for e in effects)
     data = measured(data)
+    if np.ptp(data.gyro_rad_s) == 0.0:
+        raise ValueError(
+            f'diagnose: gyro_rad_s = {float(data.gyro_rad_s[0])!r} in all {data.rows} samples: '
+            'a stuck or unconnected output has no noise to diagnose against; allowed: an '
+            'output that varies')
     if config is None:
         phys = _physics(data, physics_preset(preset), ref_temp_c)
     else:
