@@ -142,6 +142,7 @@ class GyroEmulatorNode(Node):
         self._last_stamp_ns = None
         self._stamps_clamped = 0
         self._last_sample = None
+        self._zero_ns = None        # node-clock instant of the first sample (record time)
         self._ambient_c = p['initial_temperature_c']
         self._stale = False
         self._out = OutputStage(self, self.frame_id)
@@ -434,11 +435,14 @@ class GyroEmulatorNode(Node):
     def _set_temperature_decimation(self, sample_rate_hz):
         self._out.temp_every = max(1, int(round(sample_rate_hz / self._p['temperature_rate_hz'])))
 
-    def _restart(self, why, jump_ns=0):
+    def _restart(self, why, jump_ns=0, next_ns=None):
         """Restart the filters after a discontinuity of the time line; say so."""
         self._fault.shift(jump_ns)
         self._stepper.sync()
         self._stepper.model.restart_filters()
+        if next_ns is not None and self._zero_ns is not None:   # record time follows the clock
+            self._zero_ns = min(self._zero_ns, next_ns)
+            self._stepper.model.set_elapsed_s((next_ns - self._zero_ns) / NS_PER_S)
         self._intake.reset_clock()
         self._last_stamp_ns = None
         self.get_logger().warning(f'{why}: command stamps forgotten, filters restarted')
@@ -469,9 +473,10 @@ class GyroEmulatorNode(Node):
         now_ns = self._now_ns()
         due = self._samples.due(now_ns)
         if due.restart == 'jump_back':
-            self._restart('clock jumped back', now_ns - self._last_tick_ns)
+            self._restart('clock jumped back', now_ns - self._last_tick_ns, now_ns)
         elif due.restart == 'gap':
-            self._restart(f'the clock jumped ahead {(now_ns - self._last_tick_ns) * 1e-9:.3f} s')
+            self._restart(f'the clock jumped ahead {(now_ns - self._last_tick_ns) * 1e-9:.3f} s',
+                          0, now_ns)
         self._last_tick_ns = now_ns
         self._publish_due(due, now_ns)
 
@@ -522,6 +527,8 @@ class GyroEmulatorNode(Node):
                 self.get_logger().error(f'model refused the sample: {exc}')
             return
         self._last_sample = s
+        if self._zero_ns is None:
+            self._zero_ns = sample_ns
         if self._stepper.sigma_version != self._sigma_version:
             self._refresh_covariance()
         out = self._out
@@ -565,7 +572,7 @@ class GyroEmulatorNode(Node):
             why = ('the input clock jumped back' if step.restart == 'jump_back'
                    else f'a gap of {step.dt_s:.3f} s in the input stamps')
             self._restart(why, int(round(step.dt_s * NS_PER_S)) if step.restart ==
-                          'jump_back' else 0)
+                          'jump_back' else 0, stamp_ns)
         if step.rate_hz is not None:
             self._replan(step.rate_hz)
         if self._rate_refused:
