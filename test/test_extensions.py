@@ -175,6 +175,25 @@ def test_record_time_follows_a_rate_change_and_a_new_configuration():
                                rtol=1e-12)
 
 
+def test_set_elapsed_puts_the_record_time_on_a_jumped_time_line():
+    """After set_elapsed_s(E) the next sample is at elapsed E: warm-up, drift and step follow."""
+    tau = 3.0
+    terms = ex.ExtendedTerms(start_time_s=2.0, bias_time=ex.BiasTime(tau, A, A, 10.0),
+                             bias_step=ex.BiasStep(30.0, A))
+    model = GyroModel(replace(SensorConfig.ideal(), extended=terms), FS,
+                      np.random.default_rng(1))
+    model.run(RATE[:1000], TEMP[:1000])              # 20 s
+    model.set_elapsed_s(40.0)                        # the clock jumped 20 s ahead
+    out = model.run(RATE[:100], TEMP[:100])
+    elapsed = 40.0 + np.arange(100) / FS
+    t = 2.0 + elapsed
+    want = A * (np.exp(-elapsed / tau) + (t - 10.0) / 3600.0 + 1.0)[:, None]
+    np.testing.assert_allclose(out.bias_rad_s, want, rtol=1e-12)
+    for bad in (float('nan'), 2e9, 'x'):
+        with pytest.raises(ValueError, match='GyroModel.elapsed_s = .* is out of range'):
+            model.set_elapsed_s(bad)
+
+
 def test_copy_continues_identically():
     config = replace(load_sensor_config('consumer'), extended=_all_terms())
     model = GyroModel(config, 200.0, np.random.default_rng(3))

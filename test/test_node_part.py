@@ -24,8 +24,10 @@ import sys
 
 from conftest import ros_env
 from gyro_emulator.recording import bag, cdr
+from gyro_emulator.sensor import config as sensor_config
 import numpy as np
 import pytest
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
 from test_node import NodeProcess, Probe, stamp_ns, vector
 import yaml
@@ -176,3 +178,51 @@ def test_the_node_runs_the_part_diagnose_wrote_and_follows_the_measured_bias(
     residual = rates[:, 1] - expected_y
     residual -= np.median(residual)                 # the turn-on bias of y
     assert np.max(np.abs(residual)) <= 6.0 * noise[1], np.max(np.abs(residual)) / noise[1]
+
+
+def test_the_record_time_follows_the_node_clock_across_a_jump(tmp_path):
+    """
+    A bias step at record time 25 s; the /clock jumps 30 s ahead, then back.
+
+    The node restarts its filters at a jump; the extended terms' record time
+    follows its clock: the step is on after the jump ahead and off again
+    after the jump back to before it.
+    """
+    path = tmp_path / 'part.yaml'
+    path.write_text(yaml.safe_dump({
+        'terms': dict.fromkeys(sensor_config.ErrorTerms.names(), False),
+        'extended': {'bias_step': {'step_time_s': 25.0, 'bias_step_rad_s': 0.5}}}))
+    env = ros_env()
+    node = NodeProcess(env, str(tmp_path / 'node.log'), '-r', '__ns:=/jump', '-p',
+                       'use_sim_time:=true', '-p', f'sensor_config:={path}', '-p', 'rate_hz:=10.0')
+    probe = Probe(env)
+    try:
+        clock = probe.publisher(Clock, '/clock', 10)
+        imu = probe.listen(Imu, '/jump/imu/data_raw')
+        probe.spin_until(lambda: clock.get_subscription_count() > 0 and
+                         probe.node.count_publishers('/jump/imu/data_raw') > 0, 60.0,
+                         'the node on the graph')
+
+        def outputs(t0_s, count):
+            """Step the clock by 0.1 s from t0_s; return the x outputs stamped in that span."""
+            for k in range(count):
+                msg = Clock()
+                msg.clock.sec, msg.clock.nanosec = divmod(int(round((t0_s + 0.1 * k) * NS)), NS)
+                seen = len(imu)
+                for _ in range(10):                 # until this tick's output (or 0.5 s)
+                    clock.publish(msg)
+                    probe.executor.spin_once(timeout_sec=0.05)
+                    if len(imu) > seen:
+                        break
+            span = (int(round(t0_s * NS)), int(round((t0_s + 0.1 * count) * NS)))
+            return [m.angular_velocity.x for m in imu if span[0] <= stamp_ns(m.header) < span[1]]
+
+        before = outputs(100.0, 5)                  # record time 0 .. 0.4 s
+        ahead = outputs(130.0, 5)                   # 30 .. 30.4 s
+        back = outputs(100.5, 10)                   # 0.5 .. 1.4 s
+    finally:
+        probe.close()
+        assert node.stop() == 0
+    assert len(before) >= 3 and len(ahead) >= 3 and len(back) >= 3, (before, ahead, back)
+    assert set(before) == {0.0} and set(ahead) == {0.5} and set(back) == {0.0}
+    assert 'jumped ahead' in node.log() and 'jumped back' in node.log()

@@ -294,7 +294,8 @@ class GyroModel:
         jumped) this puts it back on that time line. The play, lag and
         other states carry on; the warm-up is re-anchored.
         """
-        value = float(elapsed_s) if np.isscalar(elapsed_s) else float('nan')
+        number = isinstance(elapsed_s, (int, float, np.integer, np.floating))
+        value = float(elapsed_s) if number and not isinstance(elapsed_s, bool) else math.nan
         if not abs(value) <= extensions.TIME_LIMIT_S:
             raise ValueError(f'GyroModel.elapsed_s = {elapsed_s!r} is out of range: allowed '
                              f'[-{extensions.TIME_LIMIT_S:g}, {extensions.TIME_LIMIT_S:g}] s')
