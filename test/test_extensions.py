@@ -264,3 +264,20 @@ def test_every_extended_field_is_checked_against_its_range(cause, name, spec):
             cls(**{name: outside})
         text = str(err.value)
         assert f'{cls.__name__}.{name} = ' in text and 'allowed' in text and '\n' not in text
+
+
+def test_record_clock_places_the_first_sample_on_its_origin_or_says_why_not():
+    """record_start_clock_s: the first sample's record time is its clock time - the origin."""
+    from gyro_emulator.emulation.record_clock import RecordClock
+    config = replace(SensorConfig.ideal(), extended=ex.ExtendedTerms(
+        bias_step=ex.BiasStep(10.0, A)))
+    notes = []
+    model = GyroModel(config, FS, np.random.default_rng(1))
+    clock = RecordClock(100.0, notes.append)
+    clock.first(model, 109_000_000_000)             # clock 109 s: record time 9 s
+    out = model.run(RATE[:100], TEMP[:100])         # 9 .. 10.98 s
+    assert np.array_equal(out.bias_rad_s[:, 0] != 0, 9.0 + T_S[:100] >= 10.0) and not notes
+    far = GyroModel(config, FS, np.random.default_rng(1))
+    RecordClock(0.0, notes.append).first(far, 2_000_000_000 * 10**9)
+    assert len(notes) == 1 and 'record_start_clock_s = 0 s is not used' in notes[0]
+    assert not far.run(RATE[:10], TEMP[:10]).bias_rad_s.any()     # record time 0: no step

@@ -47,6 +47,7 @@ from gyro_emulator.emulation.commands import (check_acceleration, check_rate, In
                                               InputRejected, Throttle)
 from gyro_emulator.emulation.fault_state import FaultState
 from gyro_emulator.emulation.imu_timeline import InputTimeline, SpacingRefused, StampNotNewer
+from gyro_emulator.emulation.record_clock import RecordClock
 from gyro_emulator.emulation.sample_clock import SampleClock
 from gyro_emulator.recording import topics
 from gyro_emulator.ros import codec, diagnostics, node_help, params, spinning
@@ -142,7 +143,7 @@ class GyroEmulatorNode(Node):
         self._last_stamp_ns = None
         self._stamps_clamped = 0
         self._last_sample = None
-        self._zero_ns = None        # node-clock instant of the first sample (record time)
+        self._record = RecordClock(p['record_start_clock_s'], self.get_logger().error)
         self._ambient_c = p['initial_temperature_c']
         self._stale = False
         self._out = OutputStage(self, self.frame_id)
@@ -440,9 +441,7 @@ class GyroEmulatorNode(Node):
         self._fault.shift(jump_ns)
         self._stepper.sync()
         self._stepper.model.restart_filters()
-        if next_ns is not None and self._zero_ns is not None:   # record time follows the clock
-            self._zero_ns = min(self._zero_ns, next_ns)
-            self._stepper.model.set_elapsed_s((next_ns - self._zero_ns) / NS_PER_S)
+        self._record.jumped(self._stepper.model, next_ns)    # the extended terms' time
         self._intake.reset_clock()
         self._last_stamp_ns = None
         self.get_logger().warning(f'{why}: command stamps forgotten, filters restarted')
@@ -501,10 +500,11 @@ class GyroEmulatorNode(Node):
         if not due.times_ns:
             return
         self._intake.take(now_ns, self._limits)
+        first_ns = due.times_ns[0] - int(round(due.skipped * self._samples.period_ns))
+        self._record.first(self._stepper.model, first_ns)
         if due.skipped:
             self._book.drop(due.skipped)
             # The part sampled them: run the model through with the input held.
-            first_ns = due.times_ns[0] - int(round(due.skipped * self._samples.period_ns))
             rate, temp, accel = self._inputs(first_ns)
             try:
                 self._stepper.skip(due.skipped, rate, temp, accel)
@@ -527,8 +527,6 @@ class GyroEmulatorNode(Node):
                 self.get_logger().error(f'model refused the sample: {exc}')
             return
         self._last_sample = s
-        if self._zero_ns is None:
-            self._zero_ns = sample_ns
         if self._stepper.sigma_version != self._sigma_version:
             self._refresh_covariance()
         out = self._out
@@ -578,6 +576,7 @@ class GyroEmulatorNode(Node):
         if self._rate_refused:
             self._book.model_error(self._rate_refused)
         intake = self._intake
+        self._record.first(self._stepper.model, stamp_ns)
         intake.take(stamp_ns, self._limits)
         temp = self._ambient(intake.temperature.advance(stamp_ns))
         held, self._previous_input = self._previous_input, (rate, accel)
