@@ -175,6 +175,25 @@ def test_record_time_follows_a_rate_change_and_a_new_configuration():
                                rtol=1e-12)
 
 
+def test_set_elapsed_puts_the_record_time_on_a_jumped_time_line():
+    """After set_elapsed_s(E) the next sample is at elapsed E: warm-up, drift and step follow."""
+    tau = 3.0
+    terms = ex.ExtendedTerms(start_time_s=2.0, bias_time=ex.BiasTime(tau, A, A, 10.0),
+                             bias_step=ex.BiasStep(30.0, A))
+    model = GyroModel(replace(SensorConfig.ideal(), extended=terms), FS,
+                      np.random.default_rng(1))
+    model.run(RATE[:1000], TEMP[:1000])              # 20 s
+    model.set_elapsed_s(40.0)                        # the clock jumped 20 s ahead
+    out = model.run(RATE[:100], TEMP[:100])
+    elapsed = 40.0 + np.arange(100) / FS
+    t = 2.0 + elapsed
+    want = A * (np.exp(-elapsed / tau) + (t - 10.0) / 3600.0 + 1.0)[:, None]
+    np.testing.assert_allclose(out.bias_rad_s, want, rtol=1e-12)
+    for bad in (float('nan'), 2e9, 'x'):
+        with pytest.raises(ValueError, match='GyroModel.elapsed_s = .* is out of range'):
+            model.set_elapsed_s(bad)
+
+
 def test_copy_continues_identically():
     config = replace(load_sensor_config('consumer'), extended=_all_terms())
     model = GyroModel(config, 200.0, np.random.default_rng(3))
@@ -245,3 +264,20 @@ def test_every_extended_field_is_checked_against_its_range(cause, name, spec):
             cls(**{name: outside})
         text = str(err.value)
         assert f'{cls.__name__}.{name} = ' in text and 'allowed' in text and '\n' not in text
+
+
+def test_record_clock_places_the_first_sample_on_its_origin_or_says_why_not():
+    """record_start_clock_s: the first sample's record time is its clock time - the origin."""
+    from gyro_emulator.emulation.record_clock import RecordClock
+    config = replace(SensorConfig.ideal(), extended=ex.ExtendedTerms(
+        bias_step=ex.BiasStep(10.0, A)))
+    notes = []
+    model = GyroModel(config, FS, np.random.default_rng(1))
+    clock = RecordClock(100.0, notes.append)
+    clock.first(model, 109_000_000_000)             # clock 109 s: record time 9 s
+    out = model.run(RATE[:100], TEMP[:100])         # 9 .. 10.98 s
+    assert np.array_equal(out.bias_rad_s[:, 0] != 0, 9.0 + T_S[:100] >= 10.0) and not notes
+    far = GyroModel(config, FS, np.random.default_rng(1))
+    RecordClock(0.0, notes.append).first(far, 2_000_000_000 * 10**9)
+    assert len(notes) == 1 and 'record_start_clock_s = 0 s is not used' in notes[0]
+    assert not far.run(RATE[:10], TEMP[:10]).bias_rad_s.any()     # record time 0: no step

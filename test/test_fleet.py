@@ -375,6 +375,28 @@ def test_impossible_parts_are_rejected_or_clipped_and_counted(tmp_path):
      r'frame_count is a count'),
     ({'invalid': 'ignore'}, r"'ignore' is not allowed"),
     ({'sensor_runs': {'devices': 0}}, r'devices = 0'),
+    ({'extended': {'bias_wobble': {}}}, r"extended: unknown term 'bias_wobble'; allowed: "),
+    ({'extended': {'bias_step': {'step_s': 1.0}}},
+     r'extended.bias_step: unknown parameter\(s\) step_s; allowed: step_time_s'),
+    ({'extended': {'bias_hysteresis': {'hysteresis_width_k': -1.0}}},
+     r'BiasHysteresis.hysteresis_width_k = -1.0 is out of range'),
+    ({'extended': {'bias_step': {'bias_step_rad_s': [1e-3, 0.0, 0.0]}}},
+     r'extended.bias_step.bias_step_rad_s: \[0.001, 0.0, 0.0\] is not allowed: a fleet part '
+     r'has one read-out axis'),
+    ({'extended': {'bias_step': {'bias_step_rad_s': 1e-3}},
+      'tolerances': {'extended.bias_step.bias_step_rads': {'normal': 1e-4}}},
+     r"unknown parameter 'bias_step_rads' of extended.bias_step; allowed: step_time_s, "
+     r'bias_step_rad_s'),
+    ({'tolerances': {'extended.bias_step.bias_step_rad_s': {'normal': 1e-4}}},
+     r"extended.bias_step is not on in the fleet's extended: mapping"),
+    ({'extended': {'bias_step': {'enabled': False}},
+      'tolerances': {'extended.bias_step.step_time_s': {'normal': 1.0}}},
+     r"extended.bias_step is not on in the fleet's extended: mapping"),
+    ({'tolerances': {'extended.bias_wobble.a': {'normal': 1.0}}},
+     r"unknown extended term 'bias_wobble'"),
+    ({'extended': {'scale_factor_temperature': {}},
+      'tolerances': {'extended.scale_factor_temperature.sf_temp_coeff_per_k':
+                     {'normal': '5%'}}}, r'percentage of a zero nominal'),
 ])
 def test_bad_fleet_yaml_gives_one_line_naming_the_field(mapping, match):
     with pytest.raises(ValueError, match=match) as info:
@@ -623,3 +645,78 @@ def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resum
                             resume=True)
     assert _without_run(resumed) == _without_run(whole)
     assert _rows(tmp_path / 'kept').equals(_rows(tmp_path / 'whole'))
+
+
+# --- extended terms (sensor.extensions) with a tolerance (issue 24) ----------------------
+
+SF_POLY = {'sf_temp_coeff_per_k': 2e-4, 'sf_temp_coeff2_per_k2': -1e-6}
+
+
+def test_an_extended_sf_polynomial_drawn_per_part_acts_in_the_sf_metrics():
+    """
+    The drawn c1, c2 of scale_factor_temperature multiply SF(T)/SF(T_cal).
+
+    Checked against the emulator itself: the gain GyroModel reports with the
+    part's term over the gain without it, at each grid temperature.
+    """
+    tol = {'extended.scale_factor_temperature.sf_temp_coeff_per_k': {'normal': 5e-5},
+           'extended.scale_factor_temperature.sf_temp_coeff2_per_k2': {'uniform': 5e-7},
+           'gas.pressure_pa': {'uniform': '10%'}}
+    cfg = fleet(extended={'scale_factor_temperature': SF_POLY}, tolerances=tol,
+                sensor_runs={'devices': 1, 'duration_s': 10.0}, attribution_devices=0)
+    plain = fleet(tolerances={'gas.pressure_pa': {'uniform': '10%'}}, attribution_devices=0)
+    n = 200
+    values, invalid, _ = sampling.checked(cfg, sampling.draw_block(cfg, 4, 0, n).values(), n)
+    assert not invalid.any()
+    c1 = values['extended.scale_factor_temperature.sf_temp_coeff_per_k']
+    assert np.std(c1) == pytest.approx(5e-5, rel=0.2) and np.mean(c1) == pytest.approx(
+        2e-4, abs=3 * 5e-5 / np.sqrt(n))
+    ext = evaluate.evaluate(cfg, values, n)
+    base = evaluate.evaluate(plain, {k: v for k, v in values.items()
+                                     if not k.startswith('extended.')}, n)
+    temps = np.array(cfg.temperatures_c)
+    from gyro_emulator.analysis.fleet import sensor_runs
+    from gyro_emulator.sensor.model import GyroModel
+    for i in (0, 1, 2):
+        part = sensor_runs.part_sensor_config(cfg, values, ext, i)
+        term = part.extended.scale_factor_temperature
+        assert term.sf_temp_coeff_per_k == (c1[i],) * 3
+        gains = [GyroModel(c, 100.0, np.random.default_rng(0)).run(
+            np.zeros((temps.size, 3)), temps).scale_factor[:, 0]
+            for c in (part, replace(part, extended=replace(part.extended,
+                                                           scale_factor_temperature=None)))]
+        poly = gains[0] / gains[1]
+        np.testing.assert_allclose(ext['sf_ratio'][:, i], base['sf_ratio'][:, i] * poly,
+                                   rtol=1e-12)
+    # The linear coefficient moves the tempco by about c1 (ppm/K).
+    np.testing.assert_allclose(ext['sf_tempco_ppm_k'] - base['sf_tempco_ppm_k'], 1e6 * c1,
+                               atol=30.0)
+    assert not np.array_equal(ext['sf_error_pct'], base['sf_error_pct'])
+    np.testing.assert_array_equal(ext['sf_m_per_rad_s'], base['sf_m_per_rad_s'])
+
+
+def test_a_drawn_extended_term_reaches_the_part_s_sensor_run_and_its_range_is_checked():
+    """A part's bias step is its drawn value; a value outside the term's range is rejected."""
+    cfg = fleet(extended={'bias_step': {'step_time_s': 0.0, 'bias_step_rad_s': 1e-3},
+                          'bias_hysteresis': {'hysteresis_width_k': 0.5}},
+                tolerances={'extended.bias_step.bias_step_rad_s': {'normal': 2e-4},
+                            'extended.bias_hysteresis.hysteresis_width_k': {'normal': 0.25}},
+                sensor_runs={'devices': 1, 'duration_s': 10.0}, attribution_devices=0)
+    n = 400
+    values, invalid, _ = sampling.checked(cfg, sampling.draw_block(cfg, 9, 0, n).values(), n)
+    raw = sampling.draw_block(cfg, 9, 0, n).values()
+    # Width is open at 0 (sensor.extensions.BiasHysteresis.RANGES): P(z < -2) ~ 2.3 %.
+    np.testing.assert_array_equal(invalid, raw['extended.bias_hysteresis.hysteresis_width_k']
+                                  <= 0.0)
+    assert 0 < invalid.sum() < 0.06 * n
+    from gyro_emulator.analysis.fleet import sensor_runs
+    from gyro_emulator.sensor.model import GyroModel
+    metrics = evaluate.evaluate(cfg, values, n)
+    i = int(np.flatnonzero(~invalid)[0])
+    part = sensor_runs.part_sensor_config(cfg, values, metrics, i)
+    step = values['extended.bias_step.bias_step_rad_s'][i]
+    assert part.extended.bias_step.bias_step_rad_s == (step,) * 3
+    quiet = replace(part, terms=replace(part.terms, **dict.fromkeys(part.terms.names(), False)))
+    out = GyroModel(quiet, 100.0, np.random.default_rng(0)).run(np.zeros((50, 3)),
+                                                                np.full(50, 25.0))
+    np.testing.assert_allclose(out.gyro_rad_s[-1], step, rtol=1e-9)

@@ -675,15 +675,21 @@ def test_help_prints_parameters_and_topics_without_starting_ros():
     (['-p', 'stale_rate_policy:=freeze'], 'stale_rate_policy = '),
     (['-p', 'sensor_config:=nonexistent'], "sensor config 'nonexistent'"),
     (['-p', 'sensor.range_rad_s:=[1.0, 2.0]'], 'SensorConfig.range_rad_s'),
-], ids=['range', 'choice', 'sensor_config', 'sensor_field'])
+    (['-p', 'sensor_config:={bad_extended}'],
+     'BiasHysteresis.hysteresis_width_k = -2.0 is out of range'),
+], ids=['range', 'choice', 'sensor_config', 'sensor_field', 'extended_term'])
 def test_bad_configuration_exits_with_a_clear_message(tmp_path, args, message):
     sensor_yaml = write_sensor_yaml(str(tmp_path))
+    bad = tmp_path / 'bad_extended.yaml'
+    bad.write_text('extended:\n  bias_hysteresis: {hysteresis_width_k: -2.0}\n')
+    args = [a.replace('{bad_extended}', str(bad)) for a in args]
     proc = subprocess.run(
         [sys.executable, '-m', 'gyro_emulator.ros.node', '--ros-args',
          '-p', f'sensor_config:={sensor_yaml}', *args],
         env=ros_env(), cwd=ROOT, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 2
     assert message in proc.stderr and 'Traceback' not in proc.stderr
+    assert proc.stderr.strip().count('\n') == 0, proc.stderr
 
 
 @pytest.mark.parametrize('sig,preset', [(signal.SIGINT, 'consumer'),

@@ -47,6 +47,7 @@ from gyro_emulator.emulation.commands import (check_acceleration, check_rate, In
                                               InputRejected, Throttle)
 from gyro_emulator.emulation.fault_state import FaultState
 from gyro_emulator.emulation.imu_timeline import InputTimeline, SpacingRefused, StampNotNewer
+from gyro_emulator.emulation.record_clock import RecordClock
 from gyro_emulator.emulation.sample_clock import SampleClock
 from gyro_emulator.recording import topics
 from gyro_emulator.ros import codec, diagnostics, node_help, params, spinning
@@ -142,6 +143,7 @@ class GyroEmulatorNode(Node):
         self._last_stamp_ns = None
         self._stamps_clamped = 0
         self._last_sample = None
+        self._record = RecordClock(p['record_start_clock_s'], self.get_logger().error)
         self._ambient_c = p['initial_temperature_c']
         self._stale = False
         self._out = OutputStage(self, self.frame_id)
@@ -434,11 +436,12 @@ class GyroEmulatorNode(Node):
     def _set_temperature_decimation(self, sample_rate_hz):
         self._out.temp_every = max(1, int(round(sample_rate_hz / self._p['temperature_rate_hz'])))
 
-    def _restart(self, why, jump_ns=0):
+    def _restart(self, why, jump_ns=0, next_ns=None):
         """Restart the filters after a discontinuity of the time line; say so."""
         self._fault.shift(jump_ns)
         self._stepper.sync()
         self._stepper.model.restart_filters()
+        self._record.jumped(self._stepper.model, next_ns)    # the extended terms' time
         self._intake.reset_clock()
         self._last_stamp_ns = None
         self.get_logger().warning(f'{why}: command stamps forgotten, filters restarted')
@@ -469,9 +472,10 @@ class GyroEmulatorNode(Node):
         now_ns = self._now_ns()
         due = self._samples.due(now_ns)
         if due.restart == 'jump_back':
-            self._restart('clock jumped back', now_ns - self._last_tick_ns)
+            self._restart('clock jumped back', now_ns - self._last_tick_ns, now_ns)
         elif due.restart == 'gap':
-            self._restart(f'the clock jumped ahead {(now_ns - self._last_tick_ns) * 1e-9:.3f} s')
+            self._restart(f'the clock jumped ahead {(now_ns - self._last_tick_ns) * 1e-9:.3f} s',
+                          0, now_ns)
         self._last_tick_ns = now_ns
         self._publish_due(due, now_ns)
 
@@ -496,10 +500,11 @@ class GyroEmulatorNode(Node):
         if not due.times_ns:
             return
         self._intake.take(now_ns, self._limits)
+        first_ns = due.times_ns[0] - int(round(due.skipped * self._samples.period_ns))
+        self._record.first(self._stepper.model, first_ns)
         if due.skipped:
             self._book.drop(due.skipped)
             # The part sampled them: run the model through with the input held.
-            first_ns = due.times_ns[0] - int(round(due.skipped * self._samples.period_ns))
             rate, temp, accel = self._inputs(first_ns)
             try:
                 self._stepper.skip(due.skipped, rate, temp, accel)
@@ -565,12 +570,13 @@ class GyroEmulatorNode(Node):
             why = ('the input clock jumped back' if step.restart == 'jump_back'
                    else f'a gap of {step.dt_s:.3f} s in the input stamps')
             self._restart(why, int(round(step.dt_s * NS_PER_S)) if step.restart ==
-                          'jump_back' else 0)
+                          'jump_back' else 0, stamp_ns)
         if step.rate_hz is not None:
             self._replan(step.rate_hz)
         if self._rate_refused:
             self._book.model_error(self._rate_refused)
         intake = self._intake
+        self._record.first(self._stepper.model, stamp_ns)
         intake.take(stamp_ns, self._limits)
         temp = self._ambient(intake.temperature.advance(stamp_ns))
         held, self._previous_input = self._previous_input, (rate, accel)

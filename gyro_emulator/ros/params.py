@@ -160,6 +160,9 @@ NODE_PARAMS = (
     ParamSpec('block_samples', 'integer', 'Samples the model computes ahead per call '
               '(exact: rewound when an input changes; 1 = one call per sample)', True,
               1, 1000),
+    ParamSpec('record_start_clock_s', 'double', 'Node-clock time of record time '
+              'extended.start_time_s of the sensor_config (the time line of its '
+              'extended terms), s; negative: the first sample', True, -1.0, 1e12),
     ParamSpec('record_dir', 'string', 'Record inputs, outputs and truth into an MCAP '
               'bag in this directory (gyro_emulator.ros.self_record); empty = off', True),
     ParamSpec('fault.type', 'string', 'Injected fault (sensor.faults): none, stuck, '

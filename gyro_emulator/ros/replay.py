@@ -8,7 +8,8 @@ reaches ``start + (log_time - first_log_time) / rate``; the QoS of each
 publisher is the first profile recorded for its topic (``--reliable`` forces
 reliable delivery). With ``--clock`` the bag time at the current instant,
 ``first_log_time + (now - start) * rate``, is published on ``/clock``
-(rosgraph_msgs/Clock) at HZ, so nodes with ``use_sim_time`` follow the bag.
+(rosgraph_msgs/Clock) at HZ, so nodes with ``use_sim_time`` follow the bag
+(``--wait-for-subscribers`` then also waits for a ``/clock`` subscriber).
 ``--loop`` starts over at the end (the bag clock jumps back, as rosbag2 does).
 
 Bags the recorder could not finish (SIGKILL) are read tolerantly: what was
@@ -139,10 +140,18 @@ class Player:
                 Clock, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
 
     def wait_for_subscribers(self, timeout_s):
-        """Wait until every publisher has a subscriber; return True if they all do."""
+        """
+        Wait until every publisher has a subscriber; return True if they all do.
+
+        With ``/clock``, that one too: a node with ``use_sim_time`` then
+        sees the bag's first instant (its first sample is there).
+        """
         deadline = time.monotonic() + timeout_s
+        publishers = dict(self.publishers)
+        if self.clock_publisher is not None:
+            publishers['/clock'] = self.clock_publisher
         while rclpy.ok() and not self.stop.is_set():
-            missing = [n for n, p in self.publishers.items() if p.get_subscription_count() < 1]
+            missing = [n for n, p in publishers.items() if p.get_subscription_count() < 1]
             if not missing:
                 return True
             if time.monotonic() >= deadline:

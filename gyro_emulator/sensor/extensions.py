@@ -422,6 +422,12 @@ def rebase(state, old_dt):
     state[Z_COUNT] = 0.0
 
 
+def set_elapsed(state, elapsed_s):
+    """Put the next sample ``elapsed_s`` after the first (a jump of the time line)."""
+    state[Z_BASE], state[Z_COUNT] = elapsed_s, 0.0
+    state[Z_WARM_READY] = 0.0       # re-anchor the warm-up exponential
+
+
 @numba.njit(cache=True, error_model='numpy')
 def _evaluate(temp, on, sc, ax, table, cells, state, bias, gain):
     """One pass over the samples (equations: module docstring); updates ``state``."""

@@ -284,6 +284,23 @@ class GyroModel:
         ints[kernel.I_DYN_READY] = 0
         ints[kernel.I_LPF_READY] = 0
 
+    def set_elapsed_s(self, elapsed_s):
+        """
+        Put the next sample ``elapsed_s`` after the first one, for the extended terms.
+
+        Their record time is ``extended.start_time_s`` + the time since the
+        first sample (:mod:`gyro_emulator.sensor.extensions`), counted in
+        samples; after a jump of the input's time line (the node's clock
+        jumped) this puts it back on that time line. The play, lag and
+        other states carry on; the warm-up is re-anchored.
+        """
+        number = isinstance(elapsed_s, (int, float, np.integer, np.floating))
+        value = float(elapsed_s) if number and not isinstance(elapsed_s, bool) else math.nan
+        if not abs(value) <= extensions.TIME_LIMIT_S:
+            raise ValueError(f'GyroModel.elapsed_s = {elapsed_s!r} is out of range: allowed '
+                             f'[-{extensions.TIME_LIMIT_S:g}, {extensions.TIME_LIMIT_S:g}] s')
+        extensions.set_elapsed(self._state.extended, value)
+
     @property
     def white_noise_sigma_rad_s(self):
         """

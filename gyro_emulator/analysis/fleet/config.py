@@ -12,7 +12,11 @@ A fleet is a population of parts drawn from one design. Every parameter is
   mode bends them than as the drive mode does (an x/y etch asymmetry, m;
   nominal 0): it sets the drive-sense split;
 * ``electronics.*``: the rate-noise density, bias temperature coefficient,
-  bias instability and rate random walk of the read-out (one axis, SI).
+  bias instability and rate random walk of the read-out (one axis, SI);
+* ``extended.<term>.<param>``: a parameter of an extended term
+  (:mod:`gyro_emulator.sensor.extensions`) the fleet's ``extended:`` mapping
+  turns on, in the sensor YAML's format and units, with that module's ranges
+  (one read-out axis: a per-axis amplitude is one number).
 
 A tolerance is ``{normal: X}`` (X = sigma) or ``{uniform: X}`` (X = half
 width), X absolute in the parameter's unit or ``"N%"`` of the nominal, with
@@ -35,6 +39,7 @@ import os
 from gyro_emulator.physics import params as physics_params
 from gyro_emulator.resources import read_yaml
 from gyro_emulator.sensor.config import device_from_spec, field_ranges, load_sensor_config
+from gyro_emulator.sensor.extensions import ExtendedTerms, TERM_TYPES
 from gyro_emulator.validation import check_range, check_temperature_c
 
 #: Device parameter groups and the component of the Device each one names.
@@ -51,6 +56,9 @@ ELECTRONICS = {
 #: The x/y suspension asymmetry parameter (see the module docstring).
 MISMATCH = 'mismatch.sense_beam_width_m'
 
+#: Prefix of the parameters of the extended terms: ``extended.<term>.<param>``.
+EXTENDED = 'extended.'
+
 #: Metrics a spec may bound (unit in the name); see analysis.fleet.evaluate.
 METRICS = ('f_drive_hz', 'split_hz', 'q_drive', 'q_sense', 'sf_m_per_rad_s',
            'sf_error_pct', 'sf_tempco_ppm_k', 'sf_residual_pct', 'arw_deg_sqrt_h',
@@ -66,7 +74,7 @@ MODEL_CHECK_METRICS = ('exact_ratio',)
 
 _TOP_KEYS = ('device', 'calibration_temp_c', 'temperatures_c', 'sense_limit_fraction',
              'mismatch', 'electronics', 'tolerances', 'factors', 'specs', 'invalid',
-             'exact', 'sensor_runs', 'attribution_devices', 'model_checks')
+             'exact', 'sensor_runs', 'attribution_devices', 'model_checks', 'extended')
 
 
 @dataclass(frozen=True)
@@ -140,6 +148,9 @@ class FleetConfig:
     attribution_devices: int
     source: str = ''
     model_checks: tuple = ()
+    # Out of the repr (the run's fingerprint) so a fleet without it keeps its
+    # fingerprint; analysis.fleet.state adds it when given.
+    extended: ExtendedTerms = field(default=None, repr=False)
     varied: tuple = field(default=(), init=False)
 
     def __post_init__(self):
@@ -222,6 +233,43 @@ def _parameters(device, mismatch, electronics):
     return out
 
 
+def _extended(raw):
+    """Parse the fleet's ``extended:`` mapping (the sensor YAML's format); None if absent."""
+    if raw is None:
+        return None
+    ext = ExtendedTerms.from_mapping(raw, 'extended')
+    for name in ext.active():
+        term = ext.get(name)
+        for param, (kind, *_rest) in term.RANGES.items():
+            value = getattr(term, param)
+            if kind == 'axis' and len(set(value)) != 1:
+                _fail(f'extended.{name}.{param}', f'{list(value)!r} is not allowed: a fleet '
+                                                  'part has one read-out axis: give one number')
+    return ext
+
+
+def extended_parameters(ext, calibration_temp_c):
+    """
+    Return the parameters of the active extended terms, ``extended.<term>.<param>``.
+
+    Nominal: the term's value (one axis); range: the term's own ``RANGES``
+    (:mod:`gyro_emulator.sensor.extensions`). ``ref_temp_c`` left unset is
+    the calibration temperature, as in the sensor model.
+    """
+    out = {}
+    for name in (() if ext is None else ext.active()):
+        term = ext.get(name)
+        for param, (kind, low, high, unit) in term.RANGES.items():
+            value = getattr(term, param)
+            if kind == 'axis':
+                value = value[0]
+            elif value is None:
+                value = calibration_temp_c
+            key = f'{EXTENDED}{name}.{param}'
+            out[key] = Parameter(key, float(value), low, high, unit, kind == 'open')
+    return out
+
+
 def _counts(device):
     return sorted(f'{group}.{spec.name}' for group in DEVICE_GROUPS
                   for spec in fields(getattr(device, group)) if spec.type is int)
@@ -233,7 +281,22 @@ def _parameter(where, name, parameters, device):
     if name in _counts(device):
         _fail(where, f'{name} is a count: tolerances apply to lengths, thicknesses, gaps, '
                      'pressures, material constants and electronics terms')
+    if name.startswith(EXTENDED):
+        _extended_unknown(where, name, parameters)
     _fail(where, f'unknown parameter {name!r}; allowed: {", ".join(sorted(parameters))}')
+
+
+def _extended_unknown(where, name, parameters):
+    """Fail on an unknown ``extended.<term>.<param>``: name the term or its parameters."""
+    term, _, param = name[len(EXTENDED):].partition('.')
+    if term not in TERM_TYPES:
+        _fail(where, f'unknown extended term {term!r}; allowed: {", ".join(TERM_TYPES)}')
+    allowed = [k for k in parameters if k.startswith(f'{EXTENDED}{term}.')]
+    if not allowed:
+        _fail(where, f"extended.{term} is not on in the fleet's extended: mapping: give "
+                     'the term and its nominal values there')
+    _fail(where, f'unknown parameter {param!r} of extended.{term}; allowed: '
+                 f'{", ".join(k.rsplit(".", 1)[1] for k in allowed)}')
 
 
 def _distribution(where, value, allowed_extra=()):
@@ -378,9 +441,12 @@ def config_from_mapping(mapping, source=''):
     electronics = _nominals('electronics', raw.get('electronics'), tuple(ELECTRONICS),
                             dict.fromkeys(ELECTRONICS, 0.0))
     parameters = _parameters(device, mismatch, electronics)
+    extended = _extended(raw.get('extended'))
+    parameters.update(extended_parameters(extended, cal))
     for param in parameters.values():
-        check_range(param.name.split('.')[0], param.name.split('.')[1], param.nominal,
-                    param.low, param.high, param.unit, param.low_open)
+        group, name = param.name.rsplit('.', 1)
+        check_range(group, name, param.nominal, param.low, param.high, param.unit,
+                    param.low_open)
     exact = raw.get('exact', False)
     if not isinstance(exact, bool):
         _fail('exact', f'{exact!r} is not allowed: choose true or false')
@@ -400,7 +466,8 @@ def config_from_mapping(mapping, source=''):
         calibration_temp_c=cal, sense_limit_fraction=fraction,
         specs=_specs(raw.get('specs'), exact), invalid=invalid, exact=exact,
         sensor_runs=_sensor_runs(raw.get('sensor_runs')), attribution_devices=attribution,
-        source=source, model_checks=_specs(raw.get('model_checks'), exact, 'model_checks'))
+        source=source, model_checks=_specs(raw.get('model_checks'), exact, 'model_checks'),
+        extended=extended)
 
 
 def load_fleet_config(path):

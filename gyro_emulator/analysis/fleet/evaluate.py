@@ -18,6 +18,18 @@ every first-order quantity as (T, n) (Eq 5-21). From it:
 * ``arw_deg_sqrt_h``: the largest over the grid of sqrt(N_brown(T)^2 +
   N_elec^2), N_brown the mechanical-thermal ARW
   (:func:`gyro_emulator.sensor.noise.brownian_arw_from_response`);
+* with an extended ``scale_factor_temperature`` term (the fleet's
+  ``extended:``, :mod:`gyro_emulator.sensor.extensions`), the ratio is
+  multiplied by the term's read-out gain relative to calibration,
+  q(T) / q(T_cal) with q(T) = 1 + c1 (T - T_ref) + c2 (T - T_ref)^2, T_ref
+  the term's ``ref_temp_c`` (else T_cal): ``sf_error_pct``,
+  ``sf_tempco_ppm_k``, ``sf_residual_pct``, ``sf_ratio`` (and
+  ``sf_error_exact_pct``) see it, as the emulator's output would at a
+  constant rate. ``sf_m_per_rad_s`` and ``range_dps`` stay the mechanical
+  sense amplitude. The other extended terms act in time (steps, drifts,
+  warm-up, pressure drift from P_ref at the start) or on the bias path
+  (hysteresis, dT/dt), not on a static temperature grid: they act in the
+  sensor runs only;
 * ``bias_tempco_deg_s_k``: the read-out's bias temperature coefficient;
 * ``range_dps``: the rate at which the sense amplitude reaches
   ``sense_limit_fraction`` of the comb gap, the lowest over the grid;
@@ -57,6 +69,22 @@ def _rows(arr, width, n):
 def _per_device(values, config, name, n):
     arr = values[name] if name in values else config.parameters[name].nominal
     return np.broadcast_to(np.asarray(arr, dtype=float), (n,))
+
+
+def _sf_temperature(config, values, temps, n):
+    """
+    Return the extended scale_factor_temperature gain q(T) over the grid, (T, n), or None.
+
+    q = 1 + c1 dT + c2 dT^2, dT = T - T_ref (sensor.extensions, the ``s_x``
+    factor of its module docstring).
+    """
+    if config.extended is None or config.extended.get('scale_factor_temperature') is None:
+        return None
+    prefix = 'extended.scale_factor_temperature.'
+    c1, c2, ref = (_per_device(values, config, prefix + name, n) for name in (
+        'sf_temp_coeff_per_k', 'sf_temp_coeff2_per_k2', 'ref_temp_c'))
+    d = temps - ref
+    return 1.0 + (c1 * d + c2 * d * d)
 
 
 def _sf_metrics(ratio, temps_c):
@@ -103,6 +131,9 @@ def evaluate(config, values, n):
     p = resp.params
     sf = _rows(resp.sense_amplitude_m, width, n)
     ratio = sf[:grid] / sf[cal]
+    gain = _sf_temperature(config, values, temps, n)
+    if gain is not None:
+        ratio = ratio * (gain[:grid] / gain[cal])
     error, slope, residual = _sf_metrics(ratio, temps[:grid, 0])
     brown = _rows(noise.brownian_arw_from_response(resp, temps), width, n)[:grid]
     elec = _per_device(values, config, 'electronics.noise_rad_s_sqrt_hz', n)
@@ -130,7 +161,7 @@ def evaluate(config, values, n):
     if config.exact:
         steady = exact.exact_steady_state(device, 1.0, temps, split)
         exact_ratio = _rows(steady.ratio_to_first_order, width, n)
-        exact_sf = sf * exact_ratio
+        exact_sf = sf * exact_ratio if gain is None else sf * exact_ratio * gain
         out['exact_ratio'] = exact_ratio[cal].copy()
         out['sf_error_exact_pct'] = 100.0 * np.abs(exact_sf[:grid] / exact_sf[cal] - 1.0).max(
             axis=0)

@@ -5,7 +5,10 @@ For each of the first ``sensor_runs.devices`` valid parts of block 0, the
 3-axis error model (:class:`gyro_emulator.sensor.model.GyroModel`) runs the
 part's own physics on every axis: its device, its drive-sense split (the
 sense envelope of ``mode_split_hz``, magnitude) and its electronics terms,
-on top of the non-physics terms of the ``sensor_runs.config`` preset. The
+on top of the non-physics terms of the ``sensor_runs.config`` preset, and
+the fleet's extended terms (``extended:``, with the part's drawn
+``extended.<term>.<param>`` on every axis), which then replace the preset's
+own ``extended:``. The
 record is the static profile (:func:`gyro_emulator.emulation.profiles.static`)
 at the calibration temperature, without its specific force (the run measures
 noise, not g-sensitivity); the x axis is analysed
@@ -50,6 +53,23 @@ def part_device(config, values, i):
     return replace(config.device, **changes)
 
 
+def part_extended(config, values, i):
+    """Part i's extended terms: the fleet's, with its drawn parameters on every axis."""
+    ext = config.extended
+    changes = {}
+    for name in ext.active():
+        term = ext.get(name)
+        drawn = {}
+        for param, (kind, *_) in term.RANGES.items():
+            key = f'{fleet_config.EXTENDED}{name}.{param}'
+            if key in values:
+                value = float(values[key][i])
+                drawn[param] = (value,) * 3 if kind == 'axis' else value
+        if drawn:
+            changes[name] = replace(term, **drawn)
+    return replace(ext, **changes)
+
+
 def _electronics(config, values, i):
     out = {}
     for name, target in fleet_config.ELECTRONICS.items():
@@ -57,6 +77,19 @@ def _electronics(config, values, i):
         out[target] = float(values[key][i]) if key in values else \
             config.parameters[key].nominal
     return out
+
+
+def part_sensor_config(config, values, metrics, i):
+    """Part i's sensor configuration (see the module docstring)."""
+    split = float(min(abs(metrics['split_hz'][i]), MAX_SPLIT_HZ))
+    device = part_device(config, values, i)
+    sensor = replace(config.sensor_runs.config, device=(device,) * 3,
+                     mode_split_hz=(split,) * 3, **{
+                         key: (value,) * 3
+                         for key, value in _electronics(config, values, i).items()})
+    if config.extended is not None:
+        sensor = replace(sensor, extended=part_extended(config, values, i))
+    return sensor
 
 
 def run_part(config, values, metrics, i, seed):
@@ -76,12 +109,8 @@ def run_part(config, values, metrics, i, seed):
 
     """
     runs = config.sensor_runs
-    split = float(min(abs(metrics['split_hz'][i]), MAX_SPLIT_HZ))
-    device = part_device(config, values, i)
-    sensor = replace(runs.config, device=(device,) * 3,
-                     mode_split_hz=(split,) * 3, **{
-                         key: (value,) * 3
-                         for key, value in _electronics(config, values, i).items()})
+    sensor = part_sensor_config(config, values, metrics, i)
+    device = sensor.device[0]
     rng = np.random.Generator(np.random.SFC64(np.random.SeedSequence(seed, spawn_key=(0, i))))
     model = GyroModel(sensor, runs.rate_hz, rng)
     n = int(round(runs.duration_s * runs.rate_hz))

@@ -43,6 +43,8 @@ def fingerprint(job):
     """Return a digest of what makes the rows: the fleet (not its path), seed, size."""
     what = repr((replace(job.config, source=''), job.seed, job.n_devices, job.write,
                  BLOCK_DEVICES))
+    if job.config.extended is not None:
+        what += repr(job.config.extended)
     return hashlib.sha256(what.encode('utf-8')).hexdigest()
 
 
