@@ -171,8 +171,8 @@ def test_cli_config_with_a_term_the_baseline_cannot_carry(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('planted,found', [('bias_step', 'bias_step'),
-                                           ('electronics_sf_tempco', 'scale_factor_temperature'),
+# two here and the hysteresis above; bench/loop_planted.py closes the loop on all eight
+@pytest.mark.parametrize('planted,found', [('electronics_sf_tempco', 'scale_factor_temperature'),
                                            ('pressure_drift', 'pressure_drift')])
 def test_the_loop_closes_on_planted_causes(tmp_path, planted, found):
     from gyro_emulator.analysis.diagnose import diagnose

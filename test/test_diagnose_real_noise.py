@@ -212,7 +212,7 @@ def test_an_sf_step_is_named_as_a_step_at_its_time(axis, scale, seed, duration):
 
 
 @pytest.mark.parametrize('axis,size,seed', [
-    ('x', 0.0, 1), ('z', 0.0, 3), ('y', -DS['sf_tempco'], 5), ('z', DS['sf_tempco'] / 3, 6)])
+    ('x', 0.0, 1), ('y', -DS['sf_tempco'], 5), ('z', DS['sf_tempco'] / 3, 6)])
 def test_the_parts_own_sf_tempco_is_read_against_the_physics(axis, size, seed):
     # rate and temperature together: a real part (flat SF, or the injected
     # tempco) does not follow the paper's +545 ppm/K, so scale_factor_temperature

@@ -79,9 +79,10 @@ def local_high_pass(r, rate, weight, half):
     diag = np.einsum('nii->ni', gram)
     ridge = 1e-6 * diag + 1e-9 * np.max(diag, axis=1, keepdims=True) + 1e-300
     gram[:, np.arange(p), np.arange(p)] += ridge
-    coef = np.linalg.solve(gram, rhs[:, :, None])[:, :, 0]
-    lev = np.sum(basis * np.linalg.solve(gram, basis[:, :, None])[:, :, 0], axis=1)
-    return (r - np.sum(basis * coef, axis=1)) / np.sqrt(1.0 + np.maximum(lev, 0.0))
+    # one factorisation per sample for both right-hand sides: G^-1 b and G^-1 x
+    both = np.linalg.solve(gram, np.stack([rhs, basis], axis=2))
+    lev = np.sum(basis * both[:, :, 1], axis=1)
+    return (r - np.sum(basis * both[:, :, 0], axis=1)) / np.sqrt(1.0 + np.maximum(lev, 0.0))
 
 
 def stretches(t, dt_s):
