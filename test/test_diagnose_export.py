@@ -130,7 +130,7 @@ def test_the_write_is_atomic_and_needs_overwrite(tmp_path, monkeypatch):
 @pytest.mark.slow
 def test_cli_planted_hysteresis_round_trips_into_the_emulator(tmp_path):
     csv, out, part = tmp_path / 'm.csv', tmp_path / 'd.json', tmp_path / 'part.yaml'
-    proc = _cli('truth', str(csv), '--effect', 'bias_hysteresis', '--seed', '3')
+    proc = _cli('truth', str(csv), '--effect', 'bias_hysteresis', '--seed', '3', '--rate', '5')
     assert proc.returncode == 0, proc.stderr
     proc = _cli('diagnose', str(csv), '--json', str(out), '--write-config', str(part))
     assert proc.returncode == 0, proc.stderr

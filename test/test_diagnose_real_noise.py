@@ -146,7 +146,8 @@ CASES = [
     ('mpu', 'x', 'rate_steps', {'sf_step': DS['sf_step'] / 3}, 440.0),
     ('mpu', 'y', 'tilt', {'g_sensitivity': DS['g_sensitivity']}, 300.0),
     ('mpu', 'z', 'tilt', {'g_sensitivity': DS['g_sensitivity'] / 3}, 440.0),
-    ('mpu', 'x', 'cycles+rate_steps', {'sf_tempco': DS['sf_tempco']}, 440.0),
+    # an SF tempco with rate and temperature: test_the_parts_own_sf_tempco_... reads it back
+    # (here it could not fail: the paper's own +545 ppm/K is named on any such record)
     ('mpu', 'y', 'rate_steps', {'delay': DS['delay'], 'sf_nonlinearity': DS['sf_nonlinearity']},
      300.0),
     ('adis', 'z', 'cycles', {'bias_tempco': DS['bias_tempco']}, None),
