@@ -5,7 +5,7 @@ The LSM6DSM chamber log (static, cooling 23.9 -> 15.6 C over 2 h, in bursts
 of 5 s every 5 min) goes through ``diagnose --write-config part.yaml``; its
 temperature is played from a bag by ``replay --clock --rate`` into the node
 started with ``-p sensor_config:=part.yaml`` and ``use_sim_time`` (one sample
-per record second, the record 400x faster than real time). The node's mean
+per record second, the record 1000x faster than real time, a /clock message every four record seconds). The node's mean
 output per 1 K temperature bin must follow the measured one, up to the
 user's bias calibration b0 (the emulator is the calibrated part: one
 constant), within the measured noise.
@@ -40,8 +40,8 @@ LOG = os.path.join(os.path.dirname(ROOT), 'shared', 'data', 'real', 'lsm6dsm_the
 NS = 1_000_000_000
 #: Bag time of the record's time 0, ns (the node's clock then reads record time + 1000 s).
 BASE_NS = 1000 * NS
-RATE = 400.0            # replay speed
-CLOCK_HZ = 400.0        # /clock: one record second per message
+RATE = 1000.0           # replay speed (the most replay allows)
+CLOCK_HZ = 250.0        # /clock: four record seconds per message
 #: Marker terms on the axes the record does not measure (x, y).
 STEP_S, STEP_RAD_S = 4000.0, 0.02
 TAU_S, WARM_RAD_S, DRIFT_RAD_S_H, ORIGIN_S = 1500.0, 0.03, 0.01, 3662.3
