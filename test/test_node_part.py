@@ -5,7 +5,8 @@ The LSM6DSM chamber log (static, cooling 23.9 -> 15.6 C over 2 h, in bursts
 of 5 s every 5 min) goes through ``diagnose --write-config part.yaml``; its
 temperature is played from a bag by ``replay --clock --rate`` into the node
 started with ``-p sensor_config:=part.yaml`` and ``use_sim_time`` (one sample
-per record second, the record 1000x faster than real time, a /clock message every four record seconds). The node's mean
+per record second, the record 1000x faster than real time, a /clock message
+every four record seconds). The node's mean
 output per 1 K temperature bin must follow the measured one, up to the
 user's bias calibration b0 (the emulator is the calibrated part: one
 constant), within the measured noise.
