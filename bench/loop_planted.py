@@ -47,7 +47,7 @@ SF_DRIFT_PER_H = 0.003
 
 def sf_drift_record(rate_hz, seed):
     """
-    A record the emulator makes itself with ``scale_factor_time`` on (z axis).
+    Return a record the emulator makes itself with ``scale_factor_time`` on (z axis).
 
     2 h of rate steps (30 s at rest, 30 s at +-20..200 deg/s) at 25 C through
     :class:`GyroModel` (the paper preset plus the term), SF drift
