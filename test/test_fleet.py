@@ -640,6 +640,11 @@ def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resum
                                                       r'\d+-\d+ 3 times \(KilledWorker') as info:
             run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'),
                           scheduler=cluster.scheduler_address, blocks_per_task=1)
+        # let the nannies finish restarting the killed workers before the cluster
+        # closes: closing a nanny whose new process has not started yet fails in
+        # distributed's own teardown ("can only join a started process")
+        client.unregister_worker_plugin(_KillFleetTasks.name)
+        client.wait_for_workers(2, timeout=120)
     assert '\n' not in str(info.value) and 'run again with --resume' in str(info.value)
     resumed = run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'), scheduler='in-process',
                             resume=True)
