@@ -226,28 +226,32 @@ def note_compensation(doc, phys):
     and the verdict's message says so.
     """
     ref = phys.ref_temp_c
-    physics = float((phys.ratio(ref + 0.5) - phys.ratio(ref - 0.5)) / 1.0)
-    for entry in [doc['best']] + doc['selected']:
+    physics = float(phys.ratio(ref + 0.5) - phys.ratio(ref - 0.5))   # over 1 K about T_ref
+    for entry in doc['selected']:
         if entry['effect'] != 'scale_factor_temperature':
             continue
         c1 = entry['parameters']['sf_temp_coeff_per_k']
         own = c1['value'] + physics
+        # no sigma (None, 0 or NaN): compensation is not read
+        sigma = c1['sigma'] if c1['sigma'] and math.isfinite(c1['sigma']) else math.inf
+        compensated = (abs(physics) > COMPENSATED_SIGMAS * sigma
+                       and abs(own) < COMPENSATED_SHARE * abs(physics))
         entry['part_sf_temp_coeff_per_k'] = {
             'value': own, 'sigma': c1['sigma'], 'physics_per_k': physics,
             'meaning': "the part's own relative SF slope at T_ref: c1 plus the physics' "
-                       "R'(T_ref)"}
-        sigma = c1['sigma'] if math.isfinite(c1['sigma'] or math.nan) else math.inf
-        compensated = (abs(physics) > COMPENSATED_SIGMAS * sigma
-                       and abs(own) < COMPENSATED_SHARE * abs(physics))
-        entry['part_sf_temp_coeff_per_k']['compensated'] = compensated
+                       "R'(T_ref)", 'compensated': compensated}
         if not compensated:
             continue
         first = [m for m in entry['mechanisms'] if m.startswith('factory')]
         entry['mechanisms'] = first + [m for m in entry['mechanisms'] if m not in first]
-        sentence = (f" The part's own scale-factor tempco is {1e6 * own:+.3g} +- "
-                    f'{1e6 * sigma:.2g} ppm/K at {ref:g} C, far below the '
-                    f"{1e6 * physics:+.3g} ppm/K of the paper's physics: it behaves as a "
-                    'temperature-compensated part (scale_factor_temperature is relative to '
-                    'the physics).')
-        if entry is not doc['best'] and sentence not in doc['residual']['message']:
-            doc['residual']['message'] += sentence
+        doc['residual']['message'] += (
+            f" The part's own scale-factor tempco is {1e6 * own:+.3g} +- "
+            f'{1e6 * sigma:.2g} ppm/K at {ref:g} C, far below the '
+            f"{1e6 * physics:+.3g} ppm/K of the paper's physics: it behaves as a "
+            'temperature-compensated part (scale_factor_temperature is relative to '
+            'the physics).')
+    best = doc['best']
+    if doc['selected'] and 'part_sf_temp_coeff_per_k' in doc['selected'][0]:
+        # best is the first selected cause (a copy of its entry)
+        best['part_sf_temp_coeff_per_k'] = doc['selected'][0]['part_sf_temp_coeff_per_k']
+        best['mechanisms'] = doc['selected'][0]['mechanisms']
