@@ -8,12 +8,27 @@ private ROS_DOMAIN_ID, so concurrent test runs do not see each other.
 
 import itertools
 import os
+import signal
 import sys
 
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 _domains = itertools.count()
+
+
+def pytest_configure(config):
+    """
+    Give the suite a live Ctrl-C when it was started with SIGINT ignored.
+
+    A non-interactive shell starts a background job (``cmd &``) with SIGINT
+    ignored, and an ignored signal stays ignored across fork and exec: the
+    tests that press Ctrl-C (in this process or in the CLI processes they
+    start) would then test nothing and fail. Python's own handler is put
+    back; a Python child then installs its KeyboardInterrupt as usual.
+    """
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def ros_env(**extra):
