@@ -2,7 +2,8 @@
 # gyro_emulator developer entry point: sets up .venv (idempotent) and runs a job.
 #
 #   ./dev.sh main   set everything up, then run the main job (the paper-validation demo)
-#   ./dev.sh test   set everything up, then run the full test suite (lint + unit + ROS integration)
+#   ./dev.sh test   set everything up, then run the full test suite (lint + unit + ROS integration;
+#                   two workers, GYRO_TEST_WORKERS=N to change; arguments go to pytest)
 #   ./dev.sh setup  only set up .venv
 #   ./dev.sh shell  a bash shell with the venv and ROS environment active
 #
@@ -108,7 +109,12 @@ case "$cmd" in
         exec "$VENV/bin/python" -m gyro_emulator.cli.main_job "$@" ;;
     test)
         setup; activate
-        # testpaths=test (setup.cfg) applies when no path is given.
+        # testpaths=test (setup.cfg) applies when no path is given. The whole
+        # suite runs on two pytest-xdist workers, a test file per worker
+        # (GYRO_TEST_WORKERS=0 runs it in one process); named tests run as given.
+        if [ $# -eq 0 ]; then
+            set -- -n "${GYRO_TEST_WORKERS:-2}" --dist loadfile
+        fi
         exec "$VENV/bin/python" -m pytest "$@" ;;
     shell)
         # bash, whatever $SHELL is: --rcfile is how the venv comes after ~/.bashrc.
@@ -118,6 +124,6 @@ case "$cmd" in
         mv "$rc.$$" "$rc"
         exec bash --rcfile "$rc" -i "$@" ;;
     *)
-        sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'
+        sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'
         exit 2 ;;
 esac

@@ -31,6 +31,21 @@ def pytest_configure(config):
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+def _next_domain():
+    """
+    Return the ROS_DOMAIN_ID of the next ROS test of this process.
+
+    Domain IDs 1-100 are safe on Linux. Each pytest-xdist worker (and a run
+    without workers) takes its own slice of them, so tests running at the same
+    time in one run never share a domain; within a slice consecutive tests
+    differ, and the process id offsets separate runs started side by side.
+    """
+    workers = int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1'))
+    worker = int(os.environ.get('PYTEST_XDIST_WORKER', 'gw0')[2:])
+    width = 100 // max(workers, 1)
+    return 1 + worker * width + (os.getpid() + next(_domains)) % width
+
+
 def ros_env(**extra):
     """
     Return an environment for a ROS subprocess: localhost, private domain.
@@ -40,9 +55,7 @@ def ros_env(**extra):
     """
     env = dict(os.environ)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-    # ROS 2 domain IDs 0-101 are safe on Linux; 13 and 101 are coprime, so
-    # consecutive tests of one run never share a domain.
-    env['ROS_DOMAIN_ID'] = str(1 + (os.getpid() * 13 + next(_domains)) % 101)
+    env['ROS_DOMAIN_ID'] = str(_next_domain())
     env['PYTHONPATH'] = ROOT + (os.pathsep + env['PYTHONPATH'] if env.get('PYTHONPATH') else '')
     env['AMENT_PREFIX_PATH'] = sys.prefix + (
         os.pathsep + env['AMENT_PREFIX_PATH'] if env.get('AMENT_PREFIX_PATH') else '')

@@ -127,3 +127,30 @@ def test_real_mpu6050_z_verdict_agrees_with_its_stated_numbers():
     follows = vd.follows(res)
     for text in doc['experiments']:
         assert 'remaining structure follows' not in text or follows is not None
+
+
+def _cand(effect_id, significant=True):
+    """A scored candidate as the selection steps hold it (only what the rule reads)."""
+    return type('Cand', (), {'effect': type('Effect', (), {'effect_id': effect_id}),
+                             'significant': significant})
+
+
+@pytest.mark.parametrize('r,twin_significant,expected', [
+    (-0.999, True, ['scale_factor_temperature']),   # a cooling: the twin is named
+    (0.90, True, []),                               # below PAIR_R: the record can tell
+    (-0.999, False, []),                            # the twin was not established itself
+])
+def test_a_cause_in_time_names_its_temperature_twin_when_the_two_are_confounded(
+        r, twin_significant, expected):
+    chosen = _cand('scale_factor_time')
+    steps = [([chosen, _cand('scale_factor_temperature', twin_significant),
+               _cand('bias_time')], chosen), ([_cand('bias_step', False)], None)]
+    confound = [{'a': 'time', 'b': 'temperature', 'correlation': r}]
+    assert vd.confounded_twins(steps, confound) == [expected]
+
+
+def test_the_bias_twins_pair_both_ways_and_other_causes_have_none():
+    first, second = _cand('bias_temperature'), _cand('g_sensitivity')
+    steps = [([first, _cand('bias_time')], first), ([second, _cand('bias_time')], second)]
+    confound = [{'a': 'temperature', 'b': 'time', 'correlation': 0.97}]
+    assert vd.confounded_twins(steps, confound) == [['bias_time'], []]

@@ -114,6 +114,9 @@ def build(data, preset, cv, screen, rmse_base, null, steps, res, confound, not_t
     """Return the JSON document (see the module docstring)."""
     chosen = [c for _, c in steps if c is not None]
     selected = [_entry(c, rmse_base, cv=cv, sse_base=sse_base) for c in chosen]
+    for entry, twins in zip(selected, vd.confounded_twins(steps, confound)):
+        entry['indistinguishable_from'] += [t for t in twins
+                                            if t not in entry['indistinguishable_from']]
     result = vd.verdict(selected, res['consistent'])
     hint = None
     if steps and steps[-1][1] is None:

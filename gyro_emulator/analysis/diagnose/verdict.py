@@ -311,6 +311,37 @@ _PAIR_CAUSES = ('bias_temperature', 'bias_time', 'temperature_rate_bias', 'bias_
                 'bias_step')
 
 
+#: Causes of one quantity, the first following temperature and the second
+#: time: where the two are confounded, the record cannot choose between them.
+_TWINS = (('bias_temperature', 'bias_time'),
+          ('scale_factor_temperature', 'scale_factor_time'))
+
+
+def confounded_twins(steps, confound):
+    """
+    Return, per chosen cause of ``steps``, the twin it cannot be told from.
+
+    When temperature and time are confounded (|r| >= :data:`PAIR_R`), a bias
+    or scale factor that follows one follows the other as well: the cause
+    chosen of a pair in :data:`_TWINS` cannot be told from its twin when the
+    twin was significant in the same step, whatever the fold test between
+    them says (their polynomial orders differ, and a cause not yet in the
+    model, such as a bias drift under a rate held through a cooling, can
+    favour either). ``steps`` are (candidates, chosen or None).
+    """
+    confounded = any({c['a'], c['b']} == {'temperature', 'time'}
+                     and abs(c['correlation']) >= PAIR_R for c in confound)
+    out = []
+    for cands, chosen in steps:
+        if chosen is None:
+            continue
+        significant = {c.effect.effect_id for c in cands if c.significant}
+        own = chosen.effect.effect_id
+        out.append([b if own == a else a for a, b in _TWINS if confounded and own in (a, b)
+                    and (b if own == a else a) in significant])
+    return out
+
+
 def _slope(x, r, w):
     """Weighted least-squares slope of r on [1, x]."""
     xc = x - np.average(x, weights=w)
