@@ -130,7 +130,7 @@ def test_real_mpu6050_z_verdict_agrees_with_its_stated_numbers():
 
 
 def _cand(effect_id, significant=True):
-    """A scored candidate as the selection steps hold it (only what the rule reads)."""
+    """Return a scored candidate as the selection steps hold it (only what the rule reads)."""
     return type('Cand', (), {'effect': type('Effect', (), {'effect_id': effect_id}),
                              'significant': significant})
 
