@@ -194,7 +194,8 @@ def _null_resid_bins(cv, null):
 def _method(cv, alpha):
     return {'folds': len(cv.used_folds), 'sub_blocks': len(cv.used_folds),
             'alpha': alpha, 'alpha_tie': selection.ALPHA_TIE,
-            'min_gain': selection.MIN_GAIN, 'delta_bic_max': selection.DELTA_BIC_MAX,
+            'min_gain': selection.MIN_GAIN, 'min_gain_rate': selection.MIN_GAIN_RATE,
+            'delta_bic_max': selection.DELTA_BIC_MAX,
             'outlier_threshold_sigma': screening.THRESHOLD,
             'null_simulations': noise_model.N_SIM,
             'rmse': 'held-out, every kept sample, rad/s',

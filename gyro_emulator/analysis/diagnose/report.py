@@ -288,7 +288,8 @@ def _method_text(doc):
             'is fitted on the other blocks and predicts the held-out one '
             'sample by sample (a step keeps the time found on the whole record). '
             'A cause joins the model when its held-out RMSE gain over the current '
-            f"model is >= {100 * m['min_gain']:.1f} %, p < {m['alpha']:g} / candidates "
+            f"model is >= {100 * m['min_gain']:.1f} % (a cause on the applied rate: "
+            f">= {100 * m['min_gain_rate']:.1f} %), p < {m['alpha']:g} / candidates "
             f"({m['test']}) and its {m['information_criterion']} drops by more than "
             f"{-m['delta_bic_max']:g}. A physical cause must beat its generic "
             f"competitors (p < {m['alpha_tie']:g}). Uncertainties: {m['uncertainty']}.")

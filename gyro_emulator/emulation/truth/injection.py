@@ -179,9 +179,25 @@ def rate_step_knots(duration_s, levels_deg_s=(30, 60, 120, 240), hold_s=4.0, gap
     return np.asarray(kt), np.asarray(kr) * _DEG
 
 
+def rate_sine_knots(time_s, rng, amplitude_deg_s=(50.0, 300.0), frequency_hz=(0.2, 2.0)):
+    """
+    Knots (times s, rates rad/s) of a rate-table sine between 5 % and 95 % of the record.
+
+    Amplitude and frequency are drawn uniformly from their ranges; the
+    knots are 20 per period (a linear interpolation of them is within
+    1.3 % of the sine's amplitude, and exact at the knots).
+    """
+    amp = float(rng.uniform(*amplitude_deg_s)) * _DEG
+    freq = float(rng.uniform(*frequency_hz))
+    start = time_s[0] + 0.05 * (time_s[-1] - time_s[0])
+    stop = time_s[-1] - 0.05 * (time_s[-1] - time_s[0])
+    kt = np.arange(start, stop, 1.0 / (20.0 * freq))
+    return kt, amp * np.sin(2.0 * np.pi * freq * (kt - start))
+
+
 #: Parts of a profile :func:`profile` builds: temperature, then motion.
 TEMPERATURES = ('ramp', 'cycles', 'soaks', 'chamber')
-MOTIONS = ('tilt', 'rate_steps')
+MOTIONS = ('tilt', 'rate_steps', 'rate_sine')
 
 
 def profile(name, time_s, rng, temp_c=None):
@@ -192,7 +208,8 @@ def profile(name, time_s, rng, temp_c=None):
     :data:`TEMPERATURES` (``ramp``, ``cycles``, ``soaks``: 15..55 C;
     ``chamber``: the log's own temperature ``temp_c``; default 25 C) and
     any of :data:`MOTIONS` (``tilt``: gravity in steps; ``rate_steps``: a
-    rate table to 240 deg/s), e.g. ``'cycles+tilt'``.
+    rate table to 240 deg/s; ``rate_sine``: a rate-table sine, not with
+    ``rate_steps``), e.g. ``'cycles+tilt'``.
     """
     parts = [] if name == 'static' else name.split('+')
     unknown = [p for p in parts if p not in TEMPERATURES + MOTIONS]
@@ -214,10 +231,15 @@ def profile(name, time_s, rng, temp_c=None):
         temp = np.asarray(temp_c, dtype=float)
     if 'tilt' in parts:
         accel = tilt_steps(t, rng)
-    if 'rate_steps' not in parts:
+    if 'rate_steps' in parts and 'rate_sine' in parts:
+        raise ValueError(f'profile {name!r}: rate_steps and rate_sine cannot be joined')
+    if 'rate_steps' in parts:
+        kt, kr = rate_step_knots(float(t[-1] - t[0]))
+        knots = (kt + t[0], kr)
+    elif 'rate_sine' in parts:
+        knots = rate_sine_knots(t, rng)
+    else:
         return Inputs(t, np.zeros(len(t)), temp, accel)
-    kt, kr = rate_step_knots(float(t[-1] - t[0]))
-    knots = (kt + t[0], kr)
     return Inputs(t, np.interp(t, *knots, left=0.0, right=0.0), temp, accel, knots)
 
 
