@@ -93,8 +93,12 @@ def test_a_coarse_clock_gets_every_sample_stamped_with_its_own_time(tmp_path, st
             return truth and len(truth) >= want() and len(out) >= want()
 
         probe.spin_until(held, 60.0, 'every sample up to the last /clock')
+        # the diagnostics thread reads the sample counters while the executor
+        # thread moves them: one message can hold a sample counted due and not
+        # yet out, so wait for one that has the last samples out
         probe.spin_until(lambda: diags and float(last_diag(diags)[1]['samples_due']) >=
-                         want(), 10.0, 'the diagnostics of the last samples')
+                         want() and float(last_diag(diags)[1]['emitted_ratio']) == 1.0,
+                         10.0, 'the diagnostics of the last samples, all out')
     finally:
         probe.close()
         code = node.stop()
