@@ -62,6 +62,23 @@ def test_fifo_bursts_are_bounded_and_the_backlog_catches_up():
     assert clock.emitted == clock.due_total == 54
 
 
+def test_the_counts_another_thread_reads_are_replaced_whole_after_each_tick():
+    clock = SampleClock(0.001, 'fifo', max_burst=8, depth=1000)
+    clock.due(0)
+    before = clock.counts
+    clock.due(46 * MS)                                # 46 due, 8 out, 38 waiting
+    assert before == {'overruns': 0, 'samples_due': 1, 'samples_caught_up': 0,
+                      'samples_dropped': 0, 'emitted_ratio': 1.0, 'largest_burst': 1,
+                      'backlog': 0, 'clock_restarts': 0}    # a held snapshot never moves
+    now = clock.counts
+    assert now['samples_due'] == clock.due_total == 47 and now['backlog'] == 38
+    assert now['emitted_ratio'] == pytest.approx(9 / 47)
+    clock.due(46 * MS)                                # the same instant: 8 more of the 38
+    assert clock.counts['samples_due'] == 47 and clock.counts['backlog'] == 30
+    assert clock.counts['emitted_ratio'] == pytest.approx(17 / 47)
+    assert now['emitted_ratio'] == pytest.approx(9 / 47)
+
+
 def test_fifo_overflow_and_drop_policy_count_what_they_drop():
     clock = SampleClock(0.001, 'fifo', max_burst=16, depth=20)
     clock.due(0)

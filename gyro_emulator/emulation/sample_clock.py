@@ -99,6 +99,10 @@ class SampleClock:
         Most samples handed out by one tick; samples due but still waiting.
     restarts : int
         Re-anchorings after a clock jump.
+    counts : dict
+        The counters as /diagnostics reports them, replaced whole at the end
+        of each :meth:`due`: a thread that reads it (the node's diagnostics)
+        never sees a burst counted due and not yet handed out.
 
     """
 
@@ -115,6 +119,7 @@ class SampleClock:
         self.ticks = self.overruns = 0
         self.due_total = self.emitted = self.caught_up = self.dropped = 0
         self.largest_burst = self.backlog = self.restarts = 0
+        self._store_counts()
 
     def _time(self, k):
         return self._anchor + int(round(k * self.period_ns))
@@ -157,6 +162,7 @@ class SampleClock:
             newer = self._last_ns is None or now_ns > self._last_ns
             if not (self.follow_timer and newer and following - now_ns < 0.5 * self.period_ns):
                 self.backlog = 0
+                self._store_counts()
                 return Due(restart=restart)
             self._anchor, self._k = now_ns, 0       # the timer runs ahead of the grid
         count = int(math.floor((now_ns - self._anchor) / self.period_ns)) - self._k + 1
@@ -184,4 +190,13 @@ class SampleClock:
             self.overruns += 1
         self.largest_burst = max(self.largest_burst, emit)
         self._last_ns = times[-1]
+        self._store_counts()
         return Due(times, skipped, restart)
+
+    def _store_counts(self):
+        """Keep the counters as one object, which another thread reads whole (:attr:`counts`)."""
+        self.counts = {'overruns': self.overruns, 'samples_due': self.due_total,
+                       'samples_caught_up': self.caught_up, 'samples_dropped': self.dropped,
+                       'emitted_ratio': self.emitted_ratio,
+                       'largest_burst': self.largest_burst, 'backlog': self.backlog,
+                       'clock_restarts': self.restarts}

@@ -642,13 +642,8 @@ class GyroEmulatorNode(Node):
         }
         clock = self._samples
         if clock is not None:
-            out.update({'overrun_policy': clock.policy, 'overruns': clock.overruns,
-                        'samples_due': clock.due_total,
-                        'samples_caught_up': clock.caught_up,
-                        'samples_dropped': clock.dropped,
-                        'emitted_ratio': clock.emitted_ratio,
-                        'largest_burst': clock.largest_burst, 'backlog': clock.backlog,
-                        'clock_restarts': clock.restarts})
+            # one snapshot: the executor thread moves the counters while this reads
+            out.update({'overrun_policy': clock.policy, **clock.counts})
         if self._timeline is not None:
             out.update({'input_rate_hz': self._timeline.rate_hz,
                         'input_restarts': self._timeline.restarts,
