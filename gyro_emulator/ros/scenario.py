@@ -26,6 +26,7 @@ import json
 import os
 import signal
 import sys
+import threading
 import time
 
 from gyro_emulator.emulation.scenario import format_summary, interruption_note, \
@@ -38,6 +39,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
 #: How far ahead of its start a scheduled fault is sent to the node, s.
@@ -225,11 +227,16 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
 
     """
     context = rclpy.Context()
-    rclpy.init(args=args, context=context)
+    # SIGINT/SIGTERM only set a flag, read between spins: raised inside rclpy,
+    # an interrupt can come out of a pybind11 call as an unrelated RuntimeError
+    # ("Unable to convert call argument"), and the run would end as a failure.
+    rclpy.init(args=args, context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('gyro_scenario', context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     player = ScenarioPlayer(node, profile, collect=collect, loop=loop)
+    stop = threading.Event()
+    previous = _flag_signals(stop)
     try:
         deadline = time.monotonic() + wait_s
         while not player.connected():
@@ -240,25 +247,22 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
                     f'fault schedule) within {wait_s:g} s (is '
                     f'`ros2 run gyro_emulator node` running on '
                     f'ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")}?)')
-            if not spin_once(executor, 0.05):
-                raise ExternalShutdownException()
+            _spin(executor, stop)
         if collect:
             deadline = time.monotonic() + wait_s
             while not player.imu and time.monotonic() < deadline:
-                if not spin_once(executor, 0.05):
-                    raise ExternalShutdownException()
+                _spin(executor, stop)
         player.start()
         shown = None
         while not player.done:
-            if not spin_once(executor, 0.05):
-                raise ExternalShutdownException()
+            _spin(executor, stop)
             index = player.current_step(node.get_clock().now().nanoseconds)
             if progress is not None and index is not None and index != shown:
                 shown = index
                 progress(index, profile.steps[index])
         deadline = time.monotonic() + 2.0
         while not player.faults_settled() and time.monotonic() < deadline:
-            if not spin_once(executor, 0.05):
+            if stop.is_set() or not spin_once(executor, 0.05):
                 break
     except (KeyboardInterrupt, ExternalShutdownException):
         if not player.done:
@@ -268,7 +272,25 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
         executor.shutdown()
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     return player
+
+
+def _flag_signals(stop):
+    """Make SIGINT and SIGTERM set ``stop``; return their handlers (none off the main thread)."""
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {signum: signal.signal(signum, lambda *_: stop.set())
+            for signum in (signal.SIGINT, signal.SIGTERM)}
+
+
+def _spin(executor, stop):
+    """Spin once; raise KeyboardInterrupt on a signal, ExternalShutdownException once shut down."""
+    if stop.is_set():
+        raise KeyboardInterrupt
+    if not spin_once(executor, 0.05):
+        raise ExternalShutdownException()
 
 
 def _now_ns(node):
