@@ -17,13 +17,12 @@ recovered is replayed and the loss is reported.
 """
 
 import argparse
-import signal
 import sys
 import threading
 import time
 
 from gyro_emulator.recording import bag
-from gyro_emulator.ros import codec, program
+from gyro_emulator.ros import codec, program, spinning
 from gyro_emulator.units import NS_PER_S
 import rclpy
 from rclpy.duration import Duration
@@ -212,8 +211,7 @@ def main(args=None):
         # count is exact (rclpy's handler would raise in the middle of a step).
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
         stop = threading.Event()
-        for signum in (signal.SIGINT, signal.SIGTERM):
-            signal.signal(signum, lambda *_: stop.set())
+        spinning.flag_signals(stop)
         run.node = Node('gyro_replay')
         player = Player(run.node, reader, opts.topics, remap, opts.rate, opts.clock,
                         opts.reliable, stop)

@@ -33,7 +33,7 @@ from gyro_emulator.emulation.scenario import format_summary, interruption_note, 
     load_scenario, results_json, summarize
 from gyro_emulator.recording import topics
 from gyro_emulator.ros.codec import topic_class, topic_qos
-from gyro_emulator.ros.spinning import spin_once
+from gyro_emulator.ros.spinning import flag_signals, spin_once
 from gyro_emulator.units import NS_PER_S
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -227,16 +227,14 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
 
     """
     context = rclpy.Context()
-    # SIGINT/SIGTERM only set a flag, read between spins: raised inside rclpy,
-    # an interrupt can come out of a pybind11 call as an unrelated RuntimeError
-    # ("Unable to convert call argument"), and the run would end as a failure.
+    # SIGINT/SIGTERM only set a flag, read between spins (flag_signals)
     rclpy.init(args=args, context=context, signal_handler_options=SignalHandlerOptions.NO)
     node = rclpy.create_node('gyro_scenario', context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     player = ScenarioPlayer(node, profile, collect=collect, loop=loop)
     stop = threading.Event()
-    previous = _flag_signals(stop)
+    previous = flag_signals(stop)
     try:
         deadline = time.monotonic() + wait_s
         while not player.connected():
@@ -275,14 +273,6 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
         for signum, handler in previous.items():
             signal.signal(signum, handler)
     return player
-
-
-def _flag_signals(stop):
-    """Make SIGINT and SIGTERM set ``stop``; return their handlers (none off the main thread)."""
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-    return {signum: signal.signal(signum, lambda *_: stop.set())
-            for signum in (signal.SIGINT, signal.SIGTERM)}
 
 
 def _spin(executor, stop):

@@ -7,11 +7,13 @@ ExternalShutdownException)`` with the start-up made safe: a Ctrl-C while
 compiled code loads is deferred, a signal while the node is built ends the
 run quietly, and the spin loop sees the context go down instead of a
 traceback. Its parts :func:`spin_once` and :func:`close` also serve the
-recorder, the replay and the scenario player.
+recorder, the replay and the scenario player; :func:`flag_signals` serves
+the two players, whose loops read a flag between steps.
 """
 
 import signal
 import sys
+import threading
 
 from gyro_emulator.interrupts import INTERRUPTED_STATUS, StartupInterrupt
 import rclpy
@@ -25,6 +27,22 @@ SHUTDOWN_POLL_S = 0.25
 ERROR_STATUS = 2
 #: Errors of a node's construction that are the user's input, reported as one line.
 INPUT_ERRORS = (ValueError, ParameterException, OSError)
+
+
+def flag_signals(stop):
+    """
+    Make SIGINT and SIGTERM only set ``stop`` (a threading.Event); return their handlers.
+
+    For a loop that reads ``stop`` between its steps, with rclpy initialised
+    with ``SignalHandlerOptions.NO``: raised inside rclpy, an interrupt can
+    leave a step half done or come out of a pybind11 call as an unrelated
+    RuntimeError ("Unable to convert call argument"). Off the main thread,
+    where signal handlers cannot be set, nothing changes and {} is returned.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    return {signum: signal.signal(signum, lambda *_: stop.set())
+            for signum in (signal.SIGINT, signal.SIGTERM)}
 
 
 def spin_once(executor, timeout_sec):
