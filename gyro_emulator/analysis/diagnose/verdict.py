@@ -311,10 +311,17 @@ _PAIR_CAUSES = ('bias_temperature', 'bias_time', 'temperature_rate_bias', 'bias_
                 'bias_step')
 
 
-#: Causes of one quantity, the first following temperature and the second
-#: time: where the two are confounded, the record cannot choose between them.
-_TWINS = (('bias_temperature', 'bias_time'),
-          ('scale_factor_temperature', 'scale_factor_time'))
+#: Causes of one quantity, one following temperature and the other time,
+#: each to its twin: where the two are confounded, the record cannot choose.
+_TWIN_OF = {'bias_temperature': 'bias_time', 'bias_time': 'bias_temperature',
+            'scale_factor_temperature': 'scale_factor_time',
+            'scale_factor_time': 'scale_factor_temperature'}
+
+
+def _time_temperature_pair(confound):
+    """Return the confounded pair of temperature and time with |r| >= PAIR_R, or None."""
+    return next((c for c in confound if {c['a'], c['b']} == {'temperature', 'time'}
+                 and abs(c['correlation']) >= PAIR_R), None)
 
 
 def confounded_twins(steps, confound):
@@ -323,22 +330,20 @@ def confounded_twins(steps, confound):
 
     When temperature and time are confounded (|r| >= :data:`PAIR_R`), a bias
     or scale factor that follows one follows the other as well: the cause
-    chosen of a pair in :data:`_TWINS` cannot be told from its twin when the
+    chosen of a pair in :data:`_TWIN_OF` cannot be told from its twin when the
     twin was significant in the same step, whatever the fold test between
     them says (their polynomial orders differ, and a cause not yet in the
     model, such as a bias drift under a rate held through a cooling, can
     favour either). ``steps`` are (candidates, chosen or None).
     """
-    confounded = any({c['a'], c['b']} == {'temperature', 'time'}
-                     and abs(c['correlation']) >= PAIR_R for c in confound)
+    confounded = _time_temperature_pair(confound) is not None
     out = []
     for cands, chosen in steps:
         if chosen is None:
             continue
-        significant = {c.effect.effect_id for c in cands if c.significant}
-        own = chosen.effect.effect_id
-        out.append([b if own == a else a for a, b in _TWINS if confounded and own in (a, b)
-                    and (b if own == a else a) in significant])
+        twin = _TWIN_OF.get(chosen.effect.effect_id)
+        named = confounded and any(c.significant and c.effect.effect_id == twin for c in cands)
+        out.append([twin] if named else [])
     return out
 
 
@@ -365,8 +370,7 @@ def confounded_pair(prep, resid_bins, confound, selected, res):
         ``experiment`` and ``text``.
 
     """
-    pair = [c for c in confound if {c['a'], c['b']} == {'temperature', 'time'}
-            and abs(c['correlation']) >= PAIR_R]
+    pair = _time_temperature_pair(confound)
     # only a chosen cause names the pair: on raw ADIS16405 y stretches the
     # residual's wander passes the structure limit against time on a ramp
     # (3 of 12 records without an effect), which is not evidence of a bias
@@ -376,7 +380,7 @@ def confounded_pair(prep, resid_bins, confound, selected, res):
     b = prep.binned
     per_k = _slope(b.temp_c, resid_bins, b.weight)
     per_h = _slope(b.time_s, resid_bins, b.weight) * 3600.0
-    r = pair[0]['correlation']
+    r = pair['correlation']
     deg = 180.0 / math.pi
     text = (f'the bias follows temperature or time (r = {r:.3f}): '
             f'{per_k * deg:.3g} deg/s/K or {per_h * deg:.3g} deg/s/h')
