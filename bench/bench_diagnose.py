@@ -24,9 +24,7 @@ import math
 import os
 import time
 
-# one core: pin the BLAS thread pools before numpy is imported
-for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
-    os.environ[_var] = '1'
+import benchenv  # noqa: F401 - one core: pins the BLAS thread pools before numpy loads
 
 from gyro_emulator.analysis.diagnose import (diagnose, EFFECT_IDS, load_measured,  # noqa: E402
                                              write_measured_csv)

@@ -36,9 +36,7 @@ Usage: python bench/calibrate_diagnose.py [--ramps N] [--static N] [--lab N] [--
 import argparse
 import os
 
-# one core: pin the BLAS thread pools before numpy is imported
-for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
-    os.environ[_var] = '1'
+import benchenv  # one core: pins the BLAS thread pools before numpy loads
 
 from gyro_emulator.analysis.diagnose import diagnose  # noqa: E402
 from gyro_emulator.emulation.truth import injection as inj  # noqa: E402
@@ -47,8 +45,7 @@ import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-REAL = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
-    __file__)))), 'shared', 'data', 'real')
+REAL = benchenv.REAL
 #: Real logs of the --real study: (path, block-mean factor, record length s).
 REAL_LOGS = {
     'mpu6050': (os.path.join(REAL, 'mpu6050_static', 'mpu6050_static_100hz.csv'), 1, 120.0),

@@ -26,9 +26,7 @@ import argparse
 import os
 import warnings
 
-# one core: pin the BLAS thread pools before numpy is imported
-for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
-    os.environ[_var] = '1'
+import benchenv  # one core: pins the BLAS thread pools before numpy loads
 
 from gyro_emulator.analysis.diagnose import diagnose  # noqa: E402
 from gyro_emulator.emulation.truth import injection as inj  # noqa: E402
@@ -37,8 +35,7 @@ from scipy import stats  # noqa: E402
 from statsmodels.tsa.statespace.structural import UnobservedComponents  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-REAL = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
-    __file__)))), 'shared', 'data', 'real')
+REAL = benchenv.REAL
 ADIS = os.path.join(REAL, 'adis16405_static', 'adis16405_run1_100hz.csv.gz')
 DEG = np.pi / 180.0
 #: Names that count as finding a bias tempco.

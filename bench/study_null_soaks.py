@@ -30,9 +30,7 @@ import argparse
 import math
 import os
 
-# one core: pin the BLAS thread pools before numpy is imported
-for _var in ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'):
-    os.environ[_var] = '1'
+import benchenv  # one core: pins the BLAS thread pools before numpy loads
 
 from gyro_emulator.analysis.diagnose import diagnose, selection  # noqa: E402
 from gyro_emulator.emulation.truth import injection as inj  # noqa: E402
@@ -40,8 +38,7 @@ from gyro_emulator.sensor import noise as sensor_noise  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import linalg, optimize, stats  # noqa: E402
 
-REAL = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(
-    __file__)))), 'shared', 'data', 'real')
+REAL = benchenv.REAL
 LOG = os.path.join(REAL, 'adis16405_static', 'adis16405_run1_100hz.csv.gz')
 DEG = math.pi / 180.0
 
