@@ -24,6 +24,8 @@ STANDARD_GRAVITY_M_S2 = 9.80665
 STANDARD_ATMOSPHERE_PA = 101325.0
 
 SECONDS_PER_HOUR = 3600.0
+#: The sensor frame's axes, in the order of every 3-vector (REP 103: x forward, y left, z up).
+AXES = ('x', 'y', 'z')
 #: Nanoseconds per second: ROS and MCAP stamps are integer nanoseconds.
 NS_PER_S = 1_000_000_000
 

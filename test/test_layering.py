@@ -13,6 +13,7 @@ PKG = os.path.join(ROOT, 'gyro_emulator')
 LAYERS = {
     'gyro_emulator': 0,
     'gyro_emulator.units': 0,
+    'gyro_emulator.atomic': 0,
     'gyro_emulator.validation': 0,
     'gyro_emulator.resources': 0,
     'gyro_emulator.plotting': 0,

@@ -25,6 +25,7 @@ import os
 import sys
 
 from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator.units import AXES
 
 HELP = 'overlapping Allan deviation of a gyro record and its IEEE Std 952 noise terms'
 
@@ -41,7 +42,7 @@ def add_arguments(parser):
     parser.add_argument('file', metavar='FILE',
                         help='CSV (time_s + gyro_rad_s or gyro_{x,y,z}_rad_s; .gz ok) '
                              'or an MCAP bag')
-    parser.add_argument('--axis', choices=('x', 'y', 'z'), default=None,
+    parser.add_argument('--axis', choices=AXES, default=None,
                         help='axis of a 3-axis record (default: x)')
     parser.add_argument('--topic', default=None,
                         help='Imu topic of a bag (default: the only Imu topic)')

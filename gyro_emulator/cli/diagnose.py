@@ -23,6 +23,7 @@ import warnings
 from gyro_emulator.cli.jsonout import write_json
 from gyro_emulator.physics.presets import PHYSICS_PRESETS
 from gyro_emulator.recording import topics
+from gyro_emulator.units import AXES
 from gyro_emulator.validation import check_range
 
 HELP = 'find what the physics model gets wrong in measured data, name the cause'
@@ -52,7 +53,7 @@ def add_arguments(parser):
                              "(default: the starting config's noise stays)")
     parser.add_argument('--overwrite', action='store_true',
                         help='let --write-config replace an existing file')
-    parser.add_argument('--axis', default=None, choices=('x', 'y', 'z'),
+    parser.add_argument('--axis', default=None, choices=AXES,
                         help='sense axis: the gyro_<axis>_rad_s column of a 3-axis CSV, or the '
                              'axis of a bag (default: gyro_rad_s; z for a bag)')
     parser.add_argument('--static', action='store_true',

@@ -17,6 +17,8 @@ with the node's topics (see ``gyro_emulator.analysis.replay``), stamped from
 import sys
 import time
 
+from gyro_emulator.units import AXES
+
 HELP = 'simulate the sensor over a scripted profile and write CSV or a rosbag2 bag'
 
 #: Show progress when a run has at least this many samples.
@@ -33,7 +35,7 @@ def add_arguments(parser):
                              'record (.csv, .csv.gz, bag): its inputs on its own times, the '
                              'output at its sample times (--duration-s and --rate-hz are '
                              "the record's) (default: %(default)s)")
-    parser.add_argument('--axis', default='z', choices=('x', 'y', 'z'),
+    parser.add_argument('--axis', default='z', choices=AXES,
                         help="a measured profile: the sense axis of a CSV's single "
                              'rate_cmd_rad_s column (default: %(default)s)')
     parser.add_argument('--static', action='store_true',

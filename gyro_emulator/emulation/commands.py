@@ -29,7 +29,7 @@ from collections import deque
 from dataclasses import dataclass
 import math
 
-from gyro_emulator.units import ZERO_CELSIUS_K
+from gyro_emulator.units import AXES, ZERO_CELSIUS_K
 
 #: Every reason an input can be rejected, in report order.
 REJECT_REASONS = (
@@ -97,7 +97,7 @@ class InputLimits:
 
 def _vector(values, name, limit, unit, nan_reason, large_reason):
     out = tuple(float(v) for v in values)
-    for axis, value in zip('xyz', out):
+    for axis, value in zip(AXES, out):
         if not math.isfinite(value):
             raise InputRejected(nan_reason, f'{name}.{axis} = {value!r} is not finite: '
                                 'allowed finite numbers')

@@ -28,10 +28,9 @@ import os
 
 from gyro_emulator.emulation.profiles import LEVEL_ACCEL_M_S2, ProfileSamples
 from gyro_emulator.recording.record import DEFAULT_TOPICS, is_bag, load_record
+from gyro_emulator.units import AXES
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
-
-AXES = ('x', 'y', 'z')
 
 
 def is_record_path(path):

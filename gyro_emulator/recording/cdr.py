@@ -22,7 +22,7 @@ the caller can fall back to a generic decoder.
 
 from dataclasses import dataclass
 
-from gyro_emulator.units import NS_PER_S
+from gyro_emulator.units import AXES, NS_PER_S
 import numpy as np
 
 #: Encapsulation header of little-endian plain CDR (what rclpy produces).
@@ -30,7 +30,7 @@ CDR_LE_HEADER = b'\x00\x01\x00\x00'
 
 
 def _xyz(prefix):
-    return tuple(f'{prefix}.{axis}' for axis in 'xyz')
+    return tuple(f'{prefix}.{axis}' for axis in AXES)
 
 
 def _matrix(prefix):

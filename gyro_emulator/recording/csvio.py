@@ -18,12 +18,12 @@ import os
 import zlib
 
 from gyro_emulator.recording.timing import check_increasing, check_time_base
+from gyro_emulator.units import AXES
 import numpy as np
 
 #: Gyro column layouts accepted by :func:`read_gyro_csv`.
 GYRO_SINGLE = 'gyro_rad_s'
 GYRO_AXES = ('gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s')
-AXIS_NAMES = ('x', 'y', 'z')
 
 
 def _open_text(path, mode):
@@ -160,7 +160,7 @@ def gyro_columns(columns, path=''):
     """
     if GYRO_SINGLE in columns:
         return {'x': GYRO_SINGLE}
-    present = {a: c for a, c in zip(AXIS_NAMES, GYRO_AXES) if c in columns}
+    present = {a: c for a, c in zip(AXES, GYRO_AXES) if c in columns}
     if present:
         return present
     raise ValueError(f'{path}: no gyro columns: need {GYRO_SINGLE} or one or more of '
@@ -178,7 +178,7 @@ def gyro_column_of(found, axis, path=''):
     if GYRO_SINGLE in found.values():
         return GYRO_SINGLE
     axis = next(iter(found)) if axis is None else axis
-    if axis not in AXIS_NAMES:
+    if axis not in AXES:
         raise ValueError(f'axis = {axis!r} is not allowed: choose x, y or z')
     if axis not in found:
         raise ValueError(f'{path}: no gyro column for axis {axis!r}; the file has '

@@ -35,6 +35,7 @@ import os
 from types import MappingProxyType
 
 from gyro_emulator.recording import bag, csvio, timing, topics as table
+from gyro_emulator.units import AXES
 import numpy as np
 
 
@@ -182,7 +183,6 @@ FIELD_KIND = MappingProxyType({'rate': 'angular_velocity', 'gyro': 'angular_velo
 #: What each role is called in messages.
 ROLE_LABELS = MappingProxyType({'gyro': 'gyro', 'rate': 'rate', 'temp': 'temperature',
                                 'accel': 'acceleration'})
-AXES = ('x', 'y', 'z')
 #: A grid is a quantisation step when every sample lies on it within this fraction.
 GRID_TOLERANCE = 0.02
 

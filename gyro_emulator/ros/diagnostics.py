@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from gyro_emulator.emulation.commands import CLAMP_REASONS, REJECT_REASONS
+from gyro_emulator.units import AXES
 
 OK, WARN, ERROR = 0, 1, 2
 _LEVEL_BYTES = {OK: DiagnosticStatus.OK, WARN: DiagnosticStatus.WARN,
@@ -135,7 +136,7 @@ class DiagnosticsBook:
         if new_clamps:
             level = max(level, WARN)
             notes.append(f'{new_clamps} temperature(s) outside the model range clamped')
-        sat_axes = [a for a, n, n0 in zip('xyz', self.saturated, saturated0) if n > n0]
+        sat_axes = [a for a, n, n0 in zip(AXES, self.saturated, saturated0) if n > n0]
         if sat_axes:
             level = max(level, WARN)
             notes.append('saturated on ' + ', '.join(sat_axes))
@@ -146,7 +147,7 @@ class DiagnosticsBook:
                   ('samples', self.samples)]
         values += [(k, v) for k, v in situation.items()
                    if k not in ('stale_policy', 'fault_level')]
-        values += [('saturated_samples.' + a, n) for a, n in zip('xyz', self.saturated)]
+        values += [('saturated_samples.' + a, n) for a, n in zip(AXES, self.saturated)]
         values += [('rejected.' + r, n) for r, n in self.rejected.items()]
         values += [('clamped.' + r, n) for r, n in self.clamped.items()]
         values.append(('rejected_total', sum(self.rejected.values())))

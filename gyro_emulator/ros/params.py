@@ -33,6 +33,7 @@ from gyro_emulator.recording import topics
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import faults
+from gyro_emulator.units import AXES
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType)
@@ -269,7 +270,7 @@ def _check_triple(spec, value):
                 v, (int, float)) for v in value):
         raise ValueError(f'{spec.name} = {value!r} is not {_type_name(spec.kind)}')
     out = [float(v) for v in value]
-    for axis, v in zip('xyz', out):
+    for axis, v in zip(AXES, out):
         if not math.isfinite(v) or not spec.low <= v <= spec.high:
             raise ValueError(f'{spec.name}.{axis} = {v!r} is out of range: allowed '
                              f'[{spec.low:g}, {spec.high:g}]')

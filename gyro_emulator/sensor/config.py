@@ -32,8 +32,6 @@ import numpy as np
 PRESET_NAMES = ('paper', 'consumer', 'tactical')
 DEFAULT_SENSOR_PRESET = 'paper'
 
-AXES = ('x', 'y', 'z')
-
 
 @dataclass(frozen=True)
 class ErrorTerms:

@@ -38,12 +38,13 @@ from dataclasses import dataclass
 import math
 
 from gyro_emulator.resources import read_yaml
+from gyro_emulator.units import AXES
 import numpy as np
 
 FAULT_TYPES = ('none', 'stuck', 'bias_step', 'drift', 'spike', 'dropout', 'saturate',
                'noise_burst')
 #: ``axis`` values: one axis or all three.
-FAULT_AXES = ('x', 'y', 'z', 'all')
+FAULT_AXES = AXES + ('all',)
 WARN, ERROR = 1, 2
 #: Level a driver's self-test would report while the fault is active.
 SEVERITY = {'stuck': ERROR, 'dropout': ERROR, 'saturate': ERROR, 'bias_step': WARN,
@@ -114,7 +115,7 @@ class Fault:
     @property
     def axes(self):
         """Return the axis indices the fault acts on."""
-        return [0, 1, 2] if self.axis == 'all' else ['xyz'.index(self.axis)]
+        return [0, 1, 2] if self.axis == 'all' else [AXES.index(self.axis)]
 
     @property
     def severity(self):

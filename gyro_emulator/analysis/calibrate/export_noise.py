@@ -54,6 +54,7 @@ from gyro_emulator.analysis.calibrate.yaml_text import (dump as dump_yaml, Figur
                                                         Flow, Quoted)
 from gyro_emulator.sensor import noise as sensor_noise
 from gyro_emulator.sensor.config import ErrorTerms
+from gyro_emulator.units import AXES
 import numpy as np
 from scipy import optimize
 
@@ -459,7 +460,7 @@ def _gazebo_accel(rate, accel):
         stddev = _num(units.density_to_sample_sigma(accel.noise_density_m_s2_sqrt_hz, rate))
         sigma_b = _num(accel.random_walk_m_s3_sqrt_hz)
     lines = ['  <linear_acceleration>']
-    for name in ('x', 'y', 'z'):
+    for name in AXES:
         lines += [f'    <{name}>', note, '      <noise type="gaussian">',
                   '        <mean>0.0</mean>', f'        <stddev>{stddev}</stddev>',
                   '        <bias_mean>0.0</bias_mean>', '        <bias_stddev>0.0</bias_stddev>',
@@ -494,7 +495,7 @@ def gazebo(calibration, inflate=1.0, rate_hz=None, accel=None):
                                               f'{ACCEL_OPTIONS}.']), style='xml')
     body = ['<imu>', '  <angular_velocity>']
     axes = {a.axis: a for a in calibration.axes}
-    for name in ('x', 'y', 'z'):
+    for name in AXES:
         item = axes.get(name) or calibration.axes[0]
         if name not in axes:
             body.append(f'    <!-- axis {name}: copied from axis {item.axis} (not in the '
@@ -576,7 +577,7 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
     fields = twin_noise(calibration, inflate)
     twin = fields.twin
     axes = [fields.per_axis.get(name) or next(iter(fields.per_axis.values()))
-            for name in ('x', 'y', 'z')]
+            for name in AXES]
     convention = (_CONTINUOUS + ' The emulator discretises exactly at the rate given to '
                   'simulate or the node: white sigma N / sqrt(dt), walk K sqrt(dt), flicker '
                   'as Gauss-Markov terms across bias_instability_band_s.')
@@ -596,7 +597,7 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
               "Earth's rate); its run-to-run spread is not measured.",
               f"Simulate it at the log's rate: --rate-hz {calibration.rate_hz:g}."]
     if len(twin.per_axis) < 3:
-        lines.append(f'Axes {", ".join(n for n in "xyz" if n not in twin.per_axis)} copy '
+        lines.append(f'Axes {", ".join(n for n in AXES if n not in twin.per_axis)} copy '
                      f'axis {next(iter(twin.per_axis))} (not in the calibration).')
     data = {'device': 'paper',
             'terms': {name: name in fields.terms_on for name in ErrorTerms.names()}}

@@ -25,9 +25,10 @@ Thermal exports: PX4 TC_G0_* and ArduPilot INS_TCAL1_* parameters, this emulator
 from gyro_emulator import units
 from gyro_emulator.analysis.calibrate import yaml_text
 from gyro_emulator.analysis.calibrate.provenance import as_comments, thermal_lines
-from gyro_emulator.analysis.calibrate.thermal import AXES, polyfit_stats
+from gyro_emulator.analysis.calibrate.thermal import polyfit_stats
 from gyro_emulator.analysis.calibrate.yaml_text import Figure, Flow
 from gyro_emulator.sensor.config import ErrorTerms
+from gyro_emulator.units import AXES
 import numpy as np
 
 FORMATS = ('px4', 'ardupilot', 'preset')

@@ -36,6 +36,7 @@ from gyro_emulator.analysis.allan import analyse as allan_record
 from gyro_emulator.analysis.calibrate.noise import detect_lsb
 from gyro_emulator.recording import csvio, timing
 from gyro_emulator.recording.record import DEFAULT_TOPICS
+from gyro_emulator.units import AXES
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
 
@@ -53,7 +54,6 @@ CONFOUNDED = 0.9
 #: own, so a sample is an outlier when it jumps 6 x 0.2 = 1.2 K off its neighbours'
 #: local mean (a 60 K/min ramp moves that mean 1 K at the end of a stretch).
 TEMP_SCALE_FLOOR_K = 0.2
-AXES = ('x', 'y', 'z')
 
 
 @dataclass(frozen=True)

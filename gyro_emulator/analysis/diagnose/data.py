@@ -28,13 +28,13 @@ from dataclasses import dataclass
 
 from gyro_emulator.recording import csvio
 from gyro_emulator.recording.record import DEFAULT_TOPICS, load_record
+from gyro_emulator.units import AXES
 from gyro_emulator.validation import GYRO_LIMIT_RAD_S, MODEL_TEMP_RANGE_C
 import numpy as np
 from scipy.signal import lfilter, lfilter_zi
 
 REQUIRED_COLUMNS = ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s')
 ACCEL_COLUMNS = ('accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')
-AXES = ('x', 'y', 'z')
 
 #: Largest number of bins fits run on (see the module docstring).
 DEFAULT_MAX_BINS = 12000

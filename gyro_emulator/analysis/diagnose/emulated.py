@@ -29,6 +29,7 @@ from dataclasses import replace
 
 from gyro_emulator.sensor.config import ErrorTerms, load_sensor_config
 from gyro_emulator.sensor.model import GyroModel
+from gyro_emulator.units import AXES
 import numpy as np
 
 #: Noise terms switched off for the deterministic output.
@@ -43,7 +44,6 @@ UNSUPPORTED = {
     'output_filter_hz': 'an output filter (rate dynamics)',
     'nonlinearity_s_rad': 'a gain that depends on the rate',
 }
-AXES = ('x', 'y', 'z')
 
 
 def check_config(config, path):

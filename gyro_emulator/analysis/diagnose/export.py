@@ -33,9 +33,9 @@ import tempfile
 from gyro_emulator.analysis.calibrate.yaml_text import dump, Figure, Flow
 from gyro_emulator.sensor.config import (config_from_mapping, PRESET_NAMES, preset_path,
                                          YAML_ALIASES)
+from gyro_emulator.units import AXES
 import yaml
 
-AXES = ('x', 'y', 'z')
 #: Diagnose parameters of each extended term: 'axis' (per-axis amplitude) or 'scalar'.
 TERMS = {
     'bias_hysteresis': {'hysteresis_width_k': 'scalar', 'bias_hysteresis_rad_s': 'axis'},

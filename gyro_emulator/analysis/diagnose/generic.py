@@ -20,7 +20,7 @@ from gyro_emulator.analysis.calibrate import thermal
 from gyro_emulator.analysis.diagnose.effects import (cached, Effect, NULL, Param,
                                                      physical_causes, slow_temp)
 from gyro_emulator.emulation.truth.effects import CATALOGUE_TRUTHS
-from gyro_emulator.units import SECONDS_PER_HOUR
+from gyro_emulator.units import AXES, SECONDS_PER_HOUR
 import numpy as np
 
 
@@ -145,7 +145,7 @@ class GSensitivity(Effect):
     needs = ('accel',)
     params = tuple(Param(f'g_sensitivity_{a}_rad_s_per_m_s2', 'rad/s per m/s^2',
                          f'bias per unit acceleration along {a}')
-                   for a in 'xyz')
+                   for a in AXES)
     mechanisms = ('proof-mass offset under gravity and vibration',
                   'a mounting that flexes under load')
 

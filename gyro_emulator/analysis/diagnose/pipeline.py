@@ -23,6 +23,7 @@ from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, measured, Pre
 from gyro_emulator.analysis.diagnose.effects import Context
 from gyro_emulator.analysis.diagnose.noise_model import SuperBins
 from gyro_emulator.physics.presets import physics_preset
+from gyro_emulator.units import AXES
 from gyro_emulator.validation import check_range
 import numpy as np
 
@@ -161,7 +162,7 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
         phys = _physics(data, physics_preset(preset), ref_temp_c)
     else:
         sensor = emulated.load(config)
-        phys = _physics(data, sensor.device[emulated.AXES.index(axis)], ref_temp_c)
+        phys = _physics(data, sensor.device[AXES.index(axis)], ref_temp_c)
         data = emulated.transform(data, sensor, axis, phys.ratio)
     cv, screen = _setup(data, phys, folds, max_bins, outlier_threshold)
     prep, ctx = cv.prep, cv.ctx

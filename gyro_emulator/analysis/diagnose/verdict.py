@@ -28,6 +28,7 @@ What remains after the chosen causes, and what to say about it.
 import math
 
 from gyro_emulator.analysis.diagnose import noise_model
+from gyro_emulator.units import AXES
 import numpy as np
 from scipy import stats
 
@@ -205,7 +206,7 @@ def regressors(prep, have):
         out['rate'] = b.rate
         out['rate_squared'] = b.rate2
     if 'accel' in have and b.accel is not None:
-        for k, axis in enumerate('xyz'):
+        for k, axis in enumerate(AXES):
             if np.ptp(b.accel[:, k]) > 0.0:
                 out[f'acceleration_{axis}'] = b.accel[:, k]
     return out

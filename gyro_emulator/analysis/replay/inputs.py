@@ -24,7 +24,7 @@ from gyro_emulator.emulation.emulator_bag import DEFAULT_FRAME_ID
 from gyro_emulator.recording import record
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.model import GyroModel
-from gyro_emulator.units import NS_PER_S
+from gyro_emulator.units import AXES, NS_PER_S
 from gyro_emulator.validation import check_choice, check_range
 import numpy as np
 
@@ -204,7 +204,7 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
     measured_stamp = measured = None
     if rec.gyro:
         measured_stamp = rec.gyro_stamp_ns
-        measured = np.column_stack([rec.gyro[a] for a in record.AXES])
+        measured = np.column_stack([rec.gyro[a] for a in AXES])
     rate_hz = _sample_rate_hz(rec.metadata, rate_hz, measured_stamp, rate_stamp, notes)
     half_ns = int(NS_PER_S / rate_hz // 2)
     if source == 'imu':

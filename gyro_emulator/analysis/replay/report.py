@@ -6,7 +6,7 @@ import os
 
 from gyro_emulator import units
 from gyro_emulator.analysis import allan
-from gyro_emulator.units import NS_PER_S
+from gyro_emulator.units import AXES, NS_PER_S
 import numpy as np
 
 
@@ -105,7 +105,7 @@ def compare(inputs, batch):
     adev = {}
     if matched:
         residual = emulated - measured
-        axes = 'xyz'
+        axes = AXES
         stats['residual_rad_s'] = {axes[i]: _axis_stats(residual[:, i]) for i in range(3)}
         stats['identical'] = bool(np.array_equal(emulated, measured))
         if inputs.source == 'command':
@@ -146,7 +146,7 @@ def report_text(comparison, inputs, header=()):
         lines += ['', '## Errors against the commanded rate (output - truth)', '',
                   '| axis | measured bias (deg/h) | emulated bias (deg/h) | measured std '
                   '(deg/s) | emulated std (deg/s) |', '|---|---|---|---|---|']
-        for axis in 'xyz':
+        for axis in AXES:
             m, e = stats['measured_error_rad_s'][axis], stats['emulated_error_rad_s'][axis]
             lines.append(f'| {axis} | {units.rad_s_to_deg_h(m["mean"]):.4g} | '
                          f'{units.rad_s_to_deg_h(e["mean"]):.4g} | '
@@ -177,7 +177,7 @@ def plot_report(comparison, inputs, out_dir):
         if inputs.source == 'command':
             ax.plot(t[::step], deg(comparison.truth_rad_s[::step, i]), 'k--', lw=0.6,
                     label='commanded')
-        ax.set_ylabel(f'{"xyz"[i]} (deg/s)')
+        ax.set_ylabel(f'{AXES[i]} (deg/s)')
         ax.grid(True, alpha=0.3)
     axes[0].legend(fontsize=8, loc='upper right')
     axes[-1].set_xlabel('time (s)')
@@ -191,7 +191,7 @@ def plot_report(comparison, inputs, out_dir):
     fig, axes = plt.subplots(3, 2, figsize=(10, 7), gridspec_kw={'width_ratios': [3, 1]})
     for i in range(3):
         axes[i, 0].plot(t[::step], residual[::step, i], lw=0.5)
-        axes[i, 0].set_ylabel(f'{"xyz"[i]} (deg/s)')
+        axes[i, 0].set_ylabel(f'{AXES[i]} (deg/s)')
         axes[i, 0].grid(True, alpha=0.3)
         axes[i, 1].hist(residual[:, i], bins=60)
     axes[-1, 0].set_xlabel('time (s)')
@@ -210,7 +210,7 @@ def plot_report(comparison, inputs, out_dir):
                           units.rad_s_to_deg_h(np.asarray(per_axis[i]['adev_rad_s'])),
                           'o-' if name.startswith('measured') else 's--', ms=3,
                           label=name.replace('_', ' '))
-            ax.set_title(f'{"xyz"[i]} axis')
+            ax.set_title(f'{AXES[i]} axis')
             ax.set_xlabel('tau (s)')
             ax.grid(True, which='both', alpha=0.3)
         axes[0].set_ylabel('Allan deviation (deg/h)')

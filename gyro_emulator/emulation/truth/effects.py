@@ -26,7 +26,7 @@ in one of four ways (:func:`part_config`, :func:`rate_into_the_part`,
 """
 
 from gyro_emulator.physics import first_order
-from gyro_emulator.units import deg_s_to_rad_s, SECONDS_PER_HOUR, STANDARD_GRAVITY_M_S2
+from gyro_emulator.units import AXES, deg_s_to_rad_s, SECONDS_PER_HOUR, STANDARD_GRAVITY_M_S2
 import numpy as np
 
 #: The catalogue causes the generator can hide: the physical causes of the first
@@ -86,7 +86,7 @@ def _draw_catalogue(effect, rng, profile):
         direction /= np.linalg.norm(direction)
         mag = deg_s_to_rad_s(rng.uniform(0.03, 0.15)) / STANDARD_GRAVITY_M_S2
         return {f'g_sensitivity_{a}_rad_s_per_m_s2': float(mag * direction[k])
-                for k, a in enumerate('xyz')}
+                for k, a in enumerate(AXES)}
     if effect == 'time_delay':
         return {'delay_s': rng.uniform(0.002, 0.02)}
     if effect == 'pressure_drift':
@@ -167,7 +167,7 @@ def part_config(effects, params):
         fields['thermal_time_constant_s'] = params['thermal_time_constant_s']
     if 'g_sensitivity' in effects:
         on.add('g_sensitivity')
-        row = tuple(params[f'g_sensitivity_{a}_rad_s_per_m_s2'] for a in 'xyz')
+        row = tuple(params[f'g_sensitivity_{a}_rad_s_per_m_s2'] for a in AXES)
         fields['g_sensitivity_rad_s_m_s2'] = ((0.0,) * 3, (0.0,) * 3, row)
     if 'scale_factor_nonlinearity' in effects:
         on.add('nonlinearity')
