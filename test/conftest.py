@@ -40,10 +40,30 @@ def _next_domain():
     time in one run never share a domain; within a slice consecutive tests
     differ, and the process id offsets separate runs started side by side.
     """
+    low, high = _domain_range()
     workers = int(os.environ.get('PYTEST_XDIST_WORKER_COUNT', '1'))
     worker = int(os.environ.get('PYTEST_XDIST_WORKER', 'gw0')[2:])
-    width = 100 // max(workers, 1)
-    return 1 + worker * width + (os.getpid() + next(_domains)) % width
+    width = max((high - low + 1) // max(workers, 1), 1)
+    return low + worker * width + (os.getpid() + next(_domains)) % width
+
+
+def _domain_range():
+    """
+    Return the (first, last) ROS_DOMAIN_ID this run may use: 1-100 by default.
+
+    ``GYRO_TEST_DOMAINS=FIRST-LAST`` narrows it, so that suites run side by
+    side (several checkouts on one machine) never share a domain.
+    """
+    text = os.environ.get('GYRO_TEST_DOMAINS', '1-100')
+    try:
+        low, high = (int(v) for v in text.split('-'))
+    except ValueError:
+        raise pytest.UsageError(f'GYRO_TEST_DOMAINS = {text!r}: expected FIRST-LAST, '
+                                'e.g. 1-50') from None
+    if not 0 <= low <= high <= 101:
+        raise pytest.UsageError(f'GYRO_TEST_DOMAINS = {text!r}: allowed 0 <= FIRST <= LAST '
+                                '<= 101')
+    return low, high
 
 
 def ros_env(**extra):
