@@ -250,7 +250,7 @@ def thermal_log(tmp_path_factory):
         bias_temp_coeff_rad_s_k=C1_RAD_S_K, bias_temp_coeff2_rad_s_k2=C2_RAD_S_K2,
         turn_on_bias_rad_s=float(units.deg_s_to_rad_s(0.1)))
     zero = (0.0, 0.0, 0.0)
-    ramp = profiles.Profile('ramp', (profiles.Segment(2400.0, zero, zero, 5.0, 45.0),))
+    ramp = profiles.ScriptedProfile('ramp', (profiles.Segment(2400.0, zero, zero, 5.0, 45.0),))
     path = str(tmp_path_factory.mktemp('thermal') / 'ramp.csv')
     simulate.write_record(path, config, ramp, 2400.0, 50.0, seed=3)
     return path

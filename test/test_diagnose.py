@@ -83,8 +83,8 @@ def test_truth_csv_holds_only_the_contract(tmp_path):
 def test_truth_is_the_one_simulator_gyromodel():
     # with every effect and noise term off, the record is GyroModel's output
     # for the profile: the generator adds nothing of its own
-    from gyro_emulator.emulation.profiles import draw_profile
     from gyro_emulator.emulation.truth import generator as tr
+    from gyro_emulator.emulation.truth.drawn import draw_profile
     from gyro_emulator.sensor.model import GyroModel
 
     quiet = {'arw_deg_sqrt_s': 0.0, 'bias_instability_deg_h': 0.0, 'rrw_deg_h_sqrt_h': 0.0}
@@ -94,7 +94,7 @@ def test_truth_is_the_one_simulator_gyromodel():
     drawn = tr._draw_part_errors(rng, quiet)
     model = GyroModel(tr._sensor_config(physics_preset('paper'), (), {}, drawn), 2.0, rng)
     rates = np.zeros((len(prof.time_s), 3))
-    rates[:, 2] = prof.rate_rad_s
+    rates[:, 2] = prof.rate_rad_s[:, 2]
     expected = model.run(rates, prof.temp_c, prof.accel_m_s2).gyro_rad_s[:, 2]
     np.testing.assert_array_equal(record.gyro['x'], expected)
 

@@ -219,7 +219,7 @@ def test_node_and_simulate_share_one_gravity_default_and_a_driver_like_temperatu
     assert defaults['default_linear_acceleration_m_s2'] == list(profiles.LEVEL_ACCEL_M_S2)
     assert profiles.LEVEL_ACCEL_M_S2 == (0.0, 0.0, 9.80665)
     for name in profiles.PROFILE_NAMES:
-        accel = profiles.make_profile(name, 10.0).sample(np.array([0.0, 5.0])).accel_m_s2
+        accel = profiles.make_profile(name, 10.0).samples(np.array([0.0, 5.0])).accel_m_s2
         assert np.array_equal(accel, np.tile(profiles.LEVEL_ACCEL_M_S2, (2, 1))), name
     assert 1.0 <= defaults['temperature_rate_hz'] <= 10.0
     assert defaults['seed'] == params.SEED_FROM_NAME and defaults['fault.type'] == 'none'
@@ -311,8 +311,9 @@ def test_without_noise_switches_off_only_noise_terms():
 def test_shipped_paper_profile_is_the_papers_grid_and_short():
     profile = scenario.load_scenario(os.path.join(ROOT, 'config',
                                                   'scenario_paper_validation.yaml'))
-    temps = sorted({s.temp_c for s in profile.steps})
-    rpm = sorted({round(s.rate_rad_s * 60.0 / (2.0 * math.pi), 9) for s in profile.steps})
+    temps = sorted({s.temp_start_c for s in profile.steps})
+    rpm = sorted({round(profile.rate_along_axis_rad_s(s) * 60.0 / (2.0 * math.pi), 9)
+                  for s in profile.steps})
     assert temps[0] == 25.0 and temps[-1] == 85.0
     assert rpm == [0.0, 10.0, 20.0, 40.0]
     assert len(profile.steps) == len(temps) * 4
@@ -340,22 +341,24 @@ def test_profile_errors_name_the_key(doc, match):
 def test_scenario_and_simulate_profiles_share_one_segment_schema():
     """The same segment mapping means the same rate, temperature and settle time."""
     seg = {'duration_s': 2.0, 'rate_rpm': 10.0, 'temp_c': 40.0, 'settle_s': 0.5}
-    step = scenario.parse_scenario({'axis': [0, 1, 0], 'segments': [seg]}).steps[0]
+    played = scenario.parse_scenario({'axis': [0, 1, 0], 'segments': [seg]})
+    step = played.steps[0]
     segment = profiles.profile_from_mapping({'axis': [0, 1, 0], 'segments': [seg]}).segments[0]
-    assert segment.rate_start_rad_s == pytest.approx((0.0, step.rate_rad_s, 0.0))
-    assert step.rate_rad_s == pytest.approx(10.0 * 2.0 * math.pi / 60.0)
-    assert (step.temp_c, step.settle_s) == (segment.temp_start_c, segment.settle_s)
+    rate = played.rate_along_axis_rad_s(step)
+    assert segment.rate_start_rad_s == pytest.approx((0.0, rate, 0.0))
+    assert rate == pytest.approx(10.0 * 2.0 * math.pi / 60.0)
+    assert (step.temp_start_c, step.settle_s) == (segment.temp_start_c, segment.settle_s)
 
 
 def test_old_temperature_spelling_is_read_with_a_deprecation_warning():
     old = {'segments': [{'duration_s': 1.0, 'rate_rpm': 1, 'temperature_c': 30.0}]}
     with pytest.warns(DeprecationWarning, match='temperature_c is deprecated, write temp_c'):
         step = scenario.parse_scenario(old).steps[0]
-    assert step.temp_c == 30.0
+    assert step.temp_start_c == 30.0
     with pytest.warns(DeprecationWarning, match='temperatures_c is deprecated'):
         grid = scenario.parse_scenario({'grid': {'temperatures_c': [20.0], 'rates_rpm': [0],
                                                  'hold_s': 1.0}})
-    assert grid.steps[0].temp_c == 20.0
+    assert grid.steps[0].temp_start_c == 20.0
 
 
 def test_a_scenario_step_refuses_a_ramp():

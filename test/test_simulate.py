@@ -37,11 +37,11 @@ def test_simulate_cli_writes_the_csv_columns(tmp_path, capsys):
 
 def test_steps_and_temperature_ramp_profiles():
     steps = profiles.make_profile('steps', 50.0)
-    samples = steps.sample(np.array([5.0, 15.0, 25.0, 35.0, 45.0]))
+    samples = steps.samples(np.array([5.0, 15.0, 25.0, 35.0, 45.0]))
     np.testing.assert_allclose(samples.rate_rad_s[:, 2],
                                units.rpm_to_rad_s([0, 10, 20, 40, 0]))
     ramp = profiles.make_profile('temp-ramp', 60.0)
-    samples = ramp.sample(np.array([0.0, 30.0, 60.0, 90.0]))
+    samples = ramp.samples(np.array([0.0, 30.0, 60.0, 90.0]))
     np.testing.assert_allclose(samples.temp_c, [25.0, 55.0, 85.0, 85.0])   # holds after
     np.testing.assert_allclose(samples.rate_rad_s[:, 2], math.radians(60.0))
     np.testing.assert_allclose(samples.accel_m_s2[0], [0.0, 0.0, 9.80665])
@@ -60,7 +60,7 @@ def test_yaml_profile(tmp_path):
         '  - {duration_s: 1, rate_rpm: [10, 0, 0]}\n')
     prof = profiles.make_profile(str(path), 100.0)
     assert prof.duration_s == pytest.approx(7.0)
-    s = prof.sample(np.array([1.0, 4.0, 6.5, 50.0]))
+    s = prof.samples(np.array([1.0, 4.0, 6.5, 50.0]))
     np.testing.assert_allclose(s.rate_rad_s[:, 2], [0.0, math.radians(45.0), 0.0, 0.0])
     np.testing.assert_allclose(s.rate_rad_s[2:, 0], units.rpm_to_rad_s(10.0))
     np.testing.assert_allclose(s.temp_c, [20.0, 30.0, 40.0, 40.0])   # last temp carries
@@ -238,6 +238,25 @@ def test_simulate_refuses_an_existing_output_unless_overwrite(tmp_path, capsys):
     assert out.read_bytes() == first
     assert cli.main(common + ['--seed', '5', '--overwrite']) == 0
     assert out.read_bytes() != first
+
+
+def test_simulate_stages_a_csv_gz_and_a_bag_under_their_own_names(tmp_path):
+    """The output is staged beside itself (atomic.staged); the writers see the final name."""
+    from gyro_emulator.recording import bag
+    gz = tmp_path / 'run.csv.gz'
+    assert simulate.write_record(str(gz), 'paper', 'static', 0.5, 100.0) == 50
+    raw = gz.read_bytes()
+    assert raw[:2] == b'\x1f\x8b' and raw[3] & 0x08        # gzip, with a file name ...
+    assert raw[10:raw.index(b'\0', 10)] == b'run.csv'      # ... the final one
+    assert len(csvio.read_csv(gz)['time_s']) == 50
+    out = tmp_path / 'run_bag'
+    simulate.write_record(str(out), 'paper', 'static', 0.5, 100.0, start_time_ns=0)
+    assert sorted(os.listdir(out)) == ['metadata.yaml', 'run_bag_0.mcap']
+    simulate.write_record(str(out), 'paper', 'static', 1.0, 100.0, start_time_ns=0,
+                          overwrite=True)
+    assert bag.BagReader(str(out)).topics['/imu/data_raw'].message_count == 100
+    assert sorted(os.listdir(out)) == ['metadata.yaml', 'run_bag_0.mcap']
+    assert sorted(os.listdir(tmp_path)) == ['run.csv.gz', 'run_bag']
 
 
 @pytest.mark.parametrize('name', ['broken.csv', 'broken_bag'])

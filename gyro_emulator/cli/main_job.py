@@ -91,13 +91,14 @@ def physics_error_deg_s(rate_rad_s, die_temp_c):
     return math.degrees(float(apparent) - rate_rad_s)
 
 
-def format_table(results):
-    """Return the summary table with the physics prediction column."""
+def format_table(profile, results):
+    """Return the summary table of a scenario's results with the physics prediction column."""
     lines = scenario.format_summary(results).split('\n')
     lines[0] += f' {"physics err":>11}'
     lines[1] = '-' * len(lines[0])
     for i, r in enumerate(results):
-        lines[i + 2] += f' {physics_error_deg_s(r.step.rate_rad_s, r.die_temp_c):>+11.3f}'
+        rate = profile.rate_along_axis_rad_s(r.step)
+        lines[i + 2] += f' {physics_error_deg_s(rate, r.die_temp_c):>+11.3f}'
     return '\n'.join(lines)
 
 
@@ -151,7 +152,7 @@ def run_scenario(opts):
 
             def progress(index, step):
                 print(f'  step {index + 1:>2}/{len(profile.steps)}: {step.label:>8} at '
-                      f'{step.temp_c:5.1f} C', flush=True)
+                      f'{step.temp_start_c:5.1f} C', flush=True)
 
             player = play(profile, collect=True, wait_s=NODE_START_TIMEOUT_S,
                           progress=progress)
@@ -167,14 +168,15 @@ def run_scenario(opts):
         print(f'\nmain: the scenario was {player.interrupted}')
     print(f'\nCommanded vs measured along {list(profile.axis)} (mean after each '
           f"step's settle time; physics err = Fig 6 first-order prediction at T_die):")
-    print(format_table(results))
+    print(format_table(profile, results))
     worst = max(results, key=lambda r: abs(r.error_deg_s) if math.isfinite(
         r.error_deg_s) else -1.0)
     print(f'largest |error|: {worst.error_deg_s:+.3f} deg/s at {worst.step.label}, '
-          f'{worst.step.temp_c:g} C; {samples_line(player.imu, elapsed)}')
+          f'{worst.step.temp_start_c:g} C; {samples_line(player.imu, elapsed)}')
     doc = scenario.results_json(profile, results, player.interrupted)
     for row, r in zip(doc['steps'], results):
-        row['physics_error_deg_s'] = physics_error_deg_s(r.step.rate_rad_s, r.die_temp_c)
+        row['physics_error_deg_s'] = physics_error_deg_s(profile.rate_along_axis_rad_s(r.step),
+                                                         r.die_temp_c)
     summary = os.path.join(opts.out_dir, 'summary.json')
     with open(summary, 'w', encoding='utf-8') as handle:
         json.dump(doc, handle, indent=1)

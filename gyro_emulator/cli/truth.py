@@ -19,7 +19,7 @@ hidden truth goes to --answer (or stays hidden).
 import os
 
 from gyro_emulator.cli.jsonout import write_json
-from gyro_emulator.emulation.profiles import SAMPLED_PROFILES
+from gyro_emulator.emulation.truth.drawn import SAMPLED_PROFILES
 from gyro_emulator.emulation.truth.effects import TRUTH_EFFECTS
 from gyro_emulator.validation import check_range
 

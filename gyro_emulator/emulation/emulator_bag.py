@@ -199,7 +199,7 @@ def simulation_custom_data(config_name, profile, duration_s, rate_hz, seed, temp
 
 def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
                          rate_hz=None, custom_data=None, start_ns=0,
-                         frame_id=DEFAULT_FRAME_ID, compression='zstd'):
+                         frame_id=DEFAULT_FRAME_ID, compression='zstd', name=None):
     """
     Write simulation chunks as a rosbag2 bag directory in the emulator layout.
 
@@ -207,7 +207,7 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
     ----------
     path : str
         Bag directory to create.
-    chunks : iterable of gyro_emulator.emulation.simulate.SimulationChunk
+    chunks : iterable of gyro_emulator.emulation.run_profile.ProfileChunk
         From ``simulate.iter_simulation``.
     progress : callable, optional
         ``progress(done, total)`` after each chunk.
@@ -226,6 +226,9 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
         ``header.frame_id``.
     compression : str
         MCAP chunk compression.
+    name : str, optional
+        The bag's final name when ``path`` is a staging temporary (it names
+        the MCAP file; default: ``path``'s).
 
     Returns
     -------
@@ -238,7 +241,7 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
         sigma = white_noise_sigma(config, rate_hz)
     done = 0
     with bag.BagWriter(path, compression=compression, custom_data=custom_data,
-                       flush_interval_s=60.0) as writer:
+                       flush_interval_s=60.0, name=name) as writer:
         out = EmulatorBagWriter(writer, frame_id, sigma)
         for chunk in chunks:
             stamp_ns = start_ns + np.round(chunk.time_s * NS_PER_S).astype(np.int64)

@@ -1,24 +1,48 @@
 """
 Input profiles: the true rate, ambient temperature and specific force a run sees.
 
-Two kinds, one vocabulary (rad/s, deg C, m/s^2, the level specific force
-:data:`LEVEL_ACCEL_M_S2`, the paper's rate steps :data:`PAPER_RATES_RPM`):
+One protocol, :class:`Profile`: a profile has a ``name``, a ``duration_s``
+and gives its 3-axis samples on the times asked, ``samples(time_s)`` ->
+:class:`ProfileSamples` (rate rad/s (N, 3), temperature deg C (N,),
+specific force m/s^2 (N, 3)). Its kinds:
 
-* scripted profiles (:class:`Profile`, :func:`make_profile`): segments that
-  ``simulate`` samples at its own rate and a scenario plays step by step;
-* sampled test profiles (:class:`SampledProfile`, :func:`draw_profile`):
-  what a lab did to a part, sample by sample, drawn from an injected
-  ``numpy.random.Generator``; the truth generator runs them.
+* scripted (:class:`ScriptedProfile`): segments from YAML or the built-in
+  ideas, evaluated at any time; ``simulate`` samples them at its own rate;
+* sampled (:class:`SampledProfile`): values at sample times, linear between
+  them; the drawn lab/paper/thermal/static profiles of the truth generator
+  (:mod:`.truth.drawn`);
+* recorded (:class:`.recorded_profile.RecordedProfile`): a measured CSV or
+  bag as a sampled profile (``simulate --profile LOG``);
+* scenario (:class:`.scenario.Scenario`): constant steps played onto the
+  node, a scripted profile with labels.
+
+:func:`gyro_emulator.emulation.run_profile.run_over_profile` is the one
+loop that runs the sensor model over any of them.
+
+One function per profile idea, each giving the scripted kind, or the
+sampled kind on a grid with ``sample_rate_hz`` (linear between the idea's
+knots, as a lab program is), so that ``simulate`` and the truth generator
+share it:
+
+* :func:`static_profile`: a part at rest, level, at a constant temperature;
+* :func:`temperature_ramp`: a chamber program (linear between (time,
+  temperature) knots) at a constant rate about z: the paper's Fig 6, or a
+  thermal test's soak, ramp (and back), soak;
+* :func:`paper_rate_steps`: the paper's rate-table steps about z at one or
+  more temperatures, the chamber ramping between them.
+
+Vocabulary: rad/s, deg C, m/s^2, the level specific force
+:data:`LEVEL_ACCEL_M_S2`, the paper's rates :data:`PAPER_RATES_RPM`.
 
 Scripted profiles
 -----------------
 
-A :class:`Profile` is a sequence of segments; within a segment the body rate
-and the ambient temperature move linearly from a start to an end value (equal
-values hold them constant) and the specific force is constant. Built-in
-profiles (:data:`PROFILE_NAMES`) stretch to the requested duration; a YAML
-profile keeps its own segment durations and holds its last values if the
-simulation runs longer.
+A :class:`ScriptedProfile` is a sequence of segments; within a segment the
+body rate and the ambient temperature move linearly from a start to an end
+value (equal values hold them constant) and the specific force is constant.
+Built-in profiles (:data:`PROFILE_NAMES`) stretch to the requested duration;
+a YAML profile keeps its own segment durations and holds its last values if
+the simulation runs longer.
 
 Built-in profiles:
 
@@ -47,29 +71,12 @@ files of :mod:`.scenario` share it, :func:`parse_segment`)::
 
 ``temperature_c`` is the old spelling of ``temp_c``: still read, with a
 deprecation warning.
-
-Sampled test profiles
----------------------
-
-A :class:`SampledProfile` is the true rate about the sense axis, the true (chamber)
-temperature and the specific force in the sensor frame, sample by sample.
-Every random choice comes from the injected ``numpy.random.Generator``.
-
-- :func:`lab_profile`: a rate table in a thermal chamber (soaks joined by
-  heating and cooling ramps, rate steps with an acceleration limit, swept
-  sines, tilt positions of the table axis);
-- :func:`paper_profile`: the paper's validation experiment (0, 10, 20 and
-  40 RPM at 25 to 85 C);
-- :func:`thermal_ramp_profile`: a static part in a chamber that ramps the
-  temperature once (``cycle=False``: temperature and time confounded, like
-  the LSM6DSM log) or down and back up (``cycle=True``);
-- :func:`static_profile`: a static part at a steady temperature (an Allan
-  run, like the ADIS16405 and MPU-6050 logs).
 """
 
 from dataclasses import dataclass
 import os
 from types import MappingProxyType
+from typing import Protocol, runtime_checkable
 import warnings
 
 from gyro_emulator.resources import read_yaml
@@ -85,8 +92,61 @@ LEVEL_ACCEL_M_S2 = (0.0, 0.0, STANDARD_GRAVITY_M_S2)
 
 #: Rate-table rates of the paper's validation test, RPM about z.
 PAPER_RATES_RPM = (0.0, 10.0, 20.0, 40.0)
+#: Chamber temperatures of the paper's validation test, deg C.
+PAPER_TEMPS_C = (25.0, 40.0, 55.0, 70.0, 85.0)
 #: Rate-table levels of the ``steps`` profile: the paper's rates and back to 0, RPM.
 STEP_LEVELS_RPM = PAPER_RATES_RPM + (0.0,)
+
+
+@dataclass(frozen=True)
+class ProfileSamples:
+    """Profile values at the sample times: (N, 3) rates and forces, (N,) temperatures."""
+
+    rate_rad_s: np.ndarray
+    temp_c: np.ndarray
+    accel_m_s2: np.ndarray
+
+    @staticmethod
+    def concatenate(parts):
+        """Join samples in time order."""
+        return ProfileSamples(*(np.concatenate([getattr(p, name) for p in parts])
+                                for name in ('rate_rad_s', 'temp_c', 'accel_m_s2')))
+
+
+@runtime_checkable
+class Profile(Protocol):
+    """
+    The one profile protocol: 3-axis samples on the times asked.
+
+    Attributes
+    ----------
+    name : str
+        What the profile is called (a built-in name, a file, a drawn kind).
+    duration_s : float
+        Its length, s.
+
+    """
+
+    name: str
+
+    @property
+    def duration_s(self):
+        """Length, s."""
+
+    def samples(self, time_s):
+        """
+        Return the rate (rad/s, (N, 3)), temperature (deg C, (N,)) and specific force.
+
+        Parameters
+        ----------
+        time_s : array_like
+            Times, s, shape (N,).
+
+        Returns
+        -------
+        ProfileSamples
+
+        """
 
 
 @dataclass(frozen=True)
@@ -106,6 +166,8 @@ class Segment:
         Specific force (x, y, z), m/s^2.
     settle_s : float
         Start of the segment a summary leaves out (transients), s.
+    label : str
+        The rate as the profile wrote it (a scenario step's ``10 RPM``), or ''.
 
     """
 
@@ -116,6 +178,7 @@ class Segment:
     temp_end_c: float
     accel_m_s2: tuple = LEVEL_ACCEL_M_S2
     settle_s: float = 0.0
+    label: str = ''
 
     def __post_init__(self):
         """Validate the duration, temperatures and vectors."""
@@ -140,17 +203,8 @@ class Segment:
 
 
 @dataclass(frozen=True)
-class ProfileSamples:
-    """Profile values at the sample times: (N, 3) rates and forces, (N,) temperatures."""
-
-    rate_rad_s: np.ndarray
-    temp_c: np.ndarray
-    accel_m_s2: np.ndarray
-
-
-@dataclass(frozen=True)
-class Profile:
-    """A named sequence of :class:`Segment`; see the module docstring."""
+class ScriptedProfile:
+    """A named sequence of :class:`Segment` (module docstring): the scripted kind."""
 
     name: str
     segments: tuple
@@ -166,7 +220,7 @@ class Profile:
         """Total duration, s."""
         return float(sum(s.duration_s for s in self.segments))
 
-    def sample(self, time_s):
+    def samples(self, time_s):
         """
         Evaluate the profile at ``time_s`` (s, any order; after the end: hold).
 
@@ -191,26 +245,233 @@ class Profile:
         return ProfileSamples(rate_rad_s=rate, temp_c=temp, accel_m_s2=acc[idx])
 
 
-def static(duration_s, temp_c=25.0):
-    """Zero rate at a constant ambient temperature."""
-    zero = (0.0, 0.0, 0.0)
-    return Profile('static', (Segment(duration_s, zero, zero, temp_c, temp_c),))
+@dataclass(frozen=True)
+class SampledProfile:
+    """
+    Values at sample times, linear between them (:func:`numpy.interp`): the sampled kind.
+
+    Attributes
+    ----------
+    name : str
+        What the profile is (``lab``, ``paper``, a record's path, ...).
+    time_s : numpy.ndarray
+        Sample times, s, shape (N,), non-decreasing.
+    rate_rad_s, accel_m_s2 : numpy.ndarray
+        True rate (rad/s) and specific force (m/s^2), shape (N, 3).
+    temp_c : numpy.ndarray
+        True (chamber) temperature, deg C, shape (N,).
+    max_rate_rad_s : float, optional
+        Largest rate the profile commands, rad/s (a lab's table full scale;
+        default: the largest magnitude of ``rate_rad_s``).
+
+    """
+
+    name: str
+    time_s: np.ndarray
+    rate_rad_s: np.ndarray
+    temp_c: np.ndarray
+    accel_m_s2: np.ndarray
+    max_rate_rad_s: float = None
+
+    def __post_init__(self):
+        """Check the shapes: (N,) times and temperatures, (N, 3) rates and forces."""
+        n = len(self.time_s)
+        for name, shape in (('time_s', (n,)), ('rate_rad_s', (n, 3)), ('temp_c', (n,)),
+                            ('accel_m_s2', (n, 3))):
+            arr = np.asarray(getattr(self, name), dtype=float)
+            if arr.shape != shape:
+                raise ValueError(f'SampledProfile.{name} has shape {arr.shape}: expected '
+                                 f'{shape}')
+            object.__setattr__(self, name, arr)
+        if self.max_rate_rad_s is None:
+            object.__setattr__(self, 'max_rate_rad_s',
+                               float(np.max(np.abs(self.rate_rad_s))) if n else 0.0)
+
+    @property
+    def sample_period_s(self):
+        """Return the median positive sample interval, s."""
+        dt = np.diff(self.time_s)
+        return float(np.median(dt[dt > 0.0]))
+
+    @property
+    def rate_hz(self):
+        """Return the nominal sample rate, Hz."""
+        return 1.0 / self.sample_period_s
+
+    @property
+    def duration_s(self):
+        """First to last sample plus one interval, s."""
+        return float(self.time_s[-1] - self.time_s[0]) + self.sample_period_s
+
+    def samples(self, time_s):
+        """Return the samples at ``time_s``: linear between the profile's samples, held outside."""
+        t = np.asarray(time_s, dtype=float)
+
+        def at(values):
+            return np.column_stack([np.interp(t, self.time_s, values[:, k]) for k in range(3)])
+
+        return ProfileSamples(at(self.rate_rad_s), np.interp(t, self.time_s, self.temp_c),
+                              at(self.accel_m_s2))
+
+    def own_samples(self, start, stop):
+        """Return the profile's own samples ``start`` .. ``stop - 1``, as they are."""
+        return ProfileSamples(self.rate_rad_s[start:stop], self.temp_c[start:stop],
+                              self.accel_m_s2[start:stop])
 
 
-def rate_table_steps(duration_s, temp_c=25.0, levels_rpm=STEP_LEVELS_RPM):
-    """Rate-table steps about z at ``levels_rpm`` (equal dwells), constant temperature."""
-    dwell = float(duration_s) / len(levels_rpm)
-    segments = []
-    for level in levels_rpm:
-        rate = (0.0, 0.0, float(rpm_to_rad_s(level)))
-        segments.append(Segment(dwell, rate, rate, temp_c, temp_c))
-    return Profile('steps', tuple(segments))
+def rate_about_z(rate_rad_s):
+    """Return rates about z, (N,), as (N, 3) body rates (x and y zero), rad/s."""
+    rate = np.zeros((len(rate_rad_s), 3))
+    rate[:, 2] = rate_rad_s
+    return rate
 
 
-def temperature_ramp(duration_s, start_c=25.0, end_c=85.0, rate_deg_s=60.0):
-    """Hold a constant rate about z while the ambient temperature ramps (paper Fig 6)."""
+def level_accel(count):
+    """Return ``count`` level specific forces (:data:`LEVEL_ACCEL_M_S2`), (N, 3) m/s^2."""
+    return np.tile(LEVEL_ACCEL_M_S2, (count, 1))
+
+
+def sample_times(duration_s, sample_rate_hz):
+    """Return a sampled profile's grid: 0, 1 / sample_rate_hz, ... before ``duration_s``."""
+    return np.arange(0.0, duration_s, 1.0 / sample_rate_hz)
+
+
+# --- one function per profile idea -----------------------------------------
+
+def static_profile(duration_s, temp_c=25.0, sample_rate_hz=None):
+    """
+    Return a part at rest, level (z up), at a constant ambient temperature (an Allan run).
+
+    ``simulate --profile static``, the fleet's sensor runs, and the truth
+    generator's ``static`` (sampled, plus a drawn chamber wander).
+
+    Parameters
+    ----------
+    duration_s : float
+        Length, s.
+    temp_c : float
+        Ambient temperature, deg C.
+    sample_rate_hz : float, optional
+        Give the sampled kind on :func:`sample_times` (default: scripted).
+
+    Returns
+    -------
+    ScriptedProfile or SampledProfile
+
+    """
+    if sample_rate_hz is None:
+        zero = (0.0, 0.0, 0.0)
+        return ScriptedProfile('static', (Segment(duration_s, zero, zero, temp_c, temp_c),))
+    t = sample_times(duration_s, sample_rate_hz)
+    return SampledProfile('static', t, np.zeros((len(t), 3)), np.full(len(t), float(temp_c)),
+                          level_accel(len(t)), max_rate_rad_s=0.0)
+
+
+def temperature_ramp(knots, rate_deg_s=60.0, sample_rate_hz=None, name='temp-ramp'):
+    """
+    Return a chamber program, linear between (time, temperature) knots, rate held about z.
+
+    The paper's Fig 6 (``simulate --profile temp-ramp``: 25 to 85 C over the
+    run at 60 deg/s) and the truth generator's thermal tests (a static part:
+    soak, ramp, and back for a cycle, soak).
+
+    Parameters
+    ----------
+    knots : sequence of (float, float)
+        (time s, temperature deg C), time non-decreasing from 0; the last
+        time is the length.
+    rate_deg_s : float
+        Rate about z, deg/s.
+    sample_rate_hz : float, optional
+        Give the sampled kind on :func:`sample_times`, the temperature by
+        :func:`numpy.interp` between the knots (default: scripted, one
+        segment per pair of knots at different times).
+    name : str
+        The profile's name.
+
+    Returns
+    -------
+    ScriptedProfile or SampledProfile
+
+    """
     rate = (0.0, 0.0, float(deg_s_to_rad_s(rate_deg_s)))
-    return Profile('temp-ramp', (Segment(duration_s, rate, rate, start_c, end_c),))
+    if sample_rate_hz is None:
+        return ScriptedProfile(name, tuple(
+            Segment(t1 - t0, rate, rate, c0, c1)
+            for (t0, c0), (t1, c1) in zip(knots[:-1], knots[1:]) if t1 != t0))
+    knots_t, knots_c = zip(*knots)
+    t = sample_times(knots_t[-1], sample_rate_hz)
+    return SampledProfile(name, t, rate_about_z(np.full(len(t), rate[2])),
+                          np.interp(t, knots_t, knots_c), level_accel(len(t)))
+
+
+def paper_rate_steps(dwell_s, temps_c=PAPER_TEMPS_C, rates_rpm=PAPER_RATES_RPM, ramp_k_min=2.0,
+                     transition_s=2.0, sample_rate_hz=None, name='paper'):
+    """
+    Return the paper's validation: at each temperature the table turns at each rate about z.
+
+    The chamber ramps at ``ramp_k_min`` between temperatures with the table
+    at rest, axis vertical. ``simulate --profile steps`` is one temperature
+    and the rates and back to 0 (:data:`STEP_LEVELS_RPM`); the truth
+    generator's ``paper`` is the paper's grid, 5 minutes a point (the paper
+    averaged 5 minutes per point).
+
+    Parameters
+    ----------
+    dwell_s : float
+        Time at each (temperature, rate) point, s.
+    temps_c : sequence of float
+        Soak temperatures, deg C.
+    rates_rpm : sequence of float
+        Table rates, RPM.
+    ramp_k_min : float
+        Chamber ramp rate, K/min.
+    transition_s : float
+        Sampled kind: the table moves linearly between rates from
+        ``transition_s`` before a change to ``transition_s`` after it (the
+        scripted kind steps at once).
+    sample_rate_hz : float, optional
+        Give the sampled kind on :func:`sample_times` (default: scripted).
+    name : str
+        The profile's name.
+
+    Returns
+    -------
+    ScriptedProfile or SampledProfile
+
+    """
+    if sample_rate_hz is None:
+        return ScriptedProfile(name, tuple(_step_segments(dwell_s, temps_c, rates_rpm,
+                                                          ramp_k_min)))
+    temp_knots, rate_knots = [], []
+    now = 0.0
+    for i, temp in enumerate(temps_c):
+        for rpm in rates_rpm:
+            temp_knots += [(now, temp), (now + dwell_s, temp)]
+            rate_knots += [(now + transition_s, rpm_to_rad_s(rpm)),
+                           (now + dwell_s - transition_s, rpm_to_rad_s(rpm))]
+            now += dwell_s
+        if i + 1 < len(temps_c):
+            rate_knots += [(now, 0.0)]
+            now += abs(temps_c[i + 1] - temp) / (ramp_k_min / 60.0)
+            rate_knots += [(now, 0.0)]
+    t = sample_times(now, sample_rate_hz)
+    knots_t, knots_c = zip(*temp_knots)
+    knots_rt, knots_r = zip(*([(0.0, 0.0)] + rate_knots))
+    return SampledProfile(name, t, rate_about_z(np.interp(t, knots_rt, knots_r)),
+                          np.interp(t, knots_t, knots_c), level_accel(len(t)))
+
+
+def _step_segments(dwell_s, temps_c, rates_rpm, ramp_k_min):
+    """Yield the scripted segments of :func:`paper_rate_steps`: the dwells and the ramps."""
+    zero = (0.0, 0.0, 0.0)
+    for i, temp in enumerate(temps_c):
+        for rpm in rates_rpm:
+            rate = (0.0, 0.0, float(rpm_to_rad_s(rpm)))
+            yield Segment(dwell_s, rate, rate, temp, temp)
+        if i + 1 < len(temps_c) and temps_c[i + 1] != temp:
+            yield Segment(abs(temps_c[i + 1] - temp) / (ramp_k_min / 60.0), zero, zero, temp,
+                          temps_c[i + 1])
 
 
 _SEGMENT_KEYS = ('duration_s', 'rate_rad_s', 'rate_deg_s', 'rate_rpm', 'temp_c',
@@ -293,7 +554,7 @@ def parse_segment(where, seg, axis=DEFAULT_AXIS, last_temp_c=25.0,
 
 def profile_from_mapping(mapping, source='profile'):
     """
-    Build a :class:`Profile` from a parsed YAML mapping (module docstring).
+    Build a :class:`ScriptedProfile` from a parsed YAML mapping (module docstring).
 
     Unknown keys and bad values raise ``ValueError`` naming the segment and key.
     """
@@ -315,7 +576,7 @@ def profile_from_mapping(mapping, source='profile'):
                                 default_acc)
         last_temp = segment.temp_end_c
         segments.append(segment)
-    return Profile(str(mapping.get('name', source)), tuple(segments))
+    return ScriptedProfile(str(mapping.get('name', source)), tuple(segments))
 
 
 def unit_axis(source, axis):
@@ -349,302 +610,17 @@ def make_profile(name_or_path, duration_s, temp_c=25.0):
 
     Returns
     -------
-    Profile
+    ScriptedProfile
 
     """
     if name_or_path == 'static':
-        return static(duration_s, temp_c)
+        return static_profile(duration_s, temp_c)
     if name_or_path == 'steps':
-        return rate_table_steps(duration_s, temp_c)
+        return paper_rate_steps(float(duration_s) / len(STEP_LEVELS_RPM), (temp_c,),
+                                STEP_LEVELS_RPM, name='steps')
     if name_or_path == 'temp-ramp':
-        return temperature_ramp(duration_s)
+        return temperature_ramp(((0.0, 25.0), (duration_s, 85.0)))
     if not os.path.isfile(str(name_or_path)):
         raise ValueError(f'profile {name_or_path!r} is neither a built-in profile '
                          f'({", ".join(PROFILE_NAMES)}) nor a readable YAML file')
     return load_profile(name_or_path)
-
-
-# --- sampled test profiles (the truth generator) ---------------------------
-
-#: Sampled profile names :func:`draw_profile` accepts.
-SAMPLED_PROFILES = ('lab', 'paper', 'thermal_ramp', 'thermal_cycle', 'static')
-
-
-@dataclass(frozen=True)
-class SampledProfile:
-    """A sampled test profile: true rate about z, true (chamber) temperature, acceleration."""
-
-    time_s: np.ndarray
-    rate_rad_s: np.ndarray
-    temp_c: np.ndarray
-    accel_m_s2: np.ndarray
-    max_rate_rad_s: float
-    name: str
-
-
-def _soak_ramp_temperature(t, plan):
-    """Piecewise-linear temperature from (time, temp) knots."""
-    knots_t, knots_temp = zip(*plan)
-    return np.interp(t, knots_t, knots_temp)
-
-
-def lab_profile(rng, sample_rate_hz=25.0, levels=5, max_duration_s=None):
-    """
-    Make a seeded random lab-like profile.
-
-    Parameters
-    ----------
-    rng : numpy.random.Generator
-        Source of randomness.
-    sample_rate_hz : float
-        Output data rate, Hz.
-    levels : int
-        Temperature soak levels, 25 C included (>= 3).
-    max_duration_s : float, optional
-        Cut the profile at this duration.
-
-    Returns
-    -------
-    SampledProfile
-
-    """
-    plan, end_s = _soak_plan(rng, levels)
-    duration = end_s if max_duration_s is None else min(end_s, max_duration_s)
-    dt = 1.0 / sample_rate_hz
-    t = np.arange(0.0, duration, dt)
-    temp = _soak_ramp_temperature(t, plan)
-    rate, max_rate = _table_rate(rng, t, duration, sample_rate_hz)
-    accel = _table_gravity(rng, t, rate, duration, dt)
-    return SampledProfile(time_s=t, rate_rad_s=rate, temp_c=temp, accel_m_s2=accel,
-                          max_rate_rad_s=float(max_rate), name='lab')
-
-
-def _soak_plan(rng, levels):
-    """
-    Draw the chamber plan: soaks at ``levels`` temperatures joined by ramps.
-
-    The first soak (600 s) and the last are at 25 C; the others last 6 to
-    11 min at levels spread from -10..12 C to 55..85 C in random order, and
-    the ramps run at 1 to 3 K/min. Return the (time, temp) knots and the end
-    time, s.
-    """
-    t_lo = rng.uniform(-10.0, 12.0)
-    t_hi = rng.uniform(55.0, 85.0)
-    temps = list(np.linspace(t_lo, t_hi, levels) + rng.uniform(-3, 3, levels))
-    temps[int(np.argmin(np.abs(np.array(temps) - 25.0)))] = 25.0
-    others = [v for v in temps if v != 25.0]
-    order = [25.0] + list(rng.permutation(others)) + [25.0]
-    plan, now = [], 0.0
-    for i, level in enumerate(order):
-        soak = 600.0 if i == 0 else rng.uniform(360.0, 660.0)
-        plan += [(now, level), (now + soak, level)]
-        now += soak
-        if i + 1 < len(order):
-            ramp_k_s = rng.uniform(1.0, 3.0) / 60.0
-            now += abs(order[i + 1] - level) / ramp_k_s
-    return plan, now
-
-
-def _table_rate(rng, t, duration, sample_rate_hz):
-    """
-    Draw the rate-table program: steps under an acceleration limit and chirps.
-
-    Dwells of 20 to 60 s at 0 or +-10, 25, 50, 75 or 100 % of a full scale
-    of 150 to 300 deg/s, reached at 100 to 300 deg/s^2; 12 % of the dwells carry a
-    swept sine (0.2 Hz up to at most 4 Hz or f_s / 6) with a sin^2 taper.
-    Return the rate at ``t``, rad/s, and the full scale, rad/s.
-    """
-    max_rate = deg_s_to_rad_s(rng.uniform(150.0, 300.0))
-    accel_limit = deg_s_to_rad_s(rng.uniform(100.0, 300.0))
-    fractions = np.array([0.0, 0.1, 0.25, 0.5, 0.75, 1.0])
-    knots_t, knots_r = [0.0], [0.0]
-    chirps = []
-    now, level = 0.0, 0.0
-    while now < duration:
-        dwell = rng.uniform(20.0, 60.0)
-        if rng.random() < 0.12:
-            new = 0.0
-            kind = 'chirp'
-        else:
-            new = 0.0 if rng.random() < 0.25 else float(
-                rng.choice(fractions[1:]) * rng.choice([-1.0, 1.0]) * max_rate)
-            kind = 'step'
-        move = abs(new - level) / accel_limit
-        knots_t += [now + move, now + move + dwell]
-        knots_r += [new, new]
-        if kind == 'chirp':
-            f_top = min(4.0, sample_rate_hz / 6.0)
-            chirps.append((now + move, dwell, rng.uniform(0.1, 0.4) * max_rate,
-                           rng.uniform(0.4 * f_top, f_top)))
-        now += move + dwell
-        level = new
-    rate = np.interp(t, knots_t, knots_r)
-    for start, length, amp, f1 in chirps:
-        m = (t >= start) & (t < start + length)
-        tau = t[m] - start
-        f0 = 0.2
-        phase = 2 * np.pi * (f0 * tau + 0.5 * (f1 - f0) / length * tau ** 2)
-        taper = np.sin(np.pi * tau / length) ** 2
-        rate[m] += amp * taper * np.sin(phase)
-    return rate, max_rate
-
-
-def _table_gravity(rng, t, rate, duration, dt):
-    """
-    Draw the tilts of the table axis; return gravity in the sensor frame, m/s^2.
-
-    The axis dwells 3 to 10 min at a tilt from vertical of 0 to 180 deg;
-    gravity's horizontal part turns with the table angle (the integral of
-    the rate).
-    """
-    tilt = np.zeros_like(t)
-    now = 0.0
-    angles = np.deg2rad([0.0, 30.0, 60.0, 90.0, 120.0, 180.0])
-    while now < duration:
-        dwell = rng.uniform(180.0, 600.0)
-        tilt[(t >= now) & (t < now + dwell)] = rng.choice(angles)
-        now += dwell
-    table_angle = np.cumsum(rate) * dt
-    g = STANDARD_GRAVITY_M_S2
-    return np.column_stack([g * np.sin(tilt) * np.cos(table_angle),
-                            -g * np.sin(tilt) * np.sin(table_angle),
-                            g * np.cos(tilt)])
-
-
-def paper_profile(sample_rate_hz=10.0, minutes_per_point=5.0,
-                  temps_c=(25.0, 40.0, 55.0, 70.0, 85.0),
-                  rates_rpm=PAPER_RATES_RPM, ramp_k_min=2.0):
-    """
-    Make the paper's validation experiment into a profile.
-
-    At each temperature (soak), the table turns at each rate for
-    ``minutes_per_point`` minutes (the paper averaged 5 minutes per point);
-    the chamber ramps at ``ramp_k_min`` K/min between temperatures with the
-    table at rest, axis vertical.
-
-    Parameters
-    ----------
-    sample_rate_hz : float
-        Output data rate, Hz.
-    minutes_per_point : float
-        Dwell per (temperature, rate) point, min.
-    temps_c : sequence of float
-        Soak temperatures, deg C.
-    rates_rpm : sequence of float
-        Table rates, RPM.
-    ramp_k_min : float
-        Chamber ramp rate, K/min.
-
-    Returns
-    -------
-    SampledProfile
-
-    """
-    dwell = 60.0 * minutes_per_point
-    temp_knots, rate_knots = [], []
-    now = 0.0
-    for i, temp in enumerate(temps_c):
-        for rpm in rates_rpm:
-            temp_knots += [(now, temp), (now + dwell, temp)]
-            rate_knots += [(now + 2.0, rpm_to_rad_s(rpm)),
-                           (now + dwell - 2.0, rpm_to_rad_s(rpm))]
-            now += dwell
-        if i + 1 < len(temps_c):
-            rate_knots += [(now, 0.0)]
-            now += abs(temps_c[i + 1] - temp) / (ramp_k_min / 60.0)
-            rate_knots += [(now, 0.0)]
-    dt = 1.0 / sample_rate_hz
-    t = np.arange(0.0, now, dt)
-    temp = _soak_ramp_temperature(t, temp_knots)
-    kt, kr = zip(*([(0.0, 0.0)] + rate_knots))
-    rate = np.interp(t, kt, kr)
-    accel = np.tile(LEVEL_ACCEL_M_S2, (len(t), 1))
-    return SampledProfile(time_s=t, rate_rad_s=rate, temp_c=temp, accel_m_s2=accel,
-                          max_rate_rad_s=float(np.max(np.abs(rate))), name='paper')
-
-
-def thermal_ramp_profile(rng, sample_rate_hz=1.0, duration_s=None, cycle=False):
-    """
-    Make a static thermal test: a soak, a slow ramp (and back), a soak.
-
-    The part sits still (zero applied rate, gravity along z). The chamber
-    starts at 25 +- 2 C, ramps to a level 25 to 45 K below or 30 to 60 K
-    above it, then (``cycle=True``) back to the start, with soaks of 3 to
-    8 % of the run at the ends and at the turn. A single ramp makes
-    temperature and time nearly collinear, as in a real cool-down log; the
-    cycle separates them.
-
-    Parameters
-    ----------
-    rng : numpy.random.Generator
-        Source of randomness.
-    sample_rate_hz : float
-        Output data rate, Hz.
-    duration_s : float, optional
-        Length of the run, s (default: drawn from 6 to 12 h).
-    cycle : bool
-        Ramp back to the start temperature.
-
-    Returns
-    -------
-    SampledProfile
-
-    """
-    duration = rng.uniform(6.0, 12.0) * 3600.0 if duration_s is None else float(duration_s)
-    start = 25.0 + rng.uniform(-2.0, 2.0)
-    far = start - rng.uniform(25.0, 45.0) if rng.random() < 0.5 else \
-        start + rng.uniform(30.0, 60.0)
-    soaks = rng.uniform(0.03, 0.08, 3) * duration
-    if cycle:
-        ramp = 0.5 * (duration - soaks.sum())
-        knots = [(0.0, start), (soaks[0], start), (soaks[0] + ramp, far),
-                 (soaks[0] + ramp + soaks[1], far),
-                 (soaks[0] + 2 * ramp + soaks[1], start), (duration, start)]
-    else:
-        knots = [(0.0, start), (soaks[0], start),
-                 (duration - soaks[1], far), (duration, far)]
-    t = np.arange(0.0, duration, 1.0 / sample_rate_hz)
-    temp = _soak_ramp_temperature(t, knots)
-    accel = np.tile(LEVEL_ACCEL_M_S2, (len(t), 1))
-    return SampledProfile(time_s=t, rate_rad_s=np.zeros(len(t)), temp_c=temp,
-                          accel_m_s2=accel, max_rate_rad_s=0.0,
-                          name='thermal_cycle' if cycle else 'thermal_ramp')
-
-
-def static_profile(rng, sample_rate_hz=100.0, duration_s=None):
-    """
-    Make a static run at a steady temperature (an Allan-deviation run).
-
-    The chamber holds 20 to 30 C with a slow wander of 0.05 K rms (hours);
-    the part sits still, gravity along z. ``duration_s`` defaults to a draw
-    from 1 to 3 h.
-    """
-    duration = rng.uniform(1.0, 3.0) * 3600.0 if duration_s is None else float(duration_s)
-    t = np.arange(0.0, duration, 1.0 / sample_rate_hz)
-    knots_t = np.linspace(0.0, duration, 6)
-    temp = rng.uniform(20.0, 30.0) + np.interp(t, knots_t, rng.normal(0.0, 0.05, 6))
-    accel = np.tile(LEVEL_ACCEL_M_S2, (len(t), 1))
-    return SampledProfile(time_s=t, rate_rad_s=np.zeros(len(t)), temp_c=temp,
-                          accel_m_s2=accel, max_rate_rad_s=0.0, name='static')
-
-
-def draw_profile(name, rng, sample_rate_hz, levels=5, duration_s=None):
-    """
-    Return the sampled profile ``name`` (one of :data:`SAMPLED_PROFILES`).
-
-    ``levels`` is the lab profile's number of temperature levels;
-    ``duration_s`` cuts the lab profile, or sets the length of the thermal
-    and static ones (default: drawn).
-    """
-    if name == 'lab':
-        return lab_profile(rng, sample_rate_hz=sample_rate_hz, levels=levels,
-                           max_duration_s=duration_s)
-    if name == 'paper':
-        return paper_profile(sample_rate_hz=sample_rate_hz)
-    if name in ('thermal_ramp', 'thermal_cycle'):
-        return thermal_ramp_profile(rng, sample_rate_hz, duration_s,
-                                    cycle=name == 'thermal_cycle')
-    if name == 'static':
-        return static_profile(rng, sample_rate_hz, duration_s)
-    raise ValueError(f'truth.profile = {name!r} is not allowed: choose one of '
-                     f'{", ".join(SAMPLED_PROFILES)}')

@@ -3,9 +3,10 @@ A measured record as a ``simulate`` profile: its inputs at its own sample times.
 
 ``simulate --profile LOG`` (a CSV, CSV.gz or rosbag2 bag that
 :func:`gyro_emulator.recording.record.load_record` reads) drives the
-emulator with what the part saw, in the vocabulary of
-:mod:`gyro_emulator.emulation.profiles` (:class:`~.profiles.ProfileSamples`,
-the model's temperature range, :data:`~.profiles.LEVEL_ACCEL_M_S2`):
+emulator with what the part saw: a :class:`RecordedProfile` is the recorded
+kind of the one profile protocol, a :class:`~.profiles.SampledProfile` on
+the record's times (the model's temperature range,
+:data:`~.profiles.LEVEL_ACCEL_M_S2`):
 
 * the applied rate: a vector channel as it is; a CSV's single
   ``rate_cmd_rad_s`` column about the sense axis ``axis``. A record with no
@@ -20,13 +21,15 @@ uniform grid at the record's median sample interval from its first sample
 (the model is a sampled system: its noise and filters need one rate); each
 record sample takes the grid sample nearest to it, moved on by one where two
 would share one (:meth:`RecordedProfile.grid_index`), so every record
-sample has its own output and time-dependent terms see the record's clock.
+sample has its own output and time-dependent terms see the record's clock;
+:meth:`RecordedProfile.on_model_grid` is that grid as a timeline of
+:func:`gyro_emulator.emulation.run_profile.run_over_profile`.
 """
 
 from dataclasses import dataclass
 import os
 
-from gyro_emulator.emulation.profiles import LEVEL_ACCEL_M_S2, ProfileSamples
+from gyro_emulator.emulation.profiles import LEVEL_ACCEL_M_S2, SampledProfile
 from gyro_emulator.recording.record import DEFAULT_TOPICS, is_bag, load_record
 from gyro_emulator.units import AXES
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
@@ -41,9 +44,9 @@ def is_record_path(path):
 
 
 @dataclass(frozen=True)
-class RecordedProfile:
+class RecordedProfile(SampledProfile):
     """
-    A record's inputs on its own times (module docstring).
+    A record's inputs on its own times (module docstring): the recorded kind.
 
     Attributes
     ----------
@@ -59,38 +62,52 @@ class RecordedProfile:
 
     """
 
-    name: str
-    time_s: np.ndarray
-    rate_rad_s: np.ndarray
-    temp_c: np.ndarray
-    accel_m_s2: np.ndarray
-
-    @property
-    def duration_s(self):
-        """First to last sample plus one interval, s."""
-        return float(self.time_s[-1] - self.time_s[0]) + self.sample_period_s
-
-    @property
-    def sample_period_s(self):
-        """Return the median positive sample interval, s (the model's step)."""
-        dt = np.diff(self.time_s)
-        return float(np.median(dt[dt > 0.0]))
-
-    @property
-    def rate_hz(self):
-        """Return the record's nominal sample rate, Hz."""
-        return 1.0 / self.sample_period_s
-
     def grid_index(self, period_s):
         """Return the model grid sample of each record sample: nearest, strictly increasing."""
         k = np.rint((self.time_s - self.time_s[0]) / period_s).astype(np.int64)
         n = np.arange(len(k))
         return np.maximum.accumulate(k - n) + n
 
-    def samples(self):
-        """Return what the part saw at each record sample, as ``ProfileSamples``."""
-        return ProfileSamples(rate_rad_s=self.rate_rad_s, temp_c=self.temp_c,
-                              accel_m_s2=self.accel_m_s2)
+    def on_model_grid(self, period_s):
+        """Return the record on the model's grid of ``period_s`` (s), as a timeline."""
+        return ModelGrid(self, float(period_s), self.grid_index(period_s))
+
+
+@dataclass(frozen=True)
+class ModelGrid:
+    """
+    A record on the model's uniform grid from its first sample (module docstring).
+
+    Grid sample g is at ``time_s[0] + g period_s``, its inputs interpolated
+    from the record's; the grid samples of the record's samples
+    (``index``) take the record's own inputs and times and are published,
+    the others withheld.
+    """
+
+    profile: RecordedProfile
+    period_s: float
+    index: np.ndarray
+
+    @property
+    def count(self):
+        """Return the number of grid samples: up to the last record sample's."""
+        return int(self.index[-1]) + 1
+
+    def inputs(self, start, stop):
+        """Return the times, inputs and published flags of grid samples start .. stop - 1."""
+        record = self.profile
+        grid = np.arange(start, stop)
+        time_s = record.time_s[0] + grid * self.period_s
+        lo, hi = np.searchsorted(self.index, [grid[0], grid[-1] + 1])
+        at = self.index[lo:hi] - start
+        samples = record.samples(time_s)
+        samples.rate_rad_s[at] = record.rate_rad_s[lo:hi]
+        samples.temp_c[at] = record.temp_c[lo:hi]
+        samples.accel_m_s2[at] = record.accel_m_s2[lo:hi]
+        time_s[at] = record.time_s[lo:hi]
+        published = np.zeros(len(grid), bool)
+        published[at] = True
+        return time_s, samples, published
 
 
 def _on_record_times(channel, t, width):

@@ -5,8 +5,11 @@ A scenario is a YAML file of constant-input steps, written in the one
 segment schema of :mod:`gyro_emulator.emulation.profiles` (a number as a rate
 is along ``axis``), plus what the player needs: how often to re-send the
 commands, a grid of every rate at every temperature, the node's parameters
-and a fault schedule. :func:`summarize` averages the output the player
-collected over each step; the ROS edge that plays it is
+and a fault schedule. A :class:`Scenario` is a profile of the one protocol
+(:class:`~gyro_emulator.emulation.profiles.Profile`): its steps are
+constant segments with labels (:class:`~.profiles.Segment`), its samples
+those of the scripted profile they make. :func:`summarize` averages the
+output the player collected over each step; the ROS edge that plays it is
 :mod:`gyro_emulator.ros.scenario`.
 
 Scenario keys (SI unless the name says otherwise)::
@@ -31,7 +34,7 @@ short die thermal time constant); ``gyro_emulator.cli.main_job`` passes it on.
 player sends each to the node ahead of its start).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 import os
 import warnings
@@ -46,46 +49,36 @@ DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
 RATE_LABELS = {'rate_rad_s': 'rad/s', 'rate_deg_s': 'deg/s', 'rate_rpm': 'RPM'}
 
 
-@dataclass(frozen=True)
-class Step:
-    """
-    One constant-input step of a scenario: a constant :class:`Segment` along the axis.
-
-    Attributes
-    ----------
-    duration_s : float
-        Length of the step, s.
-    rate_rad_s : float
-        True rate along the profile axis, rad/s.
-    temp_c : float
-        Ambient temperature, deg C.
-    settle_s : float
-        Start of the step excluded from the summary, s.
-    label : str
-        Human-readable rate as written in the profile (e.g. ``10 RPM``).
-
-    """
-
-    duration_s: float
-    rate_rad_s: float
-    temp_c: float
-    settle_s: float = 0.0
-    label: str = ''
-
-    @classmethod
-    def from_segment(cls, where, segment, axis, label):
-        """Return the step of a segment that holds its rate and temperature."""
-        if segment.rate_start_rad_s != segment.rate_end_rad_s or \
-                segment.temp_start_c != segment.temp_end_c:
-            raise ValueError(f'{where}: a scenario step holds its rate and temp_c: give '
-                             'numbers, not [start, end] ramps')
-        return cls(segment.duration_s, sum(a * r for a, r in zip(axis, segment.rate_start_rad_s)),
-                   segment.temp_start_c, segment.settle_s, label)
+def _constant_step(where, segment, label):
+    """Return ``segment`` as a scenario step: it holds its rate and temperature; labelled."""
+    if segment.rate_start_rad_s != segment.rate_end_rad_s or \
+            segment.temp_start_c != segment.temp_end_c:
+        raise ValueError(f'{where}: a scenario step holds its rate and temp_c: give '
+                         'numbers, not [start, end] ramps')
+    return replace(segment, label=label)
 
 
 @dataclass(frozen=True)
 class Scenario:
-    """A parsed scenario: name, unit axis, publish rate, steps, node parameters, faults."""
+    """
+    A parsed scenario: a profile of constant steps, and how to play it.
+
+    Attributes
+    ----------
+    name : str
+        The scenario's name.
+    axis : tuple
+        Unit rate direction in the sensor frame.
+    publish_rate_hz : float
+        How often the player re-sends the commands, Hz.
+    steps : tuple of gyro_emulator.emulation.profiles.Segment
+        Constant segments, each with the label of its rate (e.g. ``10 RPM``).
+    node_parameters : dict
+        Parameters a runner should give the node.
+    faults : tuple
+        The fault schedule, times from the start of the profile.
+
+    """
 
     name: str
     axis: tuple
@@ -98,6 +91,19 @@ class Scenario:
     def duration_s(self):
         """Total length of the profile, s."""
         return sum(step.duration_s for step in self.steps)
+
+    @property
+    def profile(self):
+        """Return the steps as a :class:`~.profiles.ScriptedProfile`."""
+        return profiles.ScriptedProfile(self.name, self.steps)
+
+    def samples(self, time_s):
+        """Return the profile's samples at ``time_s`` (:class:`~.profiles.ProfileSamples`)."""
+        return self.profile.samples(time_s)
+
+    def rate_along_axis_rad_s(self, step):
+        """Return a step's rate along :attr:`axis`, rad/s (what the player commands)."""
+        return sum(a * r for a, r in zip(self.axis, step.rate_start_rad_s))
 
 
 def _number(where, key, value, low=None, high=None, low_open=False):
@@ -133,7 +139,7 @@ def _step(where, raw, axis):
     if 'duration_s' in raw:
         _number(where, 'duration_s', raw['duration_s'], 0.0, 86400.0, True)
     segment = profiles.parse_segment(where, raw, axis)
-    return Step.from_segment(where, segment, axis, f'{value:g} {RATE_LABELS[key]}')
+    return _constant_step(where, segment, f'{value:g} {RATE_LABELS[key]}')
 
 
 def _grid(where, raw, axis):
@@ -214,9 +220,9 @@ def load_scenario(path=None):
 
 @dataclass(frozen=True)
 class StepResult:
-    """Commanded vs measured for one step (rates along the axis, deg/s)."""
+    """Commanded vs measured for one step (rates along the axis, deg/s; the step a Segment)."""
 
-    step: Step
+    step: profiles.Segment
     commanded_deg_s: float
     measured_deg_s: float
     std_deg_s: float
@@ -264,7 +270,7 @@ def summarize(profile, start_ns, imu, temps):
         measured = float(np.degrees(sel.mean())) if len(sel) else float('nan')
         std = float(np.degrees(sel.std())) if len(sel) > 1 else float('nan')
         results.append(StepResult(
-            step, math.degrees(step.rate_rad_s), measured, std,
+            step, math.degrees(profile.rate_along_axis_rad_s(step)), measured, std,
             float(tsel.mean()) if len(tsel) else float('nan'), int(len(sel))))
     return results
 
@@ -276,7 +282,7 @@ def format_summary(results):
     lines = [head, '-' * len(head)]
     for i, r in enumerate(results):
         lines.append(
-            f'{i:>4} {r.step.temp_c:>8.1f} {r.die_temp_c:>8.2f} '
+            f'{i:>4} {r.step.temp_start_c:>8.1f} {r.die_temp_c:>8.2f} '
             f'{r.step.label:>10} {r.commanded_deg_s:>10.3f} {r.measured_deg_s:>11.3f} '
             f'{r.error_deg_s:>+10.3f} {r.std_deg_s:>10.3f} {r.samples:>6d}')
     return '\n'.join(lines)
@@ -324,7 +330,7 @@ def results_json(profile, results, interrupted=None):
     if interrupted:
         doc['interrupted'] = interrupted
     doc['steps'] = [
-        {'temperature_c': r.step.temp_c, 'rate': r.step.label,
+        {'temperature_c': r.step.temp_start_c, 'rate': r.step.label,
          'commanded_deg_s': r.commanded_deg_s, 'measured_deg_s': r.measured_deg_s,
          'error_deg_s': r.error_deg_s, 'std_deg_s': r.std_deg_s,
          'die_temp_c': r.die_temp_c, 'samples': r.samples} for r in results]

@@ -10,26 +10,27 @@ that a failed run leaves nothing behind (what ``gyro-emulator simulate`` does).
 
 Sample n is at time_s = n T, T the part's sample period (1 / rate_hz, made
 shorter or longer by its clock drift: ``GyroModel.sample_period_s``). The
-model's batch API is used chunk by chunk; because it is partition-invariant,
-the record is identical whatever the chunk size.
+model runs over the profile in the one chunk loop,
+:func:`gyro_emulator.emulation.run_profile.run_over_profile`; the record is
+identical whatever the chunk size.
 """
 
 import contextlib
-from dataclasses import dataclass, replace
+from dataclasses import replace
 import datetime
 import functools
 import os
-import shutil
-import tempfile
 import time
 
+from gyro_emulator import atomic
 from gyro_emulator.emulation.emulator_bag import simulation_custom_data, write_simulation_bag
-from gyro_emulator.emulation.profiles import make_profile, Profile, ProfileSamples
+from gyro_emulator.emulation.profiles import make_profile
 from gyro_emulator.emulation.recorded_profile import RecordedProfile
+from gyro_emulator.emulation.run_profile import (CHUNK_SAMPLES, fault_injector, join_chunks,
+                                                 OnClock, run_over_profile)
 from gyro_emulator.recording import csvio
-from gyro_emulator.sensor import faults as sensor_faults
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
-from gyro_emulator.sensor.model import GyroModel, SensorBatch
+from gyro_emulator.sensor.model import GyroModel
 import numpy as np
 
 #: Columns of the simulation CSV, in order.
@@ -37,26 +38,8 @@ CSV_COLUMNS = ('time_s', 'rate_x_rad_s', 'rate_y_rad_s', 'rate_z_rad_s', 'temp_c
                'gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s')
 CSV_FORMATS = ('%.9f',) + ('%.10g',) * 7
 
-#: Samples per chunk of :func:`iter_simulation`.
-CHUNK_SAMPLES = 1 << 16
-
 #: Longest simulation accepted, samples (about 2.4 GB of output arrays).
 MAX_SAMPLES = 20_000_000
-
-
-@dataclass(frozen=True)
-class SimulationChunk:
-    """
-    One chunk of a simulation: times, profile inputs and the sensor output.
-
-    ``published`` (N,) is False for the samples a ``dropout`` fault withholds
-    (None: all are published); the writers leave them out of the output.
-    """
-
-    time_s: np.ndarray
-    profile: ProfileSamples
-    batch: SensorBatch
-    published: np.ndarray = None
 
 
 def _resolve(config, profile, duration_s, rate_hz, temp_c):
@@ -68,7 +51,7 @@ def _resolve(config, profile, duration_s, rate_hz, temp_c):
         raise ValueError(f'duration_s = {duration_s!r} is out of range: allowed > 0 s')
     if not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
         raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
-    if not isinstance(profile, Profile):
+    if isinstance(profile, (str, os.PathLike)):
         profile = make_profile(profile, duration_s, temp_c)
     n = int(np.floor(duration_s * rate_hz + 1e-9))
     if n < 1:
@@ -88,8 +71,9 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
     ----------
     config : SensorConfig or str
         Error model, or a preset name / YAML path for :func:`load_sensor_config`.
-    profile : Profile or str
-        Profile, or a built-in name / YAML path for :func:`make_profile`.
+    profile : gyro_emulator.emulation.profiles.Profile or str
+        Any kind of profile (a recorded one runs on its own times), or a
+        built-in name / YAML path for :func:`make_profile`.
     duration_s : float
         Length, s; floor(duration_s rate_hz) samples.
     rate_hz : float
@@ -107,7 +91,7 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
 
     Yields
     ------
-    SimulationChunk
+    gyro_emulator.emulation.run_profile.ProfileChunk
 
     """
     if isinstance(profile, RecordedProfile):
@@ -116,21 +100,8 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
     config, profile, n, rate_hz = _resolve(config, profile, duration_s, rate_hz, temp_c)
     rng = np.random.default_rng(seed)
     model = GyroModel(config, rate_hz, rng)
-    injector = sensor_faults.Injector(
-        faults, config.range_rad_s, sensor_faults.fault_generator(rng.bit_generator.seed_seq)
-    ) if faults else None
-    for start in range(0, n, int(chunk_samples)):
-        idx = np.arange(start, min(n, start + int(chunk_samples)))
-        time_s = idx * model.sample_period_s
-        samples = profile.sample(time_s)
-        batch = model.run(samples.rate_rad_s, samples.temp_c, samples.accel_m_s2)
-        published = None
-        if injector is not None:
-            effect = injector.apply(time_s, batch.gyro_rad_s)
-            batch = replace(batch, gyro_rad_s=effect.gyro_rad_s,
-                            saturated=batch.saturated | effect.saturated)
-            published = effect.published
-        yield SimulationChunk(time_s, samples, batch, published)
+    yield from run_over_profile(model, OnClock(profile, n, model.sample_period_s), chunk_samples,
+                                fault_injector(faults, config, rng))
 
 
 def _iter_recorded(config, profile, seed, chunk_samples, faults):
@@ -138,7 +109,7 @@ def _iter_recorded(config, profile, seed, chunk_samples, faults):
     Simulate over a measured record's inputs; output at the record's sample times.
 
     The model runs at the record's median rate on the grid of
-    :meth:`RecordedProfile.grid_index` (inputs interpolated to the grid
+    :meth:`RecordedProfile.on_model_grid` (inputs interpolated to the grid
     times); the grid samples of the record's samples are published with the
     record's times, the others withheld. The extended terms' clock starts at
     the record's first sample (``extended.start_time_s``), as in
@@ -150,42 +121,11 @@ def _iter_recorded(config, profile, seed, chunk_samples, faults):
                                               start_time_s=float(profile.time_s[0])))
     rng = np.random.default_rng(seed)
     model = GyroModel(config, profile.rate_hz, rng)
-    period = model.sample_period_s
-    index = profile.grid_index(period)
-    if index[-1] + 1 > MAX_SAMPLES:
-        raise ValueError(f'{profile.name}: {index[-1] + 1} samples at {profile.rate_hz:g} Hz '
+    grid = profile.on_model_grid(model.sample_period_s)
+    if grid.count > MAX_SAMPLES:
+        raise ValueError(f'{profile.name}: {grid.count} samples at {profile.rate_hz:g} Hz '
                          f'is out of range: allowed <= {MAX_SAMPLES}')
-    injector = sensor_faults.Injector(
-        faults, config.range_rad_s, sensor_faults.fault_generator(rng.bit_generator.seed_seq)
-    ) if faults else None
-    t0, inputs = profile.time_s[0], profile.samples()
-    for start in range(0, int(index[-1]) + 1, int(chunk_samples)):
-        grid = np.arange(start, min(int(index[-1]) + 1, start + int(chunk_samples)))
-        time_s = t0 + grid * period
-        lo, hi = np.searchsorted(index, [grid[0], grid[-1] + 1])
-        at = index[lo:hi] - start
-        samples = _grid_inputs(time_s, profile.time_s, inputs, at, slice(lo, hi))
-        time_s[at] = profile.time_s[lo:hi]
-        batch = model.run(samples.rate_rad_s, samples.temp_c, samples.accel_m_s2)
-        published = np.zeros(len(grid), bool)
-        published[at] = True
-        if injector is not None:
-            effect = injector.apply(time_s, batch.gyro_rad_s)
-            batch = replace(batch, gyro_rad_s=effect.gyro_rad_s,
-                            saturated=batch.saturated | effect.saturated)
-            published &= effect.published
-        yield SimulationChunk(time_s, samples, batch, published)
-
-
-def _grid_inputs(time_s, record_time_s, inputs, at, rows):
-    """Return the grid's inputs: the record's own at its samples (``at``), interpolated between."""
-    out = []
-    for values in (inputs.rate_rad_s, inputs.temp_c, inputs.accel_m_s2):
-        grid = (np.interp(time_s, record_time_s, values) if values.ndim == 1 else np.column_stack(
-            [np.interp(time_s, record_time_s, values[:, k]) for k in range(values.shape[1])]))
-        grid[at] = values[rows]
-        out.append(grid)
-    return ProfileSamples(*out)
+    yield from run_over_profile(model, grid, chunk_samples, fault_injector(faults, config, rng))
 
 
 def sample_count(duration_s, rate_hz):
@@ -211,20 +151,18 @@ def run_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
         The sensor output.
 
     """
-    chunks = []
     total = sample_count(duration_s, rate_hz)
-    done = 0
-    for chunk in iter_simulation(config, profile, duration_s, rate_hz, seed, temp_c):
-        chunks.append(chunk)
-        done += len(chunk.time_s)
-        if progress is not None:
-            progress(done, total)
-    time_s = np.concatenate([c.time_s for c in chunks])
-    prof = ProfileSamples(
-        rate_rad_s=np.concatenate([c.profile.rate_rad_s for c in chunks]),
-        temp_c=np.concatenate([c.profile.temp_c for c in chunks]),
-        accel_m_s2=np.concatenate([c.profile.accel_m_s2 for c in chunks]))
-    return time_s, prof, SensorBatch.concatenate([c.batch for c in chunks])
+
+    def counted(chunks):
+        done = 0
+        for chunk in chunks:
+            done += len(chunk.time_s)
+            if progress is not None:
+                progress(done, total)
+            yield chunk
+
+    return join_chunks(counted(iter_simulation(config, profile, duration_s, rate_hz, seed,
+                                               temp_c)))
 
 
 def csv_columns(chunk):
@@ -237,7 +175,7 @@ def csv_columns(chunk):
     return [column[chunk.published] for column in columns]
 
 
-def write_simulation_csv(path, chunks, progress=None, total=None):
+def write_simulation_csv(path, chunks, progress=None, total=None, name=None):
     """
     Write simulation chunks to a CSV file (``.gz`` compresses).
 
@@ -245,12 +183,15 @@ def write_simulation_csv(path, chunks, progress=None, total=None):
     ----------
     path : str or os.PathLike
         Output file.
-    chunks : iterable of SimulationChunk
+    chunks : iterable of gyro_emulator.emulation.run_profile.ProfileChunk
         From :func:`iter_simulation`.
     progress : callable, optional
         ``progress(done, total)`` after each chunk.
     total : int, optional
         Total samples, passed to ``progress``.
+    name : str, optional
+        The file's final name when ``path`` is a staging temporary (its
+        ``.gz`` compresses; :class:`gyro_emulator.recording.csvio.CsvWriter`).
 
     Returns
     -------
@@ -259,33 +200,30 @@ def write_simulation_csv(path, chunks, progress=None, total=None):
 
     """
     return csvio.write_csv_blocks(path, CSV_COLUMNS, (csv_columns(chunk) for chunk in chunks),
-                                  CSV_FORMATS, progress, total)
+                                  CSV_FORMATS, progress, total, name)
 
 
 @contextlib.contextmanager
 def staged_output(out, overwrite=False):
     """
-    Yield a temporary path beside ``out``; move it to ``out`` only on success.
+    Stage ``out``: yield a temporary path beside it that becomes ``out`` on success.
 
-    A run that fails (or is interrupted) leaves nothing behind, and an
-    existing ``out`` is replaced only with ``overwrite``. The temporary path
-    has the same name inside a hidden sibling directory, so a bag keeps its
-    file names.
+    :func:`gyro_emulator.atomic.staged` stages it (fsync, ``os.replace``,
+    the temporary removed on any exception), so a run that fails (or is
+    interrupted) leaves nothing behind. An existing ``out`` is replaced only
+    with ``overwrite`` (an existing bag directory is removed just before the
+    new one takes its place). A CSV file and a bag directory are staged
+    alike; the writers are given the final name (the bag's MCAP file and a
+    ``.gz`` follow it).
     """
     out = os.path.abspath(out)
     if os.path.exists(out) and not overwrite:
         raise ValueError(f'--out {out} exists: pass --overwrite to replace it')
-    parent = os.path.dirname(out)
-    os.makedirs(parent, exist_ok=True)
-    stage = tempfile.mkdtemp(prefix='.simulate-', dir=parent)
-    try:
-        partial = os.path.join(stage, os.path.basename(out))
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    with atomic.staged(out) as partial:
         yield partial
         if os.path.isdir(out):
-            shutil.rmtree(out)
-        os.replace(partial, out)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+            atomic.remove(out)
 
 
 def is_csv_path(path):
@@ -373,4 +311,5 @@ def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
     chunks = iter_simulation(sensor, profile, duration_s, rate_hz, seed=seed, temp_c=temp_c,
                              faults=faults)
     with staged_output(out, overwrite) as partial:
-        return writer(partial, chunks, progress=progress, total=total)
+        return writer(partial, chunks, progress=progress, total=total,
+                      name=os.path.abspath(out))

@@ -12,6 +12,7 @@ not in seconds (:func:`gyro_emulator.recording.timing.check_time_base`). A trunc
 or corrupt ``.gz`` file is one line too, never a traceback.
 """
 
+import contextlib
 import gzip
 import io
 import os
@@ -31,6 +32,25 @@ def _open_text(path, mode):
         return io.TextIOWrapper(gzip.open(path, mode + 'b'), encoding='utf-8',
                                 newline='')
     return open(path, mode, encoding='utf-8', newline='')
+
+
+@contextlib.contextmanager
+def _open_text_as(path, name=None):
+    """
+    Open ``path`` to write UTF-8 text, gzipped when ``name`` (default ``path``) ends in .gz.
+
+    The gzip header keeps the base name of ``name``, as if the file had
+    been written there.
+    """
+    name = os.fspath(path if name is None else name)
+    if not name.endswith('.gz'):
+        with open(path, 'w', encoding='utf-8', newline='') as handle:
+            yield handle
+        return
+    with open(path, 'wb') as raw, \
+            gzip.GzipFile(os.path.basename(name), 'wb', fileobj=raw) as packed, \
+            io.TextIOWrapper(packed, encoding='utf-8', newline='') as handle:
+        yield handle
 
 
 def _header(path):
@@ -229,16 +249,21 @@ class CsvWriter:
         Column names (the header).
     fmt : str or sequence of str
         printf format per column (default ``%.10g``).
+    name : str or os.PathLike, optional
+        The file's final name when ``path`` is a staging temporary
+        (:func:`gyro_emulator.atomic.staged`): its ``.gz`` compresses, and
+        the gzip header keeps it (default: ``path``).
 
     """
 
-    def __init__(self, path, names, fmt='%.10g'):
+    def __init__(self, path, names, fmt='%.10g', name=None):
         self.path = os.fspath(path)
         self.names = list(names)
         self.fmt = [fmt] * len(self.names) if isinstance(fmt, str) else list(fmt)
         directory = os.path.dirname(os.path.abspath(self.path))
         os.makedirs(directory, exist_ok=True)
-        self._handle = _open_text(self.path, 'w')
+        self._closing = contextlib.ExitStack()
+        self._handle = self._closing.enter_context(_open_text_as(self.path, name))
         self._handle.write(','.join(self.names) + '\n')
         self.rows = 0
 
@@ -259,7 +284,7 @@ class CsvWriter:
     def finish(self):
         """Flush and close the file (idempotent)."""
         if self._handle is not None:
-            self._handle.close()
+            self._closing.close()
             self._handle = None
 
     def __enter__(self):
@@ -294,7 +319,7 @@ def write_csv(path, columns, fmt='%.10g'):
     return write_csv_blocks(path, list(columns), [list(columns.values())], fmt)
 
 
-def write_csv_blocks(path, names, blocks, fmt='%.10g', progress=None, total=None):
+def write_csv_blocks(path, names, blocks, fmt='%.10g', progress=None, total=None, name=None):
     """
     Write blocks of rows as one CSV file (bounded memory for long records).
 
@@ -309,6 +334,8 @@ def write_csv_blocks(path, names, blocks, fmt='%.10g', progress=None, total=None
         ``progress(done, total)`` after each block, ``done`` the rows so far.
     total : int, optional
         Total rows, passed to ``progress``.
+    name : str or os.PathLike, optional
+        The final name of a staged ``path`` (:class:`CsvWriter`).
 
     Returns
     -------
@@ -316,7 +343,7 @@ def write_csv_blocks(path, names, blocks, fmt='%.10g', progress=None, total=None
         Rows written.
 
     """
-    with CsvWriter(path, names, fmt) as writer:
+    with CsvWriter(path, names, fmt, name) as writer:
         for block in blocks:
             writer.write(block)
             if progress is not None:

@@ -38,6 +38,10 @@ class BagWriter:
         Replace an existing bag in ``path``.
     fsync : bool
         ``os.fsync`` on each flush.
+    name : str, optional
+        The bag's name, which names its MCAP file (``<name>_0.mcap``);
+        default: the directory's. Give the final name when ``path`` is a
+        staging temporary (:func:`gyro_emulator.atomic.staged`).
 
     Examples
     --------
@@ -49,7 +53,7 @@ class BagWriter:
 
     def __init__(self, path, compression='zstd', chunk_size=DEFAULT_CHUNK_SIZE,
                  flush_interval_s=DEFAULT_FLUSH_INTERVAL_S, custom_data=None,
-                 overwrite=False, fsync=False):
+                 overwrite=False, fsync=False, name=None):
         path = os.path.abspath(path)
         if os.path.exists(path) and not os.path.isdir(path):
             raise FileExistsError(f'bag path {path} exists and is not a directory')
@@ -64,7 +68,7 @@ class BagWriter:
         os.makedirs(path, exist_ok=True)
         self.path = path
         self.custom_data = {str(k): str(v) for k, v in (custom_data or {}).items()}
-        name = os.path.basename(path.rstrip(os.sep)) or 'bag'
+        name = os.path.basename(str(name or path).rstrip(os.sep)) or 'bag'
         self.file_name = f'{name}_0.mcap'
         self._file = McapFileWriter(os.path.join(path, self.file_name), compression,
                                     chunk_size, flush_interval_s, fsync)

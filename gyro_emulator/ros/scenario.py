@@ -181,11 +181,12 @@ class ScenarioPlayer:
         msg = self._rate_msg
         msg.header.stamp = stamp
         ax = self.profile.axis
-        msg.vector.x, msg.vector.y, msg.vector.z = (a * step.rate_rad_s for a in ax)
+        rate = self.profile.rate_along_axis_rad_s(step)
+        msg.vector.x, msg.vector.y, msg.vector.z = (a * rate for a in ax)
         self.rate_pub.publish(msg)
         temp = self._temp_msg
         temp.header.stamp = stamp
-        temp.temperature = step.temp_c
+        temp.temperature = step.temp_start_c
         self.temp_pub.publish(temp)
 
     def results(self):
@@ -215,7 +216,7 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
     loop : bool
         Repeat forever (until SIGINT).
     progress : callable or None
-        Called with (step index, Step) when a step begins.
+        Called with (step index, step: a constant Segment) when a step begins.
     args : list of str or None
         ROS arguments (e.g. ``['--ros-args', '-r', '__ns:=/gyro']``).
 
@@ -322,7 +323,7 @@ def main(args=None):
               f'{profile.duration_s:g} s', flush=True)
 
         def progress(index, step):
-            print(f'  step {index}: {step.label} at {step.temp_c:g} C for '
+            print(f'  step {index}: {step.label} at {step.temp_start_c:g} C for '
                   f'{step.duration_s:g} s', flush=True)
 
         player = play(profile, collect=opts.summary or bool(opts.json), wait_s=opts.wait,

@@ -198,7 +198,7 @@ def log_profile(fit):
     segments = [profiles.Segment(float(t1 - t0), zero, zero, float(a), float(b))
                 for t0, t1, a, b in zip(times[:-1], times[1:], temps[:-1], temps[1:])
                 if t1 > t0]
-    return profiles.Profile('thermal-log', tuple(segments))
+    return profiles.ScriptedProfile('thermal-log', tuple(segments))
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,12 @@ on top of the non-physics terms of the ``sensor_runs.config`` preset, and
 the fleet's extended terms (``extended:``, with the part's drawn
 ``extended.<term>.<param>`` on every axis), which then replace the preset's
 own ``extended:``. The
-record is the static profile (:func:`gyro_emulator.emulation.profiles.static`)
-at the calibration temperature, without its specific force (the run measures
-noise, not g-sensitivity); the x axis is analysed
+record is the static profile
+(:func:`gyro_emulator.emulation.profiles.static_profile`) at the calibration
+temperature, run by the one chunk loop
+(:func:`gyro_emulator.emulation.run_profile.run_over_profile`) without its
+specific force (the run measures noise, not g-sensitivity); the x axis is
+analysed
 with :func:`gyro_emulator.analysis.allan.overlapping_adev` and
 :func:`~gyro_emulator.analysis.allan.fit_noise_terms` (IEEE Std 952).
 
@@ -24,7 +27,8 @@ from dataclasses import replace
 from gyro_emulator import units
 from gyro_emulator.analysis import allan
 from gyro_emulator.analysis.fleet import config as fleet_config
-from gyro_emulator.emulation import profiles
+from gyro_emulator.emulation.profiles import static_profile
+from gyro_emulator.emulation.run_profile import OnClock, run_over_profile
 from gyro_emulator.sensor import noise
 from gyro_emulator.sensor.model import GyroModel
 import numpy as np
@@ -114,10 +118,11 @@ def run_part(config, values, metrics, i, seed):
     rng = np.random.Generator(np.random.SFC64(np.random.SeedSequence(seed, spawn_key=(0, i))))
     model = GyroModel(sensor, runs.rate_hz, rng)
     n = int(round(runs.duration_s * runs.rate_hz))
-    static = profiles.static(runs.duration_s, config.calibration_temp_c).sample(
-        np.arange(n) / runs.rate_hz)
-    batch = model.run(static.rate_rad_s, static.temp_c)
-    result = allan.overlapping_adev(batch.gyro_rad_s[:, 0], runs.rate_hz)
+    static = OnClock(static_profile(runs.duration_s, config.calibration_temp_c), n,
+                     model.sample_period_s)
+    gyro_x = np.concatenate([chunk.batch.gyro_rad_s[:, 0] for chunk in run_over_profile(
+        model, static, specific_force=False)])
+    result = allan.overlapping_adev(gyro_x, runs.rate_hz)
     fit = allan.fit_noise_terms(result)
     elec = _electronics(config, values, i)['electronics_noise_rad_s_sqrt_hz']
     predicted = float(np.hypot(noise.brownian_arw_rad_s_sqrt_hz(

@@ -21,9 +21,11 @@ configuration and seed give the identical emulated output.
 from dataclasses import dataclass, field
 
 from gyro_emulator.emulation.emulator_bag import DEFAULT_FRAME_ID
+from gyro_emulator.emulation.profiles import SampledProfile
+from gyro_emulator.emulation.run_profile import OwnSamples, run_over_profile
 from gyro_emulator.recording import record
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
-from gyro_emulator.sensor.model import GyroModel
+from gyro_emulator.sensor.model import GyroModel, SensorBatch
 from gyro_emulator.units import AXES, NS_PER_S
 from gyro_emulator.validation import check_choice, check_range
 import numpy as np
@@ -77,6 +79,13 @@ class ReplayInputs:
     topics: dict = field(default_factory=dict)
     frame_id: str = DEFAULT_FRAME_ID
     notes: list = field(default_factory=list)
+
+    def profile(self):
+        """Return the inputs as a sampled profile on the stamps (no specific force: zero)."""
+        accel = np.zeros((len(self.stamp_ns), 3)) if self.accel_m_s2 is None \
+            else self.accel_m_s2
+        return SampledProfile(f'replay:{self.source}', self.stamp_ns / NS_PER_S,
+                              self.rate_rad_s, self.temp_c, accel)
 
 
 def hold(source_stamp_ns, source_values, query_ns, tolerance_ns, before=None):
@@ -267,7 +276,11 @@ def _command_grid(rate_stamp, rate_values, rate_hz, notes):
 
 def emulate(inputs, config, seed):
     """
-    Run the error model over the replay inputs.
+    Run the error model over the replay inputs, one output per input sample.
+
+    The inputs are a sampled profile run at its own samples by the one
+    chunk loop (:func:`gyro_emulator.emulation.run_profile.run_over_profile`);
+    without a specific-force topic the model gets none.
 
     Parameters
     ----------
@@ -289,4 +302,6 @@ def emulate(inputs, config, seed):
     if not isinstance(config, SensorConfig):
         config = load_sensor_config(config)
     model = GyroModel(config, inputs.rate_hz, np.random.default_rng(int(seed)))
-    return model, model.run(inputs.rate_rad_s, inputs.temp_c, inputs.accel_m_s2)
+    chunks = run_over_profile(model, OwnSamples(inputs.profile()),
+                              specific_force=inputs.accel_m_s2 is not None)
+    return model, SensorBatch.concatenate([chunk.batch for chunk in chunks])

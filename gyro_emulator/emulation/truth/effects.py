@@ -190,7 +190,7 @@ def rate_into_the_part(profile, effects, params, device):
     electronics gain (1 + c (T - T_ref)) act on the sensed rate before the
     part's own gain.
     """
-    t, rate, temp = profile.time_s, profile.rate_rad_s, profile.temp_c
+    t, rate, temp = profile.time_s, profile.rate_rad_s[:, 2], profile.temp_c
     tref = device.calibration_temp_c
     rate_in = rate
     if 'time_delay' in effects:

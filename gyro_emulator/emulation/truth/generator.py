@@ -7,7 +7,8 @@ baseline physics (the paper's first-order model of a preset: SF(T) from
 :func:`gyro_emulator.physics.first_order.scale_factor_ratio`), a random bias
 and scale-factor error, the hidden effects (:mod:`.effects`: none,
 one, or several joined by ``+``), driven by a seeded profile
-(:class:`gyro_emulator.emulation.profiles.SampledProfile`), plus noise:
+(:class:`gyro_emulator.emulation.profiles.SampledProfile`, drawn by
+:func:`gyro_emulator.emulation.truth.drawn.draw_profile`), plus noise:
 
 - white rate noise of density N (angle random walk), sigma = N / sqrt(dt);
 - bias instability B (flicker: a sum of exactly discretised Gauss-Markov
@@ -21,13 +22,16 @@ one, or several joined by ``+``), driven by a seeded profile
 
 Everything random comes from one ``numpy.random.Generator``. The hidden
 effects and their parameters are returned beside the record, never inside
-it: the CSV holds only the diagnose contract columns.
+it: the CSV holds only the diagnose contract columns. The part runs in the
+one chunk loop, :func:`gyro_emulator.emulation.run_profile.run_over_profile`.
 """
 
 from dataclasses import replace
 
-from gyro_emulator.emulation.profiles import draw_profile
+from gyro_emulator.emulation.profiles import rate_about_z
+from gyro_emulator.emulation.run_profile import OwnSamples, run_over_profile
 from gyro_emulator.emulation.truth import effects as te
+from gyro_emulator.emulation.truth.drawn import draw_profile
 from gyro_emulator.physics.presets import physics_preset
 from gyro_emulator.recording.record import Record
 from gyro_emulator.sensor.config import ErrorTerms, SensorConfig
@@ -106,38 +110,36 @@ def _draw_part_errors(rng, noise=None):
     return drawn
 
 
-def _run_scheduled(model, config, rate_in, temp, accel, bias, sf):
+def config_schedule(config, bias, sf):
     """
-    Run ``model`` over the record, changing its bias or scale factor on schedule.
+    Return the part's configuration schedule: sample index -> SensorConfig.
 
     The record is cut where the bias (or scale-factor) schedule moves by more
-    than 1 % of its range (:func:`.effects.change_points`); each piece
-    runs with the schedule's mean over it added to the part's turn-on bias
-    (scale-factor error) through ``GyroModel.update_config``, so the states
-    (noise, die temperature) carry over.
+    than 1 % of its range (:func:`.effects.change_points`); each piece runs
+    with the schedule's mean over it added to the part's turn-on bias
+    (scale-factor error), applied with ``GyroModel.update_config`` so the
+    states (noise, die temperature) carry over. Empty without a schedule.
     """
-    n = len(temp)
+    if bias is None and sf is None:
+        return {}
+    n = len(bias if bias is not None else sf)
     starts = {0}
     for values in (bias, sf):
         if values is not None:
             tol = max(0.01 * float(np.ptp(values)), 1e-15)
             starts.update(te.change_points(values, tol).tolist())
     edges = sorted(starts) + [n]
-    rates = np.zeros((n, 3))
-    rates[:, 2] = rate_in
-    out = np.empty(n)
     b0 = config.turn_on_bias_rad_s[2]
     s0 = config.scale_factor_error[2]
+    schedule = {}
     for lo, hi in zip(edges[:-1], edges[1:]):
         fields = {}
         if bias is not None:
             fields['turn_on_bias_rad_s'] = (0.0, 0.0, b0 + float(np.mean(bias[lo:hi])))
         if sf is not None:
             fields['scale_factor_error'] = (0.0, 0.0, s0 + float(np.mean(sf[lo:hi])))
-        if fields:
-            model.update_config(replace(config, **fields))
-        out[lo:hi] = model.run(rates[lo:hi], temp[lo:hi], accel[lo:hi]).gyro_rad_s[:, 2]
-    return out
+        schedule[lo] = replace(config, **fields)
+    return schedule
 
 
 def _parse_outliers(outliers):
@@ -199,7 +201,9 @@ def make_record(profile, effects, params, rng, preset='paper', noise=None, outli
     simulator) on the z axis, configured by :func:`_sensor_config` and
     driven by the true rate (plus handling motion) with the effects it
     lacks applied (:func:`.effects.rate_into_the_part`), with bias and
-    scale-factor schedules applied between samples (:func:`_run_scheduled`).
+    scale-factor schedules applied between samples (:func:`config_schedule`),
+    run over the profile by
+    :func:`gyro_emulator.emulation.run_profile.run_over_profile`.
     The viscosity effect changes the physics of the device itself (a
     Sutherland gas law).
 
@@ -245,14 +249,16 @@ def make_record(profile, effects, params, rng, preset='paper', noise=None, outli
         motion, motion_spans = handling_motion(rng, t)
         rate_in = rate_in + motion
     bias, sf = te.schedules(profile, effects, params)
-    out = _run_scheduled(model, config, rate_in, temp, accel, bias, sf)
+    driven = replace(profile, rate_rad_s=rate_about_z(rate_in))
+    out = np.concatenate([chunk.batch.gyro_rad_s[:, 2] for chunk in run_over_profile(
+        model, OwnSamples(driven), configs=config_schedule(config, bias, sf))])
     spikes = np.zeros(0, dtype=int)
     if 'spikes' in kinds:
         spikes, values = logger_spikes(rng, n)
         out[spikes] += values
     reading = temp + rng.normal(0.0, TEMP_READING_NOISE_C, n)
     data = Record.from_arrays(
-        t, out, rate_rad_s=profile.rate_rad_s,
+        t, out, rate_rad_s=profile.rate_rad_s[:, 2],
         temp_c=reading if record_temperature else None,
         accel_m_s2=accel + rng.normal(0.0, ACCEL_NOISE_M_S2, accel.shape),
         path=f'truth:{profile.name}')
@@ -285,7 +291,7 @@ def make_truth(effect, seed, profile='lab', sample_rate_hz=25.0, levels=5, param
     seed : int
         Seed of the one ``numpy.random.Generator`` used.
     profile : str
-        One of :data:`gyro_emulator.emulation.profiles.SAMPLED_PROFILES`.
+        One of :data:`gyro_emulator.emulation.truth.drawn.SAMPLED_PROFILES`.
     sample_rate_hz : float
         Output data rate, Hz.
     levels : int

@@ -1,0 +1,167 @@
+"""
+Run over a profile: the one chunk loop that steps the sensor model over inputs.
+
+:func:`run_over_profile` runs a :class:`~gyro_emulator.sensor.model.GyroModel`
+over the samples of a profile (:class:`~gyro_emulator.emulation.profiles.Profile`)
+chunk by chunk (bounded memory), applies a fault schedule to the output
+where one is given, and yields :class:`ProfileChunk`. ``simulate`` (scripted
+and recorded profiles), the truth generator, replay, the fleet's sensor runs
+and, through ``simulate``, the calibrate twin all run the model here.
+
+Which samples, and at which times, is a *timeline* (``count`` samples;
+``inputs(start, stop)`` gives their times, profile samples and which are
+published):
+
+* :class:`OnClock`: the model's own clock, sample n at n T (``simulate``,
+  the fleet's sensor runs);
+* :class:`OwnSamples`: a sampled profile's own samples, as they are (the
+  truth generator, replay);
+* :meth:`~gyro_emulator.emulation.recorded_profile.RecordedProfile.on_model_grid`:
+  a measured record on the model's uniform grid (``simulate --profile LOG``).
+
+The model's batch API is partition-invariant (its random draws happen in
+the same order however a record is cut), so the chunk size changes no
+result.
+"""
+
+from dataclasses import dataclass, replace
+
+from gyro_emulator.emulation.profiles import ProfileSamples
+from gyro_emulator.sensor import faults as sensor_faults
+from gyro_emulator.sensor.model import SensorBatch
+import numpy as np
+
+#: Samples per chunk of :func:`run_over_profile`.
+CHUNK_SAMPLES = 1 << 16
+
+
+@dataclass(frozen=True)
+class ProfileChunk:
+    """
+    One chunk of a run: times, profile inputs and the sensor output.
+
+    ``published`` (N,) is False for the samples a ``dropout`` fault withholds
+    or a record's grid has no sample for (None: all are published); the
+    writers leave them out of the output.
+    """
+
+    time_s: np.ndarray
+    profile: ProfileSamples
+    batch: SensorBatch
+    published: np.ndarray = None
+
+
+@dataclass(frozen=True)
+class OnClock:
+    """
+    A profile on the model's clock: sample n at time n ``period_s`` (s).
+
+    ``period_s`` is the part's sample period
+    (:attr:`~gyro_emulator.sensor.model.GyroModel.sample_period_s`, clock
+    drift included).
+    """
+
+    profile: object
+    count: int
+    period_s: float
+
+    def inputs(self, start, stop):
+        """Return the times, the profile's samples there and None (all published)."""
+        time_s = np.arange(start, stop) * self.period_s
+        return time_s, self.profile.samples(time_s), None
+
+
+@dataclass(frozen=True)
+class OwnSamples:
+    """A sampled profile's own samples, at its own times, as they are (no interpolation)."""
+
+    profile: object
+
+    @property
+    def count(self):
+        """Return the number of samples."""
+        return len(self.profile.time_s)
+
+    def inputs(self, start, stop):
+        """Return the times, the samples and None (all published)."""
+        return self.profile.time_s[start:stop], self.profile.own_samples(start, stop), None
+
+
+def fault_injector(faults, config, rng):
+    """
+    Return the injector of a fault schedule (None without faults).
+
+    ``noise_burst`` draws from ``rng``'s SeedSequence child after the
+    model's streams (:func:`gyro_emulator.sensor.faults.fault_generator`);
+    the output saturates at ``config.range_rad_s``.
+    """
+    if not faults:
+        return None
+    return sensor_faults.Injector(faults, config.range_rad_s,
+                                  sensor_faults.fault_generator(rng.bit_generator.seed_seq))
+
+
+def chunk_edges(count, chunk_samples, breaks=()):
+    """Return the chunk boundaries: every ``chunk_samples`` and at each break, 0 to ``count``."""
+    edges = set(range(0, int(count), int(chunk_samples)))
+    edges.update(int(k) for k in breaks if 0 < k < count)
+    return sorted(edges) + [int(count)]
+
+
+def run_over_profile(model, timeline, chunk_samples=CHUNK_SAMPLES, injector=None,
+                     specific_force=True, configs=None):
+    """
+    Run ``model`` over a timeline's samples, chunk by chunk.
+
+    Parameters
+    ----------
+    model : gyro_emulator.sensor.model.GyroModel
+        The part, at the timeline's rate; its state runs on from chunk to chunk.
+    timeline : OnClock, OwnSamples or a recorded profile's model grid
+        Which samples, at which times (module docstring).
+    chunk_samples : int
+        Samples per chunk (the result does not depend on it).
+    injector : gyro_emulator.sensor.faults.Injector, optional
+        Faults applied to the output as the node applies them
+        (:func:`fault_injector`); a dropout withholds samples.
+    specific_force : bool
+        Give the model the profile's specific force (False: none, so its
+        g-sensitivity sees none: a noise run).
+    configs : dict, optional
+        Sample index -> SensorConfig, applied with
+        :meth:`~gyro_emulator.sensor.model.GyroModel.update_config` before
+        that sample (a schedule of the part's configuration; chunks also
+        end there).
+
+    Yields
+    ------
+    ProfileChunk
+
+    """
+    configs = configs or {}
+    edges = chunk_edges(timeline.count, chunk_samples, configs)
+    for start, stop in zip(edges[:-1], edges[1:]):
+        if start in configs:
+            model.update_config(configs[start])
+        time_s, samples, published = timeline.inputs(start, stop)
+        batch = model.run(samples.rate_rad_s, samples.temp_c,
+                          samples.accel_m_s2 if specific_force else None)
+        if injector is not None:
+            effect = injector.apply(time_s, batch.gyro_rad_s)
+            batch = replace(batch, gyro_rad_s=effect.gyro_rad_s,
+                            saturated=batch.saturated | effect.saturated)
+            published = effect.published if published is None else published & effect.published
+        yield ProfileChunk(time_s, samples, batch, published)
+
+
+def join_chunks(chunks):
+    """
+    Return a whole run from its chunks: (time_s, ProfileSamples, SensorBatch).
+
+    ``published`` is not joined: a run with withheld samples is written from
+    its chunks, not joined.
+    """
+    chunks = list(chunks)
+    return (np.concatenate([c.time_s for c in chunks]),
+            ProfileSamples.concatenate([c.profile for c in chunks]),
+            SensorBatch.concatenate([c.batch for c in chunks]))
