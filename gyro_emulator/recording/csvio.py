@@ -17,6 +17,7 @@ import io
 import os
 import zlib
 
+from gyro_emulator import atomic
 from gyro_emulator.recording.timing import check_increasing, check_time_base
 from gyro_emulator.units import AXES
 import numpy as np
@@ -31,6 +32,24 @@ def _open_text(path, mode):
         return io.TextIOWrapper(gzip.open(path, mode + 'b'), encoding='utf-8',
                                 newline='')
     return open(path, mode, encoding='utf-8', newline='')
+
+
+def _open_staged(tmp, path):
+    """
+    Open ``tmp`` to be written as ``path`` would be; return (text handle, raw file or None).
+
+    A ``.gz`` ``path`` is gzip with ``path``'s name in its header (not the
+    temporary's); the raw file under the gzip stream is closed after it.
+    """
+    if not str(path).endswith('.gz'):
+        return open(tmp, 'w', encoding='utf-8', newline=''), None
+    raw = open(tmp, 'wb')
+    try:
+        stream = gzip.GzipFile(filename=os.fspath(path), mode='wb', fileobj=raw)
+        return io.TextIOWrapper(stream, encoding='utf-8', newline=''), raw
+    except BaseException:
+        raw.close()
+        raise
 
 
 def _header(path):
@@ -217,9 +236,13 @@ def read_gyro_csv(path, axis=None, time_order='increasing'):
 
 class CsvWriter:
     """
-    Write columns of numbers to CSV in blocks (context manager).
+    Write columns of numbers to CSV in blocks (context manager), complete or absent.
 
-    ``finish()`` (also on leaving the ``with`` block) is safe to call twice.
+    The rows go to a temporary beside ``path`` that replaces ``path`` when
+    the writer finishes (:func:`gyro_emulator.atomic.staged`); leaving the
+    ``with`` block by an exception (a signal turned into one included)
+    removes the temporary and leaves ``path`` as it was. ``finish()`` (also
+    on leaving the ``with`` block normally) is safe to call twice.
 
     Parameters
     ----------
@@ -238,8 +261,15 @@ class CsvWriter:
         self.fmt = [fmt] * len(self.names) if isinstance(fmt, str) else list(fmt)
         directory = os.path.dirname(os.path.abspath(self.path))
         os.makedirs(directory, exist_ok=True)
-        self._handle = _open_text(self.path, 'w')
-        self._handle.write(','.join(self.names) + '\n')
+        self._stage = atomic.staged(self.path)
+        tmp = self._stage.__enter__()
+        self._handle = self._raw = None
+        try:
+            self._handle, self._raw = _open_staged(tmp, self.path)
+            self._handle.write(','.join(self.names) + '\n')
+        except BaseException as exc:
+            self._close(exc)
+            raise
         self.rows = 0
 
     def write(self, columns):
@@ -256,19 +286,44 @@ class CsvWriter:
             self._handle.write((row * len(part)) % tuple(part.ravel().tolist()))
         self.rows += len(block)
 
+    def _close(self, exc=None):
+        """Close the files; then move the file into place, or (``exc`` given) remove it."""
+        stage, self._stage = self._stage, None
+        files = (self._handle, self._raw)
+        self._handle = self._raw = None
+        try:
+            for item in files:
+                if item is not None:
+                    item.close()
+        except BaseException as error:
+            if exc is None:          # not flushed whole: remove it and say why
+                stage.__exit__(type(error), error, error.__traceback__)
+                raise
+        if exc is None:
+            stage.__exit__(None, None, None)
+        else:
+            stage.__exit__(type(exc), exc, exc.__traceback__)
+
     def finish(self):
-        """Flush and close the file (idempotent)."""
-        if self._handle is not None:
-            self._handle.close()
-            self._handle = None
+        """Close the file and move it into place (idempotent)."""
+        if self._stage is not None:
+            self._close()
+
+    def abort(self, exc=None):
+        """Close and remove the unfinished file, leaving ``path`` as it was (idempotent)."""
+        if self._stage is not None:
+            self._close(exc or RuntimeError(f'{self.path}: writing was abandoned'))
 
     def __enter__(self):
         """Return the writer."""
         return self
 
-    def __exit__(self, *exc):
-        """Close the file."""
-        self.finish()
+    def __exit__(self, exc_type, exc, traceback):
+        """Finish the file, or remove it when the block raised."""
+        if exc_type is None:
+            self.finish()
+        else:
+            self.abort(exc)
         return False
 
 
