@@ -371,7 +371,6 @@ def test_adis16405_z_has_a_bias_instability():
 
 def test_a_log_with_some_axes_is_read_by_axis(tmp_path):
     """A CSV with only gyro_y_rad_s and gyro_z_rad_s: the axes it has, and a clear error."""
-    from gyro_emulator.analysis.allan import analyse as allan_record
     from gyro_emulator.recording import csvio
 
     rng = np.random.default_rng(5)
@@ -381,10 +380,10 @@ def test_a_log_with_some_axes_is_read_by_axis(tmp_path):
                            'gyro_z_rad_s': z})
     record = load_record(str(path))
     assert set(record.gyro) == {'y', 'z'}
-    rate, column = allan_record.axis_of(record, 'z')
+    rate, column = record.gyro_axis('z')
     assert column == 'gyro_z_rad_s'
     np.testing.assert_allclose(rate, z, rtol=1e-9)
-    assert allan_record.axis_of(record, None)[1] == 'gyro_y_rad_s'
+    assert record.gyro_axis(None)[1] == 'gyro_y_rad_s'
     with pytest.raises(ValueError, match="no gyro column for axis 'x'; the file has "
                                          'gyro_y_rad_s, gyro_z_rad_s'):
-        allan_record.axis_of(record, 'x')
+        record.gyro_axis('x')

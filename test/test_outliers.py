@@ -108,7 +108,7 @@ def test_the_noise_fit_survives_spikes_and_handling_motion():
                                  ('screened', dirty, outliers.THRESHOLD),
                                  ('kept', dirty, math.inf)):
         rate_hz, segments, found, handled = allan.screened_segments(
-            rec.time_s, rec.gyro['x'], threshold=threshold)
+            rec.timing(), rec.gyro['x'], threshold=threshold)
         fits[name] = (allan.identify(segments, rate_hz)[1], found, handled)
     n_clean = fits['clean'][0].intervals['arw']
     n = fits['screened'][0].arw_rad_s_sqrt_hz
@@ -200,7 +200,8 @@ def test_coarse_or_shared_timestamps_give_the_true_rate(stamping):
     t = (np.floor(true_t * 1000.0) / 1000.0 if stamping == 'milliseconds'
          else np.repeat(true_t[::3], 3)[:n])
     x = np.random.default_rng(6).standard_normal(n) * 1e-3
-    got, segments = timing.sample_rate_and_segments(t)
+    found = timing.timing_of(t)
+    got, segments = found.rate_hz, found.bounds
     assert got == pytest.approx(rate_hz, rel=1e-3) and len(segments) == 1
     _, fit = allan.identify([x], got)
     density = 1e-3 / math.sqrt(rate_hz)
@@ -220,12 +221,13 @@ def test_dropped_samples_keep_the_nominal_rate_and_are_counted(share):
     n = 200_000
     t = np.arange(n) / RATE_HZ + 7.0
     keep = rng.random(n) >= share
-    rate_hz, bounds = timing.sample_rate_and_segments(t[keep])
+    found = timing.timing_of(t[keep])
+    rate_hz, bounds = found.rate_hz, found.bounds
     assert rate_hz == pytest.approx(RATE_HZ, rel=1e-9)
     index = np.flatnonzero(keep)
     steps = np.diff(index)
     # a step of exactly 3 periods sits on the gap threshold: either side is right
-    missing = timing.missing_samples(t[keep])
+    missing = found.missing
     assert np.sum(steps[steps <= 2] - 1) <= missing <= np.sum(steps[steps <= 3] - 1)
     assert 1 + np.sum(steps > 3) <= len(bounds) <= 1 + np.sum(steps > 2)
 
@@ -234,9 +236,9 @@ def test_dropped_samples_keep_the_nominal_rate_and_are_counted(share):
 def test_a_faster_part_on_a_millisecond_clock_is_not_read_as_dropped_samples(rate_hz):
     """Steps of 1 and 2 ms at a fixed beat (or 0 and 1, 2 and 3 ms): true rate, none missing."""
     t = np.floor(np.arange(300_000) / rate_hz * 1000.0) / 1000.0
-    got, _ = timing.sample_rate_and_segments(t)
-    assert got == pytest.approx(rate_hz, rel=2e-3)
-    assert timing.missing_samples(t) == 0
+    found = timing.timing_of(t)
+    assert found.rate_hz == pytest.approx(rate_hz, rel=2e-3)
+    assert found.missing == 0
 
 
 def test_calibrate_noise_on_a_log_with_dropped_samples_gets_n_and_says_what_is_missing(
@@ -269,14 +271,14 @@ def test_a_shock_that_moves_the_bias_splits_the_record():
     x = _static_noise(rng, len(t), flicker=0.0)
     x[180_000:] += 1e-3
     x[179_800:180_100] += _bump(rng, 300, 0.3)
-    rate_hz, segments, found, handled = allan.screened_segments(t, x)
+    rate_hz, segments, found, handled = allan.screened_segments(timing.timing_of(t), x)
     assert len(handled['level_shifts']) == 1
     assert handled['level_shifts'][0]['shift_rad_s'] == pytest.approx(1e-3, rel=0.3)
     assert len(segments) == 2 and handled['filled'] == 0
     # the same bump without the step is filled: one segment
     y = _static_noise(np.random.default_rng(8), len(t), flicker=0.0)
     y[179_800:180_100] += _bump(np.random.default_rng(9), 300, 0.3)
-    _, segments, _, handled = allan.screened_segments(t, y)
+    _, segments, _, handled = allan.screened_segments(timing.timing_of(t), y)
     assert handled['level_shifts'] == [] and len(segments) == 1
 
 

@@ -223,9 +223,10 @@ def test_csv_round_trip_gz_and_repeated_times(tmp_path):
 
 def test_segments_at_gaps():
     t = np.concatenate([np.arange(100) * 0.02, 100.0 + np.arange(50) * 0.02])
-    rate, bounds = timing.sample_rate_and_segments(t)
+    found = timing.timing_of(t)
+    rate, bounds = found.rate_hz, found.bounds
     assert rate == pytest.approx(50.0)
-    assert bounds == [(0, 100), (100, 150)]
+    assert bounds == ((0, 100), (100, 150))
 
 
 def test_simulate_refuses_an_existing_output_unless_overwrite(tmp_path, capsys):

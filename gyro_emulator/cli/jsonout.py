@@ -1,16 +1,18 @@
-"""Subcommands of the ``gyro-emulator`` command line (see ``gyro_emulator.cli``)."""
+"""JSON output of the ``gyro-emulator`` subcommands: indented, NumPy scalars as floats, atomic."""
 
-import json
 import os
+
+from gyro_emulator import atomic
 
 
 def write_json(path, doc):
     """
     Write ``doc`` as indented JSON at ``path``, creating its directory.
 
-    NumPy scalars are written as floats. Prints ``wrote PATH``.
+    NumPy scalars are written as floats. The file is complete or absent
+    (:func:`gyro_emulator.atomic.write_json`): an error or a signal half way
+    leaves the old file. Prints ``wrote PATH``.
     """
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, 'w', encoding='utf-8') as handle:
-        json.dump(doc, handle, indent=1, default=float)
+    atomic.write_json(path, doc, indent=1, default=float)
     print(f'wrote {path}')

@@ -15,7 +15,6 @@ The README's main job (``./dev.sh main``): the paper's validation test, live.
 
 import argparse
 import importlib.util
-import json
 import math
 import os
 import signal
@@ -23,7 +22,7 @@ import subprocess
 import sys
 import time
 
-from gyro_emulator import cli
+from gyro_emulator import atomic, cli
 from gyro_emulator.emulation import scenario
 from gyro_emulator.physics import first_order, presets
 import yaml
@@ -67,7 +66,7 @@ def _write_params(path, node_parameters, seed, sensor_config=None):
     values['seed'] = seed
     if sensor_config:
         values['sensor_config'] = sensor_config
-    with open(path, 'w', encoding='utf-8') as handle:
+    with atomic.open_atomic(path) as handle:
         yaml.safe_dump({'/**': {'ros__parameters': values}}, handle, sort_keys=False)
 
 
@@ -135,6 +134,7 @@ def run_scenario(opts):
           f'{profile.duration_s:g} s, against the emulator node '
           f'(ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, localhost only)', flush=True)
     node = recorder = None
+    # The node's log streams as it runs (not staged: what was written is kept).
     with open(node_log, 'w', encoding='utf-8') as log:
         try:
             node = subprocess.Popen(
@@ -178,8 +178,7 @@ def run_scenario(opts):
         row['physics_error_deg_s'] = physics_error_deg_s(profile.rate_along_axis_rad_s(r.step),
                                                          r.die_temp_c)
     summary = os.path.join(opts.out_dir, 'summary.json')
-    with open(summary, 'w', encoding='utf-8') as handle:
-        json.dump(doc, handle, indent=1)
+    atomic.write_json(summary, doc, indent=1)
     print(f'wrote {summary}; node log {node_log}'
           + (f'; bag {os.path.join(opts.out_dir, "bag")}' if recorder else ''))
     return 0 if all(r.samples > 0 for r in results) else 1

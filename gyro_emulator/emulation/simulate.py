@@ -18,7 +18,6 @@ identical whatever the chunk size.
 import contextlib
 from dataclasses import replace
 import datetime
-import functools
 import os
 import time
 
@@ -175,23 +174,20 @@ def csv_columns(chunk):
     return [column[chunk.published] for column in columns]
 
 
-def write_simulation_csv(path, chunks, progress=None, total=None, name=None):
+def write_simulation_csv(path, chunks, progress=None, total=None):
     """
-    Write simulation chunks to a CSV file (``.gz`` compresses).
+    Write simulation chunks to a CSV file (``.gz`` compresses), complete or absent.
 
     Parameters
     ----------
     path : str or os.PathLike
-        Output file.
+        Output file (:class:`gyro_emulator.recording.csvio.CsvWriter` stages it).
     chunks : iterable of gyro_emulator.emulation.run_profile.ProfileChunk
         From :func:`iter_simulation`.
     progress : callable, optional
         ``progress(done, total)`` after each chunk.
     total : int, optional
         Total samples, passed to ``progress``.
-    name : str, optional
-        The file's final name when ``path`` is a staging temporary (its
-        ``.gz`` compresses; :class:`gyro_emulator.recording.csvio.CsvWriter`).
 
     Returns
     -------
@@ -200,26 +196,31 @@ def write_simulation_csv(path, chunks, progress=None, total=None, name=None):
 
     """
     return csvio.write_csv_blocks(path, CSV_COLUMNS, (csv_columns(chunk) for chunk in chunks),
-                                  CSV_FORMATS, progress, total, name)
+                                  CSV_FORMATS, progress, total)
+
+
+def check_output(out, overwrite=False):
+    """Refuse an existing ``out`` unless ``overwrite``; make its folder; return it absolute."""
+    out = os.path.abspath(out)
+    if os.path.exists(out) and not overwrite:
+        raise ValueError(f'--out {out} exists: pass --overwrite to replace it')
+    os.makedirs(os.path.dirname(out), exist_ok=True)
+    return out
 
 
 @contextlib.contextmanager
 def staged_output(out, overwrite=False):
     """
-    Stage ``out``: yield a temporary path beside it that becomes ``out`` on success.
+    Stage the bag directory ``out``: yield a temporary path that becomes ``out`` on success.
 
     :func:`gyro_emulator.atomic.staged` stages it (fsync, ``os.replace``,
     the temporary removed on any exception), so a run that fails (or is
     interrupted) leaves nothing behind. An existing ``out`` is replaced only
-    with ``overwrite`` (an existing bag directory is removed just before the
-    new one takes its place). A CSV file and a bag directory are staged
-    alike; the writers are given the final name (the bag's MCAP file and a
-    ``.gz`` follow it).
+    with ``overwrite`` (:func:`check_output`; the old directory is removed
+    just before the new one takes its place). The bag writer is given the
+    final name, which its MCAP file follows.
     """
-    out = os.path.abspath(out)
-    if os.path.exists(out) and not overwrite:
-        raise ValueError(f'--out {out} exists: pass --overwrite to replace it')
-    os.makedirs(os.path.dirname(out), exist_ok=True)
+    out = check_output(out, overwrite)
     with atomic.staged(out) as partial:
         yield partial
         if os.path.isdir(out):
@@ -263,7 +264,7 @@ def parse_start_time(text):
 def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
                  overwrite=False, progress=None, start_time_ns=None, faults=()):
     """
-    Simulate (:func:`iter_simulation`) and write the record, staged (:func:`staged_output`).
+    Simulate (:func:`iter_simulation`) and write the record, complete or absent.
 
     Parameters
     ----------
@@ -298,18 +299,17 @@ def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
     total = sample_count(duration_s, rate_hz)
     if isinstance(profile, RecordedProfile):
         duration_s, rate_hz, total = profile.duration_s, profile.rate_hz, len(profile.time_s)
-    if is_csv_path(out):
-        writer = write_simulation_csv
-    else:
-        custom = simulation_custom_data(config, getattr(profile, 'name', profile), duration_s,
-                                        rate_hz, seed, temp_c)
-        custom['start_time_ns'] = str(start_ns)
-        if faults:
-            custom['faults'] = '; '.join(f.describe() for f in faults)
-        writer = functools.partial(write_simulation_bag, config=sensor, rate_hz=rate_hz,
-                                   custom_data=custom, start_ns=start_ns)
     chunks = iter_simulation(sensor, profile, duration_s, rate_hz, seed=seed, temp_c=temp_c,
                              faults=faults)
+    if is_csv_path(out):
+        return write_simulation_csv(check_output(out, overwrite), chunks, progress=progress,
+                                    total=total)
+    custom = simulation_custom_data(config, getattr(profile, 'name', profile), duration_s,
+                                    rate_hz, seed, temp_c)
+    custom['start_time_ns'] = str(start_ns)
+    if faults:
+        custom['faults'] = '; '.join(f.describe() for f in faults)
     with staged_output(out, overwrite) as partial:
-        return writer(partial, chunks, progress=progress, total=total,
-                      name=os.path.abspath(out))
+        return write_simulation_bag(partial, chunks, config=sensor, rate_hz=rate_hz,
+                                    custom_data=custom, start_ns=start_ns, progress=progress,
+                                    total=total, name=os.path.abspath(out))

@@ -12,12 +12,12 @@ not in seconds (:func:`gyro_emulator.recording.timing.check_time_base`). A trunc
 or corrupt ``.gz`` file is one line too, never a traceback.
 """
 
-import contextlib
 import gzip
 import io
 import os
 import zlib
 
+from gyro_emulator import atomic
 from gyro_emulator.recording.timing import check_increasing, check_time_base
 from gyro_emulator.units import AXES
 import numpy as np
@@ -34,23 +34,22 @@ def _open_text(path, mode):
     return open(path, mode, encoding='utf-8', newline='')
 
 
-@contextlib.contextmanager
-def _open_text_as(path, name=None):
+def _open_staged(tmp, path):
     """
-    Open ``path`` to write UTF-8 text, gzipped when ``name`` (default ``path``) ends in .gz.
+    Open ``tmp`` to be written as ``path`` would be; return (text handle, raw file or None).
 
-    The gzip header keeps the base name of ``name``, as if the file had
-    been written there.
+    A ``.gz`` ``path`` is gzip with ``path``'s name in its header (not the
+    temporary's); the raw file under the gzip stream is closed after it.
     """
-    name = os.fspath(path if name is None else name)
-    if not name.endswith('.gz'):
-        with open(path, 'w', encoding='utf-8', newline='') as handle:
-            yield handle
-        return
-    with open(path, 'wb') as raw, \
-            gzip.GzipFile(os.path.basename(name), 'wb', fileobj=raw) as packed, \
-            io.TextIOWrapper(packed, encoding='utf-8', newline='') as handle:
-        yield handle
+    if not str(path).endswith('.gz'):
+        return open(tmp, 'w', encoding='utf-8', newline=''), None
+    raw = open(tmp, 'wb')
+    try:
+        stream = gzip.GzipFile(filename=os.fspath(path), mode='wb', fileobj=raw)
+        return io.TextIOWrapper(stream, encoding='utf-8', newline=''), raw
+    except BaseException:
+        raw.close()
+        raise
 
 
 def _header(path):
@@ -237,9 +236,13 @@ def read_gyro_csv(path, axis=None, time_order='increasing'):
 
 class CsvWriter:
     """
-    Write columns of numbers to CSV in blocks (context manager).
+    Write columns of numbers to CSV in blocks (context manager), complete or absent.
 
-    ``finish()`` (also on leaving the ``with`` block) is safe to call twice.
+    The rows go to a temporary beside ``path`` that replaces ``path`` when
+    the writer finishes (:func:`gyro_emulator.atomic.staged`); leaving the
+    ``with`` block by an exception (a signal turned into one included)
+    removes the temporary and leaves ``path`` as it was. ``finish()`` (also
+    on leaving the ``with`` block normally) is safe to call twice.
 
     Parameters
     ----------
@@ -249,22 +252,24 @@ class CsvWriter:
         Column names (the header).
     fmt : str or sequence of str
         printf format per column (default ``%.10g``).
-    name : str or os.PathLike, optional
-        The file's final name when ``path`` is a staging temporary
-        (:func:`gyro_emulator.atomic.staged`): its ``.gz`` compresses, and
-        the gzip header keeps it (default: ``path``).
 
     """
 
-    def __init__(self, path, names, fmt='%.10g', name=None):
+    def __init__(self, path, names, fmt='%.10g'):
         self.path = os.fspath(path)
         self.names = list(names)
         self.fmt = [fmt] * len(self.names) if isinstance(fmt, str) else list(fmt)
         directory = os.path.dirname(os.path.abspath(self.path))
         os.makedirs(directory, exist_ok=True)
-        self._closing = contextlib.ExitStack()
-        self._handle = self._closing.enter_context(_open_text_as(self.path, name))
-        self._handle.write(','.join(self.names) + '\n')
+        self._stage = atomic.staged(self.path)
+        tmp = self._stage.__enter__()
+        self._handle = self._raw = None
+        try:
+            self._handle, self._raw = _open_staged(tmp, self.path)
+            self._handle.write(','.join(self.names) + '\n')
+        except BaseException as exc:
+            self._close(exc)
+            raise
         self.rows = 0
 
     def write(self, columns):
@@ -281,19 +286,44 @@ class CsvWriter:
             self._handle.write((row * len(part)) % tuple(part.ravel().tolist()))
         self.rows += len(block)
 
+    def _close(self, exc=None):
+        """Close the files; then move the file into place, or (``exc`` given) remove it."""
+        stage, self._stage = self._stage, None
+        files = (self._handle, self._raw)
+        self._handle = self._raw = None
+        try:
+            for item in files:
+                if item is not None:
+                    item.close()
+        except BaseException as error:
+            if exc is None:          # not flushed whole: remove it and say why
+                stage.__exit__(type(error), error, error.__traceback__)
+                raise
+        if exc is None:
+            stage.__exit__(None, None, None)
+        else:
+            stage.__exit__(type(exc), exc, exc.__traceback__)
+
     def finish(self):
-        """Flush and close the file (idempotent)."""
-        if self._handle is not None:
-            self._closing.close()
-            self._handle = None
+        """Close the file and move it into place (idempotent)."""
+        if self._stage is not None:
+            self._close()
+
+    def abort(self, exc=None):
+        """Close and remove the unfinished file, leaving ``path`` as it was (idempotent)."""
+        if self._stage is not None:
+            self._close(exc or RuntimeError(f'{self.path}: writing was abandoned'))
 
     def __enter__(self):
         """Return the writer."""
         return self
 
-    def __exit__(self, *exc):
-        """Close the file."""
-        self.finish()
+    def __exit__(self, exc_type, exc, traceback):
+        """Finish the file, or remove it when the block raised."""
+        if exc_type is None:
+            self.finish()
+        else:
+            self.abort(exc)
         return False
 
 
@@ -319,7 +349,7 @@ def write_csv(path, columns, fmt='%.10g'):
     return write_csv_blocks(path, list(columns), [list(columns.values())], fmt)
 
 
-def write_csv_blocks(path, names, blocks, fmt='%.10g', progress=None, total=None, name=None):
+def write_csv_blocks(path, names, blocks, fmt='%.10g', progress=None, total=None):
     """
     Write blocks of rows as one CSV file (bounded memory for long records).
 
@@ -334,8 +364,6 @@ def write_csv_blocks(path, names, blocks, fmt='%.10g', progress=None, total=None
         ``progress(done, total)`` after each block, ``done`` the rows so far.
     total : int, optional
         Total rows, passed to ``progress``.
-    name : str or os.PathLike, optional
-        The final name of a staged ``path`` (:class:`CsvWriter`).
 
     Returns
     -------
@@ -343,7 +371,7 @@ def write_csv_blocks(path, names, blocks, fmt='%.10g', progress=None, total=None
         Rows written.
 
     """
-    with CsvWriter(path, names, fmt, name) as writer:
+    with CsvWriter(path, names, fmt) as writer:
         for block in blocks:
             writer.write(block)
             if progress is not None:

@@ -8,6 +8,12 @@ the operating system when they reach ``chunk_size`` bytes or when
 SIGKILL loses at most the open chunk. The summary and footer are written by
 ``finish``; a file without them is read by the tolerant scanner
 (:mod:`gyro_emulator.recording.repair`).
+
+The file is not staged and renamed (:mod:`gyro_emulator.atomic`), on
+purpose: a live recording streams to its final name so that whatever was
+flushed survives a crash (a staged file would lose it all), and
+``bag repair`` completes a file cut short. A bag written offline in one go
+is staged by its caller (a temporary directory renamed when whole).
 """
 
 from array import array

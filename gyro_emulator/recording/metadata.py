@@ -57,19 +57,6 @@ def load_qos(text):
     return loaded if isinstance(loaded, list) else []
 
 
-def write_text_atomic(path, text):
-    tmp = path + '.tmp'
-    try:
-        with open(tmp, 'w', encoding='utf-8') as handle:
-            handle.write(text)
-            handle.flush()
-    except BaseException:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-        raise
-    os.replace(tmp, path)
-
-
 @dataclass
 class TopicInfo:
     """

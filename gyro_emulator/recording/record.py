@@ -3,8 +3,9 @@ One measured record: times, applied rate, temperature, gyro and acceleration, fr
 
 A :class:`Record` holds what a record carries, each part optional where the
 source lacks it, with the column or topic field each came from, what a
-damaged bag lost, and its timing (segments and missing samples,
-:mod:`gyro_emulator.recording.timing`) and value grid (:func:`grid_step`).
+damaged bag lost, and its timing (rate, segments and missing samples: a
+:class:`gyro_emulator.recording.timing.Timing`, worked out on first use and
+kept, :meth:`Record.timing`) and value grid (:func:`grid_step`).
 It is built from plain arrays (a synthetic record) or by
 :func:`load_record`, the one loader of CSV (``.gz`` too, through
 :func:`gyro_emulator.recording.csvio.read_csv`) and bags (a directory or
@@ -34,7 +35,8 @@ import math
 import os
 from types import MappingProxyType
 
-from gyro_emulator.recording import bag, csvio, timing, topics as table
+from gyro_emulator.recording import bag, csvio, topics as table
+from gyro_emulator.recording.timing import check_increasing, GAP_FACTOR, timing_of
 from gyro_emulator.units import AXES
 import numpy as np
 
@@ -279,6 +281,9 @@ class Record:
         A bag's ``custom_data`` (:class:`gyro_emulator.recording.bag.BagReader`);
         {} for CSV.
 
+    The gyro's timing is worked out once per gap factor and kept
+    (:meth:`timing`).
+
     """
 
     time_s: np.ndarray
@@ -294,6 +299,7 @@ class Record:
     topics: dict = field(default_factory=dict)
     frames: dict = field(default_factory=dict)
     metadata: dict = field(default_factory=dict)
+    _timings: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
     def from_arrays(cls, time_s, gyro_rad_s, rate_rad_s=None, temp_c=None, accel_m_s2=None,
@@ -323,13 +329,29 @@ class Record:
         """Return whether the record was read from a bag."""
         return self.gyro_stamp_ns is not None
 
-    def sample_rate_and_segments(self, gap_factor=3.0):
-        """Return the nominal rate, Hz, and the segments (:mod:`.timing`)."""
-        return timing.sample_rate_and_segments(self.time_s, gap_factor)
+    def timing(self, gap_factor=GAP_FACTOR):
+        """
+        Return the :class:`~gyro_emulator.recording.timing.Timing` of the gyro's times.
 
-    def missing_samples(self, gap_factor=3.0):
-        """Return the samples missing between stamps (:func:`timing.missing_samples`)."""
-        return timing.missing_samples(self.time_s, gap_factor)
+        Worked out on the first call for each ``gap_factor``
+        (:func:`~gyro_emulator.recording.timing.timing_of`) and kept: every
+        axis and every analysis of the record reads the same one.
+        """
+        key = float(gap_factor)
+        if key not in self._timings:
+            self._timings[key] = timing_of(self.time_s, key)
+        return self._timings[key]
+
+    def gyro_axis(self, axis=None):
+        """
+        Return (gyro output, rad/s; its column or topic field) of ``axis`` ('x', 'y', 'z').
+
+        None: the record's first axis. A missing axis is a ValueError naming
+        the ones the record has (:func:`gyro_emulator.recording.csvio.gyro_column_of`).
+        """
+        column = csvio.gyro_column_of(self.require_gyro().gyro_sources, axis, self.path)
+        axis = next(a for a, c in self.gyro_sources.items() if c == column)
+        return self.gyro[axis], column
 
     def require_gyro(self):
         """Return the record; ValueError naming the accepted gyro columns when it has none."""
@@ -569,7 +591,7 @@ def _load_bag(reader, path, roles, use_log_time=False):
         stream, block, fieldname = read['gyro']
         gyro_stamp_ns = stream.times_ns
         time_s = (gyro_stamp_ns - t0) * 1e-9
-        timing.check_increasing(time_s, f'{path}: header stamps', strict=False)
+        check_increasing(time_s, f'{path}: header stamps', strict=False)
         gyro = {a: block[:, i] for i, a in enumerate(AXES)}
         sources = {a: f'{stream.topic} {fieldname}.{a}' for a in AXES}
     channels = {role: Channel((stream.times_ns - t0) * 1e-9, values, f'{stream.topic} {source}',

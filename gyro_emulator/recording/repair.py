@@ -3,16 +3,24 @@ Recovery of bags cut short by a crash.
 
 :func:`repair_bag` rewrites such a bag whole, with a summary, a footer and
 a ``metadata.yaml``.
+
+Copies and ``metadata.yaml`` are atomic writes
+(:func:`gyro_emulator.atomic.staged`). A rewritten MCAP file is the one
+exception that renames by itself (``os.replace``, here and in
+:mod:`gyro_emulator.atomic` only): it is finished under the fixed name
+``<file>.repair-tmp``, which :func:`gyro_emulator.recording.files.resolve_bag`
+recognises, so a repair interrupted between its steps can be resumed and
+never leaves the bag without its file.
 """
 
 from dataclasses import dataclass, field
 import os
 import shutil
 
+from gyro_emulator import atomic
 from gyro_emulator.recording.files import BACKUP, REPAIR_TMP, resolve_bag
 from gyro_emulator.recording.mcap_writer import McapFileWriter
-from gyro_emulator.recording.metadata import (file_info_from_writer, METADATA_FILE, metadata_yaml,
-                                              write_text_atomic)
+from gyro_emulator.recording.metadata import file_info_from_writer, METADATA_FILE, metadata_yaml
 from gyro_emulator.recording.reader import BagReader, index_file
 from gyro_emulator.recording.scan import scan_mcap, ScanReport
 from mcap.records import Channel, Message, Metadata, Schema
@@ -140,8 +148,8 @@ def _keep_original(source):
     try:
         os.link(source, backup)     # atomic; source stays in place
     except OSError:
-        shutil.copy2(source, backup + '.tmp')
-        os.replace(backup + '.tmp', backup)
+        with atomic.staged(backup) as tmp:
+            shutil.copy2(source, tmp)
     return backup
 
 
@@ -150,8 +158,8 @@ def _restore(full, stand_in, report):
     if stand_in.endswith(REPAIR_TMP):
         os.replace(stand_in, full)
     else:
-        shutil.copy2(stand_in, full + REPAIR_TMP)
-        os.replace(full + REPAIR_TMP, full)
+        with atomic.staged(full) as tmp:
+            shutil.copy2(stand_in, tmp)
     report.notes.append(f'{os.path.basename(full)} was missing after an interrupted repair: '
                         f'restored it from {os.path.basename(stand_in)}')
 
@@ -187,7 +195,8 @@ def _repair_file(source, target, backup, compression, expected, report):
                           good_bytes=os.path.getsize(source), complete=True,
                           messages=info.message_count)
         if target != source:
-            shutil.copyfile(source, target)
+            with atomic.staged(target) as tmp:
+                shutil.copyfile(source, tmp)
             info.path = target
         elif os.path.exists(source + REPAIR_TMP):
             os.remove(source + REPAIR_TMP)
@@ -278,6 +287,6 @@ def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
     counted = [i for i in infos if i.message_count]
     report.start_time_ns = min((i.start_time_ns for i in counted), default=0)
     report.end_time_ns = max((i.end_time_ns for i in counted), default=0)
-    write_text_atomic(os.path.join(target_dir, METADATA_FILE),
+    atomic.write_text(os.path.join(target_dir, METADATA_FILE),
                       metadata_yaml(target_dir, infos, custom))
     return report

@@ -7,7 +7,14 @@ numbers of the nominal step are samples lost on the way
 (:func:`dropped_samples`), unless they recur at a beat (a coarse clock).
 Pure numpy: every reader of a record (:mod:`gyro_emulator.recording.record`,
 :mod:`gyro_emulator.recording.csvio`) and every analysis use these rules.
+
+:func:`timing_of` works the rate, the segments and the missing samples out
+once, as a :class:`Timing`; a record carries its own
+(:meth:`gyro_emulator.recording.record.Record.timing`), and ``allan``,
+``calibrate noise``, ``calibrate thermal`` and ``diagnose`` read it from there.
 """
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -91,31 +98,80 @@ def check_time_base(time_s, what='time_s'):
 STEP_AGREEMENT = 1e-3
 
 
-def sample_rate_and_segments(time_s, gap_factor=3.0):
+#: A step longer than this many median steps starts a new segment (a gap).
+GAP_FACTOR = 3.0
+
+
+@dataclass(frozen=True, eq=False)
+class Timing:
     """
-    Nominal sample rate and the contiguous segments of a record.
+    The timing of a record's stamps, worked out once (:func:`timing_of`).
+
+    Attributes
+    ----------
+    time_s : numpy.ndarray
+        The stamps, s, non-decreasing.
+    gap_factor : float
+        A step longer than this many median steps is a gap.
+    median_step_s : float
+        The median positive step, s.
+    rate_hz : float
+        Nominal sample rate, Hz: 1 / the median positive step, or 1 / the
+        mean step within the segments when the two differ by more than
+        :data:`STEP_AGREEMENT` (stamps rounded to a coarse clock or shared by
+        a FIFO batch), or 1 / the step of the whole steps when samples are
+        missing (:func:`dropped_samples`).
+    bounds : tuple of (int, int)
+        Start and stop index of each contiguous segment.
+    missing : int
+        Samples missing between stamps inside the segments (0 when no step
+        reads as a drop).
+
+    """
+
+    time_s: np.ndarray
+    gap_factor: float
+    median_step_s: float
+    rate_hz: float
+    bounds: tuple
+    missing: int
+
+    def segments(self, values, min_samples=1):
+        """Return ``values`` cut at the gaps: one array per segment of >= ``min_samples``."""
+        values = np.asarray(values, dtype=float)
+        return [values[a:b] for a, b in self.bounds if b - a >= min_samples]
+
+    def kept(self, keep):
+        """Return the :class:`Timing` of the samples ``keep`` marks (the same ``gap_factor``)."""
+        keep = np.asarray(keep, bool)
+        return self if keep.all() else timing_of(self.time_s[keep], self.gap_factor)
+
+
+def timing_of(time_s, gap_factor=GAP_FACTOR):
+    """
+    Work out the :class:`Timing` of ``time_s``: nominal rate, segments, missing samples.
 
     A step longer than ``gap_factor`` times the median positive step
     starts a new segment (a gap in the record). The rate is 1 / that median,
-    or 1 / the mean step within the segments when the two differ by more
-    than :data:`STEP_AGREEMENT`: stamps rounded to a coarse clock (a 416.7 Hz
-    part stamped in whole milliseconds steps 2 and 3 ms, median 2) or shared
-    by a FIFO batch (steps 0, 0, 3 dt) have the right mean, not median.
+    or, when the mean step within the segments differs from it by more than
+    :data:`STEP_AGREEMENT`, the step of :func:`dropped_samples` (samples
+    lost on the way) or else the mean step: stamps rounded to a coarse clock
+    (a 416.7 Hz part stamped in whole milliseconds steps 2 and 3 ms, median
+    2) or shared by a FIFO batch (steps 0, 0, 3 dt) have the right mean, not
+    median. The samples missing inside the segments are counted even when so
+    few are missing that the mean step agrees with the median.
 
-    Returns
-    -------
-    rate_hz : float
-        Nominal sample rate, Hz.
-    bounds : list of (int, int)
-        Start and stop index of each segment.
-
+    Raises ValueError when there are fewer than 2 stamps or no positive step.
     """
-    dt, within, bounds = _median_step_and_segments(time_s, gap_factor)
+    t = np.asarray(time_s, dtype=float)
+    median, within, bounds = _median_step_and_segments(t, gap_factor)
+    lost = dropped_samples(within, median)
+    dt = median
     mean = float(np.mean(within)) if len(within) else dt
     if mean > 0.0 and abs(mean / dt - 1.0) > STEP_AGREEMENT:
-        lost = dropped_samples(within, dt)
         dt = mean if lost is None else lost[1]
-    return 1.0 / dt, bounds
+    return Timing(t, float(gap_factor), median, 1.0 / dt, tuple(bounds),
+                  0 if lost is None else lost[0])
 
 
 def _median_step_and_segments(time_s, gap_factor):
@@ -180,16 +236,3 @@ def dropped_samples(step, dt):
         if np.sum(counts[-2:]) >= BEAT_SHARE * (len(long) - 1):
             return None
     return int(np.sum(whole - 1.0)), float(np.sum(step) / np.sum(whole))
-
-
-def missing_samples(time_s, gap_factor=3.0):
-    """
-    Return the samples missing inside the segments of a record (0 when none read as drops).
-
-    The segments and the median step are those of
-    :func:`sample_rate_and_segments`; see :func:`dropped_samples` (counted
-    even when so few are missing that the mean step agrees with the median).
-    """
-    dt, within, _ = _median_step_and_segments(time_s, gap_factor)
-    lost = dropped_samples(within, dt)
-    return 0 if lost is None else lost[0]

@@ -1,11 +1,21 @@
-"""A rosbag2 bag directory: one crash-safe MCAP file plus ``metadata.yaml``."""
+"""
+A rosbag2 bag directory: one crash-safe MCAP file plus ``metadata.yaml``.
+
+The MCAP file is written as it streams, not staged and renamed: a recording
+must keep what it has if its process dies, so it is crash-safe by design
+(chunks flushed as they close, :mod:`gyro_emulator.recording.mcap_writer`)
+and a file cut short is made whole by ``gyro-emulator bag repair``. The
+``metadata.yaml`` written at the end is one atomic write
+(:func:`gyro_emulator.atomic.write_text`).
+"""
 
 import os
 
+from gyro_emulator import atomic
 from gyro_emulator.recording.mcap_writer import (DEFAULT_CHUNK_SIZE, DEFAULT_FLUSH_INTERVAL_S,
                                                  McapFileWriter)
 from gyro_emulator.recording.metadata import (dump_qos, file_info_from_writer, METADATA_FILE,
-                                              metadata_yaml, ROS_DISTRO, write_text_atomic)
+                                              metadata_yaml, ROS_DISTRO)
 from gyro_emulator.recording.msgdefs import message_definition, type_hash
 import numpy as np
 
@@ -217,7 +227,7 @@ class BagWriter:
                 'serialized_metadata': text, 'ROS_DISTRO': ROS_DISTRO})
         finally:
             self._file.finish()
-        write_text_atomic(os.path.join(self.path, METADATA_FILE), text)
+        atomic.write_text(os.path.join(self.path, METADATA_FILE), text)
 
     def __enter__(self):
         """Return the writer."""

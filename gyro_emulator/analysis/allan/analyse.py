@@ -2,7 +2,9 @@
 Noise identification of a record, as ``gyro-emulator allan`` and ``calibrate noise`` run it.
 
 The record is a :class:`gyro_emulator.recording.record.Record` (its gyro
-axes, their times and columns); :func:`identify` runs the IEEE Std 952
+axes, their columns, and the timing of their stamps, a
+:class:`gyro_emulator.recording.timing.Timing` worked out once and read
+here, never again); :func:`identify` runs the IEEE Std 952
 procedure on one axis: overlapping
 Allan deviation with confidence intervals, the band-limited short-tau region
 (:mod:`~gyro_emulator.analysis.allan.band`), the five-term fit and its
@@ -16,7 +18,6 @@ from dataclasses import replace
 from gyro_emulator import units
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import adev, band, fit as fitting
-from gyro_emulator.recording import csvio, timing
 import numpy as np
 
 #: A stretch set aside no longer than this is filled with its neighbours' mean,
@@ -24,40 +25,34 @@ import numpy as np
 FILL_MAX_S = 10.0
 
 
-def axis_of(record, axis):
-    """Return (rate, column) of ``axis`` (None: the record's first axis)."""
-    column = csvio.gyro_column_of(record.require_gyro().gyro_sources, axis, record.path)
-    axis = next(a for a, c in record.gyro_sources.items() if c == column)
-    return record.gyro[axis], column
-
-
-def segments_of(time_s, rate, gap_factor=3.0):
-    """Return (nominal rate Hz, contiguous segments of >= 3 samples) split at gaps."""
-    rate_hz, bounds = timing.sample_rate_and_segments(time_s, gap_factor)
-    segments = [np.asarray(rate[a:b], dtype=float) for a, b in bounds if b - a >= 3]
+def segments_of(timing, rate):
+    """Return ``rate`` split at the gaps of ``timing`` (a Timing): the segments of >= 3 samples."""
+    segments = timing.segments(rate, min_samples=3)
     if not segments:
         raise ValueError('no segment has 3 or more samples')
-    return rate_hz, segments
+    return segments
 
 
-def screened_segments(time_s, rate, gap_factor=3.0, threshold=outliers.THRESHOLD,
-                      what='the axis'):
+def screened_segments(timing, rate, threshold=outliers.THRESHOLD, what='the axis'):
     """
     Set a static record's spikes and motion aside, then split it at gaps.
 
+    ``timing`` is the :class:`gyro_emulator.recording.timing.Timing` of the
+    samples' stamps (:meth:`gyro_emulator.recording.record.Record.timing`).
     The stretches :func:`gyro_emulator.analysis.outliers.screen_at_rest`
     finds are filled with the mean of the kept samples within
     :data:`gyro_emulator.analysis.outliers.LOCAL_HALF_S` of them when they
     last at most :data:`FILL_MAX_S` (the angle is interpolated straight
     across: the long averaging times survive, and the short ones lose at
     most the filled share of their variance), and cut out otherwise (the
-    record splits there, as at a logging gap).
+    record splits there, as at a logging gap, and the rate is that of the
+    samples kept, :meth:`~gyro_emulator.recording.timing.Timing.kept`).
 
     Returns
     -------
     (float, list of numpy.ndarray, SetAside, dict)
-        As :func:`segments_of`, what was set aside, and
-        ``{'filled': samples, 'cut': samples}``.
+        The nominal rate, Hz, the segments (:func:`segments_of`), what was
+        set aside, and ``{'filled': samples, 'cut': samples}``.
 
     Raises
     ------
@@ -66,11 +61,10 @@ def screened_segments(time_s, rate, gap_factor=3.0, threshold=outliers.THRESHOLD
         :func:`gyro_emulator.analysis.outliers.check_not_held`).
 
     """
-    time_s = np.asarray(time_s, dtype=float)
+    time_s = timing.time_s
     rate = np.asarray(rate, dtype=float)
-    rate_hz, _ = timing.sample_rate_and_segments(time_s, gap_factor)
-    outliers.check_not_held(rate, rate_hz, what)
-    screened = outliers.screen_at_rest(time_s, rate, 1.0 / rate_hz, threshold, what)
+    outliers.check_not_held(rate, timing.rate_hz, what)
+    screened = outliers.screen_at_rest(time_s, rate, 1.0 / timing.rate_hz, threshold, what)
     filled = rate.copy()
     cut = np.zeros(len(rate), bool)
     n_filled = 0
@@ -85,8 +79,8 @@ def screened_segments(time_s, rate, gap_factor=3.0, threshold=outliers.THRESHOLD
             n_filled += int(np.count_nonzero(inside))
         else:
             cut |= inside
-    rate_hz, segments = segments_of(time_s[~cut], filled[~cut], gap_factor)
-    return rate_hz, segments, screened, {
+    kept = timing.kept(~cut)
+    return kept.rate_hz, segments_of(kept, filled[~cut]), screened, {
         'filled': n_filled, 'cut': int(np.count_nonzero(cut)),
         'level_shifts': [{'start_s': lo, 'end_s': hi, 'shift_rad_s': d} for lo, hi, d in steps]}
 
@@ -198,21 +192,22 @@ def set_aside_summary(screened, handled):
     return dict(screened.as_dict(), **handled, description=line)
 
 
-def missing_note(time_s, gap_factor=3.0):
+def missing_note(timing):
     """
     Say how many samples are missing between the stamps, and what that does (or nothing).
 
-    The rate is the nominal one (:func:`gyro_emulator.recording.timing.dropped_samples`)
+    ``timing`` is the record's :class:`gyro_emulator.recording.timing.Timing`;
+    its rate is the nominal one (:func:`gyro_emulator.recording.timing.dropped_samples`)
     and the Allan deviation joins the samples on either side of a missing
     one: the white noise N is right (its per-sample spread and the sample
     period are), but the correlated terms see a share p of their time
     removed, so a random walk reads 1 / sqrt(1 - p) high in K; B, a
     scale-free term, hardly moves.
     """
-    missing = timing.missing_samples(time_s, gap_factor)
+    missing = timing.missing
     if not missing:
         return ()
-    share = missing / (len(time_s) + missing)
+    share = missing / (len(timing.time_s) + missing)
     return (f'{missing} samples ({100 * share:.2g} %) are missing between stamps (steps of '
             f'2 or more sample periods, not a slower clock): N is unaffected; the Allan '
             f'deviation joins the samples around each, so K may read up to '
@@ -224,16 +219,19 @@ def analyse_record(record, axis=None, max_tau_fraction=0.25, gap_factor=3.0,
     """
     Analyse one axis of a record as ``gyro-emulator allan`` does.
 
-    ``record`` is a :class:`gyro_emulator.recording.record.Record`. Returns
+    ``record`` is a :class:`gyro_emulator.recording.record.Record`; its
+    timing (:meth:`~gyro_emulator.recording.record.Record.timing` at
+    ``gap_factor``) is read, not worked out again. Returns
     ``(JSON-ready dict, AllanResult, NoiseFit)``. Spikes and motion are set
     aside first (:func:`screened_segments`; ``outlier_threshold``
     ``math.inf`` keeps every sample) and ``set_aside`` says what went.
     """
     path = record.path
-    rate, column = axis_of(record, axis)
+    rate, column = record.gyro_axis(axis)
     try:
+        timing = record.timing(gap_factor)
         rate_hz, segments, screened, handled = screened_segments(
-            record.time_s, rate, gap_factor, outlier_threshold, what=column)
+            timing, rate, outlier_threshold, what=column)
     except ValueError as exc:
         raise ValueError(f'{path}: {exc}') from None
     result, found = identify(segments, rate_hz, max_tau_fraction)
@@ -241,7 +239,7 @@ def analyse_record(record, axis=None, max_tau_fraction=0.25, gap_factor=3.0,
     info = {
         'file': str(path), 'column': column, 'sample_rate_hz': rate_hz,
         'recovery': list(record.recovery),
-        'timing': list(missing_note(time_s, gap_factor)),
+        'timing': list(missing_note(timing)),
         'set_aside': set_aside_summary(screened, handled),
         'n_samples': result.n_samples, 'segments': len(segments),
         'repeated_timestamps': int(np.sum(np.diff(time_s) == 0.0)),

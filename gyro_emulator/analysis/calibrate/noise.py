@@ -136,7 +136,9 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
     axes : sequence of str, optional
         Axes to calibrate (default: all the log has).
     gap_factor, max_tau_fraction : float
-        As for ``gyro-emulator allan``.
+        As for ``gyro-emulator allan``; the record's timing at ``gap_factor``
+        (:meth:`gyro_emulator.recording.record.Record.timing`, worked out
+        once for all axes) is read, not worked out again.
     outlier_threshold : float
         Spikes and motion beyond this many robust standard deviations of
         their neighbours are set aside before the Allan deviation
@@ -153,10 +155,11 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
     found, rate_hz, steps = [], None, []
     skipped = []
     for name in axes:
-        rate, column = allan_record.axis_of(record, name)
+        rate, column = record.gyro_axis(name)
         try:
+            timing = record.timing(gap_factor)
             rate_hz, segments, screened, handled = allan.screened_segments(
-                record.time_s, rate, gap_factor, outlier_threshold, f'axis {name}')
+                timing, rate, outlier_threshold, f'axis {name}')
         except outliers.HeldOutput as exc:
             if len(axes) == 1:
                 raise ValueError(f'{path}: {exc}') from None
@@ -179,7 +182,7 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
                             duration_s=float(record.time_s[-1] - record.time_s[0]),
                             axes=tuple(found), lsb_rad_s=lsb, recovery=record.recovery,
                             skipped=tuple(skipped),
-                            timing=allan_record.missing_note(record.time_s, gap_factor))
+                            timing=allan_record.missing_note(timing))
 
 
 @dataclass(frozen=True)

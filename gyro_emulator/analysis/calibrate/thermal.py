@@ -34,7 +34,7 @@ from dataclasses import dataclass, field, replace
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import analyse as allan_record
 from gyro_emulator.analysis.calibrate.noise import detect_lsb
-from gyro_emulator.recording import csvio, timing
+from gyro_emulator.recording import csvio
 from gyro_emulator.recording.record import DEFAULT_TOPICS
 from gyro_emulator.units import AXES
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
@@ -62,13 +62,20 @@ class ThermalLog:
     Static gyro samples with their die temperature: per axis (time_s, temp_c, rate_rad_s).
 
     Built from loaded records by :func:`thermal_log`; it reads no file.
-    ``temp_columns[axis]`` names where its temperature came from.
+    ``temp_columns[axis]`` names where its temperature came from;
+    ``records[axis]`` is the record the axis came from, whose timing
+    (:meth:`axis_timing`) every step reads.
     """
 
     sources: tuple
     axes: dict
     columns: dict
     temp_columns: dict = field(default_factory=dict)
+    records: dict = field(default_factory=dict)
+
+    def axis_timing(self, axis):
+        """Return the :class:`gyro_emulator.recording.timing.Timing` of ``axis``'s record."""
+        return self.records[axis].timing()
 
 
 #: CSV columns a thermal log must have (:func:`gyro_emulator.recording.record.load_record`).
@@ -81,7 +88,11 @@ def bag_topics(topic=None, temperature_topic=None):
 
 
 def _bag_axes(rec):
-    """Per-axis (time_s, temp_c, rate) of a bag record, its temperature on the gyro's times."""
+    """
+    Per-axis (time_s, temp_c, rate) of a bag record, its temperature on the gyro's times.
+
+    Returns the axes, their columns, their temperature sources and their record.
+    """
     if rec.temp is None:
         raise ValueError(f'{rec.path}: no sensor_msgs/Temperature topic (default '
                          f'{DEFAULT_TOPICS["die_temp"]}): name one with '
@@ -91,7 +102,8 @@ def _bag_axes(rec):
                          'messages: need >= 2')
     temp_c = np.interp(rec.time_s, rec.temp.time_s, rec.temp.values)
     return ({a: (rec.time_s, temp_c, rate) for a, rate in rec.gyro.items()},
-            dict(rec.gyro_sources), {a: f'{rec.path}: {rec.temp.source}' for a in rec.gyro})
+            dict(rec.gyro_sources), {a: f'{rec.path}: {rec.temp.source}' for a in rec.gyro},
+            dict.fromkeys(rec.gyro, rec))
 
 
 def thermal_log(recs):
@@ -106,7 +118,7 @@ def thermal_log(recs):
                          'one to three one-axis files (x, y, z in that order)')
     if len(recs) == 1 and recs[0].is_bag:
         return ThermalLog(paths, *_bag_axes(recs[0].require_gyro()))
-    axes, columns, temps = {}, {}, {}
+    axes, columns, temps, records = {}, {}, {}, {}
     for i, rec in enumerate(recs):
         path = rec.path
         if rec.is_bag:
@@ -121,7 +133,8 @@ def thermal_log(recs):
             axes[axis] = (rec.time_s, rec.temp.values, rec.gyro[named])
             columns[axis] = f'{path}:{name}'
             temps[axis] = f'{path}: {rec.temp.source}'
-    return ThermalLog(paths, axes, columns, temps)
+            records[axis] = rec
+    return ThermalLog(paths, axes, columns, temps, records)
 
 
 @dataclass(frozen=True)
@@ -153,21 +166,23 @@ def _windows(time_s, a, b, window_s):
     return [(int(lo), int(hi)) for lo, hi in zip(idx[:-1], idx[1:]) if hi - lo >= 3]
 
 
-def group_means(time_s, temp_c, rate, window_s=60.0, gap_factor=3.0, keep=None):
+def group_means(timing, temp_c, rate, window_s=60.0, keep=None):
     """
     Average a static log in groups: its bursts, or windows of ``window_s``.
 
-    Bursts (3 or more, none longer than two windows) are the groups of a
-    log taken in bursts; otherwise each contiguous stretch is cut into
-    windows (a continuous log, or one with a few logging gaps).
+    ``timing`` is the :class:`gyro_emulator.recording.timing.Timing` of the
+    samples' stamps: its segments are the bursts. Bursts (3 or more, none
+    longer than two windows) are the groups of a log taken in bursts;
+    otherwise each contiguous stretch is cut into windows (a continuous log,
+    or one with a few logging gaps).
 
     Only the samples ``keep`` marks (default all) count; a group with fewer
     than 3 of them is left out. The standard error of each mean is the
     sample standard deviation over sqrt(count): it treats the samples
     within a group as independent.
     """
-    _, bounds = timing.sample_rate_and_segments(time_s, gap_factor)
-    bounds = [(a, b) for a, b in bounds if b - a >= 3]
+    time_s = timing.time_s
+    bounds = [(a, b) for a, b in timing.bounds if b - a >= 3]
     how = f'{len(bounds)} bursts'
     long = [time_s[b - 1] - time_s[a] > 2.0 * window_s for a, b in bounds]
     if len(bounds) < 3 or any(long):
@@ -354,7 +369,7 @@ def _screen(log, gyro_scale, threshold):
     """
     screened, temps, notes = {}, {}, []
     for axis, (t, temp, rate) in log.axes.items():
-        rate_hz, _ = timing.sample_rate_and_segments(t)
+        rate_hz = log.axis_timing(axis).rate_hz
         try:
             outliers.check_not_held(rate, rate_hz, f'axis {axis}')
         except outliers.HeldOutput as exc:
@@ -426,8 +441,8 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
         raise ValueError(f'gyro_scale = {gyro_scale!r} is out of range: allowed [0.01, 100]')
     log, screened, temp_screened, skipped = _screen(log, gyro_scale, outlier_threshold)
     keep = {a: screened[a].keep & temp_screened[a].keep for a in screened}
-    groups = {a: group_means(t, temp, rate * gyro_scale, window_s, keep=keep[a])
-              for a, (t, temp, rate) in log.axes.items()}
+    groups = {a: group_means(log.axis_timing(a), temp, rate * gyro_scale, window_s, keep=keep[a])
+              for a, (_, temp, rate) in log.axes.items()}
     # the range the fit covers: group means (a glitch in the temperature column
     # moves one group's mean a little, not TMIN or TMAX)
     temps = np.concatenate([g.temp_c for g in groups.values()])
@@ -577,11 +592,11 @@ def compensation_check(fit, params, axis):
                         slope_error=float(err[1]))
 
 
-def white_noise_of(log, axis, gyro_scale=1.0, gap_factor=3.0):
+def white_noise_of(log, axis, gyro_scale=1.0):
     """(N of one axis from its samples, rad/s/sqrt(Hz); sample rate, Hz): IEEE Std 952 fit."""
-    time_s, _, rate = log.axes[axis]
-    rate_hz, segments, _, _ = allan_record.screened_segments(time_s, rate * gyro_scale,
-                                                             gap_factor)
+    rate = log.axes[axis][2]
+    rate_hz, segments, _, _ = allan_record.screened_segments(log.axis_timing(axis),
+                                                             rate * gyro_scale)
     _, found = allan_record.identify(segments, rate_hz)
     return found.arw_rad_s_sqrt_hz, rate_hz
 

@@ -223,9 +223,9 @@ class ThermalCheck:
 
 def check_thermal(fit, log, config, seed=1):
     """Simulate ``config`` along the log's temperature and compare bias against temperature."""
-    first = next(iter(log.axes.values()))
-    time_s = first[0]
-    rate_hz = 1.0 / float(np.median(np.diff(time_s)[np.diff(time_s) > 0]))
+    first = next(iter(log.axes))
+    time_s = log.axes[first][0]
+    rate_hz = 1.0 / log.axis_timing(first).median_step_s
     duration = float(time_s[-1]) + 2.0 / rate_hz
     _, _, batch = simulate.run_simulation(config, log_profile(fit), duration, rate_hz, seed=seed)
     index = {'x': 0, 'y': 1, 'z': 2}

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import os
 import time
 
+from gyro_emulator import atomic
 from gyro_emulator.analysis.fleet import evaluate as fleet_eval
 from gyro_emulator.analysis.fleet import sampling
 from gyro_emulator.analysis.fleet.config import EXACT_METRICS, METRICS
@@ -140,13 +141,27 @@ def run_task(job, blocks, progress=None):
     """
     Draw, evaluate and write ``blocks``; return their counts and samples.
 
-    ``progress(n)`` (in-process runs) is called after each block.
+    ``progress(n)`` (in-process runs) is called after each block. The
+    Parquet file is written whole or not at all
+    (:func:`gyro_emulator.atomic.staged`): a task lost half way leaves at
+    most a hidden temporary, which a resumed run deletes (:mod:`.state`).
     """
     t0 = time.thread_time()
-    config = job.config
-    writer = None
     result = {'blocks': list(blocks), 'counts': {}, 'sample': [], 'attribution': None,
               'sensor_runs': []}
+    if job.write:
+        with atomic.staged(part_path(job.out_dir, blocks[0])) as tmp:
+            _run_blocks(job, blocks, result, progress, tmp)
+    else:
+        _run_blocks(job, blocks, result, progress, None)
+    result['cpu_s'] = time.thread_time() - t0
+    return result
+
+
+def _run_blocks(job, blocks, result, progress, path):
+    """Evaluate ``blocks`` into ``result``; stream their rows into Parquet ``path`` if given."""
+    config = job.config
+    writer = None
     try:
         for block in blocks:
             n = sampling.block_size(job.n_devices, block)
@@ -154,10 +169,10 @@ def run_task(job, blocks, progress=None):
             values, invalid, clipped, metrics, per_spec, ok = fleet_eval.evaluate_draw(
                 config, draw)
             per_check = fleet_eval.within(config.model_checks, metrics, invalid)
-            if job.write:
+            if path is not None:
                 table = _table(job, block, values, invalid, clipped, metrics, per_spec, ok,
                                per_check)
-                writer = writer or _writer(job, blocks[0], table.schema)
+                writer = writer or _writer(path, table.schema)
                 writer.write_table(table)
             add_counts(result['counts'], _counts(config, invalid, clipped, per_spec, ok,
                                                  per_check))
@@ -172,11 +187,6 @@ def run_task(job, blocks, progress=None):
     finally:
         if writer is not None:
             writer.close()
-    if writer is not None:       # whole: a task lost half way leaves only its .partial file
-        path = _part_path(job, blocks[0])
-        os.replace(path + '.partial', path)
-    result['cpu_s'] = time.thread_time() - t0
-    return result
 
 
 def sample_blocks(job, blocks):
@@ -200,12 +210,13 @@ def _sensor_runs(config, values, metrics, invalid, seed):
     return sensor_runs.run_parts(config, values, metrics, invalid, seed)
 
 
-def _part_path(job, first_block):
-    return os.path.join(job.out_dir, 'devices', f'part-{first_block:06d}.parquet')
+def part_path(out_dir, first_block):
+    """Return the Parquet file of the task that starts at ``first_block``."""
+    return os.path.join(out_dir, 'devices', f'part-{first_block:06d}.parquet')
 
 
-def _writer(job, first_block, schema):
-    path = _part_path(job, first_block) + '.partial'
+def _writer(path, schema):
+    """Open a Parquet writer of the fleet's rows at ``path``."""
     # Drawn values and metrics are continuous float32 whose mantissas do not
     # compress: LZ4 saved 5 % of the bytes for 35 % more write time (21 ->
     # 14 ms a block), dictionary encoding saves nothing and costs 5x, and

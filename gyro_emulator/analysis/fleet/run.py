@@ -18,13 +18,13 @@ with one line; every finished task is kept, and ``resume`` finishes the run
 """
 
 import functools
-import json
 import logging
 import os
 import shutil
 import threading
 import time
 
+from gyro_emulator import atomic
 from gyro_emulator.analysis.fleet import engine, report, resources, sampling, state
 from gyro_emulator.validation import check_range
 from tqdm import tqdm
@@ -376,8 +376,7 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
         if dask_run is not None and dask_run.resubmitted:
             run['tasks_resubmitted'] = dask_run.resubmitted
         summary = report.summary(job, results, run)
-        with open(os.path.join(out_dir, 'summary.json'), 'w', encoding='utf-8') as handle:
-            json.dump(summary, handle, indent=2)
+        atomic.write_json(os.path.join(out_dir, 'summary.json'), summary, indent=2)
         report.plots(job, results, summary, os.path.join(out_dir, 'plots'))
         state.finish(job.out_dir)
     finally:

@@ -7,15 +7,17 @@ written) and one ``task-<first block>.json`` per finished task: its
 blocks, counts, attribution and sensor runs (what it returned but the
 quantile samples, which are recomputed from their blocks: the same draws
 give the same float64 metrics). Each file is written whole and then
-renamed into place, as is each task's Parquet file (``part-<first
-block>.parquet``), so neither ever exists half written. A finished run
-deletes the directory.
+renamed into place (:mod:`gyro_emulator.atomic`), as is each task's Parquet
+file (``part-<first block>.parquet``), so neither ever exists half written.
+A finished run deletes the directory.
 
 Resuming keeps the Parquet files of the finished tasks, deletes any other
-(a task lost half way leaves none: only its ``.partial`` file, deleted
-too), and runs the blocks no finished task holds. The rows and the summary
-are those of an uninterrupted run (``test_fleet.py``), because part i is
-the same part whatever the partitioning.
+(a task lost half way leaves none: at most the hidden temporary of its
+Parquet file, ``.part-<first block>.parquet.<pid>.<hex>.tmp``, when its
+process was killed outright; deleted too), and runs the blocks no finished
+task holds. The rows and the summary are those of an uninterrupted run
+(``test_fleet.py``), because part i is the same part whatever the
+partitioning.
 """
 
 from dataclasses import replace
@@ -25,13 +27,11 @@ import json
 import os
 import shutil
 
+from gyro_emulator import atomic
 from gyro_emulator.analysis.fleet.sampling import BLOCK_DEVICES
 
 #: The state directory inside a fleet's output directory.
 STATE_DIR = '.fleet-state'
-
-#: Suffix of a Parquet file being written.
-PARTIAL = '.partial'
 
 
 def state_dir(out_dir):
@@ -48,25 +48,20 @@ def fingerprint(job):
     return hashlib.sha256(what.encode('utf-8')).hexdigest()
 
 
-def _write_json(path, doc):
-    tmp = path + PARTIAL
-    with open(tmp, 'w', encoding='utf-8') as handle:
-        json.dump(doc, handle)
-    os.replace(tmp, path)
-
-
 def begin(out_dir, job):
     """Record what the run is (before its first task)."""
     os.makedirs(state_dir(out_dir), exist_ok=True)
-    _write_json(os.path.join(state_dir(out_dir), 'run.json'),
-                {'fingerprint': fingerprint(job), 'devices': job.n_devices, 'seed': job.seed})
+    atomic.write_json(os.path.join(state_dir(out_dir), 'run.json'),
+                      {'fingerprint': fingerprint(job), 'devices': job.n_devices,
+                       'seed': job.seed})
 
 
 def save(out_dir, result):
     """Record a finished task (its result without the quantile samples)."""
     doc = {key: result[key] for key in ('blocks', 'counts', 'attribution', 'sensor_runs',
                                         'cpu_s')}
-    _write_json(os.path.join(state_dir(out_dir), f'task-{result["blocks"][0]:06d}.json'), doc)
+    atomic.write_json(os.path.join(state_dir(out_dir), f'task-{result["blocks"][0]:06d}.json'),
+                      doc)
 
 
 def load(out_dir, job):
@@ -93,11 +88,14 @@ def load(out_dir, job):
 
 
 def prune(out_dir, results):
-    """Delete the Parquet files of tasks not in ``results`` and every partial file."""
+    """Delete the Parquet files of tasks not in ``results`` and every temporary of one."""
     keep = {f'part-{r["blocks"][0]:06d}.parquet' for r in results}
-    for path in glob.glob(os.path.join(out_dir, 'devices', 'part-*')):
+    devices = os.path.join(out_dir, 'devices')
+    for path in glob.glob(os.path.join(devices, 'part-*')):
         if os.path.basename(path) not in keep:
             os.remove(path)
+    for path in glob.glob(os.path.join(devices, '.part-*' + atomic.TMP_SUFFIX)):
+        atomic.remove(path)
 
 
 def finish(out_dir):

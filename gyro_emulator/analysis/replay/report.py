@@ -1,10 +1,9 @@
 """Comparison of emulated and measured output: residuals, Allan deviations, report, plots."""
 
 from dataclasses import dataclass
-import json
 import os
 
-from gyro_emulator import units
+from gyro_emulator import atomic, plotting, units
 from gyro_emulator.analysis import allan
 from gyro_emulator.units import AXES, NS_PER_S
 import numpy as np
@@ -157,10 +156,8 @@ def report_text(comparison, inputs, header=()):
 
 
 def plot_report(comparison, inputs, out_dir):
-    """Write rates.png, residual.png and allan.png; return their paths."""
-    import matplotlib
-    matplotlib.use('Agg')
-    from matplotlib import pyplot as plt
+    """Write rates.png, residual.png and allan.png (each whole or absent); return their paths."""
+    plt = plotting.pyplot()
 
     paths = []
     if not comparison.matched:
@@ -182,10 +179,8 @@ def plot_report(comparison, inputs, out_dir):
     axes[0].legend(fontsize=8, loc='upper right')
     axes[-1].set_xlabel('time (s)')
     fig.suptitle('Gyro output: measured vs emulated')
-    fig.tight_layout()
     paths.append(os.path.join(out_dir, 'rates.png'))
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    plotting.save(fig, paths[-1], dpi=110)
 
     residual = deg(comparison.emulated_rad_s - comparison.measured_rad_s)
     fig, axes = plt.subplots(3, 2, figsize=(10, 7), gridspec_kw={'width_ratios': [3, 1]})
@@ -196,10 +191,8 @@ def plot_report(comparison, inputs, out_dir):
         axes[i, 1].hist(residual[:, i], bins=60)
     axes[-1, 0].set_xlabel('time (s)')
     fig.suptitle('Residual: emulated - measured')
-    fig.tight_layout()
     paths.append(os.path.join(out_dir, 'residual.png'))
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    plotting.save(fig, paths[-1], dpi=110)
 
     curves = {k: v for k, v in comparison.adev.items() if v}
     if curves:
@@ -216,26 +209,26 @@ def plot_report(comparison, inputs, out_dir):
         axes[0].set_ylabel('Allan deviation (deg/h)')
         axes[0].legend(fontsize=8)
         fig.suptitle('Overlapping Allan deviation: measured vs emulated')
-        fig.tight_layout()
         paths.append(os.path.join(out_dir, 'allan.png'))
-        fig.savefig(paths[-1], dpi=110)
-        plt.close(fig)
+        plotting.save(fig, paths[-1], dpi=110)
     return paths
 
 
 def write_report(out_dir, comparison, inputs, header=(), plots=True):
-    """Write report.json, report.md and the PNG plots into ``out_dir``; return the paths."""
+    """
+    Write report.json, report.md and the PNG plots into ``out_dir``; return the paths.
+
+    Each file is written whole or not at all (:mod:`gyro_emulator.atomic`).
+    """
     os.makedirs(out_dir, exist_ok=True)
     paths = []
     data = {'stats': comparison.stats, 'topics': inputs.topics, 'notes': inputs.notes,
             'header': list(header), 'adev': comparison.adev}
     path = os.path.join(out_dir, 'report.json')
-    with open(path, 'w', encoding='utf-8') as handle:
-        json.dump(data, handle, indent=1)
+    atomic.write_json(path, data, indent=1)
     paths.append(path)
     path = os.path.join(out_dir, 'report.md')
-    with open(path, 'w', encoding='utf-8') as handle:
-        handle.write(report_text(comparison, inputs, header))
+    atomic.write_text(path, report_text(comparison, inputs, header))
     paths.append(path)
     if plots:
         paths += plot_report(comparison, inputs, out_dir)
