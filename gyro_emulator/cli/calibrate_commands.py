@@ -9,7 +9,7 @@ statsmodels (1-4 s), and ``gyro-emulator --help`` imports every command module.
 import os
 import sys
 
-from gyro_emulator import units
+from gyro_emulator import atomic, units
 from gyro_emulator.analysis.allan import plot_adev
 from gyro_emulator.analysis.allan.analyse import summary
 from gyro_emulator.analysis.calibrate import (export_noise, export_thermal, noise, plots,
@@ -23,8 +23,7 @@ from tqdm import tqdm
 
 def _write(path, text):
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
-    with open(path, 'w', encoding='utf-8') as handle:
-        handle.write(text)
+    atomic.write_text(path, text)
     print(f'wrote {path}')
 
 
