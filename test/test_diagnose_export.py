@@ -5,7 +5,9 @@ import json
 import os
 import subprocess
 import sys
+from types import SimpleNamespace
 
+from gyro_emulator.analysis.calibrate.export_noise import TwinNoise
 from gyro_emulator.analysis.diagnose import diagnosis as dg
 from gyro_emulator.analysis.diagnose import export
 from gyro_emulator.analysis.diagnose.baseline import Calibration
@@ -78,6 +80,39 @@ def test_time_terms_get_the_record_origins(tmp_path):
     assert ext.bias_step.bias_step_rad_s == (0.0, 4e-3, 0.0)
     assert 'diagnosed axis y; x, z 0: not measured' in text
     assert 'Source log: log.csv' in text and 'gain_binned' in text
+
+
+def _noise(axis):
+    """Return what ExtendedModel.with_noise reads of a RecordNoise: the fields, the comment."""
+    fields = TwinNoise({axis: {'electronics_arw_deg_sqrt_h': 0.31321234,
+                               'bias_instability_deg_h': 45.551234,
+                               'rate_random_walk_deg_h_sqrt_h': 0.0,
+                               'turn_on_bias_deg_s': -0.470012345}},
+                       {'bias_instability_band_s': (0.013333333333321207, 80.79423993295948),
+                        'bias_instability_per_decade': 2.0, 'lsb_deg_s': 0.00572957795},
+                       frozenset({'electronics_noise', 'bias_instability', 'rate_random_walk',
+                                  'turn_on_bias', 'quantization'}), None)
+    return SimpleNamespace(fields=fields, comment_lines=lambda: ['Noise (--noise): a test'])
+
+
+@pytest.mark.parametrize('start', ['paper', 'consumer', 'tactical'])
+def test_the_extended_model_reads_back_as_its_configuration(tmp_path, start):
+    doc = _doc(_cause('bias_temperature', bias_temp_coeff_rad_s_k=2e-5 / 3),
+               _cause('g_sensitivity', **{f'g_sensitivity_{a}_rad_s_per_m_s2': 1e-4 / 7
+                                          for a in 'xyz'}),
+               _cause('bias_time', warmup_time_constant_s=600.0, warmup_rad_s=1e-3 / 3,
+                      bias_drift_rad_s_per_h=-2e-4))
+    model = export.extended_model(doc, start, axis='x')
+    assert _load(tmp_path, model.text()) == model.config
+    assert model.config.extended.bias_time.warmup_rad_s == (1e-3 / 3, 0.0, 0.0)
+    noisy = model.with_noise(_noise('x'))
+    text = noisy.text()
+    config = _load(tmp_path, text)
+    assert config == noisy.config and config.extended == model.config.extended
+    assert config.terms.quantization and not config.terms.mechanical_noise
+    kept = model.config.electronics_noise_rad_s_sqrt_hz
+    assert config.electronics_noise_rad_s_sqrt_hz[1:] == kept[1:]
+    assert '# Noise (--noise): a test\n' in text
 
 
 def test_bias_temperature_is_recentred_on_the_calibration_temperature(tmp_path):

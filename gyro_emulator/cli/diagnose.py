@@ -13,11 +13,11 @@ mapped with the --*-topic options. Outliers are set aside, then causes are
 added one by one while each gives a significant held-out gain; the verdict
 says whether the residual is at the record's own noise floor, what cannot
 be told apart and which experiment would separate it.
-
-The options become one :class:`gyro_emulator.analysis.diagnose.command.Request`;
-:func:`gyro_emulator.analysis.diagnose.command.execute` does the rest and speaks
-through :class:`Console`.
 """
+
+# (The docstring above is the command's --help text.) The options become one
+# gyro_emulator.analysis.diagnose.command.Request; command.execute does the
+# rest and speaks through Console.
 
 import sys
 
