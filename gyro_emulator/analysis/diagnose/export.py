@@ -42,7 +42,7 @@ import os
 from gyro_emulator import atomic
 from gyro_emulator.resources import read_yaml
 from gyro_emulator.sensor.config import (config_from_mapping, config_yaml, PRESET_NAMES,
-                                         preset_path, YAML_ALIASES, YamlKey)
+                                         preset_path, SensorConfig, YAML_ALIASES, YamlKey)
 from gyro_emulator.sensor.extensions import TERM_TYPES
 from gyro_emulator.units import AXES
 
@@ -96,7 +96,7 @@ class ExtendedModel:
     ``commented`` the causes written commented out: (cause id, values, reason).
     """
 
-    config: object
+    config: SensorConfig
     layout: tuple
     header: str
     axis: str
