@@ -27,7 +27,7 @@ import time
 import benchenv  # noqa: F401 - one core: pins the BLAS thread pools before numpy loads
 
 from gyro_emulator.analysis.diagnose import (diagnose, EFFECT_IDS, load_measured,  # noqa: E402
-                                             write_measured_csv)
+                                             to_json, write_measured_csv)
 from gyro_emulator.analysis.diagnose.report import write_report  # noqa: E402
 from gyro_emulator.emulation.truth.generator import make_truth  # noqa: E402
 
@@ -46,7 +46,7 @@ def _timed(args, record):
     t2 = time.perf_counter()
     write_report(result, os.path.join(args.out, 'report'))
     t3 = time.perf_counter()
-    doc = result.doc
+    doc = to_json(result)
     print(f'fits on {doc["input"]["bins"]} bins of {doc["input"]["bin_s"]:.2f} s; '
           f'{doc["set_aside"]["count"]} samples set aside')
     print(f'read CSV      {t1 - t0:7.2f} s')
@@ -69,17 +69,18 @@ def _reference(data, truth, effect):
     t5 = time.perf_counter()
     full = diagnose(data, effects=only, max_bins=data.rows)
     t6 = time.perf_counter()
+    binned, full = to_json(binned), to_json(full)
     print(f'reference ({effect} only): bin means {t5 - t4:.2f} s, '
-          f'full resolution ({full.doc["input"]["bins"]} rows) {t6 - t5:.2f} s, '
+          f'full resolution ({full["input"]["bins"]} rows) {t6 - t5:.2f} s, '
           f'ratio {(t6 - t5) / (t5 - t4):.1f}x')
-    pb = binned.doc['findings'][0]['parameters']
-    pf = full.doc['findings'][0]['parameters']
+    pb = binned['findings'][0]['parameters']
+    pf = full['findings'][0]['parameters']
     for name, true_value in truth['parameters'].items():
         print(f'  {name}: truth {true_value:.5g}, bin means '
               f'{pb[name]["value"]:.5g} +- {pb[name]["sigma"]:.2g}, full '
               f'resolution {pf[name]["value"]:.5g} +- {pf[name]["sigma"]:.2g}')
-    print(f'  held-out RMSE: bin-mean fit {binned.doc["findings"][0]["rmse_rad_s"]:.5g}'
-          f', full-resolution fit {full.doc["findings"][0]["rmse_rad_s"]:.5g} rad/s')
+    print(f'  held-out RMSE: bin-mean fit {binned["findings"][0]["rmse_rad_s"]:.5g}'
+          f', full-resolution fit {full["findings"][0]["rmse_rad_s"]:.5g} rad/s')
 
 
 def _adversarial(args):
@@ -90,7 +91,7 @@ def _adversarial(args):
           f'ramp, bias following temperature, {truth["outliers"]["spikes"]} spikes '
           f'({100 * truth["outliers"]["spikes"] / len(record.time_s):.3f} %) (seed {args.seed})')
     data, result = _timed(args, record)
-    doc = result.doc
+    doc = to_json(result)
     best = doc['best']
     every = best['gain_all_samples']
     print(f'spikes set aside: {best["effect"]} gain {100 * best["gain"]:.1f} % '
@@ -98,7 +99,7 @@ def _adversarial(args):
           f'residual {doc["residual"]["excess"]:.2f}x its floor, confounded: '
           + ', '.join(f"{c['a']}/{c['b']} r={c['correlation']:+.4f}"
                       for c in doc['confounded']))
-    raw = diagnose(data, outlier_threshold=math.inf).doc
+    raw = to_json(diagnose(data, outlier_threshold=math.inf))
     named = raw['best']['effect']
     print(f'every sample kept:  best {named}, gain {100 * raw["best"]["gain"]:.1f} %, '
           f'verdict {raw["verdict"]}')

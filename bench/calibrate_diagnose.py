@@ -38,7 +38,7 @@ import os
 
 import benchenv  # one core: pins the BLAS thread pools before numpy loads
 
-from gyro_emulator.analysis.diagnose import diagnose  # noqa: E402
+from gyro_emulator.analysis.diagnose import diagnose, to_json  # noqa: E402
 from gyro_emulator.emulation.truth import injection as inj  # noqa: E402
 from gyro_emulator.emulation.truth.generator import make_truth  # noqa: E402
 import numpy as np  # noqa: E402
@@ -72,7 +72,7 @@ def _run(profile, count, alpha):
     for seed in tqdm(range(count), desc=profile, unit='record'):
         record, _ = make_truth('none', seed, profile=profile, sample_rate_hz=rate,
                                noise=_noise(seed), **extra)
-        doc = diagnose(record, alpha=alpha).doc
+        doc = to_json(diagnose(record, alpha=alpha))
         if doc['best']['effect'] != 'none':
             false.append((seed, doc['best']['effect']))
         step1 = doc['steps'][0]['candidates']
@@ -104,7 +104,7 @@ def _run_real(count, alpha):
             tt, noise = inj.stretch(*logs[axis], seconds, rng)
             record = inj.inject(noise, inj.profile(prof, tt, rng), {},
                                 sf_error=float(rng.uniform(-5e-3, 5e-3)))
-            doc = diagnose(record, alpha=alpha).doc
+            doc = to_json(diagnose(record, alpha=alpha))
             n += 1
             if doc['best']['effect'] != 'none':
                 false.append((name, axis, prof, doc['best']['effect']))
@@ -135,7 +135,7 @@ def _run_disjoint(seconds, alpha):
                 prof = REAL_PROFILES[(n + k) % len(REAL_PROFILES)]
                 record = inj.inject(noise, inj.profile(prof, tt, rng), {},
                                     sf_error=float(rng.uniform(-5e-3, 5e-3)))
-                doc = diagnose(record, alpha=alpha).doc
+                doc = to_json(diagnose(record, alpha=alpha))
                 verdicts[doc['verdict']] = verdicts.get(doc['verdict'], 0) + 1
                 if doc['best']['effect'] != 'none':
                     false.append((name, axis, k, prof, doc['best']['effect']))

@@ -22,7 +22,7 @@ import os
 import tempfile
 import time
 
-from gyro_emulator.analysis.diagnose import diagnose, export
+from gyro_emulator.analysis.diagnose import diagnose, export, to_json
 from gyro_emulator.emulation.truth.generator import make_truth
 from gyro_emulator.recording.record import Record
 from gyro_emulator.sensor.config import config_from_mapping
@@ -74,10 +74,11 @@ def closes(planted, rate_hz, seed, folder):
         record = sf_drift_record(rate_hz, seed)
     else:
         record, _ = make_truth(planted, seed=seed, sample_rate_hz=rate_hz)
-    first = diagnose(record).doc
+    diagnosis = diagnose(record)
+    first = to_json(diagnosis)
     part = os.path.join(folder, f'{planted}.yaml')
-    export.write_text(part, export.extended_model(first, 'paper')[0])
-    second = diagnose(record, config=part).doc
+    export.write_text(part, export.extended_model(diagnosis, 'paper').text())
+    second = to_json(diagnose(record, config=part))
     row = {'planted': planted, 'term': PLANTED[planted],
            'found': [e['effect'] for e in first['selected']],
            'second': second['verdict'], 'further': [e['effect'] for e in second['selected']],

@@ -28,7 +28,7 @@ import warnings
 
 import benchenv  # one core: pins the BLAS thread pools before numpy loads
 
-from gyro_emulator.analysis.diagnose import diagnose  # noqa: E402
+from gyro_emulator.analysis.diagnose import diagnose, to_json  # noqa: E402
 from gyro_emulator.emulation.truth import injection as inj  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
@@ -91,7 +91,7 @@ def main():
         for label, t, noise in tqdm(versions, desc=f'{size:g} deg/s/K', unit='record'):
             inputs = inj.profile('cycles', t, np.random.default_rng(0))
             record = inj.inject(noise, inputs, {'bias_tempco': size * DEG} if size else {})
-            doc = diagnose(record, alpha=args.alpha).doc
+            doc = to_json(diagnose(record, alpha=args.alpha))
             named = set()
             for entry in doc['selected']:
                 named |= {entry['effect']} | set(entry['indistinguishable_from'])

@@ -32,7 +32,7 @@ import os
 
 import benchenv  # one core: pins the BLAS thread pools before numpy loads
 
-from gyro_emulator.analysis.diagnose import diagnose, selection  # noqa: E402
+from gyro_emulator.analysis.diagnose import diagnose, selection, to_json  # noqa: E402
 from gyro_emulator.emulation.truth import injection as inj  # noqa: E402
 from gyro_emulator.sensor import noise as sensor_noise  # noqa: E402
 import numpy as np  # noqa: E402
@@ -67,7 +67,7 @@ def _capture(record, effect_id='bias_temperature'):
 
     selection.Selector.state_space_test = hook
     try:
-        doc = diagnose(record).doc
+        doc = to_json(diagnose(record))
     finally:
         selection.Selector.state_space_test = original
     return doc, seen

@@ -26,10 +26,10 @@ import xml.etree.ElementTree as ElementTree
 import cv2
 from gyro_emulator import cli, units
 from gyro_emulator.analysis.calibrate import export_noise, export_thermal, noise, thermal
-from gyro_emulator.analysis.calibrate.yaml_text import dump, Figure, float_text
 from gyro_emulator.recording.record import load_record, Record
 from gyro_emulator.sensor.config import SensorConfig
 from gyro_emulator.sensor.model import GyroModel
+from gyro_emulator.yaml_text import dump, Figure, float_text
 import numpy as np
 import pytest
 import yaml

@@ -18,7 +18,7 @@ import sys
 
 from gyro_emulator.analysis.diagnose import baseline as base
 from gyro_emulator.analysis.diagnose import (CANDIDATE_IDS, CATALOGUE, diagnose, EFFECT_IDS,
-                                             load_measured, write_measured_csv)
+                                             load_measured, to_json, write_measured_csv)
 from gyro_emulator.emulation.truth.effects import EXTRA_TRUTHS, TRUTH_EFFECTS
 from gyro_emulator.emulation.truth.generator import make_truth
 from gyro_emulator.physics.presets import physics_preset
@@ -104,7 +104,7 @@ def test_truth_is_the_one_simulator_gyromodel():
 @pytest.mark.parametrize('effect', EFFECT_IDS)
 def test_hidden_effect_is_named_with_a_real_gain(tmp_path, effect, seed):
     record, truth = make_truth(effect, seed, sample_rate_hz=RATE_HZ, levels=LEVELS)
-    doc = diagnose(_through_csv(tmp_path, record)).doc
+    doc = to_json(diagnose(_through_csv(tmp_path, record)))
     best = doc['best']
     ranked = [(f['effect'], round(f['gain'], 4), f['significant']) for f in doc['findings']]
     assert best['gain'] >= 0.5
@@ -138,7 +138,7 @@ def test_hidden_effect_is_named_with_a_real_gain(tmp_path, effect, seed):
 @pytest.mark.parametrize('seed', (0, 1, 2))
 def test_clean_data_gives_none(tmp_path, seed):
     record, truth = make_truth('none', seed, sample_rate_hz=RATE_HZ, levels=LEVELS)
-    doc = diagnose(_through_csv(tmp_path, record)).doc
+    doc = to_json(diagnose(_through_csv(tmp_path, record)))
     assert doc['best']['effect'] == 'none', [
         (f['effect'], f['gain_over_recalibrated'], f['p_value']) for f in doc['findings']]
     assert doc['selected'] == [] and doc['verdict'] == 'no_mismatch'
@@ -184,7 +184,7 @@ def test_the_papers_validation_experiment_with_sutherland_air(tmp_path):
                                sample_rate_hz=2.0,
                                params={'sutherland_constant_k': 110.4})
     result = diagnose(_through_csv(tmp_path, record))
-    doc = result.doc
+    doc = to_json(result)
     assert doc['best']['effect'] == 'viscosity_temperature'
     assert doc['best']['parameters']['sutherland_constant_k']['value'] == \
         pytest.approx(110.4, rel=0.01)
@@ -192,15 +192,15 @@ def test_the_papers_validation_experiment_with_sutherland_air(tmp_path):
     assert doc['verdict'] == 'explained'
     # the paper's model over-reads the rate when hot: at 85 C and 40 RPM the
     # residual (measured - model) is strongly negative before the extension
-    b = result.prepared.binned
+    b = result.plots.prepared.binned
     hot = (b.temp_c > 84.0) & (b.rate > 4.0)
-    assert np.mean(result.residual_before[hot]) < -0.5
-    assert abs(np.mean(result.residual_after[hot])) < 0.01
+    assert np.mean(result.plots.before[hot]) < -0.5
+    assert abs(np.mean(result.plots.after[hot])) < 0.01
 
 
 @pytest.mark.skipif(not os.path.isdir(REAL), reason='real data not present')
 def test_real_lsm6dsm_log_states_the_temperature_time_confounding(tmp_path):
-    doc = diagnose(load_measured(os.path.join(REAL, 'lsm6dsm_tvc_x.csv'))).doc
+    doc = to_json(diagnose(load_measured(os.path.join(REAL, 'lsm6dsm_tvc_x.csv'))))
     untested = {nt['effect'] for nt in doc['not_tested']}
     # static: the scale-factor causes cannot be observed, and say so
     assert {'viscosity_temperature', 'thermal_lag', 'time_delay', 'pressure_drift',

@@ -1,11 +1,16 @@
 """diagnose --write-config: the extended model as a sensor YAML the emulator loads."""
 
+from dataclasses import fields
 import json
 import os
 import subprocess
 import sys
+from types import SimpleNamespace
 
+from gyro_emulator.analysis.calibrate.export_noise import TwinNoise
+from gyro_emulator.analysis.diagnose import diagnosis as dg
 from gyro_emulator.analysis.diagnose import export
+from gyro_emulator.analysis.diagnose.baseline import Calibration
 from gyro_emulator.sensor.config import load_sensor_config
 from gyro_emulator.sensor.extensions import TERM_TYPES
 import pytest
@@ -20,20 +25,28 @@ def _cli(*args):
                           cwd=ROOT, capture_output=True, text=True, env=env)
 
 
+def _make(cls, **given):
+    """Return a ``cls`` (a frozen dataclass of the diagnosis) with the fields not given None."""
+    return cls(**{f.name: given.get(f.name) for f in fields(cls)})
+
+
 def _cause(effect, **values):
-    return {'effect': effect, 'kind': 'generic', 'gain': 0.5, 'gain_step': 0.4,
-            'gain_binned': 0.8, 'p_value': 1e-6, 'indistinguishable_from': [],
-            'parameters': {k: {'value': v, 'sigma': 0.1 * abs(v), 'unit': 'u'}
-                           for k, v in values.items()}}
+    params = dg.frozen_mapping({k: dg.Parameter(value=v, sigma=0.1 * abs(v), unit='u',
+                                                meaning='') for k, v in values.items()})
+    return _make(dg.Cause, effect=effect, kind='generic', gain=0.5, gain_step=0.4,
+                 gain_binned=0.8, p_value=1e-6, indistinguishable_from=(), parameters=params)
 
 
 def _doc(*selected, suggestive=None, findings=(), ref_temp_c=25.0):
-    return {'input': {'source': 'log.csv', 'rows': 1000, 'time_span_s': [100.0, 7300.0]},
-            'calibration': {'ref_temp_c': ref_temp_c}, 'verdict': 'explained',
-            'baseline': {'rmse_rad_s': 1e-3}, 'selected': list(selected),
-            'residual': {'suggestive': suggestive}, 'findings': list(findings),
-            'confounded': [{'a': 'time', 'b': 'temperature', 'correlation': 0.98}],
-            'confounded_pair': None}
+    hint = None if suggestive is None else dg.Suggestive(**suggestive)
+    return _make(dg.Diagnosis,
+                 record=_make(dg.RecordSummary, source='log.csv', rows=1000,
+                              time_span_s=(100.0, 7300.0)),
+                 calibration=_make(Calibration, ref_temp_c=ref_temp_c), verdict='explained',
+                 baseline=_make(dg.Baseline, rmse_rad_s=1e-3), selected=tuple(selected),
+                 residual=_make(dg.Residual, suggestive=hint), findings=tuple(findings),
+                 confounded=(dg.Confound(a='time', b='temperature', correlation=0.98),),
+                 confounded_pair=None)
 
 
 def _load(tmp_path, text):
@@ -54,7 +67,8 @@ def test_time_terms_get_the_record_origins(tmp_path):
                _cause('bias_time', warmup_time_constant_s=600.0, warmup_rad_s=1e-3,
                       bias_drift_rad_s_per_h=-2e-4),
                _cause('bias_step', step_time_s=3000.0, bias_step_rad_s=4e-3))
-    text, commented = export.extended_model(doc, 'paper', axis='y')
+    model = export.extended_model(doc, 'paper', axis='y')
+    text, commented = model.text(), model.warnings
     assert commented == []
     ext = _load(tmp_path, text).extended
     assert ext.start_time_s == 100.0                    # the record's first sample
@@ -68,11 +82,44 @@ def test_time_terms_get_the_record_origins(tmp_path):
     assert 'Source log: log.csv' in text and 'gain_binned' in text
 
 
+def _noise(axis):
+    """Return what ExtendedModel.with_noise reads of a RecordNoise: the fields, the comment."""
+    fields = TwinNoise({axis: {'electronics_arw_deg_sqrt_h': 0.31321234,
+                               'bias_instability_deg_h': 45.551234,
+                               'rate_random_walk_deg_h_sqrt_h': 0.0,
+                               'turn_on_bias_deg_s': -0.470012345}},
+                       {'bias_instability_band_s': (0.013333333333321207, 80.79423993295948),
+                        'bias_instability_per_decade': 2.0, 'lsb_deg_s': 0.00572957795},
+                       frozenset({'electronics_noise', 'bias_instability', 'rate_random_walk',
+                                  'turn_on_bias', 'quantization'}), None)
+    return SimpleNamespace(fields=fields, comment_lines=lambda: ['Noise (--noise): a test'])
+
+
+@pytest.mark.parametrize('start', ['paper', 'consumer', 'tactical'])
+def test_the_extended_model_reads_back_as_its_configuration(tmp_path, start):
+    doc = _doc(_cause('bias_temperature', bias_temp_coeff_rad_s_k=2e-5 / 3),
+               _cause('g_sensitivity', **{f'g_sensitivity_{a}_rad_s_per_m_s2': 1e-4 / 7
+                                          for a in 'xyz'}),
+               _cause('bias_time', warmup_time_constant_s=600.0, warmup_rad_s=1e-3 / 3,
+                      bias_drift_rad_s_per_h=-2e-4))
+    model = export.extended_model(doc, start, axis='x')
+    assert _load(tmp_path, model.text()) == model.config
+    assert model.config.extended.bias_time.warmup_rad_s == (1e-3 / 3, 0.0, 0.0)
+    noisy = model.with_noise(_noise('x'))
+    text = noisy.text()
+    config = _load(tmp_path, text)
+    assert config == noisy.config and config.extended == model.config.extended
+    assert config.terms.quantization and not config.terms.mechanical_noise
+    kept = model.config.electronics_noise_rad_s_sqrt_hz
+    assert config.electronics_noise_rad_s_sqrt_hz[1:] == kept[1:]
+    assert '# Noise (--noise): a test\n' in text
+
+
 def test_bias_temperature_is_recentred_on_the_calibration_temperature(tmp_path):
     c1, c2 = 2e-5, 3e-7
-    text, _ = export.extended_model(
+    text = export.extended_model(
         _doc(_cause('bias_temperature', bias_temp_coeff_rad_s_k=c1,
-                    bias_temp_coeff2_rad_s_k2=c2), ref_temp_c=35.0), 'paper', axis='x')
+                    bias_temp_coeff2_rad_s_k2=c2), ref_temp_c=35.0), 'paper', axis='x').text()
     config = _load(tmp_path, text)
     # about 25 C: c1 + 2 c2 (25 - 35), c2 (the constant is the user's bias calibration)
     assert config.bias_temp_coeff_rad_s_k == pytest.approx((c1 - 20 * c2, 0.0, 0.0), abs=1e-18)
@@ -83,14 +130,14 @@ def test_bias_temperature_is_recentred_on_the_calibration_temperature(tmp_path):
 def test_suggestive_and_unmodelled_causes_are_commented_out(tmp_path):
     hint = {'effect': 'bias_hysteresis', 'gain': 0.3, 'p_value': 0.02}
     finding = _cause('bias_hysteresis', hysteresis_width_k=2.0, bias_hysteresis_rad_s=1e-3)
-    text, commented = export.extended_model(
-        _doc(suggestive=hint, findings=[finding]), 'paper')
+    model = export.extended_model(_doc(suggestive=hint, findings=[finding]), 'paper')
+    text, commented = model.text(), model.warnings
     assert [c for c, _ in commented] == ['bias_hysteresis']
     assert '# bias_hysteresis: {hysteresis_width_k: 2' in text
     assert 'suggestive, not established' in text
     assert _load(tmp_path, text).extended.active() == ()
-    text, commented = export.extended_model(
-        _doc(_cause('time_delay', delay_s=0.01)), 'paper')
+    model = export.extended_model(_doc(_cause('time_delay', delay_s=0.01)), 'paper')
+    text, commented = model.text(), model.warnings
     assert commented[0][0] == 'time_delay' and 'no delay' in commented[0][1]
     assert '# time_delay: {delay_s: 0.01}   # not active:' in text
     assert _load(tmp_path, text).extended.active() == ()
@@ -175,15 +222,16 @@ def test_cli_config_with_a_term_the_baseline_cannot_carry(tmp_path):
 @pytest.mark.parametrize('planted,found', [('electronics_sf_tempco', 'scale_factor_temperature'),
                                            ('pressure_drift', 'pressure_drift')])
 def test_the_loop_closes_on_planted_causes(tmp_path, planted, found):
-    from gyro_emulator.analysis.diagnose import diagnose
+    from gyro_emulator.analysis.diagnose import diagnose, to_json
     from gyro_emulator.emulation.truth.generator import make_truth
 
     record, _ = make_truth(planted, seed=5)
-    first = diagnose(record).doc
+    diagnosis = diagnose(record)
+    first = to_json(diagnosis)
     assert [e['effect'] for e in first['selected']] == [found]
     part = tmp_path / 'part.yaml'
-    export.write_text(str(part), export.extended_model(first, 'paper')[0])
-    second = diagnose(record, config=str(part)).doc
+    export.write_text(str(part), export.extended_model(diagnosis, 'paper').text())
+    second = to_json(diagnose(record, config=str(part)))
     assert second['selected'] == [] and second['verdict'] in ('no_mismatch', 'explained')
     # the emulator's own output scores what diagnose claimed for the extension
     assert second['baseline']['rmse_rad_s'] == pytest.approx(

@@ -1,10 +1,13 @@
 """The report says what was done (issue 25, item 9): every line checked against its numbers."""
 
 import os
+from types import SimpleNamespace
 
 from gyro_emulator.analysis.calibrate import thermal
 from gyro_emulator.analysis.diagnose import generic, report
 from gyro_emulator.analysis.diagnose import verdict as vd
+from gyro_emulator.analysis.diagnose.baseline import Calibration
+from gyro_emulator.analysis.diagnose.noise_model import NoiseModel
 import numpy as np
 import pytest
 
@@ -24,19 +27,24 @@ def _res(excess=1.001, slow=1.094, r2=0.26, r2_limit=0.05, margin=0.22, tau=35.8
             'r2': {'time': 0.01}, 'strongest_correlate': 'time'}
 
 
+def _diagnosis(has_temp):
+    """Return what calibration_samples_text reads of a diagnosis (the record, the calibration)."""
+    cal = Calibration(ref_temp_c=25.0, window_c=2.0, bias_rad_s=0.0, scale_factor=1.0,
+                      scale_factor_calibrated=False, samples=44930, mean_time_s=0.0)
+    return SimpleNamespace(record=SimpleNamespace(has_temp=has_temp), calibration=cal)
+
+
 def test_calibration_of_a_record_without_temperature_says_all_samples():
-    doc = {'input': {'has_temp': False},
-           'calibration': {'samples': 44930, 'window_c': 2.0, 'ref_temp_c': 25.0}}
-    text = report.calibration_samples_text(doc)
+    text = report.calibration_samples_text(_diagnosis(has_temp=False))
     assert text.startswith('all 44930 samples') and 'no temperature' in text
     assert 'within' not in text
-    doc['input']['has_temp'] = True
-    assert report.calibration_samples_text(doc) == '44930 samples within 2.00 C of 25.0 C'
+    assert (report.calibration_samples_text(_diagnosis(has_temp=True))
+            == '44930 samples within 2.00 C of 25.0 C')
 
 
 def test_noise_line_never_claims_an_allan_deviation_up_to_0_s():
-    assert 'up to 35.8 s' in report.allan_text({'allan_tau_max_s': 35.8})
-    text = report.allan_text({'allan_tau_max_s': 0.0})
+    assert 'up to 35.8 s' in report.allan_text(NoiseModel(1e-3, 1e-3, 0.0, 0.0, 35.8))
+    text = report.allan_text(NoiseModel(1e-3, 1e-3, 0.0, 0.0, 0.0))
     assert 'up to 0' not in text and 'not measured' in text
 
 
@@ -99,30 +107,32 @@ def test_temperature_polynomials_follow_the_rule_of_calibrate(span, count):
 
 @pytest.mark.skipif(not os.path.exists(LSM_X), reason='real data not present')
 def test_real_lsm6dsm_x_fits_no_quadratic_term_over_8_k():
-    from gyro_emulator.analysis.diagnose import diagnose, load_measured
+    from gyro_emulator.analysis.diagnose import diagnose, load_measured, to_json
 
-    doc = diagnose(load_measured(LSM_X)).doc
+    diagnosis = diagnose(load_measured(LSM_X))
+    doc = to_json(diagnosis)
     poly = doc['temperature_polynomial']
     assert poly['order'] == 1 and 8.0 < poly['span_k'] < 8.5
     assert '15 K' in poly['note']
     for entry in doc['selected'] + doc['findings']:
         assert not any(name.startswith(('bias_temp_coeff2', 'sf_temp_coeff2'))
                        for name in entry['parameters'])
-    assert 'up to 0 s' not in report.markdown(doc)
+    assert 'up to 0 s' not in report.markdown(diagnosis)
 
 
 @pytest.mark.skipif(not os.path.exists(MPU), reason='real data not present')
 def test_real_mpu6050_z_verdict_agrees_with_its_stated_numbers():
-    from gyro_emulator.analysis.diagnose import diagnose, load_measured
+    from gyro_emulator.analysis.diagnose import diagnose, load_measured, to_json
 
-    doc = diagnose(load_measured(MPU, axis='z', static=True)).doc
+    diagnosis = diagnose(load_measured(MPU, axis='z', static=True))
+    doc = to_json(diagnosis)
     res = doc['residual']
     failed = vd._failed(res)
     assert (doc['verdict'] == 'unexplained') == (failed is not None)
     if failed:
         assert f'exceeds what noise alone reaches {failed}' in res['message']
     assert 'largest share' not in res['message']
-    page = report.markdown(doc)
+    page = report.markdown(diagnosis)
     assert 'samples within' not in page and 'from all 44930 samples' in page
     follows = vd.follows(res)
     for text in doc['experiments']:

@@ -14,7 +14,7 @@ no false cause.
 import math
 import os
 
-from gyro_emulator.analysis.diagnose import diagnose, load_measured, measured
+from gyro_emulator.analysis.diagnose import diagnose, load_measured, measured, to_json
 from gyro_emulator.emulation.truth.generator import make_truth
 import pytest
 from scipy import stats
@@ -29,7 +29,7 @@ COLOURS = ((1.0, 0.5), (30.0, 1.0), (2.0, 30.0), (15.0, 15.0))
 
 def _lab(effect, seed, **kw):
     record, truth = make_truth(effect, seed, sample_rate_hz=2.0, levels=4, **kw)
-    return diagnose(record).doc, truth
+    return to_json(diagnose(record)), truth
 
 
 def _named(doc):
@@ -48,15 +48,15 @@ def test_spikes_on_a_thermal_ramp_do_not_decide_the_answer(seed):
     record, truth = make_truth('bias_temperature', seed, profile='thermal_ramp',
                                sample_rate_hz=0.2, outliers='spikes')
     kept = diagnose(record)
-    doc = kept.doc
-    dropped = record.time_s[~kept.prepared.keep]
+    doc = to_json(kept)
+    dropped = record.time_s[~kept.plots.prepared.keep]
     assert set(truth['outliers']['spike_times_s']) <= set(dropped)
     assert doc['set_aside']['count'] <= truth['outliers']['spikes'] + 2
     assert 'bias_temperature' in _named(doc)
     assert doc['best']['gain'] >= 0.5
     # counted over every sample, the spikes hide most of that gain
     assert doc['best']['gain_all_samples'] < doc['best']['gain'] - 0.2
-    raw = diagnose(record, outlier_threshold=math.inf).doc
+    raw = to_json(diagnose(record, outlier_threshold=math.inf))
     assert raw['set_aside']['count'] == 0
     assert raw['best']['gain'] < doc['best']['gain'] - 0.2
 
@@ -83,7 +83,7 @@ def test_correlated_noise_alone_gives_none(seed, colour):
     for profile, rate in (('lab', 2.0), ('thermal_ramp', 0.2)):
         record, _ = make_truth('none', seed, profile=profile, sample_rate_hz=rate, levels=4,
                                noise=noise)
-        doc = diagnose(record).doc
+        doc = to_json(diagnose(record))
         assert doc['best']['effect'] == 'none', (profile, doc['steps'][0]['candidates'][:3])
         assert doc['verdict'] in ('no_mismatch', 'unexplained')
 
@@ -127,8 +127,8 @@ def test_hysteresis_without_its_generic_model_is_not_called_explained():
     # the case: hysteresis once went to temperature_rate_bias with
     # confidence; with no hysteresis model offered, what remains is said
     record, _ = make_truth('bias_hysteresis', 0, sample_rate_hz=2.0, levels=4)
-    doc = diagnose(record, effects=['bias_temperature', 'temperature_rate_bias',
-                                    'bias_time', 'bias_step']).doc
+    doc = to_json(diagnose(record, effects=['bias_temperature', 'temperature_rate_bias',
+                                            'bias_time', 'bias_step']))
     assert doc['verdict'] in ('partly_explained', 'unexplained')
     assert doc['residual']['structure_remains']
 
@@ -138,7 +138,7 @@ def test_hysteresis_without_its_generic_model_is_not_called_explained():
 def test_a_confounded_ramp_says_so_and_names_the_experiment(seed):
     record, _ = make_truth('bias_temperature', seed, profile='thermal_ramp',
                            sample_rate_hz=0.2)
-    doc = diagnose(record).doc
+    doc = to_json(diagnose(record))
     pair = [c for c in doc['confounded'] if {c['a'], c['b']} == {'temperature', 'time'}]
     assert pair and abs(pair[0]['correlation']) > 0.99
     assert doc['best']['effect'] in ('bias_temperature', 'bias_time')
@@ -146,7 +146,7 @@ def test_a_confounded_ramp_says_so_and_names_the_experiment(seed):
     # cycling the chamber back separates them: no confounding is reported
     cycled, _ = make_truth('bias_temperature', seed, profile='thermal_cycle',
                            sample_rate_hz=0.2)
-    doc = diagnose(cycled).doc
+    doc = to_json(diagnose(cycled))
     assert doc['confounded'] == [] and doc['best']['effect'] == 'bias_temperature'
 
 
@@ -154,7 +154,7 @@ def test_a_confounded_ramp_says_so_and_names_the_experiment(seed):
 def test_a_log_without_temperature_tests_only_what_it_can_show():
     record, _ = make_truth('bias_step', 1, profile='static', sample_rate_hz=10.0,
                            record_temperature=False, duration_s=7200.0)
-    doc = diagnose(record).doc
+    doc = to_json(diagnose(record))
     reasons = {nt['effect']: nt['reason'] for nt in doc['not_tested']}
     assert reasons['bias_temperature'] == 'the record has no temperature reading'
     assert 'scale_factor_step' in reasons and 'g_sensitivity' in reasons
@@ -184,7 +184,7 @@ def test_false_alarm_rate_is_at_most_nominal_over_seeded_records():
                                sample_rate_hz=0.2 if seed % 2 else 1.0,
                                duration_s=6 * 3600.0 if seed % 2 else 2 * 3600.0,
                                noise={'bias_instability_deg_h': b, 'rrw_deg_h_sqrt_h': k})
-        doc = diagnose(record).doc
+        doc = to_json(diagnose(record))
         false += doc['best']['effect'] != 'none'
         step1 = doc['steps'][0]['candidates']
         small += min(c['p_value'] for c in step1) * len(step1) < 0.2
@@ -195,7 +195,7 @@ def test_false_alarm_rate_is_at_most_nominal_over_seeded_records():
 @pytest.mark.skipif(not os.path.exists(MPU), reason='real data not present')
 @pytest.mark.parametrize('axis', 'xyz')
 def test_real_mpu6050_static_log_gives_no_false_cause(axis):
-    doc = diagnose(load_measured(MPU, axis=axis, static=True)).doc
+    doc = to_json(diagnose(load_measured(MPU, axis=axis, static=True)))
     assert doc['best']['effect'] == 'none' and doc['selected'] == []
     assert doc['set_aside']['fraction'] < 1e-3
     assert {'bias_temperature', 'viscosity_temperature'} <= {
@@ -206,7 +206,7 @@ def test_real_mpu6050_static_log_gives_no_false_cause(axis):
 @pytest.mark.skipif(not os.path.exists(ADIS), reason='real data not present')
 def test_real_adis16405_static_log_gives_no_false_cause():
     record = load_measured(ADIS, axis='x', static=True)
-    doc = diagnose(record).doc
+    doc = to_json(diagnose(record))
     assert doc['best']['effect'] == 'none' and doc['selected'] == []
     assert doc['verdict'] == 'no_mismatch'
     assert not record.has_temp and doc['set_aside']['fraction'] < 1e-3
@@ -223,7 +223,7 @@ def test_a_bias_that_follows_the_sign_of_rotation_is_not_called_explained():
     record = measured(make_truth('none', 4, sample_rate_hz=2.0, levels=3)[0])
     signed = dataclasses.replace(
         record, gyro_rad_s=record.gyro_rad_s + 2e-3 * np.sign(record.rate_cmd_rad_s))
-    doc = diagnose(signed).doc
+    doc = to_json(diagnose(signed))
     assert doc['verdict'] in ('partly_explained', 'unexplained')
     assert doc['residual']['structure_remains']
     assert doc['residual']['follows']['regressor'] in ('rate', 'rate_squared')

@@ -19,7 +19,7 @@ import os
 import subprocess
 import sys
 
-from gyro_emulator.analysis.diagnose import diagnose
+from gyro_emulator.analysis.diagnose import diagnose, to_json
 from gyro_emulator.analysis.diagnose.data import measured, write_measured_csv
 from gyro_emulator.emulation.truth import injection as inj
 import numpy as np
@@ -106,20 +106,20 @@ def _assert_pair(doc):
 
 @pytest.mark.slow
 def test_row1_adis_y_cycles_bias_tempco_below_the_datasheet():
-    doc = diagnose(_record('adis', 'y', 'cycles', {'bias_tempco': 0.004 * DEG}, 1)).doc
+    doc = to_json(diagnose(_record('adis', 'y', 'cycles', {'bias_tempco': 0.004 * DEG}, 1)))
     _assert_found(doc, 'bias_tempco')
     assert doc['verdict'] in ('explained', 'partly_explained')
 
 
 @pytest.mark.slow
 def test_row2_adis_x_one_ramp_bias_tempco_is_named_with_its_pair():
-    _assert_pair(diagnose(_record('adis', 'x', 'ramp', {'bias_tempco': 0.01 * DEG}, 2)).doc)
+    _assert_pair(to_json(diagnose(_record('adis', 'x', 'ramp', {'bias_tempco': 0.01 * DEG}, 2))))
 
 
 @pytest.mark.slow
 def test_row3_adis_x_ramp_and_tilt_finds_g_sensitivity_and_the_bias_pair():
-    doc = diagnose(_record('adis', 'x', 'ramp+tilt', {
-        'bias_tempco': 0.01 * DEG, 'g_sensitivity': 0.03 * DEG / 9.80665}, 3)).doc
+    doc = to_json(diagnose(_record('adis', 'x', 'ramp+tilt', {
+        'bias_tempco': 0.01 * DEG, 'g_sensitivity': 0.03 * DEG / 9.80665}, 3)))
     _assert_found(doc, 'g_sensitivity')
     _assert_pair(doc)
 
@@ -127,7 +127,7 @@ def test_row3_adis_x_ramp_and_tilt_finds_g_sensitivity_and_the_bias_pair():
 @pytest.mark.parametrize('seed', (4, pytest.param(5, marks=pytest.mark.slow)))
 def test_row4_mpu_y_rate_steps_delay_is_found_and_its_edges_are_kept(seed):
     record = _record('mpu', 'y', 'rate_steps', {'delay': 0.012}, seed, duration_s=120.0)
-    doc = diagnose(record).doc
+    doc = to_json(diagnose(record))
     _assert_found(doc, 'delay')
     assert doc['set_aside']['fraction'] < 0.001
     delay = next(e for e in doc['selected'] if e['effect'] == 'time_delay')
@@ -189,7 +189,7 @@ def _marks(i):
     ids=[_case_id(c) for c in CASES])
 def test_an_effect_hidden_in_real_noise_is_found(index):
     log, axis, profile, effects, duration = CASES[index]
-    doc = diagnose(_record(log, axis, profile, effects, 100 + index, duration)).doc
+    doc = to_json(diagnose(_record(log, axis, profile, effects, 100 + index, duration)))
     for effect in effects:
         _assert_found(doc, effect)
     assert doc['set_aside']['fraction'] < 0.001
@@ -202,7 +202,7 @@ def test_an_sf_step_is_named_as_a_step_at_its_time(axis, scale, seed, duration):
     # place it) and a rate polynomial that predicted the folds 140 % worse took
     # its place; the likelihood route now tests the step at its fitted time
     size = scale * DS['sf_step']
-    doc = diagnose(_record('mpu', axis, 'rate_steps', {'sf_step': size}, seed, duration)).doc
+    doc = to_json(diagnose(_record('mpu', axis, 'rate_steps', {'sf_step': size}, seed, duration)))
     first = doc['selected'][0]
     assert first['effect'] == 'scale_factor_step', doc['residual']['message']
     got = first['parameters']['sf_step']
@@ -221,8 +221,8 @@ def test_an_sf_step_under_a_rate_sine_on_the_noisier_part_is_named(axis, scale, 
     the level: named only with the rate causes' 0.1 % gain floor, beside a
     pressure drift it cannot be told from (seed 55).
     """
-    doc = diagnose(_record('adis', axis, 'rate_sine', {'sf_step': DS['sf_step'] * scale},
-                           seed, 1800.0)).doc
+    doc = to_json(diagnose(_record('adis', axis, 'rate_sine', {'sf_step': DS['sf_step'] * scale},
+                                   seed, 1800.0)))
     _assert_found(doc, 'sf_step')
 
 
@@ -233,7 +233,7 @@ def test_the_parts_own_sf_tempco_is_read_against_the_physics(axis, size, seed):
     # tempco) does not follow the paper's +545 ppm/K, so scale_factor_temperature
     # is named relative to the physics; the part's own slope must be the injected one
     effects = {'sf_tempco': size} if size else {}
-    doc = diagnose(_record('mpu', axis, 'cycles+rate_steps', effects, seed, 440.0)).doc
+    doc = to_json(diagnose(_record('mpu', axis, 'cycles+rate_steps', effects, seed, 440.0)))
     entry = next(e for e in doc['selected'] if e['effect'] == 'scale_factor_temperature')
     own = entry['part_sf_temp_coeff_per_k']
     assert own['compensated'] and own['physics_per_k'] > 3e-4
@@ -247,8 +247,8 @@ def test_the_parts_own_sf_tempco_is_read_against_the_physics(axis, size, seed):
 @pytest.mark.parametrize('axis,scale', [('x', 1.0), ('y', 1 / 3)])
 def test_lsm6dsm_chamber_cooling_names_the_bias_pair(axis, scale):
     # the chamber cools once: temperature and time go together
-    doc = diagnose(_record('lsm', axis, 'chamber', {'bias_tempco': scale * DS['bias_tempco']},
-                           7)).doc
+    doc = to_json(diagnose(_record('lsm', axis, 'chamber',
+                                   {'bias_tempco': scale * DS['bias_tempco']}, 7)))
     _assert_pair(doc)
 
 
@@ -261,7 +261,7 @@ def test_lsm6dsm_chamber_cooling_names_the_bias_pair(axis, scale):
     pytest.param('adis', 'x', 'cycles+tilt', 3600.0, 14, marks=pytest.mark.slow),
     ('adis', 'y', 'rate_sine', 1800.0, 15), ('mpu', 'z', 'rate_sine', 300.0, 16)])
 def test_the_raw_logs_through_a_profile_give_no_cause(log, axis, profile, duration, seed):
-    doc = diagnose(_record(log, axis, profile, {}, seed, duration)).doc
+    doc = to_json(diagnose(_record(log, axis, profile, {}, seed, duration)))
     assert doc['best']['effect'] == 'none', doc['residual']['message']
     assert doc['set_aside']['fraction'] < 0.001
 

@@ -220,7 +220,7 @@ DIAGNOSE_CASES = {
 def test_diagnose_finds_the_term_with_its_parameters(name):
     """The emulator's term, diagnosed: the same cause, parameters and units (issue 24)."""
     from gyro_emulator.analysis.diagnose.data import MeasuredData
-    from gyro_emulator.analysis.diagnose.pipeline import diagnose
+    from gyro_emulator.analysis.diagnose import diagnose, to_json
     fs = 10.0
     t = np.arange(int(4 * 3600 * fs)) / fs
     temp = 25.0 + 30.0 * np.clip(1.5 * np.sin(2 * np.pi * t / 5400.0), -1.0, 1.0)
@@ -232,7 +232,7 @@ def test_diagnose_finds_the_term_with_its_parameters(name):
                      extended=ex.ExtendedTerms(**{name: term}))
     out = GyroModel(config, fs, np.random.default_rng(2)).run(
         np.column_stack([0 * t, 0 * t, rate]), temp)
-    doc = diagnose(MeasuredData(t, rate, temp, out.gyro_rad_s[:, 2]), effects=[name]).doc
+    doc = to_json(diagnose(MeasuredData(t, rate, temp, out.gyro_rad_s[:, 2]), effects=[name]))
     assert doc['verdict'] == 'explained' and [s['effect'] for s in doc['selected']] == [name]
     found = {k: v['value'] for k, v in doc['selected'][0]['parameters'].items()}
     for key, value in found.items():

@@ -19,7 +19,7 @@ import os
 import subprocess
 import sys
 
-from gyro_emulator.analysis.diagnose import diagnose, export, record_noise
+from gyro_emulator.analysis.diagnose import diagnose, export, record_noise, to_json
 from gyro_emulator.analysis.diagnose.data import load_measured
 from gyro_emulator.emulation.truth import injection as inj
 from gyro_emulator.emulation.truth.generator import make_truth
@@ -54,24 +54,25 @@ def _assert_closed(first, second):
 
 
 def _loop(record, tmp_path, axis='z'):
-    first = diagnose(record).doc
+    diagnosis = diagnose(record)
+    first = to_json(diagnosis)
     assert first['selected'], first['residual']['message']
     part = tmp_path / 'part.yaml'
-    export.write_text(str(part), export.extended_model(first, 'paper', axis=axis)[0])
-    return first, diagnose(record, config=str(part), axis=axis).doc
+    export.write_text(str(part), export.extended_model(diagnosis, 'paper', axis=axis).text())
+    return first, to_json(diagnose(record, config=str(part), axis=axis))
 
 
 @functools.lru_cache(maxsize=None)
 def _planted_step():
     """Return a planted bias step (seed 5) and its diagnosis, shared by the tests below."""
     record, _ = make_truth('bias_step', seed=5)
-    return record, diagnose(record).doc
+    return record, diagnose(record)
 
 
 # -- the interval the claim is checked against ------------------------------------
 
 def test_the_intervals_hold_the_claim_and_are_not_degenerate():
-    _, doc = _planted_step()
+    doc = to_json(_planted_step()[1])
     entry = doc['selected'][0]
     lo, hi = entry['rmse_interval_rad_s']
     assert lo < entry['rmse_rad_s'] < hi and hi - lo > 0.0
@@ -114,8 +115,9 @@ def test_the_loop_closes_on_real_noise_injections(tmp_path, log, axis, profile_n
 # -- --noise ----------------------------------------------------------------------
 
 def test_noise_terms_come_from_the_calibrate_fit_of_what_the_model_leaves(tmp_path):
-    record, doc = _planted_step()
-    text, _ = export.extended_model(doc, 'paper')
+    record, diagnosis = _planted_step()
+    model = export.extended_model(diagnosis, 'paper')
+    text = model.text()
     plain = load_sensor_config(str(_write(tmp_path, text)))
     start = load_sensor_config('paper')
     # without --noise the starting configuration's noise stays as it is
@@ -125,9 +127,9 @@ def test_noise_terms_come_from_the_calibrate_fit_of_what_the_model_leaves(tmp_pa
     from gyro_emulator.analysis.diagnose.data import measured
 
     data = measured(record)
-    noise = record_noise.identify(text, data, 'z', 6.0)
+    noise = record_noise.identify(model.config, data, 'z', 6.0)
     assert noise.calibration.axes[0].fit.intervals['arw'].resolved
-    with_noise, _ = export.extended_model(doc, 'paper', noise=noise)
+    with_noise = model.with_noise(noise).text()
     part = tmp_path / 'part.yaml'
     part.write_text(with_noise)
     config = load_sensor_config(str(part))

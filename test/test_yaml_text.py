@@ -1,6 +1,6 @@
 """The calibration exports' YAML writer: PyYAML data, 6-digit figures, comments after keys."""
 
-from gyro_emulator.analysis.calibrate.yaml_text import dump, Figure, Flow, Quoted
+from gyro_emulator.yaml_text import dump, Figure, Flow, Quoted
 import yaml
 
 

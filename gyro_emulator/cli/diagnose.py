@@ -15,16 +15,16 @@ says whether the residual is at the record's own noise floor, what cannot
 be told apart and which experiment would separate it.
 """
 
-import contextlib
-import math
+# (The docstring above is the command's --help text.) The options become one
+# gyro_emulator.analysis.diagnose.command.Request; command.execute does the
+# rest and speaks through Console.
+
 import sys
-import warnings
 
 from gyro_emulator.cli.jsonout import write_json
 from gyro_emulator.physics.presets import PHYSICS_PRESETS
 from gyro_emulator.recording import topics
 from gyro_emulator.units import AXES
-from gyro_emulator.validation import check_range
 
 HELP = 'find what the physics model gets wrong in measured data, name the cause'
 
@@ -87,136 +87,46 @@ def add_arguments(parser):
                           "present; 'none' to ignore)")
 
 
-def _check(args):
-    """One-line errors for out-of-range options."""
-    check_range('diagnose', 'alpha', args.alpha, 0.0, 1.0, '', high_open=True)
-    if not math.isinf(args.outlier_sigma):
-        check_range('diagnose', 'outlier_sigma', args.outlier_sigma, 3.0, 1e6, 'sigma',
-                    low_open=False)
-    check_range('diagnose', 'max_causes', args.max_causes, 1, 20, '', low_open=False)
-    if args.noise and not args.write_config:
-        raise ValueError('diagnose: --noise writes noise terms into the --write-config file: '
-                         'give --write-config OUT.yaml too')
-    if args.write_config:
-        from gyro_emulator.analysis.diagnose import export
+class Console:
+    """The terminal and the command line's JSON writer, as the diagnose run speaks to them."""
 
-        export.check_target(args.write_config, args.overwrite)
+    @staticmethod
+    def out(line):
+        """Print a line on stdout."""
+        print(line)
+
+    @staticmethod
+    def err(line):
+        """Print a line on stderr."""
+        print(line, file=sys.stderr)
+
+    @staticmethod
+    def write_json(path, doc):
+        """Write ``doc`` as the command line writes JSON (:mod:`gyro_emulator.cli.jsonout`)."""
+        write_json(path, doc)
 
 
-def _print(doc):
-    """Print the verdict on stdout."""
-    from gyro_emulator.analysis.diagnose import report  # lazy: see run
+def request(args):
+    """Return the :class:`~gyro_emulator.analysis.diagnose.command.Request` of the options."""
+    # The analysis is imported here, not at the top: `gyro-emulator --help`
+    # imports every command module.
+    from gyro_emulator.analysis.diagnose.command import Request
 
-    best = doc['best']
-    sa = doc['set_aside']
-    print(f"{doc['input']['rows']} samples, {doc['input']['duration_s']:.0f} s; baseline "
-          f"held-out RMSE {doc['baseline']['rmse_rad_s']:.4g} rad/s; set aside "
-          f"{sa['count']} samples ({100 * sa['fraction']:.3f} %)")
-    print(f"verdict: {doc['verdict']}")
-    for i, e in enumerate(doc['selected'], 1):
-        alike = (f"; cannot be told from {', '.join(e['indistinguishable_from'])}"
-                 if e['indistinguishable_from'] else '')
-        print(f"cause {i}: {e['effect']} ({e['kind']})  gain {100 * e['gain']:.1f} %  "
-              f"p {e['p_value']:.1e}{alike}")
-        for name, p in e['parameters'].items():
-            print(f"  {name} = {p['value']:.5g} +- {p['sigma']:.2g} {p['unit']}")
-        own = e.get('part_sf_temp_coeff_per_k')
-        if own is not None:
-            print(f"  the part's own SF tempco = {own['value']:.5g} +- {own['sigma']:.2g} 1/K "
-                  f"(the physics: {own['physics_per_k']:.5g} 1/K)")
-    note = (doc.get('temperature_polynomial') or {}).get('note')
-    if note:
-        print(f'note: {note}')
-    if not doc['selected']:
-        print(f"best: {best['effect']}")
-    print(doc['residual']['message'])
-    for c in doc['confounded']:
-        print(f"confounded: {c['a']} and {c['b']} (r = {c['correlation']:+.4f})")
-    for text in doc['experiments']:
-        print(f'experiment: {text}')
-    for f in doc['findings']:
-        print(f"  {f['effect']:<26} gain {report.gain_text(f['gain']):>9}  "
-              f"p {f['p_value']:.1e}  dBIC {f['delta_bic']:9.0f}  "
-              f"{'significant' if f['significant'] else ''}")
-    for nt in doc['not_tested']:
-        print(f"  {nt['effect']:<26} not tested: {nt['reason']}")
+    effects = None if args.effects is None else tuple(
+        e.strip() for e in args.effects.split(',') if e.strip())
+    return Request(
+        source=args.input, rate_topic=args.rate_topic, temp_topic=args.temp_topic,
+        gyro_topic=args.gyro_topic, accel_topic=args.accel_topic, axis=args.axis,
+        static=args.static, preset=args.preset, config=args.config, ref_temp_c=args.ref_temp,
+        folds=args.folds, effects=effects, alpha=args.alpha, outlier_sigma=args.outlier_sigma,
+        max_causes=args.max_causes, json=args.json, report=args.report,
+        write_config=args.write_config, noise=args.noise, overwrite=args.overwrite)
 
 
 def run(args):
-    """Load the record, diagnose it, print the verdict, write JSON/report."""
-    # The analysis (scipy, numba: 0.9 s, 2.4 s cold) is imported here, not at
-    # the top: `gyro-emulator --help` imports every command module.
-    from gyro_emulator.analysis.diagnose import data, diagnose, report
+    """Diagnose the record the options name: print the verdict, write JSON, report, config."""
+    from gyro_emulator.analysis.diagnose import command
 
-    _check(args)
-    record = data.load_measured(args.input, rate_topic=args.rate_topic,
-                                temp_topic=args.temp_topic, gyro_topic=args.gyro_topic,
-                                accel_topic=args.accel_topic, axis=args.axis,
-                                static=args.static)
-    for note in record.recovery:
-        print(f'gyro-emulator diagnose: warning: {note}', file=sys.stderr)
-    effects = None if args.effects is None else [
-        e.strip() for e in args.effects.split(',') if e.strip()]
-    with quiet_numerics():
-        result = diagnose(record, preset=args.preset, ref_temp_c=args.ref_temp,
-                          folds=args.folds, effects=effects, alpha=args.alpha,
-                          outlier_threshold=args.outlier_sigma, max_causes=args.max_causes,
-                          config=args.config, axis=args.axis or 'z')
-        _print(result.doc)
-        if args.json:
-            write_json(args.json, result.doc)
-        if args.report:
-            print(f'wrote {report.write_report(result, args.report)}')
-    if args.write_config:
-        _write_config(args, result.doc, record)
+    asked = request(args)
+    command.execute(asked, Console)
     return 0
-
-
-def _write_config(args, doc, record):
-    """Write the extended model (:mod:`gyro_emulator.analysis.diagnose.export`)."""
-    from gyro_emulator.analysis.diagnose import export
-
-    # the per-axis amplitudes go to the diagnosed axis: --axis, else z (a bag's default)
-    if args.config is None:
-        start = {'config': 'paper', 'device': args.preset,
-                 'config_name': f"sensor preset 'paper', device {args.preset!r}"}
-    else:
-        start = {'config': args.config, 'config_name': args.config}
-    axis = args.axis or 'z'
-    text, commented = export.extended_model(doc, axis=axis, **start)
-    if args.noise:
-        from gyro_emulator.analysis.diagnose import record_noise
-
-        with quiet_numerics():
-            noise = record_noise.identify(text, record, axis, args.outlier_sigma)
-        text, commented = export.extended_model(doc, axis=axis, noise=noise, **start)
-    export.write_text(args.write_config, text, args.overwrite)
-    for cause, why in commented:
-        print(f'gyro-emulator diagnose: warning: {cause} written commented out: {why}',
-              file=sys.stderr)
-    print(f'wrote {args.write_config}')
-
-
-@contextlib.contextmanager
-def quiet_numerics():
-    """
-    Keep numpy's and scipy's numerical warnings off the user's terminal.
-
-    An empty slice or a degenerate fit on an odd record is handled where it
-    happens (a NaN the verdict reads as "not measurable"); the warning that
-    came with it says nothing the report does not. A failure that is not a
-    ValueError or OSError (which :func:`gyro_emulator.cli.main` prints as one
-    line) is turned into one, naming what failed.
-    """
-    import numpy as np
-
-    with warnings.catch_warnings(), np.errstate(all='ignore'):
-        warnings.simplefilter('ignore', RuntimeWarning)
-        warnings.simplefilter('ignore', UserWarning)
-        try:
-            yield
-        except (ValueError, OSError, KeyboardInterrupt):
-            raise
-        except Exception as exc:
-            raise ValueError(f'the diagnosis failed ({type(exc).__name__}: {exc}); please '
-                             'report it with the input') from exc

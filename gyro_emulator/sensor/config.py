@@ -525,3 +525,168 @@ def load_sensor_config(name_or_path=None):
             f'sensor config {name!r} is neither a preset '
             f'({", ".join(PRESET_NAMES)}) nor a readable file')
     return config_from_mapping(read_yaml(path), source=path)
+
+
+# --- the inverse of config_from_mapping: a SensorConfig as sensor YAML text ----------
+
+def _percent(ratio):
+    return np.asarray(ratio, dtype=float) * 100.0
+
+
+#: Each alias of :data:`YAML_ALIASES`: SI value -> the alias's unit (the inverse converters).
+_FROM_SI = {
+    'electronics_arw_deg_sqrt_h': units.rad_s_sqrt_hz_to_arw_deg_sqrt_h,
+    'electronics_noise_deg_s_sqrt_hz': units.rad_s_sqrt_hz_to_deg_s_sqrt_hz,
+    'bias_instability_deg_h': units.rad_s_to_deg_h,
+    'rate_random_walk_deg_h_sqrt_h': units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h,
+    'scale_factor_error_ppm': units.ratio_to_ppm, 'scale_factor_error_pct': _percent,
+    'misalignment_pct': _percent, 'g_sensitivity_deg_s_g': units.rad_s_per_m_s2_to_deg_s_per_g,
+    **dict.fromkeys(('turn_on_bias_deg_s', 'turn_on_bias_sigma_deg_s', 'bias_temp_coeff_deg_s_k',
+                     'bias_temp_coeff2_deg_s_k2', 'lsb_deg_s', 'range_deg_s'),
+                    units.rad_s_to_deg_s)}
+
+
+@dataclass(frozen=True)
+class YamlKey:
+    """
+    One key of a sensor YAML file as :func:`config_yaml` writes it.
+
+    ``name``: at the top a :class:`SensorConfig` field, an alias of
+    :data:`YAML_ALIASES` (the field in the alias's unit), ``device``,
+    ``terms`` or ``extended``; below, a switch, ``start_time_s``, a cause id
+    or a term's field. ``spec``: format of its numbers, ``''`` the shortest
+    text that reads back exactly, ``'.6g'`` a measured figure. ``scalar``:
+    a per-axis field as one number. ``parts``: the keys written inside
+    ``terms``, ``extended`` or a term (default all). ``given``: the value as
+    the caller spells it (parsed YAML, ``Figure``, ``Flow``), written as it
+    is; it must denote the configuration's value (the file is checked).
+    """
+
+    name: str
+    spec: str = ''
+    scalar: bool = False
+    parts: tuple = None
+    given: object = None
+
+
+def default_layout(config):
+    """Return the keys that spell every field of ``config`` (full precision, SI names)."""
+    names = [f.name for f in fields(SensorConfig) if f.name != 'extended']
+    return tuple(YamlKey(n) for n in names) + (YamlKey('extended', parts=tuple(
+        YamlKey(t) for t in ('start_time_s',) + config.extended.active())),)
+
+
+def config_yaml(config, layout=None, provenance='', comments=None, footer=''):
+    """
+    Return ``config`` as sensor YAML text: the inverse of :func:`config_from_mapping`.
+
+    Parameters
+    ----------
+    config : SensorConfig
+        What the file says.
+    layout : sequence of YamlKey, optional
+        The keys to write, in order, and how (default: :func:`default_layout`).
+    provenance, footer : str
+        Comment lines written above and below the data.
+    comments : dict, optional
+        Key -> comment written after the line of that key (any depth).
+
+    Returns
+    -------
+    str
+        Text that :func:`load_sensor_config` reads back as ``config``.
+
+    Raises
+    ------
+    ValueError
+        When the text would denote another configuration (a ``given`` value,
+        or a figure written with fewer digits than ``config`` holds).
+
+    """
+    from gyro_emulator import yaml_text     # PyYAML waits for a file (see resources)
+
+    mapping = {key.name: _exact(_value(config, key), yaml_text)
+               for key in (default_layout(config) if layout is None else layout)}
+    if config_from_mapping(mapping, source='the written config') != config:
+        raise ValueError('the written config does not read back as the configuration: a '
+                         'given value or a figure written with fewer digits differs from it')
+    return provenance + yaml_text.dump(mapping, comments) + footer
+
+
+def _exact(value, yaml_text):
+    """Return ``value`` with every Figure replaced by the value its text reads back as."""
+    if isinstance(value, yaml_text.Figure):
+        return yaml_text.Figure(yaml_text.as_written(value, value.spec), value.spec)
+    if isinstance(value, dict):
+        return {k: _exact(v, yaml_text) for k, v in value.items()}
+    if isinstance(value, list):
+        return type(value)(_exact(v, yaml_text) for v in value)
+    return value
+
+
+def _value(config, key):
+    """Return the YAML value of top-level ``key``: given, or spelt from ``config``."""
+    if key.given is not None:
+        return key.given
+    if key.name == 'device':
+        forms = [_device_value(d, key.spec) for d in config.device]
+        return forms[0] if len(set(config.device)) == 1 else forms
+    if key.name == 'terms':
+        names = ErrorTerms.names() if key.parts is None else [p.name for p in key.parts]
+        return {n: getattr(config.terms, n) for n in names}
+    if key.name == 'extended':
+        out = {p.name: _extended_value(config.extended, p) for p in key.parts or ()}
+        return out or None
+    if key.name in YAML_ALIASES:
+        value = getattr(config, YAML_ALIASES[key.name][0])
+        return _numbers(np.asarray(_FROM_SI[key.name](np.array(value))).tolist(), key)
+    return _numbers(getattr(config, key.name), key)
+
+
+def _extended_value(ext, part):
+    """Return ``start_time_s`` or one term of ``extended`` (its fields in ``part.parts``)."""
+    if part.given is not None:
+        return part.given
+    if part.name == 'start_time_s':
+        return _numbers(ext.start_time_s, part)
+    term = getattr(ext, part.name)
+    names = [f.name for f in fields(term)] if part.parts is None else [p.name for p in part.parts]
+    return {n: _numbers(getattr(term, n), part) for n in names}
+
+
+def _numbers(value, key):
+    """Spell a number, a per-axis triple or a matrix (rows in flow style) with ``key.spec``."""
+    from gyro_emulator.yaml_text import Figure, Flow
+
+    if value is None or isinstance(value, (bool, str, int)):
+        return value
+    if isinstance(value[0] if isinstance(value, (list, tuple)) else None, (list, tuple)):
+        return [Flow(Figure(v, key.spec) for v in row) for row in value]
+    if not isinstance(value, (list, tuple)):
+        return Figure(value, key.spec)
+    if key.scalar and len(set(value)) == 1:
+        return Figure(value[0], key.spec)
+    if key.scalar:
+        raise ValueError(f'{key.name} = {value!r}: one number cannot spell three')
+    return Flow(Figure(v, key.spec) for v in value)
+
+
+def _device_value(device, spec):
+    """Return the physics preset ``device`` is, or ``{preset: closest, <fields that differ>}``."""
+    from gyro_emulator.yaml_text import Figure
+
+    def differences(preset):
+        out = {}
+        for f in fields(Device):
+            mine, theirs = getattr(device, f.name), getattr(preset, f.name)
+            if f.name == 'calibration_temp_c' and mine != theirs:
+                out[f.name] = Figure(mine, spec)
+            elif f.name != 'calibration_temp_c' and mine != theirs:
+                out[f.name] = {g.name: (getattr(mine, g.name) if isinstance(
+                    getattr(mine, g.name), str) else Figure(getattr(mine, g.name), spec))
+                    for g in fields(mine) if getattr(mine, g.name) != getattr(theirs, g.name)}
+        return out
+
+    name, diff = min(((n, differences(p)) for n, p in PHYSICS_PRESETS.items()),
+                     key=lambda item: len(item[1]))
+    return {'preset': name, **diff} if diff else name

@@ -37,10 +37,12 @@ each one makes its consumer stop and name the field (docs/calibrate.md
 cites each consumer's parser): kalibr, openvins and both orbslam3 formats
 leave the keys out (their own missing-key checks fire), gazebo writes
 ``FILL_IN`` where sdformat parses a double, and vins is refused (VINS-Fusion
-checks nothing). Numbers are written by :func:`.yaml_text.float_text`, a
+checks nothing). Numbers are written by :func:`gyro_emulator.yaml_text.float_text`, a
 float to PyYAML and a real to ``cv::FileStorage``; the YAML files (kalibr,
-openvins, preset) are written by PyYAML with the comments added around
-it, the VINS-Fusion and ORB-SLAM3 text by hand.
+openvins) are written by PyYAML with the comments added around it, the
+VINS-Fusion and ORB-SLAM3 text by hand, and ``preset`` is a
+:class:`~gyro_emulator.sensor.config.SensorConfig` (:func:`twin_config`)
+written by :func:`gyro_emulator.sensor.config.config_yaml`.
 """
 
 from dataclasses import dataclass
@@ -50,11 +52,10 @@ from gyro_emulator.analysis.calibrate.noise import axis_values, export_noise
 from gyro_emulator.analysis.calibrate.provenance import (as_comments, MARKER, noise_lines,
                                                          NOT_MEASURED)
 from gyro_emulator.analysis.calibrate.twin import emulator_fit, PER_DECADE
-from gyro_emulator.analysis.calibrate.yaml_text import (dump as dump_yaml, Figure, float_text,
-                                                        Flow, Quoted)
 from gyro_emulator.sensor import noise as sensor_noise
-from gyro_emulator.sensor.config import ErrorTerms
+from gyro_emulator.sensor.config import config_from_mapping, config_yaml, ErrorTerms, YamlKey
 from gyro_emulator.units import AXES
+from gyro_emulator.yaml_text import as_written, dump as dump_yaml, Figure, float_text, Flow, Quoted
 import numpy as np
 from scipy import optimize
 
@@ -576,8 +577,6 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
     """
     fields = twin_noise(calibration, inflate)
     twin = fields.twin
-    axes = [fields.per_axis.get(name) or next(iter(fields.per_axis.values()))
-            for name in AXES]
     convention = (_CONTINUOUS + ' The emulator discretises exactly at the rate given to '
                   'simulate or the node: white sigma N / sqrt(dt), walk K sqrt(dt), flicker '
                   'as Gauss-Markov terms across bias_instability_band_s.')
@@ -599,18 +598,41 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
     if len(twin.per_axis) < 3:
         lines.append(f'Axes {", ".join(n for n in AXES if n not in twin.per_axis)} copy '
                      f'axis {next(iter(twin.per_axis))} (not in the calibration).')
-    data = {'device': 'paper',
-            'terms': {name: name in fields.terms_on for name in ErrorTerms.names()}}
-    for name in ('electronics_arw_deg_sqrt_h', 'bias_instability_deg_h'):
-        data[name] = Flow(Figure(a[name]) for a in axes)
-    data['bias_instability_band_s'] = Flow(
-        Figure(t) for t in fields.shared['bias_instability_band_s'])
-    data['bias_instability_per_decade'] = Figure(fields.shared['bias_instability_per_decade'])
-    for name in ('rate_random_walk_deg_h_sqrt_h', 'turn_on_bias_deg_s'):
-        data[name] = Flow(Figure(a[name]) for a in axes)
+    return config_yaml(twin_config(fields), preset_layout(fields), as_comments(lines))
+
+
+#: The measured keys of ``--format preset``, in order: 6-digit figures in datasheet units.
+_PRESET_FIGURES = ('electronics_arw_deg_sqrt_h', 'bias_instability_deg_h',
+                   'bias_instability_band_s', 'bias_instability_per_decade',
+                   'rate_random_walk_deg_h_sqrt_h', 'turn_on_bias_deg_s')
+
+
+def preset_layout(fields):
+    """Return the keys ``--format preset`` writes (:class:`.sensor.config.YamlKey`)."""
+    lsb = (YamlKey('lsb_deg_s', '.6g', scalar=True),) if 'lsb_deg_s' in fields.shared else ()
+    return ((YamlKey('device'), YamlKey('terms'))
+            + tuple(YamlKey(name, '.6g') for name in _PRESET_FIGURES) + lsb)
+
+
+def twin_config(fields):
+    """
+    Return the sensor configuration of a :class:`TwinNoise`, as ``--format preset`` writes it.
+
+    Every figure is the 6-digit value the file holds (the configuration reads
+    back from its text exactly); axes the calibration lacks copy its first
+    axis; every term the log does not measure is off.
+    """
+    axes = [fields.per_axis.get(name) or next(iter(fields.per_axis.values())) for name in AXES]
+    figures = {name: [as_written(a[name]) for a in axes] for name in _PRESET_FIGURES
+               if name in axes[0]}
+    figures['bias_instability_band_s'] = [as_written(t) for t in
+                                          fields.shared['bias_instability_band_s']]
+    figures['bias_instability_per_decade'] = as_written(
+        fields.shared['bias_instability_per_decade'])
     if 'lsb_deg_s' in fields.shared:
-        data['lsb_deg_s'] = Figure(fields.shared['lsb_deg_s'])
-    return as_comments(lines) + dump_yaml(data)
+        figures['lsb_deg_s'] = as_written(fields.shared['lsb_deg_s'])
+    terms = {name: name in fields.terms_on for name in ErrorTerms.names()}
+    return config_from_mapping({'device': 'paper', 'terms': terms, **figures})
 
 
 WRITERS = {'kalibr': kalibr, 'openvins': openvins, 'vins': vins, 'orbslam3': orbslam3,

@@ -23,12 +23,11 @@ Thermal exports: PX4 TC_G0_* and ArduPilot INS_TCAL1_* parameters, this emulator
 """
 
 from gyro_emulator import units
-from gyro_emulator.analysis.calibrate import yaml_text
 from gyro_emulator.analysis.calibrate.provenance import as_comments, thermal_lines
 from gyro_emulator.analysis.calibrate.thermal import polyfit_stats
-from gyro_emulator.analysis.calibrate.yaml_text import Figure, Flow
-from gyro_emulator.sensor.config import ErrorTerms
+from gyro_emulator.sensor.config import config_from_mapping, config_yaml, ErrorTerms, YamlKey
 from gyro_emulator.units import AXES
+from gyro_emulator.yaml_text import as_written, Figure
 import numpy as np
 
 FORMATS = ('px4', 'ardupilot', 'preset')
@@ -161,10 +160,6 @@ def _preset_axis_values(fit, axis):
     return coeffs[0], coeffs[1], coeffs[2]
 
 
-def _flow(values):
-    return Flow(Figure(v) for v in values)
-
-
 def preset(fit):
     """
     Write this emulator's sensor YAML (module docstring), N and the LSB as the fit carries them.
@@ -179,7 +174,6 @@ def preset(fit):
                   "device calibration_temp_c = the fit's T_ref; T is the die temperature "
                   "(thermal_lag off: the log's temperature is the die's).")
     values = {a: _preset_axis_values(fit, a) for a in fit.coefficients}
-    noise = fit.arw_rad_s_sqrt_hz
     lsb = fit.lsb_rad_s
     lines = thermal_lines(fit, 'preset', convention) + [
         'N (electronics_arw) from the same samples (IEEE Std 952 fit); bias instability and '
@@ -193,21 +187,49 @@ def preset(fit):
     if lsb > 0.0:
         lines.append(f'Samples lie on a grid of {lsb:.6g} rad/s (the LSB, or the precision the '
                      'log was written with): quantization on.')
+    config, device = preset_config(fit, values)
+    return config_yaml(config, _preset_layout(device, lsb), as_comments(lines))
+
+
+#: The bias and noise keys of ``--format preset``: 6-digit figures in datasheet units.
+_PRESET_FIGURES = ('electronics_arw_deg_sqrt_h', 'turn_on_bias_deg_s', 'bias_temp_coeff_deg_s_k',
+                   'bias_temp_coeff2_deg_s_k2')
+
+
+def _preset_layout(device, lsb):
+    """Return the keys ``--format preset`` writes; the device ``{preset, calibration_temp_c}``."""
+    return ((YamlKey('device', given=device), YamlKey('terms'))
+            + tuple(YamlKey(name, '.6g') for name in _PRESET_FIGURES)
+            + ((YamlKey('lsb_deg_s', '.6g', scalar=True),) if lsb > 0.0 else ()))
+
+
+def preset_config(fit, values):
+    """
+    Return (sensor configuration, its device entry) of ``--format preset`` (module docstring).
+
+    ``values`` are (turn-on bias, c1, c2) per fitted axis (axes it lacks copy
+    the first); every figure is the value the file holds: T_ref to 4
+    decimals, the rest to 6 digits, so the configuration reads back from the
+    text exactly.
+    """
+    lsb = fit.lsb_rad_s
     on = {'electronics_noise', 'turn_on_bias', 'bias_temperature'} | (
         {'quantization'} if lsb > 0.0 else set())
     rows = [values.get(a) or next(iter(values.values())) for a in AXES]
+    noise = fit.arw_rad_s_sqrt_hz
     noise_rows = [noise.get(a) or next(iter(noise.values())) for a in AXES]
-    data = {
-        'device': {'preset': 'paper', 'calibration_temp_c': Figure(fit.temp_ref_c, '.4f')},
-        'terms': {n: n in on for n in ErrorTerms.names()},
-        'electronics_arw_deg_sqrt_h': _flow(units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v)
-                                            for v in noise_rows),
-        'turn_on_bias_deg_s': _flow(units.rad_s_to_deg_s(v[0]) for v in rows),
-        'bias_temp_coeff_deg_s_k': _flow(units.rad_s_to_deg_s(v[1]) for v in rows),
-        'bias_temp_coeff2_deg_s_k2': _flow(units.rad_s_to_deg_s(v[2]) for v in rows)}
+    device = {'preset': 'paper', 'calibration_temp_c': Figure(fit.temp_ref_c, '.4f')}
+    figures = {'electronics_arw_deg_sqrt_h': [
+        units.rad_s_sqrt_hz_to_arw_deg_sqrt_h(v) for v in noise_rows]}
+    for k, name in enumerate(_PRESET_FIGURES[1:]):
+        figures[name] = [units.rad_s_to_deg_s(v[k]) for v in rows]
     if lsb > 0.0:
-        data['lsb_deg_s'] = Figure(units.rad_s_to_deg_s(lsb))
-    return as_comments(lines) + yaml_text.dump(data)
+        figures['lsb_deg_s'] = units.rad_s_to_deg_s(lsb)
+    written = {name: np.vectorize(as_written)(v).tolist() for name, v in figures.items()}
+    config = config_from_mapping({
+        'device': {'preset': 'paper', 'calibration_temp_c': as_written(fit.temp_ref_c, '.4f')},
+        'terms': {n: n in on for n in ErrorTerms.names()}, **written})
+    return config, device
 
 
 def write_thermal(fit, fmt, px4_gyro_id=None):

@@ -25,16 +25,26 @@ emulator term (:data:`NO_TERM`) and a cause diagnose calls only suggestive
 are written commented out, with the reason: never active. Above the data a
 comment block gives the provenance: the source log, each cause's gains,
 p-value and 1-sigma intervals, and what could not be told apart.
+
+:func:`extended_model` builds the :class:`ExtendedModel` once: the
+:class:`~gyro_emulator.sensor.config.SensorConfig` with every cause added,
+and the keys it is written with (the starting file's keys keep their order
+and spelling; a field diagnose changes is written under its own name after
+them). ``--noise`` adds the record's noise terms to that configuration
+(:meth:`ExtendedModel.with_noise`), and
+:func:`gyro_emulator.sensor.config.config_yaml` writes it: no text is read
+back.
 """
 
+from dataclasses import dataclass, replace
 import os
-import tempfile
 
-from gyro_emulator.analysis.calibrate.yaml_text import dump, Figure, Flow
-from gyro_emulator.sensor.config import (config_from_mapping, PRESET_NAMES, preset_path,
-                                         YAML_ALIASES)
+from gyro_emulator import atomic
+from gyro_emulator.resources import read_yaml
+from gyro_emulator.sensor.config import (config_from_mapping, config_yaml, PRESET_NAMES,
+                                         preset_path, SensorConfig, YAML_ALIASES, YamlKey)
+from gyro_emulator.sensor.extensions import TERM_TYPES
 from gyro_emulator.units import AXES
-import yaml
 
 #: Diagnose parameters of each extended term: 'axis' (per-axis amplitude) or 'scalar'.
 TERMS = {
@@ -69,115 +79,210 @@ def start_mapping(config):
     if not os.path.isfile(path):
         raise ValueError(f'sensor config {config!r} is neither a preset '
                          f'({", ".join(PRESET_NAMES)}) nor a readable file')
-    with open(path, encoding='utf-8') as f:
-        mapping = yaml.safe_load(f) or {}
+    mapping = read_yaml(path) or {}
     if not isinstance(mapping, dict):
         raise ValueError(f'{path}: a sensor config must be a mapping')
     return mapping, path
 
 
+@dataclass(frozen=True)
+class ExtendedModel:
+    """
+    The extended sensor model before it is text: the configuration and how it is written.
+
+    ``config`` is the :class:`~gyro_emulator.sensor.config.SensorConfig`,
+    ``layout`` its keys in order (:class:`~gyro_emulator.sensor.config.YamlKey`),
+    ``header`` the provenance comment block, ``axis`` the diagnosed axis and
+    ``commented`` the causes written commented out: (cause id, values, reason).
+    """
+
+    config: SensorConfig
+    layout: tuple
+    header: str
+    axis: str
+    commented: tuple
+
+    @property
+    def warnings(self):
+        """Return (cause id, reason) of every cause written commented out."""
+        return [(cause, why) for cause, _, why in self.commented]
+
+    def text(self):
+        """Return the sensor YAML (:func:`gyro_emulator.sensor.config.config_yaml`)."""
+        footer = ''.join(f'  # {c}: {v}   # not active: {why}\n' for c, v, why in self.commented)
+        return config_yaml(self.config, self.layout, self.header, _comments(self.axis), footer)
+
+    def with_noise(self, noise):
+        """
+        Return this model with the record's noise terms (:mod:`.record_noise`).
+
+        The diagnosed axis gets N, B, K, the turn-on bias and the LSB; the
+        other two keep the starting configuration's values. The flicker band
+        and the switches are shared by the axes: the band is the record's;
+        the terms the record measures are switched on and mechanical_noise
+        off (the measured N carries the whole white noise), as ``calibrate
+        noise --format preset`` does. An axis whose record shows no LSB gets 0.
+        """
+        i = AXES.index(self.axis)
+        layout = {key.name: key for key in self.layout}
+        changes = {}
+        values = dict(noise.fields.per_axis[self.axis])
+        lsb = noise.fields.shared.get('lsb_deg_s', 0.0)
+        for key, value in list(values.items()) + [('lsb_deg_s', lsb)]:
+            target, convert = YAML_ALIASES[key]
+            old = list(getattr(self.config, target))
+            old[i] = convert(value)
+            changes[target] = tuple(old)
+            _rewrite(layout, target)
+        for key in ('bias_instability_band_s', 'bias_instability_per_decade'):
+            changes[key] = noise.fields.shared[key]
+            layout[key] = YamlKey(key)
+        names = _switch_names(layout) + [t for t in sorted(noise.fields.terms_on)
+                                         if t not in _switch_names(layout)]
+        switches = dict.fromkeys(noise.fields.terms_on, True)
+        switches['mechanical_noise'] = False       # the measured N is the whole white noise
+        layout['terms'] = YamlKey('terms', parts=tuple(YamlKey(n) for n in dict.fromkeys(
+            names + ['mechanical_noise'])))
+        config = _checked(replace, self.config, terms=replace(self.config.terms, **switches),
+                          **changes)
+        header = self.header + ''.join(f'# {line}\n' for line in noise.comment_lines())
+        return replace(self, config=config, layout=tuple(layout.values()), header=header)
+
+
+def _checked(make, *args, **kwargs):
+    """Return ``make(*args, **kwargs)``; a value out of the emulator's range names the file."""
+    try:
+        return make(*args, **kwargs)
+    except ValueError as exc:
+        raise ValueError(f'the written config: {exc}') from None
+
+
+def _switch_names(layout):
+    """Return the switches the ``terms`` key of ``layout`` writes (none when it has none)."""
+    key = layout.get('terms')
+    return [] if key is None else [p.name for p in key.parts]
+
+
+def _rewrite(layout, target):
+    """Drop ``target`` and its aliases from ``layout``; write it under its own name, last."""
+    for key in [k for k, (t, _) in YAML_ALIASES.items() if t == target] + [target]:
+        layout.pop(key, None)
+    layout[target] = YamlKey(target)
+
+
 def _axis_value(axis, value):
-    return Flow([Figure(value if a == axis else 0.0, '') for a in AXES])
+    return tuple(value if a == axis else 0.0 for a in AXES)
 
 
-def _values(entry):
-    return {name: p['value'] for name, p in entry['parameters'].items()}
+def _values(cause):
+    return {name: p.value for name, p in cause.parameters.items()}
 
 
-def _term(cause, values, axis, doc):
-    """Return the ``extended`` sub-block of ``cause`` with diagnose's values."""
-    out = {}
+def _term(cause, values, axis, diagnosis):
+    """Return (the ``extended`` term of ``cause`` with diagnose's values, its key)."""
+    fields = {}
     for name, kind in TERMS[cause].items():
         if name in values:      # a polynomial cut to order 1 has no quadratic term
-            out[name] = (_axis_value(axis, values[name]) if kind == 'axis'
-                         else Figure(values[name], ''))
+            fields[name] = _axis_value(axis, values[name]) if kind == 'axis' else values[name]
     if cause in MID_ORIGIN:
-        out['time_origin_s'] = Figure(sum(doc['input']['time_span_s']) / 2, '')
+        fields['time_origin_s'] = sum(diagnosis.record.time_span_s) / 2
     if cause == 'scale_factor_temperature':
-        out['ref_temp_c'] = Figure(doc['calibration']['ref_temp_c'], '')
-    out['enabled'] = True
-    return out
+        fields['ref_temp_c'] = diagnosis.calibration.ref_temp_c
+    fields['enabled'] = True
+    term = _checked(TERM_TYPES[cause], **fields)
+    return term, YamlKey(cause, parts=tuple(YamlKey(n) for n in fields))
 
 
-def _canonical(mapping, target, config):
-    """Remove ``target`` and its aliases from ``mapping``; return its value in ``config``."""
-    for key in [k for k, (t, _) in YAML_ALIASES.items() if t == target] + [target]:
-        mapping.pop(key, None)
-    return getattr(config, target)
-
-
-def _add_bias_temperature(mapping, config, values, axis, doc):
-    """Add diagnose's bias polynomial, re-centred on the device's calibration temperature."""
+def _bias_temperature(start, values, axis, diagnosis):
+    """Return diagnose's bias polynomial added, about the device's calibration temperature."""
     i = AXES.index(axis)
     c1 = values.get('bias_temp_coeff_rad_s_k', 0.0)
     c2 = values.get('bias_temp_coeff2_rad_s_k2', 0.0)
-    shift = config.device[i].calibration_temp_c - doc['calibration']['ref_temp_c']
+    shift = start.device[i].calibration_temp_c - diagnosis.calibration.ref_temp_c
+    out = {}
     for target, add in (('bias_temp_coeff_rad_s_k', c1 + 2.0 * c2 * shift),
                         ('bias_temp_coeff2_rad_s_k2', c2)):
-        old = list(_canonical(mapping, target, config))
+        old = list(getattr(start, target))
         old[i] += add
-        mapping[target] = Flow([Figure(v, '') for v in old])
-    _switch_on(mapping, 'bias_temperature')
+        out[target] = tuple(old)
+    return out
 
 
-def _add_g_sensitivity(mapping, config, values, axis):
-    """Add diagnose's g-sensitivity to the diagnosed axis's row of the matrix."""
+def _g_sensitivity(start, values, axis):
+    """Return diagnose's g-sensitivity added to the diagnosed axis's row of the matrix."""
     i = AXES.index(axis)
-    rows = [list(r) for r in _canonical(mapping, 'g_sensitivity_rad_s_m_s2', config)]
+    rows = [list(r) for r in start.g_sensitivity_rad_s_m_s2]
     for j, a in enumerate(AXES):
         rows[i][j] += values[f'g_sensitivity_{a}_rad_s_per_m_s2']
-    mapping['g_sensitivity_rad_s_m_s2'] = [Flow([Figure(v, '') for v in r]) for r in rows]
-    _switch_on(mapping, 'g_sensitivity')
-
-
-def _switch_on(mapping, term):
-    """Switch ``term`` on where the starting config switched it off (a twin has it off)."""
-    terms = mapping.get('terms')
-    if isinstance(terms, dict) and terms.get(term) is False:
-        mapping['terms'] = dict(terms, **{term: True})
-
-
-def _add_noise(mapping, config, noise, axis):
-    """
-    Write the record's noise terms (:mod:`.record_noise`) into ``mapping``.
-
-    The diagnosed axis gets N, B, K, the turn-on bias and the LSB; the other
-    two keep the starting configuration's values. The flicker band and the
-    switches are shared by the axes: the band is the record's; the terms
-    the record measures are switched on and mechanical_noise off (the
-    measured N carries the whole white noise), as ``calibrate noise --format
-    preset`` does. An axis whose record shows no LSB gets 0.
-    """
-    i = AXES.index(axis)
-    values = dict(noise.fields.per_axis[axis])
-    lsb = noise.fields.shared.get('lsb_deg_s', 0.0)
-    for key, value in list(values.items()) + [('lsb_deg_s', lsb)]:
-        target, convert = YAML_ALIASES[key]
-        old = list(_canonical(mapping, target, config))
-        old[i] = convert(value)
-        mapping[target] = Flow([Figure(v, '') for v in old])
-    for key in ('bias_instability_band_s', 'bias_instability_per_decade'):
-        value = noise.fields.shared[key]
-        mapping[key] = (Flow([Figure(v, '') for v in value]) if isinstance(value, tuple)
-                        else Figure(value, ''))
-    terms = dict(mapping.get('terms') or {})
-    terms.update(dict.fromkeys(sorted(noise.fields.terms_on), True))
-    terms['mechanical_noise'] = False       # the measured N is the whole white noise
-    mapping['terms'] = terms
+    return {'g_sensitivity_rad_s_m_s2': tuple(tuple(r) for r in rows)}
 
 
 def _flow_text(values):
     return '{' + ', '.join(f'{k}: {v:.6g}' for k, v in values.items()) + '}'
 
 
-def extended_model(doc, config, axis='z', config_name='paper', device=None, noise=None):
+def _suggestive(diagnosis):
+    """Return the suggestive candidate as a commented-out cause, or None."""
+    hint = diagnosis.residual.suggestive
+    if hint is None:
+        return None
+    found = [f for f in diagnosis.findings if f.effect == hint.effect]
+    values = _flow_text(_values(found[0])) if found and not diagnosis.selected else '{}'
+    return (hint.effect, values,
+            f'suggestive, not established (gain {100 * hint.gain:.0f} %, '
+            f'p = {hint.p_value:.2g} before the correction for the candidates)')
+
+
+def _causes(diagnosis, start, axis, path):
     """
-    Return the text of the extended sensor YAML and the causes written commented out.
+    Return what the selected causes add: (fields, switches, terms and their keys, commented).
+
+    Raises ValueError for a cause whose term the starting configuration has on already.
+    """
+    fields, switches, terms, commented = {}, {}, {}, []
+    for cause in diagnosis.selected:
+        name, values = cause.effect, _values(cause)
+        if name in NO_TERM:
+            commented.append((name, _flow_text(values), NO_TERM[name]))
+            continue
+        if name in TERMS:
+            if start.extended.get(name) is not None:
+                raise ValueError(f'{path}: extended.{name} is already on and diagnose found '
+                                 f'{name} again: one term per cause; edit the term instead')
+            terms[name] = _term(name, values, axis, diagnosis)
+        elif name == 'bias_temperature':
+            fields.update(_bias_temperature(start, values, axis, diagnosis))
+            switches[name] = True
+        elif name == 'g_sensitivity':
+            fields.update(_g_sensitivity(start, values, axis))
+            switches[name] = True
+        else:
+            raise ValueError(f'diagnose found {name!r}, which no emulator term models')
+    return fields, switches, terms, commented
+
+
+def _extended(start, given, terms, diagnosis):
+    """Return (the extended terms, the ``extended`` key): the start's terms, then the new ones."""
+    parts = {name: YamlKey(name, given=value) for name, value in given.items()}
+    parts.update({name: key for name, (_, key) in terms.items()})
+    ext = start.extended
+    if any(name != 'start_time_s' for name in parts):
+        start_s = (ext.start_time_s if 'start_time_s' in given
+                   else diagnosis.record.time_span_s[0])
+        first = parts.pop('start_time_s', YamlKey('start_time_s'))
+        parts = {'start_time_s': first, **parts}
+        ext = replace(ext, start_time_s=start_s, **{n: t for n, (t, _) in terms.items()})
+    return ext, YamlKey('extended', parts=tuple(parts.values()))
+
+
+def extended_model(diagnosis, config, axis='z', config_name='paper', device=None):
+    """
+    Return the extended sensor model of a diagnosis (:class:`ExtendedModel`).
 
     Parameters
     ----------
-    doc : dict
-        A diagnosis (:attr:`.pipeline.Diagnosis.doc`).
+    diagnosis : gyro_emulator.analysis.diagnose.diagnosis.Diagnosis
+        What diagnose found.
     config : str
         Starting configuration: a preset name or a sensor YAML file.
     axis : str
@@ -187,14 +292,6 @@ def extended_model(doc, config, axis='z', config_name='paper', device=None, nois
     device : str, optional
         Physics preset that replaces the configuration's ``device`` (the
         device diagnose's baseline used).
-    noise : gyro_emulator.analysis.diagnose.record_noise.RecordNoise, optional
-        The record's noise terms (``--noise``): written to the diagnosed
-        axis, with their intervals in the provenance comment. Without it the
-        noise fields of the starting configuration stay as they are.
-
-    Returns
-    -------
-    (str, list of (cause id, reason))
 
     Raises
     ------
@@ -209,45 +306,22 @@ def extended_model(doc, config, axis='z', config_name='paper', device=None, nois
     if device is not None:
         mapping['device'] = device
     start = config_from_mapping(dict(mapping), source=path)
-    ext = dict(mapping.pop('extended', None) or {})
-    commented, active = [], []
-    for entry in doc['selected']:
-        cause, values = entry['effect'], _values(entry)
-        if cause in NO_TERM:
-            commented.append((cause, _flow_text(values), NO_TERM[cause]))
-            continue
-        if cause in TERMS:
-            if start.extended.get(cause) is not None:
-                raise ValueError(f'{path}: extended.{cause} is already on and diagnose found '
-                                 f'{cause} again: one term per cause; edit the term instead')
-            ext[cause] = _term(cause, values, axis, doc)
-        elif cause == 'bias_temperature':
-            _add_bias_temperature(mapping, start, values, axis, doc)
-        elif cause == 'g_sensitivity':
-            _add_g_sensitivity(mapping, start, values, axis)
-        else:
-            raise ValueError(f'diagnose found {cause!r}, which no emulator term models')
-        active.append(cause)
-    hint = doc['residual'].get('suggestive')
+    given = dict(mapping.pop('extended', None) or {})
+    layout = {key: YamlKey(key, given=value) for key, value in mapping.items()}
+    if 'terms' in layout:
+        layout['terms'] = YamlKey('terms', parts=tuple(YamlKey(n) for n in mapping['terms']))
+    fields, switches, terms, commented = _causes(diagnosis, start, axis, path)
+    for target in fields:
+        _rewrite(layout, target)
+    hint = _suggestive(diagnosis)
     if hint is not None:
-        found = [f for f in doc['findings'] if f['effect'] == hint['effect']]
-        values = _flow_text(_values(found[0])) if found and not doc['selected'] else '{}'
-        commented.append((hint['effect'], values,
-                          f"suggestive, not established (gain {100 * hint['gain']:.0f} %, "
-                          f"p = {hint['p_value']:.2g} before the correction for the candidates)"))
-    if any(k != 'start_time_s' for k in ext):
-        start_s = ext.pop('start_time_s', Figure(doc['input']['time_span_s'][0], ''))
-        ext = {'start_time_s': start_s, **ext}
-    mapping['extended'] = ext or None
-    header = _header(doc, config_name, axis, active)
-    if noise is not None:
-        _add_noise(mapping, start, noise, axis)
-        header += ''.join(f'# {line}\n' for line in noise.comment_lines())
-    text = header + dump(mapping, _comments(axis))
-    if commented:
-        text += ''.join(f'  # {c}: {v}   # not active: {why}\n' for c, v, why in commented)
-    config_from_mapping(yaml.safe_load(text), source='the written config')   # it loads
-    return text, [(c, why) for c, _, why in commented]
+        commented.append(hint)
+    ext, layout['extended'] = _extended(start, given, terms, diagnosis)
+    built = _checked(replace, start, terms=replace(start.terms, **switches), extended=ext,
+                     **fields)
+    active = [e.effect for e in diagnosis.selected if e.effect not in NO_TERM]
+    return ExtendedModel(built, tuple(layout.values()),
+                         _header(diagnosis, config_name, axis, active), axis, tuple(commented))
 
 
 def _comments(axis):
@@ -264,56 +338,43 @@ def _comments(axis):
     return out
 
 
-def _header(doc, config_name, axis, active):
+def _header(diagnosis, config_name, axis, active):
     """Return the provenance comment block."""
-    inp = doc['input']
-    t0, t1 = inp['time_span_s']
+    inp = diagnosis.record
+    t0, t1 = inp.time_span_s
     lines = [
         'Extended sensor model written by gyro-emulator diagnose --write-config.',
         f'Starting configuration: {config_name}; added: {", ".join(active) or "nothing"}.',
-        f"Source log: {inp['source']} ({inp['rows']} samples, record time {t0:.6g} .. "
+        f'Source log: {inp.source} ({inp.rows} samples, record time {t0:.6g} .. '
         f'{t1:.6g} s); diagnosed axis {axis}; reference temperature '
-        f"{doc['calibration']['ref_temp_c']:.6g} C.",
-        f"Verdict: {doc['verdict']}; baseline held-out RMSE "
-        f"{doc['baseline']['rmse_rad_s']:.4g} rad/s.",
+        f'{diagnosis.calibration.ref_temp_c:.6g} C.',
+        f'Verdict: {diagnosis.verdict}; baseline held-out RMSE '
+        f'{diagnosis.baseline.rmse_rad_s:.4g} rad/s.',
         'Parameters below: the value of the step that selected the cause, '
         '+- 1 sigma (delete-a-block jackknife).']
-    for i, e in enumerate(doc['selected'], 1):
+    for i, e in enumerate(diagnosis.selected, 1):
         lines.append(
-            f"Cause {i}: {e['effect']} ({e['kind']}): gain over the baseline "
-            f"{100 * e['gain']:.2f} %, this step {100 * e['gain_step']:.2f} % per sample and "
-            f"{100 * e['gain_binned']:.2f} % on super-bin means (gain_binned); "
-            f"p = {e['p_value']:.2g}.")
-        for name, p in e['parameters'].items():
-            lines.append(f"  {name} = {p['value']:.6g} +- {p['sigma']:.2g} {p['unit']}")
-        if e['indistinguishable_from']:
-            lines.append(f"  cannot be told from: {', '.join(e['indistinguishable_from'])}")
-    for c in doc['confounded']:
-        lines.append(f"Confounded in this record: {c['a']} and {c['b']} "
-                     f"(r = {c['correlation']:+.4f}).")
-    pair = doc.get('confounded_pair')
+            f'Cause {i}: {e.effect} ({e.kind}): gain over the baseline '
+            f'{100 * e.gain:.2f} %, this step {100 * e.gain_step:.2f} % per sample and '
+            f'{100 * e.gain_binned:.2f} % on super-bin means (gain_binned); '
+            f'p = {e.p_value:.2g}.')
+        for name, p in e.parameters.items():
+            lines.append(f'  {name} = {p.value:.6g} +- {p.sigma:.2g} {p.unit}')
+        if e.indistinguishable_from:
+            lines.append(f"  cannot be told from: {', '.join(e.indistinguishable_from)}")
+    for c in diagnosis.confounded:
+        lines.append(f'Confounded in this record: {c.a} and {c.b} '
+                     f'(r = {c.correlation:+.4f}).')
+    pair = diagnosis.confounded_pair
     if pair:
-        lines.append(f"Not separated: {pair['text']}; to tell them apart, "
-                     f"{pair['experiment']}.")
+        lines.append(f'Not separated: {pair.text}; to tell them apart, {pair.experiment}.')
     return ''.join(f'# {line}\n' for line in lines)
 
 
 def write_text(path, text, overwrite=False):
-    """Write ``text`` to ``path`` atomically (a temporary file, then ``os.replace``)."""
+    """Write ``text`` to ``path`` atomically (:func:`gyro_emulator.atomic.write_text`)."""
     check_target(path, overwrite)
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(dir=folder, prefix='.' + os.path.basename(path) + '.',
-                               suffix='.tmp')
-    try:
-        with os.fdopen(fd, 'w', encoding='utf-8') as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    atomic.write_text(path, text)
 
 
 def check_target(path, overwrite):

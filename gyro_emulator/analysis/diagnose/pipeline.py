@@ -8,10 +8,10 @@
 3. Causes are added by forward selection while one gives a significant
    held-out gain (:mod:`.selection`).
 4. What remains is compared with the record's own noise floor and the
-   verdict is written (:mod:`.verdict`, :mod:`.document`).
+   verdict is decided (:mod:`.verdict`); :mod:`.document` makes the typed
+   :class:`.diagnosis.Diagnosis`, once.
 """
 
-from dataclasses import dataclass
 import math
 
 from gyro_emulator.analysis.diagnose import baseline as base
@@ -20,6 +20,7 @@ from gyro_emulator.analysis.diagnose import (document, emulated, generic, models
 from gyro_emulator.analysis.diagnose import verdict as vd
 from gyro_emulator.analysis.diagnose.cv import CrossValidation
 from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, measured, Prepared
+from gyro_emulator.analysis.diagnose.diagnosis import ResidualPlots
 from gyro_emulator.analysis.diagnose.effects import Context
 from gyro_emulator.analysis.diagnose.noise_model import SuperBins
 from gyro_emulator.physics.presets import physics_preset
@@ -28,17 +29,6 @@ from gyro_emulator.validation import check_range
 import numpy as np
 
 DEFAULT_FOLDS = 8
-
-
-@dataclass
-class Diagnosis:
-    """Everything ``diagnose`` found: the JSON document and plot data."""
-
-    doc: dict
-    prepared: Prepared = None
-    residual_before: np.ndarray = None
-    residual_after: np.ndarray = None
-    after_label: str = ''
 
 
 def _physics(data, device, ref_temp_c):
@@ -146,7 +136,7 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
 
     Returns
     -------
-    Diagnosis
+    gyro_emulator.analysis.diagnose.diagnosis.Diagnosis
 
     """
     check_range('diagnose', 'alpha', alpha, 0.0, 1.0, '', high_open=True)
@@ -185,20 +175,13 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
         'best': None if not chosen else _all_samples_rms(
             cv, chosen[0].evaluated.rmse, lambda k, f: models.predict(
                 chosen[0].evaluated.model, ctx, f, chosen[0].evaluated.fits[k]))}
-    doc = document.build(data, preset, cv, screen, rmse_base, null, steps, res, confound,
-                         not_tested, rms_all, alpha, sse_base=sse_base)
-    doc['temperature_polynomial'] = poly
-    if config is None:
-        document.note_compensation(doc, ctx.phys)
-    else:
-        doc['config'] = str(config)
-        doc['baseline']['model'] = (
-            f'the deterministic output of sensor config {str(config)!r} (axis {axis}, noise '
-            'off), one bias and one scale factor calibrated at the reference temperature')
     b = prep.binned
     cal_all = base.calibrate(b, ctx.phys)
-    before = b.gyro - base.baseline_prediction(b, ctx.phys, cal_all)
-    after = b.gyro - models.predict(final.model, ctx, b, final.full)
-    label = ' + '.join(final.model.ids) or 'recalibrated baseline (no cause found)'
-    return Diagnosis(doc=doc, prepared=prep, residual_before=before, residual_after=after,
-                     after_label=label)
+    plots = ResidualPlots(
+        prepared=prep, before=b.gyro - base.baseline_prediction(b, ctx.phys, cal_all),
+        after=b.gyro - models.predict(final.model, ctx, b, final.full),
+        after_label=' + '.join(final.model.ids) or 'recalibrated baseline (no cause found)')
+    return document.build(data=data, cv=cv, screen=screen, rmse_base=rmse_base,
+                          sse_base=sse_base, null=null, rms_all=rms_all, steps=steps, res=res,
+                          confound=confound, not_tested=not_tested, poly=poly, preset=preset,
+                          config=config, axis=axis, alpha=alpha, plots=plots)

@@ -34,9 +34,7 @@ from gyro_emulator.analysis.calibrate.provenance import axis_lines
 from gyro_emulator.analysis.diagnose import emulated
 from gyro_emulator.analysis.diagnose.baseline import MIN_RATE_RMS_RAD_S
 from gyro_emulator.recording.record import Record
-from gyro_emulator.sensor.config import config_from_mapping
 import numpy as np
-import yaml
 
 #: Shortest tau span (longest / shortest tau used) that separates N from B and K.
 MIN_TAU_SPAN = 10.0
@@ -87,14 +85,15 @@ def residual(config, data, axis):
     return y - coef[1] * applied, float(coef[1])
 
 
-def identify(text, data, axis, outlier_threshold):
+def identify(config, data, axis, outlier_threshold):
     """
-    Return the :class:`RecordNoise` of ``data`` against the sensor YAML ``text``.
+    Return the :class:`RecordNoise` of ``data`` against a sensor configuration.
 
     Parameters
     ----------
-    text : str
-        The written configuration (without noise terms from this record).
+    config : gyro_emulator.sensor.config.SensorConfig
+        The extended model (without noise terms from this record:
+        :attr:`.export.ExtendedModel.config`).
     data : gyro_emulator.analysis.diagnose.data.MeasuredData
         The record.
     axis : str
@@ -109,7 +108,6 @@ def identify(text, data, axis, outlier_threshold):
         One line saying what the record lacks for the identification.
 
     """
-    config = config_from_mapping(yaml.safe_load(text), source='the written config')
     e, scale = residual(config, data, axis)
     record = Record(time_s=np.asarray(data.time_s, dtype=float), gyro={axis: e},
                     gyro_sources={axis: 'the record minus the model'},

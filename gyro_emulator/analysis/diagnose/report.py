@@ -13,7 +13,7 @@ each selection step.
 
 import os
 
-from gyro_emulator import plotting
+from gyro_emulator import atomic, plotting
 import numpy as np
 
 PLOTS = (('temperature', 'temp_c', 'temperature reading (C)'),
@@ -32,6 +32,36 @@ def gain_text(gain):
     if gain < -1.0:
         return f'worse: {1.0 - gain:.3g}x the RMSE'
     return f'{100 * gain:.2f} %'
+
+
+def terminal_lines(diagnosis):
+    """Return what ``diagnose`` prints: the record, the verdict, the causes, the candidates."""
+    d, sa = diagnosis, diagnosis.set_aside
+    lines = [f'{d.record.rows} samples, {d.record.duration_s:.0f} s; baseline held-out RMSE '
+             f'{d.baseline.rmse_rad_s:.4g} rad/s; set aside {sa.count} samples '
+             f'({100 * sa.fraction:.3f} %)', f'verdict: {d.verdict}']
+    for i, e in enumerate(d.selected, 1):
+        alike = (f"; cannot be told from {', '.join(e.indistinguishable_from)}"
+                 if e.indistinguishable_from else '')
+        lines.append(f'cause {i}: {e.effect} ({e.kind})  gain {100 * e.gain:.1f} %  '
+                     f'p {e.p_value:.1e}{alike}')
+        lines += [f'  {name} = {p.value:.5g} +- {p.sigma:.2g} {p.unit}'
+                  for name, p in e.parameters.items()]
+        own = e.part_sf_temp_coeff_per_k
+        if own is not None:
+            lines.append(f"  the part's own SF tempco = {own.value:.5g} +- {own.sigma:.2g} 1/K "
+                         f'(the physics: {own.physics_per_k:.5g} 1/K)')
+    if d.temperature_polynomial.note:
+        lines.append(f'note: {d.temperature_polynomial.note}')
+    if not d.selected:
+        lines.append('best: none')
+    lines.append(d.residual.message)
+    lines += [f'confounded: {c.a} and {c.b} (r = {c.correlation:+.4f})' for c in d.confounded]
+    lines += [f'experiment: {text}' for text in d.experiments]
+    lines += [f'  {f.effect:<26} gain {gain_text(f.gain):>9}  p {f.p_value:.1e}  '
+              f"dBIC {f.delta_bic:9.0f}  {'significant' if f.significant else ''}"
+              for f in d.findings]
+    return lines + [f'  {nt.effect:<26} not tested: {nt.reason}' for nt in d.not_tested]
 
 
 def _binned_curve(x, r, groups=25):
@@ -67,7 +97,7 @@ def plot_residuals(diagnosis, out_dir):
 
     Parameters
     ----------
-    diagnosis : gyro_emulator.analysis.diagnose.pipeline.Diagnosis
+    diagnosis : gyro_emulator.analysis.diagnose.diagnosis.Diagnosis
         The result of :func:`gyro_emulator.analysis.diagnose.diagnose`.
     out_dir : str
         Directory for the PNG files (created if needed).
@@ -79,19 +109,18 @@ def plot_residuals(diagnosis, out_dir):
     """
     plt = plotting.pyplot()
     os.makedirs(out_dir, exist_ok=True)
-    b = diagnosis.prepared.binned
-    doc = diagnosis.doc
+    plots = diagnosis.plots
+    b = plots.prepared.binned
     names = []
     for key, attr, label in PLOTS:
         x = getattr(b, attr)
-        if (key == 'temperature' and not doc['input']['has_temp']) or np.ptp(x) <= 0.0:
+        if (key == 'temperature' and not diagnosis.record.has_temp) or np.ptp(x) <= 0.0:
             continue
         fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-        _panel(axes[0], x, diagnosis.residual_before, 'before: paper model, user calibration',
-               label)
-        _panel(axes[1], x, diagnosis.residual_after, 'after: ' + diagnosis.after_label, label)
+        _panel(axes[0], x, plots.before, 'before: paper model, user calibration', label)
+        _panel(axes[1], x, plots.after, 'after: ' + plots.after_label, label)
         if key == 'time':
-            for start, end, _ in doc['set_aside']['segments']:
+            for start, end, _ in diagnosis.set_aside.segments:
                 for ax in axes:
                     ax.axvspan(start, max(end, start + 0.5 * b.bins.dt_s), color='tab:orange',
                                alpha=0.3, lw=0)
@@ -107,12 +136,12 @@ def _fmt(v):
 
 def markdown(doc, plots=()):
     """
-    Return the report page for a diagnose JSON document.
+    Return the report page of a diagnosis.
 
     Parameters
     ----------
-    doc : dict
-        The JSON document of ``gyro-emulator diagnose``.
+    doc : gyro_emulator.analysis.diagnose.diagnosis.Diagnosis
+        What ``diagnose`` found.
     plots : sequence of str
         PNG file names to embed (relative to the page).
 
@@ -138,127 +167,126 @@ def markdown(doc, plots=()):
 
 def _summary_lines(doc):
     """Return the title and one paragraph on the record."""
-    inp = doc['input']
-    temp = ('no temperature reading' if not inp['has_temp'] else
-            f"temperature {inp['temp_range_c'][0]:.1f}...{inp['temp_range_c'][1]:.1f} C")
-    return [f"# Diagnosis of `{os.path.basename(inp['source']) or 'record'}`",
+    inp = doc.record
+    temp = ('no temperature reading' if not inp.has_temp else
+            f'temperature {inp.temp_range_c[0]:.1f}...{inp.temp_range_c[1]:.1f} C')
+    return [f"# Diagnosis of `{os.path.basename(inp.source) or 'record'}`",
             '',
-            f"{inp['rows']} samples over {inp['duration_s']:.0f} s "
-            f"(sample interval {inp['sample_interval_s']:.4g} s), {temp}, rms applied rate "
-            f"{inp['rate_rms_rad_s']:.3g} rad/s, acceleration "
-            f"{'recorded' if inp['has_accel'] else 'not recorded'}. Fits run "
-            f"on {inp['bins']} bin means of {inp['bin_s']:.3g} s.", '']
+            f'{inp.rows} samples over {inp.duration_s:.0f} s '
+            f'(sample interval {inp.sample_interval_s:.4g} s), {temp}, rms applied rate '
+            f'{inp.rate_rms_rad_s:.3g} rad/s, acceleration '
+            f"{'recorded' if inp.has_accel else 'not recorded'}. Fits run "
+            f'on {inp.bins} bin means of {inp.bin_s:.3g} s.', '']
 
 
 def _evidence_text(entry):
     """Return which test and which gain the cause rests on."""
-    ev = entry.get('evidence') or {}
-    p_ss = ev.get('p_state_space')
-    if ev.get('route') == 'state_space':
+    ev = entry.evidence
+    p_ss = ev.p_state_space
+    if ev.route == 'state_space':
         return (f'The decision rests on the likelihood ratio of the noise and the cause '
-                f"estimated jointly (LR {ev['likelihood_ratio']:.1f}, p = {p_ss:.2g}; the "
-                f"fold test gave p = {ev['p_fold_test']:.2g}) and on its gain in "
-                f"predicting the averaged residual ({100 * ev['gain_predictive']:.1f} %), "
+                f'estimated jointly (LR {ev.likelihood_ratio:.1f}, p = {p_ss:.2g}; the '
+                f'fold test gave p = {ev.p_fold_test:.2g}) and on its gain in '
+                f'predicting the averaged residual ({100 * ev.gain_predictive:.1f} %), '
                 'where a slow effect lives: per sample, white noise dominates.')
     return ('The decision rests on the fold test of the held-out gain per sample (p = '
-            f"{ev.get('p_fold_test', entry['p_value']):.2g}"
+            f'{ev.p_fold_test:.2g}'
             + ('' if p_ss is None else f'; the joint likelihood test gave p = {p_ss:.2g}')
             + ').')
 
 
 def _cause_lines(entry):
     """One chosen cause: its sentence, gains, test and parameter table."""
-    lines = [f"### {entry['effect']} ({entry['kind']})", '', entry['cause'], '',
-             f"Held-out gain {100 * entry['gain']:.1f} % against the user-calibrated baseline "
-             f"({100 * entry['gain_step']:.1f} % over the step before, per sample; "
-             f"{100 * entry['gain_binned']:.1f} % in the averaged residual the verdict "
-             f"uses); p = {entry['p_value']:.2g}; BIC on {entry['effective_bins']:.0f} "
-             f"effective bins {entry['delta_bic']:.0f}.", '', _evidence_text(entry)]
-    if entry['indistinguishable_from']:
+    lines = [f'### {entry.effect} ({entry.kind})', '', entry.cause, '',
+             f'Held-out gain {100 * entry.gain:.1f} % against the user-calibrated baseline '
+             f'({100 * entry.gain_step:.1f} % over the step before, per sample; '
+             f'{100 * entry.gain_binned:.1f} % in the averaged residual the verdict '
+             f'uses); p = {entry.p_value:.2g}; BIC on {entry.effective_bins:.0f} '
+             f'effective bins {entry.delta_bic:.0f}.', '', _evidence_text(entry)]
+    if entry.indistinguishable_from:
         lines += ['', 'Not separable on held-out data from: '
-                  + ', '.join(f'`{e}`' for e in entry['indistinguishable_from']) + '.']
-    if entry['kind'] == 'generic' and entry.get('mechanisms'):
+                  + ', '.join(f'`{e}`' for e in entry.indistinguishable_from) + '.']
+    if entry.kind == 'generic' and entry.mechanisms:
         lines += ['', 'Mechanisms that could produce it: '
-                  + '; '.join(entry['mechanisms']) + '.']
+                  + '; '.join(entry.mechanisms) + '.']
     lines += ['', '| parameter | value | 1 sigma | unit | meaning |', '|---|---|---|---|---|']
-    lines += [f"| {name} | {_fmt(p['value'])} | {_fmt(p['sigma'])} | {p['unit']} "
-              f"| {p['meaning']} |" for name, p in entry['parameters'].items()]
+    lines += [f'| {name} | {_fmt(p.value)} | {_fmt(p.sigma)} | {p.unit} '
+              f'| {p.meaning} |' for name, p in entry.parameters.items()]
     return lines + ['']
 
 
 def _verdict_lines(doc):
     """Return the verdict, the residual message and every chosen cause."""
-    res = doc['residual']
-    lines = [f"**{doc['verdict']}**", '', res['message'], '']
-    if not doc['selected']:
+    res = doc.residual
+    lines = [f'**{doc.verdict}**', '', res.message, '']
+    if not doc.selected:
         lines += ['No cause was chosen (`none`).', '']
-    for entry in doc['selected']:
+    for entry in doc.selected:
         lines += _cause_lines(entry)
-    noise = res['noise']
-    lines += [f"Noise of the final residual: {noise['white_sigma_rad_s']:.3g} rad/s per sample; "
-              f"N = {noise['arw_rad_s_sqrt_hz']:.3g} rad/s/sqrt(Hz), B = "
-              f"{noise['bias_instability_rad_s']:.3g} rad/s, K = "
-              f"{noise['rrw_rad_s_sqrt_s']:.3g} rad/s/sqrt(s) ({allan_text(noise)}).", '']
-    poly = doc.get('temperature_polynomial') or {}
-    if poly.get('note'):
-        lines += [poly['note'][0].upper() + poly['note'][1:] + '.', '']
+    noise = res.noise
+    lines += [f'Noise of the final residual: {noise.white_sigma_rad_s:.3g} rad/s per sample; '
+              f'N = {noise.arw_rad_s_sqrt_hz:.3g} rad/s/sqrt(Hz), B = '
+              f'{noise.bias_instability_rad_s:.3g} rad/s, K = '
+              f'{noise.rrw_rad_s_sqrt_s:.3g} rad/s/sqrt(s) ({allan_text(noise)}).', '']
+    note = doc.temperature_polynomial.note
+    if note:
+        lines += [note[0].upper() + note[1:] + '.', '']
     return lines
 
 
 def allan_text(noise):
     """Return what the fitted N, B, K rest on: the Allan deviation's reach, or that it has none."""
-    if noise['allan_tau_max_s'] > 0.0:
-        return f"robust Allan deviation up to {noise['allan_tau_max_s']:.3g} s"
+    if noise.tau_max_s > 0.0:
+        return f'robust Allan deviation up to {noise.tau_max_s:.3g} s'
     return ('no Allan deviation: no stretch of the record holds enough bins for three '
             'averaging times, so B and K are not measured (0) and N is the short-term '
             'spread: the floor holds the fast noise only')
 
 
 def _confound_lines(doc):
-    lines = [f"- `{c['a']}` and `{c['b']}` move together: correlation {c['correlation']:+.4f}."
-             for c in doc['confounded']]
-    lines += [f'- {text}' for text in doc['experiments']]
+    lines = [f'- `{c.a}` and `{c.b}` move together: correlation {c.correlation:+.4f}.'
+             for c in doc.confounded]
+    lines += [f'- {text}' for text in doc.experiments]
     return lines + [''] if lines else []
 
 
 def _set_aside_lines(doc):
-    sa = doc['set_aside']
-    if not sa['count']:
-        return [f"None (threshold {sa['threshold_sigma']:g} robust sigma).", '']
-    lines = [f"{sa['count']} samples ({100 * sa['fraction']:.3f} %) in "
-             f"{sa['segments_total']} stretches, beyond {sa['threshold_sigma']:g} robust sigma "
-             f"({sa['sigma_rad_s']:.3g} rad/s) of the local high-passed residual. Baseline RMSE "
-             f"with them: {sa['baseline_rmse_all_samples_rad_s']:.4g} rad/s"
-             + ('' if sa['best_gain_all_samples'] is None else
+    sa = doc.set_aside
+    if not sa.count:
+        return [f'None (threshold {sa.threshold_sigma:g} robust sigma).', '']
+    lines = [f'{sa.count} samples ({100 * sa.fraction:.3f} %) in '
+             f'{sa.segments_total} stretches, beyond {sa.threshold_sigma:g} robust sigma '
+             f'({sa.sigma_rad_s:.3g} rad/s) of the local high-passed residual. Baseline RMSE '
+             f'with them: {sa.baseline_rmse_all_samples_rad_s:.4g} rad/s'
+             + ('' if sa.best_gain_all_samples is None else
                 f"; the first cause's gain counted on every sample: "
-                f"{100 * sa['best_gain_all_samples']:.1f} %") + '.', '',
+                f'{100 * sa.best_gain_all_samples:.1f} %') + '.', '',
              '| from (s) | to (s) | samples |', '|---|---|---|']
-    lines += [f'| {a:.3f} | {b:.3f} | {n} |' for a, b, n in sa['segments'][:20]]
+    lines += [f'| {a:.3f} | {b:.3f} | {n} |' for a, b, n in sa.segments[:20]]
     return lines + ['']
 
 
 def _baseline_text(doc):
     """Return the paragraph on the baseline model, its calibration and held-out RMSE."""
-    cal = doc['calibration']
-    return (f"{doc['baseline']['model']}. Calibration: bias "
-            f"{cal['bias_rad_s']:.4g} rad/s, scale factor "
-            f"{cal['scale_factor']:.5g}"
-            + ('' if cal['scale_factor_calibrated'] else
+    cal = doc.calibration
+    return (f'{doc.baseline.model}. Calibration: bias '
+            f'{cal.bias_rad_s:.4g} rad/s, scale factor '
+            f'{cal.scale_factor:.5g}'
+            + ('' if cal.scale_factor_calibrated else
                ' (nominal: no rate excitation near the reference temperature)')
             + f', from {calibration_samples_text(doc)}. Held-out '
-            f"RMSE {doc['baseline']['rmse_rad_s']:.4g} rad/s (recalibrated "
+            f'RMSE {doc.baseline.rmse_rad_s:.4g} rad/s (recalibrated '
             'on all training data: '
-            f"{doc['recalibrated_baseline']['rmse_rad_s']:.4g} rad/s).")
+            f'{doc.baseline.recalibrated_rmse_rad_s:.4g} rad/s).')
 
 
 def calibration_samples_text(doc):
     """Return which samples the calibration used: the temperature window, or all of them."""
-    cal = doc['calibration']
-    if not doc['input']['has_temp']:
-        return (f"all {cal['samples']} samples (the record has no temperature reading, so "
-                f"no window about {cal['ref_temp_c']:.1f} C could be chosen)")
-    return (f"{cal['samples']} samples within {cal['window_c']:.2f} C of "
-            f"{cal['ref_temp_c']:.1f} C")
+    cal = doc.calibration
+    if not doc.record.has_temp:
+        return (f'all {cal.samples} samples (the record has no temperature reading, so '
+                f'no window about {cal.ref_temp_c:.1f} C could be chosen)')
+    return f'{cal.samples} samples within {cal.window_c:.2f} C of {cal.ref_temp_c:.1f} C'
 
 
 _TEST_TEXT = {'fold_test': 'fold', 'state_space': 'likelihood'}
@@ -267,32 +295,32 @@ _TEST_TEXT = {'fold_test': 'fold', 'state_space': 'likelihood'}
 def _steps_lines(doc):
     """One table per selection step, then the causes not tested."""
     lines = []
-    for i, st in enumerate(doc['steps'], 1):
-        lines += [f"Step {i}: added `{st['added'] or 'nothing'}`.", '',
+    for i, st in enumerate(doc.steps, 1):
+        lines += [f"Step {i}: added `{st.added or 'nothing'}`.", '',
                   '| candidate | held-out RMSE (rad/s) | gain over the step before | '
                   'gain in averaged residual | p | test | '
                   'delta BIC | significant |', '|---|---|---|---|---|---|---|---|']
-        lines += [f"| {c['effect']} | {c['rmse_rad_s']:.4g} | {gain_text(c['gain_step'])} "
-                  f"| {gain_text(c.get('gain_binned', 0.0))} | {c['p_value']:.2g} | "
-                  f"{_TEST_TEXT[c.get('route', 'fold_test')]} | {c['delta_bic']:.0f} | "
-                  f"{'yes' if c['significant'] else 'no'} |" for c in st['candidates']]
+        lines += [f'| {c.effect} | {c.rmse_rad_s:.4g} | {gain_text(c.gain_step)} '
+                  f'| {gain_text(c.gain_binned)} | {c.p_value:.2g} | '
+                  f'{_TEST_TEXT[c.route]} | {c.delta_bic:.0f} | '
+                  f"{'yes' if c.significant else 'no'} |" for c in st.candidates]
         lines.append('')
-    lines += [f"- `{nt['effect']}` not tested: {nt['reason']}" for nt in doc['not_tested']]
+    lines += [f'- `{nt.effect}` not tested: {nt.reason}' for nt in doc.not_tested]
     return lines + ['']
 
 
 def _method_text(doc):
     """Return the selection rules in one paragraph."""
-    m = doc['method']
-    return (f"{m['folds']} contiguous cross-validation blocks; every model "
+    m = doc.method
+    return (f'{m.folds} contiguous cross-validation blocks; every model '
             'is fitted on the other blocks and predicts the held-out one '
             'sample by sample (a step keeps the time found on the whole record). '
             'A cause joins the model when its held-out RMSE gain over the current '
-            f"model is >= {100 * m['min_gain']:.1f} % (a cause on the applied rate: "
-            f">= {100 * m['min_gain_rate']:.1f} %), p < {m['alpha']:g} / candidates "
-            f"({m['test']}) and its {m['information_criterion']} drops by more than "
-            f"{-m['delta_bic_max']:g}. A physical cause must beat its generic "
-            f"competitors (p < {m['alpha_tie']:g}). Uncertainties: {m['uncertainty']}.")
+            f'model is >= {100 * m.min_gain:.1f} % (a cause on the applied rate: '
+            f'>= {100 * m.min_gain_rate:.1f} %), p < {m.alpha:g} / candidates '
+            f'({m.test}) and its {m.information_criterion} drops by more than '
+            f'{-m.delta_bic_max:g}. A physical cause must beat its generic '
+            f'competitors (p < {m.alpha_tie:g}). Uncertainties: {m.uncertainty}.')
 
 
 def write_report(diagnosis, out_dir):
@@ -301,7 +329,7 @@ def write_report(diagnosis, out_dir):
 
     Parameters
     ----------
-    diagnosis : gyro_emulator.analysis.diagnose.pipeline.Diagnosis
+    diagnosis : gyro_emulator.analysis.diagnose.diagnosis.Diagnosis
         The result of :func:`gyro_emulator.analysis.diagnose.diagnose`.
     out_dir : str
         Directory for the report (created if needed).
@@ -314,6 +342,5 @@ def write_report(diagnosis, out_dir):
     """
     plots = plot_residuals(diagnosis, out_dir)
     path = os.path.join(out_dir, 'report.md')
-    with open(path, 'w', encoding='utf-8') as handle:
-        handle.write(markdown(diagnosis.doc, plots))
+    atomic.write_text(path, markdown(diagnosis, plots))
     return path

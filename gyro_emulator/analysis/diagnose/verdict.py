@@ -256,12 +256,12 @@ def experiments(selected, confound, remains, strongest):
             out.append(f"{pair['a']} and {pair['b']} are confounded "
                        f"(r = {pair['correlation']:+.4f}): {_SEPARATE[key]}.")
     for entry in selected:
-        for other in entry['indistinguishable_from']:
-            key = frozenset({REGRESSOR_OF.get(entry['effect'], 'time'),
+        for other in entry.indistinguishable_from:
+            key = frozenset({REGRESSOR_OF.get(entry.effect, 'time'),
                              REGRESSOR_OF.get(other, 'time')})
             text = _SEPARATE.get(key)
             if text:
-                out.append(f"{entry['effect']} cannot be told from {other}: {text}.")
+                out.append(f'{entry.effect} cannot be told from {other}: {text}.')
     if remains:
         text = _SEPARATE.get(frozenset({strongest}))
         if text:
@@ -375,7 +375,7 @@ def confounded_pair(prep, resid_bins, confound, selected, res):
     # only a chosen cause names the pair: on raw ADIS16405 y stretches the
     # residual's wander passes the structure limit against time on a ramp
     # (3 of 12 records without an effect), which is not evidence of a bias
-    chosen = any(e['effect'] in _PAIR_CAUSES for e in selected)
+    chosen = any(e.effect in _PAIR_CAUSES for e in selected)
     if not pair or not chosen:
         return None
     b = prep.binned
@@ -444,16 +444,18 @@ def _failed(res):
             out[0] if out else None)
 
 
-def message(result, selected, res, coverage=None):
+def message(result, selected, res, coverage=None, suggestive=False):
     """
     One paragraph on the verdict, the residual and what remains.
 
     Every comparison is given with what noise alone reaches, the one that
     decides is named, and a regressor is said to be followed only past its
     own noise-alone point. ``coverage`` (:func:`coverage_text`) says how
-    few causes the record could test.
+    few causes the record could test; with a ``suggestive`` candidate
+    (:func:`suggestive`) no cause is established rather than none explains.
+    ``selected``: the chosen causes (:class:`.diagnosis.Cause`).
     """
-    names = ', '.join(e['effect'] for e in selected)
+    names = ', '.join(e.effect for e in selected)
     level = (f"the held-out residual is {res['excess']:.3f}x its noise floor "
              f"({res['rms_rad_s']:.3g} vs {res['floor_rad_s']:.3g} rad/s; noise alone "
              f"reaches {res['excess_limit']:.3f}x), {res['excess_slow']:.2f}x in "
@@ -474,10 +476,10 @@ def message(result, selected, res, coverage=None):
         return f'Explained by {names}: ' + level + '.'
     if result == 'partly_explained':
         lead = f'Partly explained by {names}'
-    elif coverage:
-        lead = f'No cause explains the mismatch; {coverage}'
     else:
-        lead = 'No cause in the catalogue explains the mismatch'
+        lead = ('No cause is established' if suggestive else 'No cause explains the mismatch'
+                if coverage else 'No cause in the catalogue explains the mismatch')
+        lead += f'; {coverage}' if coverage else ''
     failed = _failed(res)
     above = '' if failed is None else f'; it exceeds what noise alone reaches {failed}'
     noise = res['noise']

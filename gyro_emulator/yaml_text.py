@@ -1,13 +1,16 @@
 """
-YAML text of the calibration exports: PyYAML writes the data, comments go around it.
+YAML text with comments: PyYAML writes the data, comments go around it.
 
-PyYAML writes no comments, so :func:`dump` adds a comment after the line of
-a key. Measured figures (:class:`Figure`) are written to 6 significant
-digits as text that both readers of these files take as a float
-(:func:`float_text`): ``100.0``, ``1.0e-05``, ``2.31665e-05``. ``100`` would
-be an integer to ``cv::FileStorage`` (ORB-SLAM3 v1.0 stops on it), and
-``1e-05`` a *string* to PyYAML (YAML 1.1 floats need a dot and a signed
-exponent), hence to Kalibr.
+The one writer of YAML files with comments: the calibration exports
+(:mod:`gyro_emulator.analysis.calibrate`) and the sensor YAML
+(:func:`gyro_emulator.sensor.config.config_yaml`) use it. PyYAML writes no
+comments, so :func:`dump` adds a comment after the line of a key. Measured
+figures (:class:`Figure`) are written to 6 significant digits as text that
+both readers of these files take as a float (:func:`float_text`): ``100.0``,
+``1.0e-05``, ``2.31665e-05``. ``100`` would be an integer to
+``cv::FileStorage`` (ORB-SLAM3 v1.0 stops on it), and ``1e-05`` a *string*
+to PyYAML (YAML 1.1 floats need a dot and a signed exponent), hence to
+Kalibr. It lives at layer 0 so that the sensor layer and the analysis share it.
 """
 
 import math
@@ -38,6 +41,11 @@ def float_text(value, spec='.6g'):
     if '.' not in mantissa:
         mantissa += '.0'
     return mantissa + mark + exponent
+
+
+def as_written(value, spec='.6g'):
+    """Return the float that ``float_text(value, spec)`` reads back as (a figure as written)."""
+    return float(float_text(value, spec))
 
 
 class Figure(float):
