@@ -185,12 +185,12 @@ def test_preset_is_a_sensor_yaml_the_emulator_loads(calibration, tmp_path):
 
 def test_preset_goes_through_the_node_parameters(calibration, tmp_path):
     """The node turns a sensor YAML into sensor.* parameters and back: the preset survives."""
-    from gyro_emulator.ros import params as ros_params
+    from gyro_emulator.emulation.driver import parameters as node_params
 
     path = tmp_path / 'fitted.yaml'
     path.write_text(export_noise.write_noise(calibration, 'preset'))
     config = load_sensor_config(str(path))
-    again = ros_params.apply_sensor_params(config, ros_params.sensor_param_values(config))
+    again = node_params.apply_sensor_params(config, node_params.sensor_param_values(config))
     assert again == config
     out = GyroModel(again, 200.0, np.random.default_rng(0)).run(np.zeros((400, 3)), 25.0)
     assert np.all(np.isfinite(out.gyro_rad_s))

@@ -268,7 +268,7 @@ def test_every_extended_field_is_checked_against_its_range(cause, name, spec):
 
 def test_record_clock_places_the_first_sample_on_its_origin_or_says_why_not():
     """record_start_clock_s: the first sample's record time is its clock time - the origin."""
-    from gyro_emulator.emulation.record_clock import RecordClock
+    from gyro_emulator.emulation.driver.record_clock import RecordClock
     config = replace(SensorConfig.ideal(), extended=ex.ExtendedTerms(
         bias_step=ex.BiasStep(10.0, A)))
     notes = []

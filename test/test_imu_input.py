@@ -1,8 +1,9 @@
-"""A simulator's ideal-IMU time line (emulation.imu_timeline) and the model's rate changes."""
+"""A simulator's ideal-IMU time line (emulation.driver.imu_timeline) and the rate changes."""
 
-from gyro_emulator.emulation.block_stepper import BlockStepper
-from gyro_emulator.emulation.imu_timeline import (InputTimeline, MAX_GAP_S, MAX_RATE_HZ,
-                                                  SpacingRefused, StampNotNewer)
+from gyro_emulator.emulation.driver.block_stepper import BlockStepper
+from gyro_emulator.emulation.driver.imu_timeline import (InputTimeline, MAX_GAP_S,
+                                                         MAX_RATE_HZ, SpacingRefused,
+                                                         StampNotNewer)
 from gyro_emulator.sensor.config import SensorConfig
 from gyro_emulator.sensor.model import GyroModel
 import numpy as np

@@ -112,7 +112,8 @@ def test_the_core_imports_without_ros():
     import subprocess
     import sys
     code = ('import sys, gyro_emulator.physics.first_order, gyro_emulator.physics.paper, '
-            'gyro_emulator.sensor.model, gyro_emulator.analysis.diagnose; '
+            'gyro_emulator.sensor.model, gyro_emulator.analysis.diagnose, '
+            'gyro_emulator.emulation.driver.core; '
             'sys.exit(1 if "rclpy" in sys.modules else 0)')
     assert subprocess.run([sys.executable, '-c', code], cwd=ROOT).returncode == 0
 

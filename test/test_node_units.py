@@ -6,8 +6,9 @@ import os
 import sys
 import types
 
-from gyro_emulator.emulation import commands, profiles, scenario
-from gyro_emulator.emulation.block_stepper import BlockStepper
+from gyro_emulator.emulation import profiles, scenario
+from gyro_emulator.emulation.driver import commands, parameters
+from gyro_emulator.emulation.driver.block_stepper import BlockStepper
 from gyro_emulator.ros import params
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
@@ -208,7 +209,7 @@ def test_block_stepper_adapts_its_block_to_how_often_inputs_change():
 
 def test_shipped_defaults_define_every_node_parameter_and_validate():
     raw = params.load_params_file(os.path.join(ROOT, 'config', 'gyro_emulator.yaml'))
-    assert sorted(raw) == sorted(params.NODE_SPECS)
+    assert sorted(raw) == sorted(parameters.NODE_SPECS)
     defaults = params.node_defaults(os.path.join(ROOT, 'config', 'gyro_emulator.yaml'))
     assert defaults['rate_hz'] == 200.0 and defaults['sensor_config'] == 'paper'
 
@@ -222,7 +223,7 @@ def test_node_and_simulate_share_one_gravity_default_and_a_driver_like_temperatu
         accel = profiles.make_profile(name, 10.0).samples(np.array([0.0, 5.0])).accel_m_s2
         assert np.array_equal(accel, np.tile(profiles.LEVEL_ACCEL_M_S2, (2, 1))), name
     assert 1.0 <= defaults['temperature_rate_hz'] <= 10.0
-    assert defaults['seed'] == params.SEED_FROM_NAME and defaults['fault.type'] == 'none'
+    assert defaults['seed'] == parameters.SEED_FROM_NAME and defaults['fault.type'] == 'none'
 
 
 @pytest.mark.parametrize('value,match', [
@@ -230,10 +231,10 @@ def test_node_and_simulate_share_one_gravity_default_and_a_driver_like_temperatu
     ([0.0, 0.0, float('nan')], r'default_linear_acceleration_m_s2.z = nan is out of range'),
     ('up', 'is not three numbers')])
 def test_a_vector_parameter_is_three_finite_numbers(value, match):
-    spec = params.NODE_SPECS['default_linear_acceleration_m_s2']
+    spec = parameters.NODE_SPECS['default_linear_acceleration_m_s2']
     with pytest.raises(ValueError, match=match):
-        params.check_value(spec, value)
-    assert params.check_value(spec, [0, 0, 9]) == [0.0, 0.0, 9.0]
+        parameters.check_value(spec, value)
+    assert parameters.check_value(spec, [0, 0, 9]) == [0.0, 0.0, 9.0]
 
 
 def test_defaults_file_errors_name_the_problem(tmp_path):
@@ -261,47 +262,47 @@ def test_defaults_file_errors_name_the_problem(tmp_path):
 ])
 def test_check_value_names_parameter_value_and_range(name, value, match):
     with pytest.raises(ValueError, match=match):
-        params.check_value(params.NODE_SPECS[name], value)
+        parameters.check_value(parameters.NODE_SPECS[name], value)
 
 
 def test_descriptors_carry_ranges_and_read_only():
-    rate = params.descriptor(params.NODE_SPECS['rate_hz'])
+    rate = params.descriptor(parameters.NODE_SPECS['rate_hz'])
     assert rate.read_only and rate.floating_point_range[0].to_value == 5000.0
-    timeout = params.descriptor(params.NODE_SPECS['command_timeout_s'])
+    timeout = params.descriptor(parameters.NODE_SPECS['command_timeout_s'])
     assert not timeout.read_only and timeout.description
-    assert all(spec.description for spec in params.NODE_PARAMS)
+    assert all(spec.description for spec in parameters.NODE_PARAMS)
 
 
 def test_every_sensor_field_has_a_description():
     names = [f.name for f in fields(sensor_config.SensorConfig)]
-    assert sorted(set(names) - set(params.SENSOR_DESCRIPTIONS)) == []
+    assert sorted(set(names) - set(parameters.SENSOR_DESCRIPTIONS)) == []
 
 
 @pytest.mark.parametrize('config', [sensor_config.SensorConfig(), rich_config(),
                                     rich_config().with_terms(latency=False)],
                          ids=['default', 'rich', 'rich_no_latency'])
 def test_sensor_parameters_round_trip_to_the_same_config(config):
-    values = params.sensor_param_values(config)
+    values = parameters.sensor_param_values(config)
     assert all(isinstance(v, (bool, int, float, str, list)) for v in values.values())
     assert len(values['sensor.misalignment']) == 9
     assert math.isnan(values['sensor.initial_die_temp_c'])
-    assert params.apply_sensor_params(config, values) == config
+    assert parameters.apply_sensor_params(config, values) == config
 
 
 def test_sensor_parameter_errors_name_the_field():
     config = sensor_config.SensorConfig()
     with pytest.raises(ValueError, match='SensorConfig.lsb_rad_s'):
-        params.apply_sensor_params(config, {'sensor.lsb_rad_s': [-1.0, 0.0, 0.0]})
+        parameters.apply_sensor_params(config, {'sensor.lsb_rad_s': [-1.0, 0.0, 0.0]})
     with pytest.raises(ValueError, match='unknown error term'):
-        params.apply_sensor_params(config, {'sensor.terms.magic': True})
-    changed = params.apply_sensor_params(config, {'sensor.lsb_rad_s': 1e-4,
-                                                  'sensor.terms.quantization': False})
+        parameters.apply_sensor_params(config, {'sensor.terms.magic': True})
+    changed = parameters.apply_sensor_params(config, {'sensor.lsb_rad_s': 1e-4,
+                                                      'sensor.terms.quantization': False})
     assert changed.lsb_rad_s == (1e-4,) * 3 and not changed.terms.quantization
 
 
 def test_without_noise_switches_off_only_noise_terms():
-    quiet = params.without_noise(rich_config())
-    for term in params.NOISE_TERMS:
+    quiet = parameters.without_noise(rich_config())
+    for term in parameters.NOISE_TERMS:
         assert not getattr(quiet.terms, term)
     assert quiet.terms.thermal_lag and quiet.terms.quantization
 
@@ -530,7 +531,7 @@ def test_raw_message_falls_back_to_the_message_when_a_slot_is_not_unique(monkeyp
 # --- the node's fault state (emulation.fault_state) --------------------------------
 
 def test_fault_state_moves_pending_active_ended_and_follows_a_jump_back():
-    from gyro_emulator.emulation.fault_state import FaultState
+    from gyro_emulator.emulation.driver.fault_state import FaultState
     from gyro_emulator.sensor import faults
     state = FaultState((8.0, 8.0, 8.0), np.random.default_rng(0))
     assert state.state == 'none' and state.changed
@@ -563,10 +564,10 @@ def test_extended_terms_come_from_sensor_config_and_survive_the_parameters(tmp_p
     path = tmp_path / 'part.yaml'
     path.write_text('extended:\n  bias_step: {step_time_s: 2.0, bias_step_rad_s: 0.01}\n')
     base = sensor_config.load_sensor_config(str(path))
-    values = params.sensor_param_values(base)
+    values = parameters.sensor_param_values(base)
     assert not any(name.startswith('sensor.extended') for name in values)
     values['sensor.lsb_rad_s'] = [0.0, 0.0, 0.0]
-    config = params.apply_sensor_params(base, values)
+    config = parameters.apply_sensor_params(base, values)
     assert config.extended == base.extended and config.extended.active() == ('bias_step',)
     with pytest.raises(ValueError, match='unknown error-model parameter'):
-        params.apply_sensor_params(base, {'sensor.extended': 1.0})
+        parameters.apply_sensor_params(base, {'sensor.extended': 1.0})

@@ -1,7 +1,7 @@
-"""The sensor's sample clock under the node's timer (emulation.sample_clock), no ROS."""
+"""The sensor's sample clock under the node's timer (emulation.driver.sample_clock), no ROS."""
 
-from gyro_emulator.emulation.block_stepper import BlockStepper
-from gyro_emulator.emulation.sample_clock import MAX_GAP_S, SampleClock
+from gyro_emulator.emulation.driver.block_stepper import BlockStepper
+from gyro_emulator.emulation.driver.sample_clock import MAX_GAP_S, SampleClock
 from gyro_emulator.ros import gyro_array
 from gyro_emulator.sensor.config import SensorConfig
 from gyro_emulator.sensor.model import GyroModel

@@ -1,15 +1,16 @@
 """
-How commands get from the node's subscriptions into its command streams.
+How commands get from the node's subscriptions to its driver.
 
-A subscription callback only appends the message, still serialized, to the
-topic's inbox: a ``collections.deque`` with ``maxlen`` :data:`INBOX_DEPTH`, so
-under a flood the newest messages stay and memory is bounded. At each sample
-:meth:`Intake.take` decodes every inbox in one vectorised call
-(:func:`gyro_emulator.recording.cdr.decode`; rclpy's deserialiser for the
-types without a fixed layout, and as a fallback), validates each command
-(:mod:`gyro_emulator.emulation.commands`) and queues it in its stamped
-:class:`~gyro_emulator.emulation.commands.CommandStream`. A zero stamp means
-"on receipt": the sample that takes it.
+The node subscribes through :meth:`Intake.subscribe`. A command's callback
+only appends the message, still serialized, to the topic's inbox: a
+``collections.deque`` with ``maxlen`` :data:`INBOX_DEPTH`, so under a flood
+the newest messages stay and memory is bounded. When a sample needs its
+inputs, the driver calls :meth:`Intake.take`, which decodes every inbox in
+one vectorised call (:func:`gyro_emulator.recording.cdr.decode`; rclpy's
+deserialiser for the types without a fixed layout, and as a fallback); the
+driver then checks each command and queues it at its stamp
+(:class:`gyro_emulator.emulation.driver.commands.Commands`). A zero stamp
+means "on receipt": the sample that takes it.
 
 Raw callbacks and one decode per sample keep a command flood from stalling
 the output: about 1.5 us a message, not ~100 us (``bench/bench_node.py``).
@@ -17,16 +18,23 @@ the output: about 1.5 us a message, not ~100 us (``bench/bench_node.py``).
 
 from collections import deque
 
-from gyro_emulator.emulation.commands import (check_acceleration, check_rate,
-                                              check_temperature, CommandStream,
-                                              InputRejected)
 from gyro_emulator.recording import cdr, topics
 from gyro_emulator.ros import codec
 from gyro_emulator.units import NS_PER_S
+from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.qos import qos_profile_sensor_data, QoSProfile
+from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.serialization import deserialize_message
 
 #: Messages each inbox keeps until the next sample (the newest stay).
 INBOX_DEPTH = 100
+
+
+def _appender(inbox):
+    """Return a subscription callback that appends to ``inbox`` (rclpy inspects it)."""
+    def append(msg):
+        inbox.append(msg)
+    return append
 
 
 def _deserialized(topic, payloads):
@@ -69,85 +77,65 @@ def decode(topic, payloads):
 
 class Intake:
     """
-    The node's command streams, fed from raw subscriptions through inboxes.
+    The node's command inboxes, fed from raw subscriptions; the driver's command source.
 
     Parameters
     ----------
     rate_topic : gyro_emulator.recording.topics.Topic or None
         The rate input (``cmd/angular_velocity`` or ``cmd/odom``); None: none
         (``input_source: imu``).
-    initial_temperature_c : float
-        Ambient temperature before the first command, deg C.
-    initial_accel_m_s2 : tuple of float
-        Specific force before the first command, m/s^2.
-    capacity : int
-        Commands per stream waiting for their stamp.
-    reject : callable
-        ``reject(InputRejected)``: count and log a refused command.
-    clamp : callable
-        ``clamp(raw_temp_c, temp_c)``: count and log a clamped temperature.
+
+    Attributes
+    ----------
+    inboxes : dict
+        ``{topic: deque of serialized messages}``, in the order they are taken.
 
     """
 
-    def __init__(self, rate_topic, initial_temperature_c, initial_accel_m_s2, capacity,
-                 reject, clamp):
-        self.rate = CommandStream('rate', (0.0, 0.0, 0.0), capacity)
-        self.temperature = CommandStream('temperature', initial_temperature_c, capacity)
-        self.accel = CommandStream('linear_acceleration', tuple(initial_accel_m_s2),
-                                   capacity)
-        self._reject, self._clamp = reject, clamp
-        handlers = {topics.TEMPERATURE_CMD: (self.temperature, self._temperature),
-                    topics.ACCEL_CMD: (self.accel, self._accel)}
+    def __init__(self, rate_topic):
+        streams = {topics.TEMPERATURE_CMD: 'temperature',
+                   topics.ACCEL_CMD: 'linear_acceleration'}
         if rate_topic is not None:
-            handlers[rate_topic] = (self.rate, self._rate)
-        self._handlers = handlers
-        self.inboxes = {topic: deque(maxlen=INBOX_DEPTH) for topic in handlers}
+            streams[rate_topic] = 'rate'
+        self._streams = streams
+        self.inboxes = {topic: deque(maxlen=INBOX_DEPTH) for topic in streams}
+        self.subscriptions = []
 
-    @property
-    def streams(self):
-        """Return the rate, temperature and acceleration streams, in that order."""
-        return (self.rate, self.temperature, self.accel)
-
-    def take(self, now_ns, limits):
-        """Validate and queue every command that arrived; ``now_ns`` is the node clock."""
-        lead_ns = int(limits.max_stamp_lead_s * NS_PER_S)
+    def take(self):
+        """Return and empty every inbox: ``(stream name, stamps ns, values)`` per topic."""
+        batches = []
         for topic, inbox in self.inboxes.items():
             if not inbox:
                 continue
             payloads = list(inbox)
             inbox.clear()
-            stream, check = self._handlers[topic]
-            for stamp_ns, value in zip(*decode(topic, payloads)):
-                try:
-                    self._offer(stream, check(value, limits), stamp_ns, now_ns, lead_ns)
-                except InputRejected as exc:
-                    self._reject(exc)
+            stamps, values = decode(topic, payloads)
+            batches.append((self._streams[topic], stamps, values))
+        return batches
 
-    def _offer(self, stream, value, stamp_ns, now_ns, lead_ns):
-        if stream.offer(value, stamp_ns, now_ns, lead_ns):
-            self._reject(InputRejected('queue_overflow', f'{stream.name}: more than '
-                                       f'{stream.capacity} commands wait for their '
-                                       'stamp: the oldest was dropped'))
+    def subscribe(self, node, on_imu=None):
+        """
+        Subscribe ``node`` to its inputs (its executor serves them).
 
-    @staticmethod
-    def _rate(value, limits):
-        return check_rate(value, limits)
-
-    @staticmethod
-    def _accel(value, limits):
-        return check_acceleration(value, limits)
-
-    def _temperature(self, value, limits):
-        temp, clamped = check_temperature(value, limits)
-        if clamped:
-            self._clamp(value, temp)
-        return temp
-
-    def pending(self):
-        """Return how many commands wait for their stamp, over all streams."""
-        return sum(len(stream.pending) for stream in self.streams)
-
-    def reset_clock(self):
-        """Forget every stamp (the clock jumped back)."""
-        for stream in self.streams:
-            stream.reset_clock()
+        Commands go, still serialized, into the inboxes and are taken at the
+        next sample; each takes effect at the first sample at or after its
+        stamp, so the order in which the executor serves the timer and the
+        subscriptions does not change the output. With ``on_imu``,
+        ``imu/ideal`` is handled as it arrives: one output per message.
+        """
+        qos = QoSProfile(history=qos_profile_sensor_data.history, depth=INBOX_DEPTH,
+                         reliability=qos_profile_sensor_data.reliability,
+                         durability=qos_profile_sensor_data.durability)
+        options = QoSOverridingOptions.with_default_policies
+        # Default QoS event handlers would join every executor wake-up.
+        quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
+        for topic, inbox in self.inboxes.items():
+            raw = topic.type_name != topics.ODOMETRY
+            self.subscriptions.append(node.create_subscription(
+                codec.topic_class(topic), topic.name, _appender(inbox), qos, raw=raw,
+                qos_overriding_options=options(), event_callbacks=quiet))
+        if on_imu is not None:
+            topic = topics.IMU_IDEAL_IN
+            self.subscriptions.append(node.create_subscription(
+                codec.topic_class(topic), topic.name, on_imu, qos,
+                qos_overriding_options=options(), event_callbacks=quiet))

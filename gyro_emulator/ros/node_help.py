@@ -1,13 +1,14 @@
 """
 ``node --help``: the node's parameters and topics, printed without starting ROS.
 
-The text is built from the same tables the node uses (:data:`params.NODE_PARAMS`,
+The text is built from the same tables the node uses (:data:`parameters.NODE_PARAMS`,
 the ``sensor.*`` fields of :class:`~gyro_emulator.sensor.config.SensorConfig`
 and the topic table), so it cannot drift from what the node declares.
 """
 
 import textwrap
 
+from gyro_emulator.emulation.driver import parameters
 from gyro_emulator.recording import topics
 from gyro_emulator.ros import params
 
@@ -52,19 +53,19 @@ def help_text():
     """Return the ``--help`` text: usage, parameters with defaults, topics."""
     defaults = params.node_defaults()
     out = [USAGE, '', 'parameters (read-only ones are fixed once the node runs):']
-    for spec in params.NODE_PARAMS:
+    for spec in parameters.NODE_PARAMS:
         flag = ', read-only' if spec.read_only else ''
         default = defaults[spec.name]
         default = str(default).lower() if isinstance(default, bool) else repr(default)
         out.append(_wrap(spec.name, f'{spec.description} (default {default}; '
                                     f'{_constraint(spec)}{flag})'))
-    fields = ', '.join(sorted(k for k in params.SENSOR_DESCRIPTIONS
+    fields = ', '.join(sorted(k for k in parameters.SENSOR_DESCRIPTIONS
                               if k not in ('terms', 'extended')))
     out.append(_wrap('sensor.<field>', 'one error-model parameter per SensorConfig '
                      f'field, default from sensor_config, settable at run time: {fields}'))
     out.append(_wrap('sensor.terms.<term>', 'on/off switch of each error term, settable '
                      'at run time'))
-    out.append(_wrap('extended terms', params.SENSOR_DESCRIPTIONS['extended']))
+    out.append(_wrap('extended terms', parameters.SENSOR_DESCRIPTIONS['extended']))
     out += ['', 'topics (relative names follow the namespace; ~/ is under the node name):']
     for topic in topics.NODE_TOPICS:
         out.append(_wrap(f'{topic.direction:>3} {topic.name}',

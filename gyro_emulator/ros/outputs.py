@@ -3,15 +3,16 @@ What the node publishes per sample: Imu, die temperature, truth and fault truth.
 
 :class:`OutputStage` owns the node's publishers and the serialized templates
 (``ros/rawmsg.py``) of ``imu/data_raw``, ``imu/temperature`` and
-``~/truth/{rate,bias,scale_factor}``, and publishes one model sample after
-the fault in force has acted on it (:mod:`gyro_emulator.sensor.faults`):
+``~/truth/{rate,bias,scale_factor}``, and publishes one
+:class:`~gyro_emulator.emulation.driver.records.Output` of the driver (the
+fault in force has already acted on it, :mod:`gyro_emulator.sensor.faults`):
 
 * ``imu/data_raw`` (REP 145/103): rad/s in the sensor frame,
   ``angular_velocity_covariance`` = diag(sigma^2), orientation absent
   (``orientation_covariance[0] = -1``), linear acceleration absent unless
   passed through. A dropout publishes nothing; a stuck axis repeats the
   float64 of the last published value bit for bit.
-* ``imu/temperature`` every ``temp_every``-th sample.
+* ``imu/temperature`` on the samples the driver marks (``temperature_rate_hz``).
 * the truth of the same sample, stamped at the sample instant.
 * ``~/truth/fault`` (diagnostic_msgs/DiagnosticArray, latched) whenever the
   fault state changes; :func:`fault_message` gives its encoding.
@@ -21,9 +22,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from gyro_emulator.recording import topics
 from gyro_emulator.ros import codec
 from gyro_emulator.ros.rawmsg import RawMessage
-import numpy as np
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.qos_overriding_options import QoSOverridingOptions
+from rclpy.time import Time
 
 _LEVELS = {0: DiagnosticStatus.OK, 1: DiagnosticStatus.WARN, 2: DiagnosticStatus.ERROR}
 
@@ -93,7 +94,7 @@ class OutputStage:
             'accel': ('linear_acceleration', 'vector3'),
             'accel_cov0': ('linear_acceleration_covariance', ('array', 1))})
         self._accel_shown = False
-        self._sigma_shown = None
+        self._covariance_shown = None
         temp = codec.topic_class(topics.DIE_TEMPERATURE_OUT)()
         temp.header.frame_id = frame_id
         self.temp_msg = RawMessage(temp, {'stamp': ('header.stamp', 'time'),
@@ -104,25 +105,18 @@ class OutputStage:
             msg.header.frame_id = frame_id
             self.truth_msgs.append(RawMessage(msg, {'stamp': ('header.stamp', 'time'),
                                                     'value': ('vector', 'vector3')}))
-        self.temp_every = 1
-        self.count = 0
-        self.published = 0
-        self.last_rate = None
 
-    def set_sigma(self, sigma_rad_s):
-        """Show diag(sigma^2) as ``angular_velocity_covariance`` (rad^2/s^2)."""
-        sigma = np.asarray(sigma_rad_s, dtype=float)
-        if self._sigma_shown is not None and np.array_equal(sigma, self._sigma_shown):
+    def set_covariance(self, covariance):
+        """Show ``angular_velocity_covariance`` (9 numbers, rad^2/s^2) from now on."""
+        if covariance is self._covariance_shown:
             return
-        cov = np.zeros(9)
-        cov[[0, 4, 8]] = sigma * sigma
-        self.imu.put('cov', *cov.tolist())
-        self._sigma_shown = sigma
+        self.imu.put('cov', *covariance)
+        self._covariance_shown = covariance
 
-    def set_accel(self, accel, show):
-        """Pass the specific force through (covariance 0: unknown) or mark it absent."""
+    def set_accel(self, accel):
+        """Pass the specific force through (covariance 0: unknown), or mark it absent (None)."""
         imu = self.imu
-        if show and accel is not None:
+        if accel is not None:
             imu.put('accel', *accel)
             if not self._accel_shown:
                 imu.put('accel_cov0', 0.0)
@@ -132,41 +126,43 @@ class OutputStage:
             imu.put('accel_cov0', -1.0)
             self._accel_shown = False
 
-    def publish(self, sample, sample_ns, stamp_ns, rate, publish=True, truth=True):
+    def publish(self, output, truth=True):
         """
         Publish one sample.
 
         Parameters
         ----------
-        sample : gyro_emulator.sensor.model.SensorSample
-            The model's sample (truth and die temperature).
-        sample_ns, stamp_ns : int
-            Sample instant (truth, temperature) and Imu stamp (instant +
-            output delay), ns.
-        rate : tuple of float
-            The angular velocity to publish, rad/s (after any fault).
-        publish : bool
-            False: a dropout; neither Imu nor temperature goes out.
+        output : gyro_emulator.emulation.driver.records.Output
+            The driver's sample: stamps, the gyro channel (rate after any
+            fault, covariance, truth), die temperature, what to show.
         truth : bool
             Publish ``~/truth/*``.
 
         """
-        if publish:
+        gyro = output.gyro
+        if gyro.covariance is not self._covariance_shown:
+            self.set_covariance(gyro.covariance)
+        if output.passed_accel_m_s2 is not None or self._accel_shown:
+            self.set_accel(output.passed_accel_m_s2)
+        if output.published:
             imu = self.imu
-            imu.set_stamp_ns('stamp', stamp_ns)
-            imu.put('rate', *rate)
+            imu.set_stamp_ns('stamp', output.stamp_ns)
+            imu.put('rate', *gyro.rate_rad_s)
             self.imu_pub.publish(imu.payload())
-            self.last_rate = rate
-            self.published += 1
         if truth:
             for pub, msg, vec in zip(self.truth_pubs, self.truth_msgs,
-                                     (sample.true_rate_rad_s, sample.bias_rad_s,
-                                      sample.scale_factor)):
-                msg.set_stamp_ns('stamp', sample_ns)
+                                     (gyro.true_rate_rad_s, gyro.bias_rad_s,
+                                      gyro.scale_factor)):
+                msg.set_stamp_ns('stamp', output.sample_ns)
                 msg.put('value', *vec.tolist())
                 pub.publish(msg.payload())
-        self.count += 1
-        if publish and self.count % self.temp_every == 0:
-            self.temp_msg.set_stamp_ns('stamp', sample_ns)
-            self.temp_msg.put('value', float(sample.die_temp_c))
+        if output.temperature_due:
+            self.temp_msg.set_stamp_ns('stamp', output.sample_ns)
+            self.temp_msg.put('value', output.die_temp_c)
             self.temp_pub.publish(self.temp_msg.payload())
+
+    def publish_fault(self, report, name, hardware_id):
+        """Publish a :class:`~gyro_emulator.emulation.driver.records.FaultReport` (a change)."""
+        stamp = Time(nanoseconds=int(report.stamp_ns)).to_msg()
+        self.fault_pub.publish(fault_message(stamp, name, hardware_id, report.fault,
+                                             report.state, report.level, report.since_ns))

@@ -29,7 +29,7 @@ from collections import deque
 from dataclasses import dataclass
 import math
 
-from gyro_emulator.units import AXES, ZERO_CELSIUS_K
+from gyro_emulator.units import AXES, NS_PER_S, ZERO_CELSIUS_K
 
 #: Every reason an input can be rejected, in report order.
 REJECT_REASONS = (
@@ -42,6 +42,8 @@ REJECT_REASONS = (
 CLAMP_REASONS = ('temperature_clamped',)
 
 TEMPERATURE_POLICIES = ('clamp', 'reject')
+#: The command streams of a node (:class:`Commands`), by name.
+STREAMS = ('rate', 'temperature', 'linear_acceleration')
 
 
 class InputRejected(ValueError):
@@ -246,6 +248,119 @@ class CommandStream:
         self.newest_stamp_ns = None
         self.applied_stamp_ns = None
         self.last_arrival_ns = None
+
+
+class Commands:
+    """
+    A node's command streams: every command checked, then queued at its stamp.
+
+    Parameters
+    ----------
+    initial_temperature_c : float
+        Ambient temperature before the first command, deg C.
+    initial_accel_m_s2 : tuple of float
+        Specific force before the first command, m/s^2.
+    capacity : int
+        Commands per stream waiting for their stamp.
+    reject : callable
+        ``reject(InputRejected)``: count and log a refused command.
+    clamp : callable
+        ``clamp(raw_temp_c, temp_c)``: count and log a clamped temperature.
+
+    Attributes
+    ----------
+    rate, temperature, accel : CommandStream
+        The streams (:data:`STREAMS`, in that order); the rate is zero
+        before its first command.
+
+    """
+
+    def __init__(self, initial_temperature_c, initial_accel_m_s2, capacity, reject, clamp):
+        self.rate = CommandStream('rate', (0.0, 0.0, 0.0), capacity)
+        self.temperature = CommandStream('temperature', initial_temperature_c, capacity)
+        self.accel = CommandStream('linear_acceleration', tuple(initial_accel_m_s2),
+                                   capacity)
+        self._reject, self._clamp = reject, clamp
+        self._by_name = {stream.name: stream for stream in self.streams}
+
+    @property
+    def streams(self):
+        """Return the rate, temperature and acceleration streams, in that order."""
+        return (self.rate, self.temperature, self.accel)
+
+    def offer(self, name, stamps_ns, values, now_ns, limits):
+        """
+        Check and queue commands of one stream that arrived by ``now_ns``.
+
+        Parameters
+        ----------
+        name : str
+            The stream, one of :data:`STREAMS`.
+        stamps_ns : sequence of int
+            Their stamps, ns (0: on receipt).
+        values : sequence
+            Their values: (x, y, z) rad/s or m/s^2, or deg C.
+        now_ns : int
+            The clock at arrival, ns.
+        limits : InputLimits
+            The checks in force.
+
+        """
+        stream = self._by_name[name]
+        lead_ns = int(limits.max_stamp_lead_s * NS_PER_S)
+        for stamp_ns, value in zip(stamps_ns, values):
+            try:
+                checked = self._check(stream, value, limits)
+                if stream.offer(checked, stamp_ns, now_ns, lead_ns):
+                    self._reject(InputRejected(
+                        'queue_overflow', f'{stream.name}: more than {stream.capacity} '
+                        'commands wait for their stamp: the oldest was dropped'))
+            except InputRejected as exc:
+                self._reject(exc)
+
+    def _check(self, stream, value, limits):
+        if stream is self.rate:
+            return check_rate(value, limits)
+        if stream is self.accel:
+            return check_acceleration(value, limits)
+        temp, clamped = check_temperature(value, limits)
+        if clamped:
+            self._clamp(value, temp)
+        return temp
+
+    def pending(self):
+        """Return how many commands wait for their stamp, over all streams."""
+        return sum(len(stream.pending) for stream in self.streams)
+
+    def reset_clock(self):
+        """Forget every stamp (the clock jumped)."""
+        for stream in self.streams:
+            stream.reset_clock()
+
+
+class CommandInbox:
+    """
+    Commands waiting for the driver, as plain values (the node's inboxes hold messages).
+
+    :meth:`take` returns what arrived since the previous call, as
+    ``(stream name, stamps, values)`` batches in arrival order, which is
+    what the driver reads from any command source.
+    """
+
+    def __init__(self):
+        self._waiting = []
+
+    def push(self, name, stamp_ns, value):
+        """Add one command of stream ``name`` (:data:`STREAMS`) stamped ``stamp_ns``."""
+        if name not in STREAMS:
+            raise ValueError(f'command stream {name!r} is not allowed: choose one of '
+                             f'{", ".join(STREAMS)}')
+        self._waiting.append((name, [int(stamp_ns)], [value]))
+
+    def take(self):
+        """Return and forget the commands that arrived, as (name, stamps, values) batches."""
+        waiting, self._waiting = self._waiting, []
+        return waiting
 
 
 class Throttle:

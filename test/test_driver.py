@@ -1,0 +1,416 @@
+"""The node's driver without ROS (emulation.driver.core): inputs and times in, samples out."""
+
+from gyro_emulator.emulation.driver import parameters
+from gyro_emulator.emulation.driver.commands import CommandInbox
+from gyro_emulator.emulation.driver.core import Driver
+from gyro_emulator.resources import config_file, read_yaml
+from gyro_emulator.sensor.config import load_sensor_config
+from gyro_emulator.sensor.model import GyroModel
+from gyro_emulator.units import NS_PER_S
+import numpy as np
+import pytest
+
+T0_NS = 1000 * NS_PER_S
+PERIOD_NS = 5_000_000           # 200 Hz
+LEVEL = (0.0, 0.0, 9.80665)
+
+
+class Log:
+    """A logger that keeps its lines: (level, text)."""
+
+    def __init__(self):
+        self.lines = []
+
+    def info(self, text):
+        self.lines.append(('info', text))
+
+    def warning(self, text):
+        self.lines.append(('warning', text))
+
+    def error(self, text):
+        self.lines.append(('error', text))
+
+    def text(self):
+        return '\n'.join(text for _, text in self.lines)
+
+
+def node_values(**overrides):
+    """Return the shipped node parameter defaults (config/gyro_emulator.yaml) with overrides."""
+    doc = dict(read_yaml(config_file('gyro_emulator.yaml'))['/**']['ros__parameters'])
+    for name, value in doc.pop('fault').items():     # nested, as rclpy reads it
+        doc['fault.' + name] = value
+    doc.update(overrides)
+    return {spec.name: parameters.check_value(spec, doc[spec.name])
+            for spec in parameters.NODE_PARAMS}
+
+
+def make(sensor='paper', seed=7, follow_timer=False, **overrides):
+    """Return (driver, inbox, log) on the sensor preset, 200 Hz unless overridden."""
+    overrides.setdefault('sensor_config', sensor)
+    values = node_values(**overrides)
+    inbox, log = CommandInbox(), Log()
+    driver = Driver(values, load_sensor_config(values['sensor_config']), seed,
+                    follow_timer=follow_timer, log=log, commands=inbox)
+    driver.start(T0_NS)
+    return driver, inbox, log
+
+
+def offline(driver, sensor='paper', seed=7, noise=True, rate_hz=200.0):
+    """Return the GyroModel the driver's samples must equal (same seed, same config)."""
+    config = load_sensor_config(sensor)
+    config = config if noise else parameters.without_noise(config)
+    return GyroModel(config, rate_hz, np.random.default_rng(seed))
+
+
+def ticks(driver, first_k, count, step=1):
+    """Tick the driver at T0 + k periods; return every output."""
+    out = []
+    for k in range(first_k, first_k + count * step, step):
+        out += driver.tick(T0_NS + k * PERIOD_NS)
+    return out
+
+
+def rates(outputs):
+    return [o.gyro.rate_rad_s for o in outputs]
+
+
+# --- one sample per tick, equal to the offline model ------------------------------
+
+def test_samples_equal_the_offline_model_with_commands_applied_at_their_stamps():
+    driver, inbox, _ = make(command_timeout_s=0.0)
+    inbox.push('rate', T0_NS + 10 * PERIOD_NS, (0.0, 0.0, 1.0))
+    inbox.push('temperature', T0_NS + 30 * PERIOD_NS, 40.0)
+    inbox.push('linear_acceleration', 0, (0.0, 9.80665, 0.0))      # 0: on receipt
+    out = ticks(driver, 0, 60)
+    model = offline(driver)
+    want = []
+    for k in range(60):
+        rate = (0.0, 0.0, 1.0) if k >= 10 else (0.0, 0.0, 0.0)
+        temp = 40.0 if k >= 30 else 25.0
+        want.append(model.step(rate, temp, (0.0, 9.80665, 0.0)))
+    assert [o.sample_ns for o in out] == [T0_NS + k * PERIOD_NS for k in range(60)]
+    assert rates(out) == [tuple(s.gyro_rad_s.tolist()) for s in want]
+    assert all(np.array_equal(o.gyro.bias_rad_s, s.bias_rad_s) and
+               np.array_equal(o.gyro.true_rate_rad_s, s.true_rate_rad_s) and
+               o.die_temp_c == s.die_temp_c for o, s in zip(out, want))
+    assert out[0].passed_accel_m_s2 is None            # not passed through unless asked
+
+
+def test_the_covariance_is_the_white_noise_and_temperature_comes_every_nth_sample():
+    driver, _, _ = make(temperature_rate_hz=10.0)
+    out = ticks(driver, 0, 45)
+    sigma = np.asarray(driver.model.white_noise_sigma_rad_s)
+    cov = np.zeros(9)
+    cov[[0, 4, 8]] = sigma ** 2
+    assert out[0].gyro.covariance == tuple(cov.tolist())
+    assert all(o.gyro.covariance is out[0].gyro.covariance for o in out)
+    assert [k for k, o in enumerate(out) if o.temperature_due] == [19, 39]
+    quiet, _, _ = make(noise_enabled=False)
+    assert set(ticks(quiet, 0, 3)[0].gyro.covariance) == {0.0}
+
+
+# --- stale commands ------------------------------------------------------------
+
+@pytest.mark.parametrize('policy', ['zero', 'hold'])
+def test_a_stale_rate_command_gives_zero_or_the_last_rate(policy):
+    driver, inbox, _ = make(command_timeout_s=0.3, stale_rate_policy=policy)
+    inbox.push('rate', 0, (0.2, 0.0, 0.0))
+    out = ticks(driver, 0, 100)                     # 0.5 s, the command taken at k = 0
+    true_x = [o.gyro.true_rate_rad_s[0] for o in out]
+    assert true_x[:60] == [0.2] * 60                # stale once more than 0.3 s old
+    assert true_x[61:] == [0.0 if policy == 'zero' else 0.2] * 39
+    situation = driver.situation(T0_NS + 99 * PERIOD_NS)
+    assert situation['stale'] and situation['stale_policy'] == policy
+    inbox.push('rate', 0, (0.1, 0.0, 0.0))          # a fresh command ends it
+    assert ticks(driver, 100, 1)[0].gyro.true_rate_rad_s[0] == 0.1
+    assert not driver.situation(T0_NS + 100 * PERIOD_NS)['stale']
+
+
+def test_without_a_timeout_a_rate_never_goes_stale():
+    driver, inbox, _ = make(command_timeout_s=0.0)
+    inbox.push('rate', 0, (0.2, 0.0, 0.0))
+    out = ticks(driver, 0, 400)
+    assert all(o.gyro.true_rate_rad_s[0] == 0.2 for o in out)
+
+
+# --- bad inputs ----------------------------------------------------------------
+
+def test_bad_commands_are_rejected_counted_and_logged_once_per_second():
+    driver, inbox, log = make(max_stamp_lead_s=0.2)
+    ticks(driver, 0, 1)
+    inbox.push('rate', 0, (float('nan'), 0.0, 0.0))
+    inbox.push('rate', 0, (1000.0, 0.0, 0.0))
+    inbox.push('rate', 0, (2000.0, 0.0, 0.0))
+    inbox.push('rate', T0_NS + 100 * NS_PER_S, (0.1, 0.0, 0.0))
+    inbox.push('temperature', 0, 500.0)
+    inbox.push('linear_acceleration', 0, (0.0, 1e9, 0.0))
+    out = ticks(driver, 1, 1)
+    rejected = driver.book.rejected
+    assert (rejected['non_finite_rate'], rejected['rate_too_large'],
+            rejected['future_stamp'], rejected['acceleration_too_large']) == (1, 2, 1, 1)
+    assert driver.book.clamped['temperature_clamped'] == 1
+    assert driver.situation(T0_NS)['ambient_temp_c'] == driver.limits.temp_range_c[1]
+    assert out[0].gyro.true_rate_rad_s.tolist() == [0.0, 0.0, 0.0]
+    text = log.text()
+    assert text.count('input rejected (rate_too_large)') == 1   # the second is held back
+    assert 'clamped to 200 C' in text
+
+
+# --- catch-up, FIFO and drops ------------------------------------------------------
+
+def test_a_late_tick_hands_out_a_bounded_burst_and_the_backlog_drains():
+    driver, _, _ = make(max_burst_samples=8)
+    first = ticks(driver, 0, 1)
+    burst = driver.tick(T0_NS + 20 * PERIOD_NS)     # 20 samples came due
+    assert len(burst) == 8 and driver.backlog == 12
+    rest = driver.drain() + driver.drain()
+    assert driver.backlog == 0 and driver.drain() == []
+    out = first + burst + rest
+    assert [o.sample_ns for o in out] == [T0_NS + k * PERIOD_NS for k in range(21)]
+    model = offline(driver)
+    assert rates(out) == [tuple(model.step((0.0,) * 3, 25.0, LEVEL).gyro_rad_s.tolist())
+                          for _ in range(21)]
+    counts = driver.situation(T0_NS + 20 * PERIOD_NS)
+    assert (counts['samples_due'], counts['samples_caught_up'], counts['largest_burst'],
+            counts['samples_dropped'], counts['backlog']) == (21, 17, 8, 0, 0)
+    assert counts['emitted_ratio'] == 1.0
+
+
+@pytest.mark.parametrize('policy,depth,published', [('fifo', 5, 5), ('drop', 1000, 1)])
+def test_an_overflow_or_the_drop_policy_drops_and_counts_but_runs_the_model_through(
+        policy, depth, published):
+    driver, _, _ = make(overrun_policy=policy, fifo_depth_samples=depth, max_burst_samples=32)
+    ticks(driver, 0, 1)
+    out = driver.tick(T0_NS + 30 * PERIOD_NS)       # 30 samples came due
+    dropped = 30 - published
+    assert len(out) == published and driver.book.dropped == dropped
+    assert [o.sample_ns for o in out] == [T0_NS + k * PERIOD_NS
+                                          for k in range(31 - published, 31)]
+    model = offline(driver)
+    want = [model.step((0.0,) * 3, 25.0, LEVEL) for _ in range(31)]
+    assert rates(out) == [tuple(s.gyro_rad_s.tolist()) for s in want[31 - published:]]
+    assert driver.situation(T0_NS)['samples_dropped'] == dropped
+    assert f'{dropped} dropped' in driver.summary()
+
+
+def test_a_wall_clock_grid_moves_back_to_an_early_tick():
+    driver, _, _ = make(follow_timer=True)
+    ticks(driver, 0, 1)
+    late = driver.tick(T0_NS + PERIOD_NS - 1_000_000)   # 1 ms early: the grid follows it
+    assert [o.sample_ns for o in late] == [T0_NS + PERIOD_NS - 1_000_000]
+
+
+# --- output delay and stamps -----------------------------------------------------
+
+def test_the_stamp_is_the_sample_instant_plus_the_models_delay_jitter_clipped():
+    driver, _, _ = make('consumer')                  # latency 1 ms, jitter 0.2 ms
+    out = ticks(driver, 0, 400)
+    model = offline(driver, 'consumer')
+    delays = [model.step((0.0,) * 3, 25.0, LEVEL).output_delay_s for _ in range(400)]
+    assert [o.stamp_ns - o.sample_ns for o in out] == [int(round(d * NS_PER_S))
+                                                       for d in delays]
+    offsets = np.array([o.stamp_ns - o.sample_ns for o in out]) - 1_000_000
+    assert np.abs(offsets).max() <= 0.45 * PERIOD_NS and offsets.std() > 0
+    assert np.all(np.diff([o.stamp_ns for o in out]) > 0)
+
+
+def test_a_shorter_latency_set_at_run_time_never_moves_a_stamp_back():
+    driver, _, _ = make()
+    driver.apply(driver.prepare([('sensor.latency_s', 0.05)]), T0_NS)
+    out = ticks(driver, 0, 20)
+    assert out[0].stamp_ns == T0_NS + 50_000_000
+    driver.apply(driver.prepare([('sensor.latency_s', 0.0)]), T0_NS + 20 * PERIOD_NS)
+    out += ticks(driver, 20, 20)
+    stamps = [o.stamp_ns for o in out]
+    assert np.all(np.diff(stamps) > 0)
+    assert stamps[20] == stamps[19] + 1
+    clamped = driver.situation(T0_NS)['stamps_clamped']
+    assert clamped == 10 and stamps[30] == out[30].sample_ns
+
+
+# --- clock jumps ------------------------------------------------------------------
+
+def test_a_clock_jump_back_reanchors_restarts_and_forgets_the_command_stamps():
+    driver, inbox, log = make()
+    ticks(driver, 0, 10)
+    inbox.push('rate', T0_NS + 20 * PERIOD_NS, (0.5, 0.0, 0.0))
+    ticks(driver, 10, 1)
+    assert driver.situation(T0_NS)['commands_pending'] == 1
+    back_ns = T0_NS - NS_PER_S
+    out = driver.tick(back_ns)
+    assert [o.sample_ns for o in out] == [back_ns]
+    assert 'clock jumped back: command stamps forgotten, filters restarted' in log.text()
+    situation = driver.situation(back_ns)
+    assert situation['commands_pending'] == 0 and situation['clock_restarts'] == 1
+    assert out[0].stamp_ns == back_ns               # stamps start again from the new time
+    assert [o.sample_ns for o in driver.tick(back_ns + PERIOD_NS)] == [back_ns + PERIOD_NS]
+
+
+def test_a_clock_jump_ahead_beyond_the_gap_restarts_without_running_the_gap():
+    driver, _, log = make()
+    ticks(driver, 0, 3)
+    ahead_ns = T0_NS + 60 * NS_PER_S
+    out = driver.tick(ahead_ns)
+    assert [o.sample_ns for o in out] == [ahead_ns]
+    assert 'the clock jumped ahead 59.990 s' in log.text()
+    assert driver.situation(ahead_ns)['clock_restarts'] == 1 and driver.book.dropped == 0
+
+
+# --- faults --------------------------------------------------------------------------
+
+def test_a_stuck_fault_goes_pending_active_ended_and_repeats_the_last_output():
+    driver, inbox, _ = make(command_timeout_s=0.0)
+    inbox.push('rate', 0, (0.1, 0.2, 0.3))
+    before = ticks(driver, 0, 10)
+    change = driver.prepare([('fault.type', 'stuck'), ('fault.start_s', 0.02),
+                             ('fault.duration_s', 0.05)])
+    applied = driver.apply(change, T0_NS + 9 * PERIOD_NS)
+    assert [(r.state, r.fault.kind) for r in applied.faults] == [('pending', 'stuck')]
+    out = ticks(driver, 10, 20)
+    changes = [(k, o.fault.state, o.fault.level) for k, o in enumerate(out)
+               if o.fault is not None]
+    assert changes == [(3, 'active', 2), (13, 'ended', 0)]
+    stuck = [o.gyro.rate_rad_s for o in out[3:13]]
+    assert stuck == [out[2].gyro.rate_rad_s] * 10     # the last output before it acts
+    assert out[13].gyro.rate_rad_s != stuck[0] and before[-1].gyro.rate_rad_s != stuck[0]
+    assert driver.situation(T0_NS)['fault.state'] == 'ended'
+
+
+def test_a_dropout_publishes_nothing_and_a_new_fault_ends_the_one_it_replaces():
+    driver, _, _ = make(temperature_rate_hz=200.0)
+    driver.apply(driver.prepare([('fault.type', 'dropout')]), T0_NS)
+    out = ticks(driver, 0, 5)
+    assert [o.published for o in out] == [False] * 5
+    assert not any(o.temperature_due for o in out)
+    applied = driver.apply(driver.prepare([('fault.type', 'none')]), T0_NS + 5 * PERIOD_NS)
+    assert [r.state for r in applied.faults] == ['ended', 'none']
+    assert all(o.published and o.temperature_due for o in ticks(driver, 5, 3))
+
+
+def test_the_start_reports_the_parameters_fault():
+    values = node_values(**{'fault.type': 'bias_step', 'fault.magnitude': 0.01})
+    log = Log()
+    driver = Driver(values, load_sensor_config('paper'), 7, log=log)
+    reports = driver.start(T0_NS)
+    assert [r.state for r in reports] == ['none', 'pending']
+    assert reports[-1].stamp_ns == T0_NS and 'fault set: bias_step' in log.text()
+
+
+# --- the parameter transaction ------------------------------------------------------
+
+@pytest.mark.parametrize('changes,match', [
+    ([('stale_rate_policy', 'hold'), ('max_abs_rate_rad_s', -1.0)], 'max_abs_rate_rad_s'),
+    ([('command_timeout_s', 1.0), ('sensor.output_filter_hz', 5000.0)], 'Nyquist'),
+    ([('temperature_override_enabled', True), ('temperature_override_c', 199.0)],
+     'temperature_override_c'),
+    ([('noise_enabled', False), ('fault.type', 'bogus')], 'fault.type'),
+])
+def test_a_bad_set_is_refused_whole_and_nothing_changes(changes, match):
+    driver, _, _ = make('consumer')
+    values, limits, model = dict(driver.values), driver.limits, driver.model
+    with pytest.raises(ValueError, match=match):
+        driver.prepare(changes)
+    assert driver.values == values and driver.limits is limits and driver.model is model
+
+
+def test_a_good_set_applies_whole_and_a_clock_drift_moves_the_grid():
+    driver, inbox, _ = make()
+    ticks(driver, 0, 2)
+    change = driver.prepare([('max_abs_rate_rad_s', 0.5), ('sensor.clock_drift_ppm', 1000.0),
+                             ('overrun_policy', 'drop'), ('unknown.name', 1)])
+    assert driver.values['max_abs_rate_rad_s'] == 100.0          # prepared, not applied
+    applied = driver.apply(change, T0_NS + PERIOD_NS)
+    assert applied.model_changed and applied.faults == ()
+    assert driver.limits.max_abs_rate_rad_s == 0.5
+    assert driver.values['overrun_policy'] == 'drop'
+    assert driver.sample_period_s == pytest.approx(0.005 / 1.001)
+    inbox.push('rate', 0, (0.6, 0.0, 0.0))                          # above the new limit
+    # The next sample (T0 + 2 periods) was on the grid already; from it on, the new period.
+    now_ns = T0_NS + 2 * PERIOD_NS + 98 * 4_995_005
+    out = driver.tick(now_ns)
+    assert driver.book.rejected['rate_too_large'] == 1
+    assert [o.sample_ns for o in out] == [now_ns] and driver.book.dropped == 98
+
+
+def test_a_set_without_a_model_change_keeps_the_model_and_the_fault():
+    driver, _, _ = make()
+    applied = driver.apply(driver.prepare([('publish_truth', False)]), T0_NS)
+    assert not applied.model_changed and applied.faults == ()
+    assert driver.values['publish_truth'] is False
+
+
+# --- behind a simulator: one output per imu/ideal message ----------------------------
+
+def imu_driver(**overrides):
+    return make(input_source='imu', **overrides)
+
+
+def test_one_output_per_message_stamped_at_its_stamp_with_the_rate_from_the_stamps():
+    driver, _, log = imu_driver(temperature_rate_hz=1.0)
+    dt = 4_000_000
+    out = []
+    for k in range(10):
+        out += driver.ideal_imu(T0_NS + k * dt, (0.0, 0.0, 0.01 * k), (1.0, 0.0, 9.0))
+    assert [o.sample_ns for o in out] == [o.stamp_ns for o in out] == \
+        [T0_NS + k * dt for k in range(10)]
+    assert all(o.passed_accel_m_s2 == (1.0, 0.0, 9.0) for o in out)     # always passed through
+    assert 'input rate 250 Hz from the imu/ideal stamps: model re-planned' in log.text()
+    model = offline(driver)
+    want = [model.step((0.0, 0.0, 0.0), 25.0, (1.0, 0.0, 9.0))]
+    model.set_sample_rate(250.0)
+    want += [model.step((0.0, 0.0, 0.01 * k), 25.0, (1.0, 0.0, 9.0)) for k in range(1, 10)]
+    assert rates(out) == [tuple(s.gyro_rad_s.tolist()) for s in want]
+    assert driver.situation(T0_NS)['input_rate_hz'] == pytest.approx(250.0)
+
+
+def test_a_lost_message_runs_the_model_through_with_the_previous_input_held():
+    driver, _, _ = imu_driver()
+    dt = 5_000_000                                   # the nominal 200 Hz: no re-plan
+    out = driver.ideal_imu(T0_NS, (0.1, 0.0, 0.0), LEVEL)
+    out += driver.ideal_imu(T0_NS + dt, (0.2, 0.0, 0.0), LEVEL)
+    out += driver.ideal_imu(T0_NS + 4 * dt, (0.3, 0.0, 0.0), LEVEL)    # two lost
+    model = offline(driver)
+    want = [model.step((0.1, 0.0, 0.0), 25.0, LEVEL), model.step((0.2, 0.0, 0.0), 25.0, LEVEL)]
+    model.step((0.2, 0.0, 0.0), 25.0, LEVEL)
+    model.step((0.2, 0.0, 0.0), 25.0, LEVEL)
+    want.append(model.step((0.3, 0.0, 0.0), 25.0, LEVEL))
+    assert rates(out) == [tuple(s.gyro_rad_s.tolist()) for s in want]
+    assert driver.situation(T0_NS)['input_gap_samples'] == 2
+
+
+def test_bad_messages_are_refused_and_the_input_clock_can_restart():
+    driver, _, log = imu_driver()
+    assert len(driver.ideal_imu(T0_NS, (0.0,) * 3, LEVEL)) == 1
+    assert driver.ideal_imu(T0_NS, (0.0,) * 3, LEVEL) == []                # repeated stamp
+    assert driver.ideal_imu(T0_NS + 10, (0.0,) * 3, LEVEL) == []           # 10 ns: too close
+    assert driver.ideal_imu(T0_NS + PERIOD_NS, (float('nan'), 0.0, 0.0), LEVEL) == []
+    rejected = driver.book.rejected
+    assert (rejected['out_of_order'], rejected['stamp_spacing'],
+            rejected['non_finite_rate']) == (1, 1, 1)
+    back = driver.ideal_imu(T0_NS - NS_PER_S, (0.0,) * 3, LEVEL)
+    assert [o.sample_ns for o in back] == [T0_NS - NS_PER_S]
+    gap = driver.ideal_imu(T0_NS + 2 * NS_PER_S, (0.0,) * 3, LEVEL)
+    assert len(gap) == 1
+    text = log.text()
+    assert 'the input clock jumped back' in text and 'a gap of 3.000 s' in text
+    assert driver.situation(T0_NS)['input_restarts'] == 2
+
+
+def test_a_rate_the_model_refuses_is_a_model_error_until_a_rate_fits():
+    driver, _, log = imu_driver(sensor='consumer', rate_hz=250.0)    # 42 Hz output filter
+    for k in range(3):
+        driver.ideal_imu(T0_NS + k * 50_000_000, (0.0,) * 3, LEVEL)         # 20 Hz
+    assert driver.book.model_errors == 2 and 'input rate 20 Hz refused' in log.text()
+    assert driver.situation(T0_NS)['sample_period_s'] == pytest.approx(1 / 250.0)
+
+
+def test_a_fault_set_behind_a_simulator_starts_at_the_last_input_stamp():
+    driver, _, _ = imu_driver()
+    driver.ideal_imu(T0_NS + 7, (0.0,) * 3, LEVEL)
+    applied = driver.apply(driver.prepare([('fault.type', 'stuck')]), 123)
+    assert applied.faults[-1].stamp_ns == T0_NS + 7
+
+
+def test_the_command_inbox_names_its_streams():
+    with pytest.raises(ValueError, match='rate, temperature, linear_acceleration'):
+        CommandInbox().push('pressure', 0, 1.0)
