@@ -26,6 +26,9 @@ from gyro_emulator.analysis.allan import analyse as allan_record
 from gyro_emulator.recording.record import grid_step
 import numpy as np
 
+#: Most distinct values a log may have for its grid to be looked for (grid_step).
+GRID_MAX_UNIQUE = 200_000
+
 
 @dataclass(frozen=True)
 class AxisNoise:
@@ -95,7 +98,7 @@ class NoiseCalibration:
         return min(lows), max(highs)
 
 
-def quantisation(rate, max_unique=200_000):
+def quantisation(rate, grid):
     """
     Return an axis's LSB (or 0) and a warning when its grid is coarser than its noise (or None).
 
@@ -107,9 +110,11 @@ def quantisation(rate, max_unique=200_000):
     on: the output is quantised more coarsely than its noise, rounding adds
     about LSB^2 / 12 per sample and, at this size, is not independent of
     the signal, so N describes the quantised output, not the sensor behind
-    it (an LSB of 4 sigma read N 25 % high in a review).
+    it (an LSB of 4 sigma read N 25 % high in a review). ``grid`` is the
+    (step, distinct values) :func:`~gyro_emulator.recording.record.grid_step`
+    found for ``rate``.
     """
-    step, distinct = grid_step(rate, max_unique)
+    step, distinct = grid
     with np.errstate(over='ignore', invalid='ignore'):  # a 1e308 sample: an infinite spread
         spread = float(np.std(rate))
     if step <= 0.5 * spread:
@@ -119,13 +124,13 @@ def quantisation(rate, max_unique=200_000):
                  'output, not the sensor behind it (N can read well above the sensor)')
 
 
-def detect_lsb(rate, max_unique=200_000):
+def detect_lsb(rate, max_unique=GRID_MAX_UNIQUE):
     """Quantisation step of a log: the grid its samples lie on, or 0 (:func:`quantisation`)."""
-    return quantisation(rate, max_unique)[0]
+    return quantisation(rate, grid_step(rate, max_unique))[0]
 
 
 def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
-                    outlier_threshold=outliers.THRESHOLD):
+                    outlier_threshold=outliers.THRESHOLD, output=None):
     """
     Identify the noise terms of each axis of a static log.
 
@@ -144,6 +149,10 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
         their neighbours are set aside before the Allan deviation
         (:func:`gyro_emulator.analysis.allan.screened_segments`; ``math.inf``:
         keep every sample).
+    output : numpy.ndarray, optional
+        The quantised output the calibrated values were derived from (a
+        residual is not on the output's grid): the LSB is that of
+        ``output``, not of the axes.
 
     Returns
     -------
@@ -152,12 +161,19 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
     """
     path = record.require_gyro().path
     axes = tuple(record.gyro) if axes is None else tuple(axes)
+    # What the record itself tells (values, timing, grids) first, then the analysis.
+    columns = {name: record.gyro_axis(name) for name in axes}
+    try:
+        timing = record.timing(gap_factor)
+    except ValueError as exc:
+        raise ValueError(f'{path}: {exc}') from None
+    grids = {name: grid_step(rate, GRID_MAX_UNIQUE) for name, (rate, _) in columns.items()}
+    output_grid = None if output is None else grid_step(output, GRID_MAX_UNIQUE)
     found, rate_hz, steps = [], None, []
     skipped = []
     for name in axes:
-        rate, column = record.gyro_axis(name)
+        rate, column = columns[name]
         try:
-            timing = record.timing(gap_factor)
             rate_hz, segments, screened, handled = allan.screened_segments(
                 timing, rate, outlier_threshold, f'axis {name}')
         except outliers.HeldOutput as exc:
@@ -168,7 +184,7 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
         except ValueError as exc:
             raise ValueError(f'{path}: {exc}') from None
         result, fit = allan.identify(segments, rate_hz, max_tau_fraction)
-        axis_lsb, coarse = quantisation(rate)
+        axis_lsb, coarse = quantisation(rate, grids[name])
         if coarse:
             fit = replace(fit, warnings=fit.warnings + (coarse,))
         found.append(AxisNoise(name, column, result, fit,
@@ -178,6 +194,8 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
     if not found:
         raise ValueError(f'{path}: no axis to calibrate: ' + '; '.join(skipped))
     lsb = float(np.median(steps)) if all(s > 0.0 for s in steps) else 0.0
+    if output is not None:
+        lsb = quantisation(output, output_grid)[0]
     return NoiseCalibration(source=str(path), rate_hz=float(rate_hz),
                             duration_s=float(record.time_s[-1] - record.time_s[0]),
                             axes=tuple(found), lsb_rad_s=lsb, recovery=record.recovery,

@@ -17,7 +17,7 @@ user's calibration as diagnose's baseline has it. The noise terms are those
 of e, not of y: a bias that follows temperature, now a term of the model,
 would otherwise be counted twice (as the term, and as bias instability and
 rate random walk in the Allan deviation of y). The LSB is that of y (the
-output is quantised, e is not: :func:`~gyro_emulator.analysis.calibrate.noise.detect_lsb`).
+output is quantised, e is not: ``calibrate_noise(..., output=y)``).
 The record must give the terms: the fit must span at least
 :data:`MIN_TAU_SPAN` in tau and resolve N (else a one-line error says which
 is missing). The mean of e over the
@@ -25,11 +25,11 @@ samples the identification keeps is the turn-on bias, so that the emulator's
 mean follows the record's.
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 import math
 
 from gyro_emulator.analysis.calibrate import export_noise
-from gyro_emulator.analysis.calibrate.noise import calibrate_noise, detect_lsb
+from gyro_emulator.analysis.calibrate.noise import calibrate_noise
 from gyro_emulator.analysis.calibrate.provenance import axis_lines
 from gyro_emulator.analysis.diagnose import emulated
 from gyro_emulator.analysis.diagnose.baseline import MIN_RATE_RMS_RAD_S
@@ -113,8 +113,8 @@ def identify(config, data, axis, outlier_threshold):
                     gyro_sources={axis: 'the record minus the model'},
                     path=data.source or 'the record')
     try:
-        cal = calibrate_noise(record, (axis,), outlier_threshold=outlier_threshold)
-        cal = replace(cal, lsb_rad_s=detect_lsb(np.asarray(data.gyro_rad_s, dtype=float)))
+        cal = calibrate_noise(record, (axis,), outlier_threshold=outlier_threshold,
+                              output=np.asarray(data.gyro_rad_s, dtype=float))
         fields = export_noise.twin_noise(cal)
     except ValueError as exc:
         raise ValueError(f'--noise: the record cannot give its noise terms: {exc}') from None
