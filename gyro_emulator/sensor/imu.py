@@ -267,8 +267,8 @@ class ImuModel:
         if rate.ndim != 2 or rate.shape[1] != 3:
             raise ValueError(f'ImuModel.run: rate_rad_s has shape {rate.shape}: expected (N, 3)')
         force = _specific_force(specific_force_m_s2, len(rate), 'run')
-        gyro = self._gyro.run(rate, ambient_temp_c,
-                              None if specific_force_m_s2 is None else force)
+        held = force[0] if len(force) != len(rate) else force      # (3,): held
+        gyro = self._gyro.run(rate, ambient_temp_c, None if specific_force_m_s2 is None else held)
         if len(force) != len(gyro):
             force = np.broadcast_to(force, (len(gyro), 3))
         fields = self._advance_accel(force, gyro.die_temp_c)
