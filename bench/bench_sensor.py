@@ -255,7 +255,7 @@ def main():
     t_rng = best_of(3, lambda: [g.standard_normal(out=buffer) for g in generators])
     t_compiled = best_of(3, lambda: [streams.fill_standard_normal(g, buffer)
                                      for g in generators])
-    imu_draws = draws + 3 * 3                           # + the accelerometer's white, flicker, walk
+    imu_draws = draws + 3 * 3              # + the accelerometer's white, flicker and walk
     imu_generators = streams.spawn_generators(np.random.default_rng(1), imu_draws)
     t_imu_rng = best_of(3, lambda: [g.standard_normal(out=buffer) for g in imu_generators])
     with tempfile.TemporaryDirectory() as cache:

@@ -108,8 +108,8 @@ def test_the_misalignment_alias_and_a_preset_layout_read_back_exactly():
     ({'range_m_s2': 0.0}, r'AccelConfig.range_m_s2\[0\] = 0.0 is out of range: allowed \(0.0, '),
     ({'electronics_noise_m_s2_sqrt_hz': [0.0, math.nan, 0.0]},
      r'electronics_noise_m_s2_sqrt_hz\[1\] = nan is out of range'),
-    ({'bias_temp_coeff_m_s2_k': 1.0}, r'bias_temp_coeff_m_s2_k\[0\] = 1.0 is out of range: allowed '
-                                      r'\[-0.1, 0.1\] m/s\^2/K'),
+    ({'bias_temp_coeff_m_s2_k': 1.0},
+     r'bias_temp_coeff_m_s2_k\[0\] = 1.0 is out of range: allowed \[-0.1, 0.1\] m/s\^2/K'),
     ({'scale_factor_temp_coeff_ppm_k': 2e5}, r'scale_factor_temp_coeff_per_k\[0\] = 0\.\d+ is '
                                              r'out of range: allowed \[-0.01, 0.01\] 1/K'),
     ({'misalignment': [[0.1, 0, 0], [0, 0, 0], [0, 0, 0]]}, 'diagonal'),
