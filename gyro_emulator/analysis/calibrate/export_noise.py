@@ -48,6 +48,7 @@ written by :func:`gyro_emulator.sensor.config.config_yaml`.
 from dataclasses import dataclass
 
 from gyro_emulator import units
+from gyro_emulator.analysis.calibrate.lowpass import identify_output_filter
 from gyro_emulator.analysis.calibrate.noise import axis_values, export_noise
 from gyro_emulator.analysis.calibrate.provenance import (as_comments, MARKER, noise_lines,
                                                          NOT_MEASURED)
@@ -523,14 +524,18 @@ class TwinNoise:
     (``electronics_arw_deg_sqrt_h``, ``bias_instability_deg_h``,
     ``rate_random_walk_deg_h_sqrt_h``, ``turn_on_bias_deg_s``); ``shared``
     holds the fields of every axis (the flicker band, terms per decade, the
-    LSB when found); ``terms_on`` the :class:`ErrorTerms` switched on
-    (every other noise term off); ``twin`` the emulator fit behind them.
+    LSB when found, the output filter's cut-off and order when one is
+    identified); ``terms_on`` the :class:`ErrorTerms` switched on (every
+    other noise term off); ``twin`` the emulator fit behind them;
+    ``output_filter`` the identified low-pass
+    (:class:`~gyro_emulator.analysis.calibrate.lowpass.OutputFilter`) or None.
     """
 
     per_axis: dict
     shared: dict
     terms_on: frozenset
     twin: object
+    output_filter: object = None
 
 
 #: Noise terms of :class:`ErrorTerms` a noise calibration decides (on or off).
@@ -546,7 +551,10 @@ def twin_noise(calibration, inflate=1.0):
     (the emulator's own noise model fitted to the log's Allan curves, over
     the flicker band of :func:`flicker_band`), times ``inflate``; the
     turn-on bias is the axis's mean. The measured N carries the whole white
-    noise, so ``mechanical_noise`` is off.
+    noise, so ``mechanical_noise`` is off. The part's output low-pass, when
+    its PSD shows one (:func:`~gyro_emulator.analysis.calibrate.lowpass.identify_output_filter`),
+    is the ``output_filter`` term: the twin's Allan deviation then follows
+    the log's at the band-limited taus the fit left out.
     """
     export_noise(calibration, inflate)          # checks inflate
     twin = emulator_fit(calibration, flicker_band(calibration))
@@ -564,7 +572,12 @@ def twin_noise(calibration, inflate=1.0):
     if calibration.lsb_rad_s > 0.0:
         on.add('quantization')
         shared['lsb_deg_s'] = units.rad_s_to_deg_s(calibration.lsb_rad_s)
-    return TwinNoise(per_axis, shared, frozenset(on), twin)
+    lowpass = identify_output_filter(calibration)
+    if lowpass is not None:
+        on.add('output_filter')
+        shared['output_filter_hz'] = lowpass.cutoff_hz
+        shared['output_filter_order'] = lowpass.order
+    return TwinNoise(per_axis, shared, frozenset(on), twin, lowpass)
 
 
 def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
@@ -590,8 +603,10 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
                  'squares (bias correlation times end there)' if twin.saving > 0 else '')
               + '. Its N excludes the quantisation noise of the LSB, which the quantiser adds.',
               'Only the fitted terms are on: the measured N carries the whole white noise '
-              '(mechanical_noise off), no output filter (the band-limited taus were left out '
-              'of the fit), no temperature terms.',
+              '(mechanical_noise off), no temperature terms; '
+              + ('output filter (the band-limited taus the fit left out): '
+                 + fields.output_filter.describe() + '.' if fields.output_filter is not None
+                 else 'no output filter (the PSD shows no low-pass below Nyquist).'),
               'turn_on_bias_deg_s is the mean of this run (it includes the projection of '
               "Earth's rate); its run-to-run spread is not measured.",
               f"Simulate it at the log's rate: --rate-hz {calibration.rate_hz:g}."]
@@ -607,11 +622,17 @@ _PRESET_FIGURES = ('electronics_arw_deg_sqrt_h', 'bias_instability_deg_h',
                    'rate_random_walk_deg_h_sqrt_h', 'turn_on_bias_deg_s')
 
 
+#: The output filter's keys, written when the PSD shows a low-pass (:mod:`.lowpass`).
+_FILTER_FIGURES = ('output_filter_hz', 'output_filter_order')
+
+
 def preset_layout(fields):
     """Return the keys ``--format preset`` writes (:class:`.sensor.config.YamlKey`)."""
     lsb = (YamlKey('lsb_deg_s', '.6g', scalar=True),) if 'lsb_deg_s' in fields.shared else ()
+    lowpass = tuple(YamlKey(name, '.6g', scalar=True) for name in _FILTER_FIGURES
+                    if name in fields.shared)
     return ((YamlKey('device'), YamlKey('terms'))
-            + tuple(YamlKey(name, '.6g') for name in _PRESET_FIGURES) + lsb)
+            + tuple(YamlKey(name, '.6g') for name in _PRESET_FIGURES) + lsb + lowpass)
 
 
 def twin_config(fields):
@@ -629,8 +650,9 @@ def twin_config(fields):
                                           fields.shared['bias_instability_band_s']]
     figures['bias_instability_per_decade'] = as_written(
         fields.shared['bias_instability_per_decade'])
-    if 'lsb_deg_s' in fields.shared:
-        figures['lsb_deg_s'] = as_written(fields.shared['lsb_deg_s'])
+    for name in ('lsb_deg_s',) + _FILTER_FIGURES:
+        if name in fields.shared:
+            figures[name] = as_written(fields.shared[name])
     terms = {name: name in fields.terms_on for name in ErrorTerms.names()}
     return config_from_mapping({'device': 'paper', 'terms': terms, **figures})
 
