@@ -499,7 +499,8 @@ def test_a_non_finite_sample_is_withheld_counted_logged_throttled_and_an_error()
     driver.start(T0_NS)
     stepper = driver._stepper
     real = stepper.step
-    bad = {3: ('gyro_rad_s', 0), 4: ('bias_rad_s', 2), 5: ('scale_factor', 1), 9: ('die', 0)}
+    bad = {3: ('gyro_rad_s', 0), 4: ('bias_rad_s', 2), 5: ('scale_factor', 1), 9: ('die', 0),
+           10: ('delay', 0)}
     calls = [0]
 
     def step(*args):
@@ -508,28 +509,30 @@ def test_a_non_finite_sample_is_withheld_counted_logged_throttled_and_an_error()
         if k not in bad:
             return sample
         field, axis = bad[k]
-        if field == 'die':
-            return dataclasses.replace(sample, die_temp_c=float('nan'))
+        if field in ('die', 'delay'):
+            name = 'die_temp_c' if field == 'die' else 'output_delay_s'
+            return dataclasses.replace(sample, **{name: float('nan')})
         value = np.array(getattr(sample, field), dtype=float)
         value[axis] = np.inf if k % 2 else np.nan
         return dataclasses.replace(sample, **{field: value})
     stepper.step = step
     out = ticks(driver, 0, 12)
-    assert [(o.sample_ns - T0_NS) // PERIOD_NS for o in out] == [0, 1, 2, 6, 7, 8, 10, 11]
+    assert [(o.sample_ns - T0_NS) // PERIOD_NS for o in out] == [0, 1, 2, 6, 7, 8, 11]
     assert all(np.isfinite(o.gyro.rate_rad_s).all() and np.isfinite(o.die_temp_c) and
                np.isfinite(o.gyro.bias_rad_s).all() for o in out)
-    assert driver.book.nonfinite == 4 and driver.book.samples == 8
+    assert driver.book.nonfinite == 5 and driver.book.samples == 7
+    assert np.isfinite(driver.situation(0)['die_temp_c'])   # the last one shown: a good one
     errors = [text for level, text in log.lines if level == 'error']
     assert len(errors) == 1 and 'the model gave a non-finite sample (rate (inf' in errors[0]
     clock[0] = 2.0                                      # the throttle's second is over
     bad[12] = ('gyro_rad_s', 1)
     ticks(driver, 12, 1)
     errors = [text for level, text in log.lines if level == 'error']
-    assert len(errors) == 2 and errors[1].endswith('(3 similar held back)')
+    assert len(errors) == 2 and errors[1].endswith('(4 similar held back)')
     report = driver.report(1.0, driver.situation(0), check_rate=False)
-    assert report.level == ERROR and '5 non-finite sample(s) withheld' in report.message
-    assert dict(report.values)['nonfinite_samples'] == 5
-    assert '5 non-finite withheld' in driver.summary()
+    assert report.level == ERROR and '6 non-finite sample(s) withheld' in report.message
+    assert dict(report.values)['nonfinite_samples'] == 6
+    assert '6 non-finite withheld' in driver.summary()
 
 
 # --- the start-up bias calibration ---------------------------------------------------

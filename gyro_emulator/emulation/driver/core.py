@@ -388,8 +388,7 @@ class Driver:
         """
         due = self._samples.due(now_ns)
         if due.restart == 'jump_back':
-            jump_ns = now_ns - self._last_tick_ns
-            self._restart('clock jumped back', jump_ns, now_ns)
+            self._restart('clock jumped back', now_ns - self._last_tick_ns, now_ns)
         elif due.restart == 'gap':
             self._restart(f'the clock jumped ahead {(now_ns - self._last_tick_ns) * 1e-9:.3f} s',
                           0, now_ns)
@@ -426,7 +425,7 @@ class Driver:
         return outputs
 
     def _sample(self, inputs, sample_ns, shown_accel):
-        """Step the model once; return its :class:`Output` (None: the model refused)."""
+        """Step the model once; return its :class:`Output` (None: refused or withheld)."""
         self._ambient_c = inputs.ambient_temp_c
         try:
             s = self._stepper.step(inputs.rate_rad_s, inputs.ambient_temp_c, inputs.accel_m_s2)
@@ -434,6 +433,11 @@ class Driver:
             self.book.model_error(str(exc))
             if self._throttle('model_error') is not None:
                 self._log.error(f'model refused the sample: {exc}')
+            return None
+        # One sum: a NaN or an infinity anywhere in what would go out makes it non-finite.
+        if not math.isfinite(sum(s.gyro_rad_s.tolist()) + s.die_temp_c + s.output_delay_s
+                             + sum(s.bias_rad_s.tolist()) + sum(s.scale_factor.tolist())):
+            self._withhold(s)
             return None
         self._last_sample = s
         if self._stepper.sigma_version != self._sigma_version:
@@ -447,11 +451,6 @@ class Driver:
             self._stamps_clamped += 1
         self._last_stamp_ns = stamp_ns
         rate, published, pinned = self._fault.apply(sample_ns, s.gyro_rad_s)
-        # One sum: a NaN or an infinity anywhere in what would go out makes it non-finite.
-        if not math.isfinite(rate[0] + rate[1] + rate[2] + s.die_temp_c
-                             + sum(s.bias_rad_s.tolist()) + sum(s.scale_factor.tolist())):
-            self._withhold(s, rate)
-            return None
         if published:
             self._last_rate = rate
             rate = self._calibration.take(rate, inputs.rate_rad_s,
@@ -469,11 +468,12 @@ class Driver:
         self.book.sample(saturated)
         return out
 
-    def _withhold(self, s, rate):
+    def _withhold(self, s):
         """Count, log (throttled) and report a sample with a NaN or an infinity."""
-        text = (f'the model gave a non-finite sample (rate {rate}, die temperature '
-                f'{s.die_temp_c!r} C, bias {tuple(s.bias_rad_s.tolist())}, scale factor '
-                f'{tuple(s.scale_factor.tolist())}): not published')
+        text = (f'the model gave a non-finite sample (rate {tuple(s.gyro_rad_s.tolist())}, '
+                f'die temperature {s.die_temp_c!r} C, bias {tuple(s.bias_rad_s.tolist())}, '
+                f'scale factor {tuple(s.scale_factor.tolist())}, output delay '
+                f'{s.output_delay_s!r} s): not published')
         self.book.non_finite(text)
         held = self._throttle('nonfinite')
         if held is not None:
