@@ -11,12 +11,14 @@ instead (``./dev.sh setup`` after its pip install; ``colcon build`` and
 ``setup.py install`` through ``setup.py``'s ``install`` command), so a
 fresh install's first start only loads the cache (``bench/bench_startup.py``).
 
-One sample of the default model compiles every signature the node, the
-command line and the analyses use: the kernel has one entry
-(``kernel.advance``), and its array types are the same for every
-configuration, the extended terms included. :func:`main` also byte-compiles
-the package's modules (``compileall``), which ``colcon build`` leaves to
-the first import.
+One sample of the default model compiles every signature of the sensor
+kernel: it has one entry (``kernel.advance``), and its array types are the
+same for every configuration, the extended terms and the accelerometer's
+channel (``ImuModel``) included. The other compiled functions, which the
+node does not run (the kinematics of ``physics.kinematics``, the Allan
+deviation of ``analysis.allan.adev``), compile at their first use.
+:func:`main` also byte-compiles the package's modules (``compileall``),
+which ``colcon build`` leaves to the first import.
 """
 
 import compileall
