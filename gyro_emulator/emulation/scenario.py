@@ -9,8 +9,10 @@ and a fault schedule. A :class:`Scenario` is a profile of the one protocol
 (:class:`~gyro_emulator.emulation.profiles.Profile`): its steps are
 constant segments with labels (:class:`~.segments.Segment`), its samples
 those of the scripted profile they make. :func:`summarize` averages the
-output the player collected over each step; the ROS edge that plays it is
-:mod:`gyro_emulator.ros.scenario`.
+output the player collected over each step; a step that got no sample in
+its measurement window is not a number but an error :func:`unmeasured`
+names (the table says "no samples", the JSON null). The ROS edge that
+plays it is :mod:`gyro_emulator.ros.scenario`.
 
 Scenario keys (SI unless the name says otherwise)::
 
@@ -286,17 +288,49 @@ def summarize(profile, start_ns, imu, temps):
     return results
 
 
+def _cell(value, width, spec):
+    """Format a number for the table; '-' where there is none (NaN)."""
+    return f'{value:>{width}{spec}}' if math.isfinite(value) else f'{"-":>{width}}'
+
+
 def format_summary(results):
-    """Return the summary table as text (one row per step)."""
+    """Return the summary table as text (one row per step; "no samples" where none came)."""
     head = (f'{"step":>4} {"T_amb C":>8} {"T_die C":>8} {"rate":>10} {"cmd deg/s":>10} '
             f'{"meas deg/s":>11} {"err deg/s":>10} {"std deg/s":>10} {"n":>6}')
     lines = [head, '-' * len(head)]
     for i, r in enumerate(results):
-        lines.append(
-            f'{i:>4} {r.step.temp_start_c:>8.1f} {r.die_temp_c:>8.2f} '
-            f'{r.step.label:>10} {r.commanded_deg_s:>10.3f} {r.measured_deg_s:>11.3f} '
-            f'{r.error_deg_s:>+10.3f} {r.std_deg_s:>10.3f} {r.samples:>6d}')
+        row = (f'{i:>4} {r.step.temp_start_c:>8.1f} {_cell(r.die_temp_c, 8, ".2f")} '
+               f'{r.step.label:>10} {r.commanded_deg_s:>10.3f} ')
+        if r.samples:
+            row += (f'{r.measured_deg_s:>11.3f} {r.error_deg_s:>+10.3f} '
+                    f'{_cell(r.std_deg_s, 10, ".3f")} {r.samples:>6d}')
+        else:
+            row += f'{"no samples":>33} {0:>6d}'
+        lines.append(row)
     return '\n'.join(lines)
+
+
+def describe_step(index, step):
+    """Name a step for a message: ``step 3 (10 RPM at 25 C)`` (numbered from 1)."""
+    return f'step {index + 1} ({step.label} at {step.temp_start_c:g} C)'
+
+
+def unmeasured(results):
+    """
+    Name the steps that got no output sample in their measurement window.
+
+    Returns
+    -------
+    str or None
+        E.g. "step 1 (0 RPM at 25 C) and step 2 (10 RPM at 25 C) got no Imu
+        sample after their settle time"; None when every step has samples.
+
+    """
+    empty = [describe_step(i, r.step) for i, r in enumerate(results) if not r.samples]
+    if not empty:
+        return None
+    names = empty[0] if len(empty) == 1 else ', '.join(empty[:-1]) + ' and ' + empty[-1]
+    return f'{names} got no Imu sample after {"its" if len(empty) == 1 else "their"} settle time'
 
 
 def interruption_note(profile, start_ns, stop_ns):
@@ -332,17 +366,31 @@ def interruption_note(profile, start_ns, stop_ns):
     steps = f'step {index + 1}' if index + 1 == count else f'steps {index + 1}-{count}'
     return (f'interrupted at {elapsed:.1f} s of {profile.duration_s:g} s, in step '
             f'{index + 1} of {count}: {steps} {"was" if index + 1 == count else "were"} not '
-            'finished (NaN where no sample was taken)')
+            'finished (no samples where none was taken)')
+
+
+def number_or_none(value):
+    """Return ``value``, or None (JSON null) where it is not a number (no samples)."""
+    return value if math.isfinite(value) else None
 
 
 def results_json(profile, results, interrupted=None):
-    """Return the summary as a JSON-ready dict (``interrupted``: the note, when it was)."""
+    """
+    Return the summary as a JSON-ready dict (``interrupted``: the note, when it was).
+
+    A figure with no samples behind it is null; ``unmeasured`` names those steps.
+    """
     doc = {'profile': profile.name, 'axis': list(profile.axis)}
     if interrupted:
         doc['interrupted'] = interrupted
+    missing = unmeasured(results)
+    if missing:
+        doc['unmeasured'] = missing
     doc['steps'] = [
         {'temperature_c': r.step.temp_start_c, 'rate': r.step.label,
-         'commanded_deg_s': r.commanded_deg_s, 'measured_deg_s': r.measured_deg_s,
-         'error_deg_s': r.error_deg_s, 'std_deg_s': r.std_deg_s,
-         'die_temp_c': r.die_temp_c, 'samples': r.samples} for r in results]
+         'commanded_deg_s': r.commanded_deg_s,
+         'measured_deg_s': number_or_none(r.measured_deg_s),
+         'error_deg_s': number_or_none(r.error_deg_s),
+         'std_deg_s': number_or_none(r.std_deg_s),
+         'die_temp_c': number_or_none(r.die_temp_c), 'samples': r.samples} for r in results]
     return doc

@@ -161,6 +161,11 @@ NODE_PARAMS = (
     ParamSpec('record_start_clock_s', 'double', 'Node-clock time of record time '
               'extended.start_time_s of the sensor_config (the time line of its '
               'extended terms), s; negative: the first sample', True, -1.0, 1e12),
+    ParamSpec('startup_bias_calibration', 'double', 'Seconds at rest at the start over '
+              'which the gyro bias is estimated (the mean) and then removed from imu/data_raw, '
+              "as a driver's start-up calibration does; not applied if the commanded rate "
+              'is not zero or the spread says motion (/diagnostics says which); the truth '
+              'topics keep the true bias; 0 = off, s', True, 0.0, 3600.0),
     ParamSpec('record_dir', 'string', 'Record inputs, outputs and truth into an MCAP '
               'bag in this directory (gyro_emulator.ros.self_record); empty = off', True),
     ParamSpec('fault.type', 'string', 'Injected fault (sensor.faults): none, stuck, '
