@@ -77,15 +77,44 @@ def build_parser():
     return parser
 
 
-def main(argv=None):
-    """Run the command line; return the process exit status."""
+#: Longest error message printed, characters (a value quoted whole could be megabytes).
+MAX_MESSAGE_CHARS = 600
+
+
+def one_line(message, limit=MAX_MESSAGE_CHARS):
+    """Return ``message`` on one line, its middle cut when longer than ``limit``."""
+    text = ' '.join(str(message).split())
+    if len(text) <= limit:
+        return text
+    half = (limit - 30) // 2
+    return f'{text[:half]} ...[{len(text) - 2 * half} characters cut]... {text[-half:]}'
+
+
+def main(argv=None, signals=False):
+    """
+    Run the command line; return the process exit status.
+
+    With ``signals`` (the ``gyro-emulator`` entry point), SIGTERM and SIGHUP
+    stop a command as Ctrl-C does: its unfinished outputs are removed
+    (:class:`gyro_emulator.interrupts.Terminated`), and the status is 143 or
+    129. ``gyro-emulator ros`` keeps the ROS programs' own handling.
+    """
+    from gyro_emulator.interrupts import TerminateOnSignal, Terminated
+
     parser = build_parser()
     args = parser.parse_args(argv)
+    guard = TerminateOnSignal(() if not signals or args.command == 'ros' else
+                              TerminateOnSignal().signals)
     try:
-        return int(args.run(args) or 0)
+        with guard:
+            return int(args.run(args) or 0)
     except (ValueError, OSError) as exc:
-        print(f'gyro-emulator {args.command}: error: {exc}', file=sys.stderr)
+        print(f'gyro-emulator {args.command}: error: {one_line(exc)}', file=sys.stderr)
         return 2
+    except Terminated as exc:
+        print(f'gyro-emulator {args.command}: stopped by {exc.name}; unfinished outputs '
+              'removed', file=sys.stderr)
+        return exc.status
     except KeyboardInterrupt:
         print(f'gyro-emulator {args.command}: interrupted', file=sys.stderr)
         return 130

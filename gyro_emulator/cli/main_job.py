@@ -189,7 +189,7 @@ def main(argv=None):
     opts = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
     if not opts.skip_paper:
         print('== paper reproduction', flush=True)
-        status = cli.main(['paper', '--json', 'out/paper/paper.json'])
+        status = cli.main(['paper', '--json', 'out/paper/paper.json', '--overwrite'])
         if status or opts.paper_only:
             return status
     try:

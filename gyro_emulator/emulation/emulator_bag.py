@@ -253,7 +253,7 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
     return done
 
 
-def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=None):
+def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=None, name=None):
     """
     Write the replay result as a bag: inputs, emulated output, truth, measured, residual.
 
@@ -272,9 +272,13 @@ def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=N
         White-noise sigma for the Imu covariance.
     custom_data : dict, optional
         rosbag2 ``custom_data``.
+    name : str, optional
+        The bag's final name when ``path`` is a staging temporary (it names
+        the MCAP file).
 
     """
-    with bag.BagWriter(path, custom_data=custom_data, flush_interval_s=60.0) as writer:
+    with bag.BagWriter(path, custom_data=custom_data, flush_interval_s=60.0,
+                       name=name) as writer:
         out = EmulatorBagWriter(writer, inputs.frame_id, sigma_rad_s,
                                 extra=(MEASURED_TOPIC, RESIDUAL_TOPIC)
                                 if comparison.matched else ())

@@ -25,7 +25,7 @@ from gyro_emulator.physics.params import Device, from_mapping
 from gyro_emulator.physics.presets import DEFAULT_PRESET, physics_preset, PHYSICS_PRESETS
 from gyro_emulator.resources import config_dir, read_yaml
 from gyro_emulator.sensor.extensions import ExtendedTerms
-from gyro_emulator.validation import check_range
+from gyro_emulator.validation import check_range, quote
 import numpy as np
 
 #: Sensor presets shipped in ``config/sensor_<name>.yaml``.
@@ -71,7 +71,7 @@ class ErrorTerms:
             value = getattr(self, f.name)
             if not isinstance(value, (bool, np.bool_)):
                 raise ValueError(
-                    f'ErrorTerms.{f.name} = {value!r} is not allowed: '
+                    f'ErrorTerms.{f.name} = {quote(value)} is not allowed: '
                     'choose true or false')
             object.__setattr__(self, f.name, bool(value))
 
@@ -237,11 +237,11 @@ class SensorConfig:
         object.__setattr__(self, 'device', _devices(self.device))
         if not isinstance(self.extended, ExtendedTerms):
             raise ValueError(
-                f'SensorConfig.extended = {self.extended!r} is not allowed: expected '
+                f'SensorConfig.extended = {quote(self.extended)} is not allowed: expected '
                 'an ExtendedTerms')
         if not isinstance(self.terms, ErrorTerms):
             raise ValueError(
-                f'SensorConfig.terms = {self.terms!r} is not allowed: expected '
+                f'SensorConfig.terms = {quote(self.terms)} is not allowed: expected '
                 'an ErrorTerms')
         for kind, ranges in _RANGES.items():
             for name, limits in ranges.items():
@@ -249,22 +249,22 @@ class SensorConfig:
                                                         limits))
         for i, lsb in enumerate(self.lsb_rad_s):
             if 0.0 < lsb < MIN_LSB_RAD_S:
-                raise ValueError(f'SensorConfig.lsb_rad_s[{i}] = {lsb!r} is out of range: '
+                raise ValueError(f'SensorConfig.lsb_rad_s[{i}] = {quote(lsb)} is out of range: '
                                  f'allowed 0 (no quantisation) or [{MIN_LSB_RAD_S:g}, 1] rad/s')
         if self.output_filter_order != int(self.output_filter_order):
             raise ValueError(
-                f'SensorConfig.output_filter_order = {self.output_filter_order!r}'
+                f'SensorConfig.output_filter_order = {quote(self.output_filter_order)}'
                 ' is not allowed: choose 1, 2, 3 or 4')
         object.__setattr__(self, 'output_filter_order', int(self.output_filter_order))
         band = self.bias_instability_band_s
         if band[0] > band[1]:
             raise ValueError(
-                f'SensorConfig.bias_instability_band_s = {band!r} is not allowed:'
+                f'SensorConfig.bias_instability_band_s = {quote(band)} is not allowed:'
                 ' the first (shortest) correlation time must not exceed the second')
         diag = [self.misalignment[i][i] for i in range(3)]
         if any(d != 0.0 for d in diag):
             raise ValueError(
-                f'SensorConfig.misalignment has diagonal {diag!r}: allowed only '
+                f'SensorConfig.misalignment has diagonal {quote(diag)}: allowed only '
                 '0 (a gain error belongs in scale_factor_error)')
 
     @classmethod
@@ -302,12 +302,12 @@ def _checked(name, value, kind, limits):
         return check_range(owner, name, value, low, high, unit, low_open)
     shape = {'axis': (3,), 'scalar': (), 'pair': (2,), 'matrix': (3, 3)}[kind]
     if _has_non_number(value):
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list of numbers '
+        raise ValueError(f'{owner}.{name} = {quote(value)} is not a number or a list of numbers '
                          '(true/false and text are not numbers)')
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list '
+        raise ValueError(f'{owner}.{name} = {quote(value)} is not a number or a list '
                          'of numbers') from None
     if kind == 'axis' and arr.ndim == 0:
         arr = np.full(3, float(arr))
@@ -319,7 +319,7 @@ def _checked(name, value, kind, limits):
     if arr.shape != shape:
         what = {(3,): 'a number or a list of 3 (x, y, z)', (): 'a number',
                 (2,): 'a list of 2 numbers', (3, 3): 'a 3x3 matrix'}[shape]
-        raise ValueError(f'{owner}.{name} = {value!r} has shape {arr.shape}: '
+        raise ValueError(f'{owner}.{name} = {quote(value)} has shape {arr.shape}: '
                          f'expected {what}')
     _check_elements(owner, name, arr, low, high, unit, low_open)
     if kind == 'scalar':
@@ -374,7 +374,7 @@ def _device_from_spec(spec, owner):
                 merged[key] = value
         return from_mapping(Device, merged, owner)
     raise ValueError(
-        f'{owner} = {spec!r} is not allowed: give a physics preset name '
+        f'{owner} = {quote(spec)} is not allowed: give a physics preset name '
         f'({", ".join(sorted(PHYSICS_PRESETS))}), a mapping of device fields '
         '(optionally with "preset") or a list of three of those')
 
@@ -447,7 +447,7 @@ def config_from_mapping(mapping, source=''):
         mapping = {}
     if not isinstance(mapping, dict):
         raise ValueError(f'{source or "SensorConfig"}: expected a mapping of settings, '
-                         f'got {mapping!r}')
+                         f'got {quote(mapping)}')
     given, source = source, source or 'SensorConfig'
     field_names = [f.name for f in fields(SensorConfig)]
     kwargs = {}
@@ -459,11 +459,11 @@ def config_from_mapping(mapping, source=''):
             try:
                 kwargs[target] = convert(value)
             except (TypeError, ValueError):
-                raise ValueError(f'{source}: {key} = {value!r} is not a number or a '
+                raise ValueError(f'{source}: {key} = {quote(value)} is not a number or a '
                                  'list of numbers') from None
         elif key == 'terms':
             if not isinstance(value, dict):
-                raise ValueError(f'{source}: terms = {value!r} must be a mapping of '
+                raise ValueError(f'{source}: terms = {quote(value)} must be a mapping of '
                                  'term: true/false')
             unknown = sorted(set(value) - set(ErrorTerms.names()))
             if unknown:
@@ -483,7 +483,7 @@ def config_from_mapping(mapping, source=''):
             kwargs[key] = value
         else:
             allowed = sorted(set(field_names) | set(YAML_ALIASES))
-            raise ValueError(f'{source}: unknown key {key!r}; allowed: '
+            raise ValueError(f'{source}: unknown key {quote(key)}; allowed: '
                              f'{", ".join(allowed)}')
     try:
         return SensorConfig(**kwargs)
@@ -522,7 +522,7 @@ def load_sensor_config(name_or_path=None):
     path = preset_path(name) if name in PRESET_NAMES else name
     if not os.path.isfile(path):
         raise ValueError(
-            f'sensor config {name!r} is neither a preset '
+            f'sensor config {quote(name)} is neither a preset '
             f'({", ".join(PRESET_NAMES)}) nor a readable file')
     return config_from_mapping(read_yaml(path), source=path)
 
@@ -667,7 +667,7 @@ def _numbers(value, key):
     if key.scalar and len(set(value)) == 1:
         return Figure(value[0], key.spec)
     if key.scalar:
-        raise ValueError(f'{key.name} = {value!r}: one number cannot spell three')
+        raise ValueError(f'{key.name} = {quote(value)}: one number cannot spell three')
     return Flow(Figure(v, key.spec) for v in value)
 
 

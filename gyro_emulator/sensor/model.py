@@ -65,7 +65,22 @@ from gyro_emulator.sensor.plan import Plan, TemperatureTable
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
 
-__all__ = ['GyroModel', 'SensorBatch', 'SensorSample', 'TemperatureTable']
+__all__ = ['GyroModel', 'NonFiniteOutput', 'SensorBatch', 'SensorSample', 'TemperatureTable']
+
+
+class NonFiniteOutput(ValueError):
+    """
+    The model would emit a sample that is not finite; :attr:`cause` names the term.
+
+    A valid configuration never does (every field has a physical range); this
+    is the guard behind the ranges. Offline commands stop with its one-line
+    message; a node sets ``GyroModel.on_non_finite = 'flag'`` and withholds
+    such samples instead.
+    """
+
+    def __init__(self, message, cause):
+        super().__init__(message)
+        self.cause = cause
 
 
 @dataclass(frozen=True)
@@ -185,6 +200,11 @@ class GyroModel:
         self.sample_rate_hz = rate
         self.dt_s = 1.0 / rate
         self._state = _State(rng)
+        #: ``'raise'``: a non-finite sample raises :class:`NonFiniteOutput`; ``'flag'``:
+        #: it is counted (:attr:`non_finite_samples`) and left in the batch.
+        self.on_non_finite = 'raise'
+        self.non_finite_samples = 0
+        self.non_finite_cause = None
         self._turn_on_z = self._state.normals.draw(streams.TURN_ON, 3)
         self._plan = None
         self.update_config(config)
@@ -296,9 +316,9 @@ class GyroModel:
         """
         number = isinstance(elapsed_s, (int, float, np.integer, np.floating))
         value = float(elapsed_s) if number and not isinstance(elapsed_s, bool) else math.nan
-        if not abs(value) <= extensions.TIME_LIMIT_S:
+        if not abs(value) <= extensions.ELAPSED_LIMIT_S:
             raise ValueError(f'GyroModel.elapsed_s = {elapsed_s!r} is out of range: allowed '
-                             f'[-{extensions.TIME_LIMIT_S:g}, {extensions.TIME_LIMIT_S:g}] s')
+                             f'[-{extensions.ELAPSED_LIMIT_S:g}, {extensions.ELAPSED_LIMIT_S:g}] s')
         extensions.set_elapsed(self._state.extended, value)
 
     @property
@@ -461,6 +481,7 @@ class GyroModel:
             stop = min(start + streams.BLOCK, n)
             normals.reserve(plan.streams, stop - start)
             if ext is not None:
+                before = ext_state.copy()
                 ext.evaluate(temp[start:stop], ext_state, xbias, xgain)
             bad = kernel.advance(rate, temp, accel, xbias, xgain, plan.coefficients, st.kernel,
                                  normals.buffer, normals.pos, out, start, stop)
@@ -469,11 +490,54 @@ class GyroModel:
                 raise ValueError(f'GyroModel: die temperature {float(out.die[bad - 1]):g} C '
                                  '(ambient + self_heating_c) is out of range: allowed '
                                  f'[{lo}, {hi}] C')
+            if not math.isfinite(np.add.reduce(out.gyro[start:stop], axis=None)):
+                self._non_finite(out, start, stop, temp,
+                                 (before, xbias, xgain) if ext is not None else None)
         if ext is None:     # the record time runs on while the extended terms are off
             st.extended[extensions.Z_COUNT] += n
         else:
             st.extended = ext_state
         return fields
+
+    def _non_finite(self, out, start, stop, temp, ext_block):
+        """
+        Account for samples ``start:stop`` of which some are not finite (NaN or inf).
+
+        With :attr:`on_non_finite` ``'raise'`` (the default) raise
+        :class:`NonFiniteOutput` naming the first such sample and the term that
+        gave it; with ``'flag'`` count them in :attr:`non_finite_samples`, keep
+        the cause in :attr:`non_finite_cause` and leave them in the batch, for
+        a caller that publishes only finite samples.
+        """
+        rows = ~np.isfinite(out.gyro[start:stop]).all(axis=1)
+        first = start + int(np.flatnonzero(rows)[0])
+        cause = self._cause(out, first, start, stop, temp, ext_block)
+        self.non_finite_samples += int(rows.sum())
+        self.non_finite_cause = cause
+        if self.on_non_finite != 'flag':
+            index = self.sample_index - stop + first
+            raise NonFiniteOutput(f'GyroModel: sample {index} would be '
+                                  f'{out.gyro[first].tolist()} rad/s, not finite: {cause}',
+                                  cause)
+
+    def _cause(self, out, first, start, stop, temp, ext_block):
+        """Name the term that made sample ``first`` non-finite (see :meth:`_non_finite`)."""
+        if ext_block is not None:
+            before, xbias, xgain = ext_block
+            rows = slice(0, stop - start)
+            if not (np.isfinite(xbias[rows]).all() and np.isfinite(xgain[rows]).all()):
+                term = extensions.first_non_finite(self.config.extended, self.config.device,
+                                                   self._plan.cal_temp_c, self.dt_s,
+                                                   temp[start:stop], before)
+                if term is not None:
+                    return (f'the extended term {term} gives a non-finite bias or gain '
+                            f'({getattr(self.config.extended, term)})')
+        if not np.isfinite(out.bias[first]).all():
+            return 'the bias terms give a non-finite bias (the configuration is degenerate)'
+        if not np.isfinite(out.gain[first]).all():
+            return ('the scale factor is not finite (the device physics or '
+                    'scale_factor_error is degenerate)')
+        return 'the sense dynamics, output filter or output stage diverge'
 
     def _check_temp(self, temp):
         lo, hi = MODEL_TEMP_RANGE_C

@@ -67,6 +67,12 @@ def _group_axes(keys):
     return groups
 
 
+#: Lowest output-filter cut-off as a fraction of the sample rate, by order: in
+#: transfer-function form the Butterworth's DC gain stays within 1e-6 of 1 and its
+#: poles inside the unit circle down to it (order 4 at 1e-5 f_s is unstable).
+MIN_FILTER_FRACTION = {1: 1e-6, 2: 1e-5, 3: 1e-4, 4: 1e-3}
+
+
 def _noise_gain(b, a):
     """RMS gain sqrt(sum h[k]^2) of a digital filter to white noise (Lyapunov)."""
     ad, bd, cd, dd = signal.tf2ss(b, a)
@@ -236,6 +242,13 @@ class Plan:
                 f'SensorConfig.output_filter_hz = {c.output_filter_hz!r} is out of '
                 f'range at {fs:g} Hz sampling: allowed (0, {0.5 * fs:g}) Hz (below '
                 'Nyquist), or 0 for no filter')
+        low = MIN_FILTER_FRACTION[c.output_filter_order] * fs
+        if c.output_filter_hz < low:
+            raise ValueError(
+                f'SensorConfig.output_filter_hz = {c.output_filter_hz!r} is out of range at '
+                f'{fs:g} Hz sampling and order {c.output_filter_order}: allowed [{low:g}, '
+                f'{0.5 * fs:g}) Hz (below, the coefficients lose the DC gain), or 0 '
+                'for no filter')
         self.flags[kernel.F_LPF] = 1
         b, a = signal.butter(c.output_filter_order, c.output_filter_hz, fs=fs)
         self.lpf_b, self.lpf_a = np.tile(b, (3, 1)), np.tile(a, (3, 1))
