@@ -77,17 +77,21 @@ class TerminateOnSignal:
 
     The first such signal raises; any later one is ignored, so that the
     clean-up the exception sets off is not cut short. On leaving, the
-    previous handlers are restored.
+    previous handlers are restored. :attr:`received` keeps the exception
+    raised: a library that swallows exceptions in its callbacks (llvmlite
+    loading numba's cache) can lose it, and the caller then still knows.
     """
 
     def __init__(self, signals=TERMINATING_SIGNALS):
         self.signals = tuple(signals)
         self._previous = {}
+        self.received = None
 
     def _on_signal(self, signum, frame):
         for sig in self.signals:
             signal.signal(sig, signal.SIG_IGN)
-        raise Terminated(signum)
+        self.received = Terminated(signum)
+        raise self.received
 
     def __enter__(self):
         """Install the raising handlers."""

@@ -107,7 +107,10 @@ def main(argv=None, signals=False):
                               TerminateOnSignal().signals)
     try:
         with guard:
-            return int(args.run(args) or 0)
+            status = int(args.run(args) or 0)
+        if guard.received is not None:         # raised where a library swallowed it
+            raise guard.received
+        return status
     except (ValueError, OSError) as exc:
         print(f'gyro-emulator {args.command}: error: {one_line(exc)}', file=sys.stderr)
         return 2

@@ -15,12 +15,29 @@ a gap stays a gap. Memory then follows ``max_rows`` and one block, not the
 length of the record: 24 h at 100 Hz (8.64 M rows) is read in a few hundred MB.
 """
 
+from dataclasses import dataclass
 import math
 import os
 
 from gyro_emulator.recording import csvio
 from gyro_emulator.recording.timing import check_increasing, check_time_base, TIME_LIMIT_S
 import numpy as np
+
+
+@dataclass(frozen=True)
+class Binned:
+    """What :func:`read_csv_bounded` did to a long file; ``str()`` says it in one line."""
+
+    rows: int
+    max_rows: int
+    width_s: float
+    kept: int
+
+    def __str__(self):
+        """Return the note (rows read, the bin width, rows kept)."""
+        return (f'{self.rows} rows are more than the {self.max_rows} held: read in blocks and '
+                f'averaged over bins of {self.width_s:.6g} s ({self.kept} kept; a spike '
+                'shorter than a bin is diluted)')
 
 
 class _Bins:
@@ -112,7 +129,7 @@ def read_csv_bounded(path, required=(), time_order='increasing', only=None, max_
     -------
     columns : dict
         Column name -> 1-D array (bin means when binned).
-    note : str or None
+    binned : Binned or None
         What the binning did (rows read, bin width, rows kept), or None when
         every row was kept.
 
@@ -152,7 +169,4 @@ def read_csv_bounded(path, required=(), time_order='increasing', only=None, max_
             check_increasing(whole['time_s'], f'{path}: time_s', strict=strict)
             check_time_base(whole['time_s'], f'{path}: time_s')
         return whole, None
-    note = (f'{rows} rows are more than the {max_rows} held: read in blocks and averaged '
-            f'over bins of {bins.width_s:.6g} s ({len(bins.index)} kept; a spike shorter '
-            'than a bin is diluted)')
-    return bins.means(), note
+    return bins.means(), Binned(rows, max_rows, bins.width_s, len(bins.index))

@@ -408,7 +408,7 @@ def load_record(path, topics=None, required=('time_s',), only=None,
         return _load_bag(bag.BagReader(path, tolerant=True), path, roles, use_log_time)
     columns, note = binning.read_csv_bounded(path, required, time_order, only, max_rows)
     record = _from_columns(path, columns)
-    return record if note is None else replace(record, recovery=(note,))
+    return record if note is None else replace(record, recovery=(str(note),))
 
 
 def _from_columns(path, columns):

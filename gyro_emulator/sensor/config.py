@@ -24,7 +24,7 @@ from gyro_emulator import units
 from gyro_emulator.physics.params import Device, from_mapping
 from gyro_emulator.physics.presets import DEFAULT_PRESET, physics_preset, PHYSICS_PRESETS
 from gyro_emulator.resources import config_dir, read_yaml
-from gyro_emulator.sensor.extensions import ExtendedTerms
+from gyro_emulator.sensor.extensions import ExtendedTerms, MIN_TIME_CONSTANT_S
 from gyro_emulator.validation import check_range, quote
 import numpy as np
 
@@ -247,6 +247,10 @@ class SensorConfig:
             for name, limits in ranges.items():
                 object.__setattr__(self, name, _checked(name, getattr(self, name), kind,
                                                         limits))
+        tau = self.thermal_time_constant_s
+        if 0.0 < tau < MIN_TIME_CONSTANT_S:
+            raise ValueError(f'SensorConfig.thermal_time_constant_s = {tau!r} is out of range: '
+                             f'allowed 0 (no lag) or [{MIN_TIME_CONSTANT_S:g}, 1e+05] s')
         for i, lsb in enumerate(self.lsb_rad_s):
             if 0.0 < lsb < MIN_LSB_RAD_S:
                 raise ValueError(f'SensorConfig.lsb_rad_s[{i}] = {quote(lsb)} is out of range: '
@@ -312,6 +316,7 @@ def _checked(name, value, kind, limits):
     if kind == 'axis' and arr.ndim == 0:
         arr = np.full(3, float(arr))
     if kind == 'matrix' and arr.ndim == 0:
+        check_range(owner, name, float(arr), low, high, unit, low_open)    # before inf * 0
         arr = np.full((3, 3), float(arr)) * (1.0 - np.eye(3)) \
             if name == 'misalignment' else np.eye(3) * float(arr)
     if kind == 'matrix' and arr.shape == (3,) and name != 'misalignment':
