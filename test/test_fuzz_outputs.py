@@ -38,7 +38,7 @@ def _run_cli(args, cwd):
 
 @pytest.fixture(scope='module')
 def inputs(tmp_path_factory):
-    """A 3-axis static log, a thermal ramp, a bag, a broken bag, and the presets fitted to them."""
+    """Write a 3-axis static log, a thermal ramp, bags and the presets fitted to them."""
     folder = tmp_path_factory.mktemp('inputs')
 
     def make(*args):
@@ -183,8 +183,8 @@ def test_bad_output_paths_are_refused_before_any_work(inputs, tmp_path, capsys, 
     assert cases >= 2
 
 
-def test_a_dir_output_that_holds_the_input_is_refused_even_with_overwrite(inputs, tmp_path,
-                                                                         capsys):
+def test_a_dir_output_that_holds_the_input_is_refused_even_with_overwrite(
+        inputs, tmp_path, capsys):
     bag = tmp_path / 'bag'
     shutil.copytree(inputs / 'bag', bag)
     before = _tree(tmp_path)

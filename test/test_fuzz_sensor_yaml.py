@@ -36,8 +36,12 @@ RATE, TEMP, ACCEL = _inputs()
 
 
 def _one_line(exc):
-    """One line, short: a value is quoted to about 200 characters (an unknown key's message
-    lists the allowed keys, about 1200)."""
+    """
+    Return whether ``exc`` is one short line.
+
+    A value is quoted to about 200 characters; an unknown key's message
+    lists the allowed keys (about 1200).
+    """
     text = str(exc)
     return text and '\n' not in text and 'Traceback' not in text and len(text) < 1600
 
@@ -74,8 +78,8 @@ def _term_cases():
     for term, cls in extensions.TERM_TYPES.items():
         amplitudes = {name: 0.01 for name, (kind, *_) in cls.RANGES.items() if kind == 'axis'}
         for name, (kind, low, high, _unit) in cls.RANGES.items():
-            bounds = [] if low is None else [low, high, low * 0.999 if low else -1e-12,
-                                              high * 1.001]
+            bounds = [] if low is None else [
+                low, high, low * 0.999 if low else -1e-12, high * 1.001]
             for value in EXTREMES + bounds + WRONG:
                 yield {'extended': {term: dict(amplitudes, **{name: value})}}
 

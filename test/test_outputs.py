@@ -7,7 +7,7 @@ import sys
 import time
 
 from gyro_emulator import atomic, outputs
-from gyro_emulator.interrupts import TerminateOnSignal, Terminated
+from gyro_emulator.interrupts import Terminated, TerminateOnSignal
 from gyro_emulator.recording import binning, csvio
 from gyro_emulator.resources import load_yaml_text, MAX_YAML_NODES, read_yaml
 from gyro_emulator.validation import check_record_values, quote

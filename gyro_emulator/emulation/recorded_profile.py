@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import os
 
 from gyro_emulator.emulation.profiles import LEVEL_ACCEL_M_S2, SampledProfile
-from gyro_emulator.recording.record import DEFAULT_TOPICS, is_bag, load_record
+from gyro_emulator.recording.record import is_bag, load_record
 from gyro_emulator.units import AXES
 from gyro_emulator.validation import check_record_values, MODEL_TEMP_RANGE_C
 import numpy as np
@@ -140,11 +140,10 @@ def default_topics(gyro=None):
     Return the bag roles of a recorded profile.
 
     ``gyro`` (None: the one Imu topic with messages) and the emulator's
-    command topics.
+    command topics where the bag has them (None: the defaults of
+    :func:`~gyro_emulator.recording.record.load_record`).
     """
-    roles = {role: DEFAULT_TOPICS[role] for role in ('gyro', 'rate', 'temp', 'accel')}
-    roles['gyro'] = gyro
-    return roles
+    return {'gyro': gyro, 'rate': None, 'temp': None, 'accel': None}
 
 
 def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):

@@ -145,6 +145,7 @@ class ScanReport:
 #: The records the scanner reads (others, such as indexes, are skipped unparsed).
 _READERS = {Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.METADATA: Metadata,
             Opcode.HEADER: Header, Opcode.FOOTER: Footer, Opcode.DATA_END: DataEnd}
+_PARSED = frozenset(_READERS) | {Opcode.CHUNK, Opcode.MESSAGE}
 
 
 def _parse_record(opcode, body):
@@ -219,8 +220,9 @@ class Repeats:
     A chunk whose time range, sizes and compressed bytes (CRC-32) equal an
     earlier chunk's is a repeat; in a chunk whose log-time range overlaps
     an earlier chunk's, each message equal to one of that chunk's (channel,
-    sequence, log and publish time, data) is a repeat. Keeps 8 bytes per
-    message (a hash), and compares only chunks that overlap in time.
+    sequence, log and publish time, data) is a repeat. Keeps a hash per
+    message (8 bytes in a large chunk), and compares only chunks that overlap
+    in time.
 
     The chunks a recorder writes come in order of their start times; among
     them the earlier chunks that overlap a new one are the tail after the
@@ -230,8 +232,9 @@ class Repeats:
     written twice, a writer restarted) is kept apart and compared with all.
     """
 
-    #: Up to this many candidate keys, membership is a Python set (numpy's
-    #: ``isin`` costs tens of microseconds a call, whatever the size).
+    #: Up to this many keys, a chunk keeps them as a Python list and membership is a
+    #: Python set (numpy's ``isin`` costs tens of microseconds a call, whatever the
+    #: size); larger chunks keep an int64 array (8 bytes a message).
     SMALL = 256
 
     def __init__(self):
@@ -265,25 +268,26 @@ class Repeats:
         if key in self._chunks:
             return [], len(messages), True
         self._chunks.add(key)
-        keys = np.fromiter((hash((m.channel_id, m.sequence, m.log_time, m.publish_time,
-                                  m.data)) for m in messages), dtype=np.int64,
-                           count=len(messages))
+        keys = [hash((m.channel_id, m.sequence, m.log_time, m.publish_time, m.data))
+                for m in messages]
         start, end = chunk.message_start_time, chunk.message_end_time
         earlier = self._overlapping(start, end)
-        self._add(start, end, keys)
+        self._add(start, end, keys if len(keys) <= self.SMALL
+                  else np.array(keys, dtype=np.int64))
         if not earlier:
             return messages, 0, False
-        if sum(len(k) for k in earlier) <= self.SMALL:
+        if len(keys) + sum(len(k) for k in earlier) <= self.SMALL:
             known = set()
             for k in earlier:
-                known.update(k.tolist())
-            seen = np.fromiter((k in known for k in keys.tolist()), dtype=bool,
-                               count=len(keys))
+                known.update(k.tolist() if isinstance(k, np.ndarray) else k)
+            seen = [k in known for k in keys]
         else:
-            seen = np.isin(keys, np.concatenate(earlier))
-        if not seen.any():
+            seen = np.isin(np.array(keys, dtype=np.int64), np.concatenate(
+                [np.asarray(k, dtype=np.int64) for k in earlier])).tolist()
+        repeated = sum(seen)
+        if not repeated:
             return messages, 0, False
-        return [m for m, s in zip(messages, seen) if not s], int(seen.sum()), False
+        return [m for m, s in zip(messages, seen) if not s], repeated, False
 
 
 def _intact_chunk_at(buf, i, at, size):
@@ -416,7 +420,9 @@ def _scan_records(handle, report, size):
             why = (f'truncated {Opcode(opcode).name.lower()} record at byte {position} '
                    f'({size - position - 9} of {length} bytes present)')
         record = inner = None
-        if why is None:
+        if why is None and opcode not in _PARSED:     # an index or the like: not read
+            handle.seek(length, os.SEEK_CUR)
+        elif why is None:
             body = handle.read(length)
             try:
                 record = _parse_record(opcode, body)
@@ -456,11 +462,16 @@ def _scan_records(handle, report, size):
             continue
         if report.data_end:
             continue        # summary section: repeated schemas/channels, indexes
-        if inner is not None:
-            inner = _drop_repeats(repeats, record, inner, report)
-        for item in (inner if inner is not None else (record,)):
-            if isinstance(item, Message):
+        if inner is None:
+            if isinstance(record, (Schema, Channel, Message, Metadata)):
+                if isinstance(record, Message):
+                    report.messages += 1
+                    report.last_log_time_ns = record.log_time
+                yield record
+            continue
+        inner = _drop_repeats(repeats, record, inner, report)
+        for item in inner:          # a chunk holds schemas, channels and messages only
+            if type(item) is Message:
                 report.messages += 1
                 report.last_log_time_ns = item.log_time
-            if isinstance(item, (Schema, Channel, Message, Metadata)):
-                yield item
+            yield item

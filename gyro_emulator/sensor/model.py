@@ -316,9 +316,10 @@ class GyroModel:
         """
         number = isinstance(elapsed_s, (int, float, np.integer, np.floating))
         value = float(elapsed_s) if number and not isinstance(elapsed_s, bool) else math.nan
-        if not abs(value) <= extensions.ELAPSED_LIMIT_S:
+        limit = extensions.ELAPSED_LIMIT_S
+        if not abs(value) <= limit:
             raise ValueError(f'GyroModel.elapsed_s = {elapsed_s!r} is out of range: allowed '
-                             f'[-{extensions.ELAPSED_LIMIT_S:g}, {extensions.ELAPSED_LIMIT_S:g}] s')
+                             f'[-{limit:g}, {limit:g}] s')
         extensions.set_elapsed(self._state.extended, value)
 
     @property
