@@ -10,9 +10,10 @@ never a huge message. Seeded: the same cases every run.
 from dataclasses import fields
 
 from gyro_emulator.physics import params
-from gyro_emulator.sensor import extensions
+from gyro_emulator.sensor import accel, extensions
 from gyro_emulator.sensor.config import field_ranges, load_sensor_config
-from gyro_emulator.sensor.model import GyroModel, NonFiniteOutput
+from gyro_emulator.sensor.imu import ImuModel
+from gyro_emulator.sensor.model import NonFiniteOutput
 import numpy as np
 import pytest
 import yaml
@@ -55,7 +56,7 @@ def _outcome(path):
         return 'refused'
     for rate_hz in (100.0, 1000.0):
         try:
-            model = GyroModel(config, rate_hz, np.random.default_rng(3))
+            model = ImuModel(config, rate_hz, np.random.default_rng(3))
             out = model.run(RATE, TEMP, ACCEL)
         except NonFiniteOutput as exc:              # the ranges must make this unreachable
             raise AssertionError(f'{path.read_text()[:500]}: {exc}') from None
@@ -64,6 +65,7 @@ def _outcome(path):
             continue
         assert np.all(np.isfinite(out.gyro_rad_s)), path.read_text()[:500]
         assert np.all(np.isfinite(out.bias_rad_s)), path.read_text()[:500]
+        assert np.all(np.isfinite(out.accel_m_s2)), path.read_text()[:500]
     return 'ok'
 
 
@@ -93,6 +95,15 @@ def _sensor_cases():
             yield {name: value}
 
 
+def _accel_cases():
+    """Every accelerometer field at every extreme, bound and wrong value."""
+    for name, (kind, low, high, _unit, _open) in accel.field_ranges().items():
+        for value in EXTREMES + [low, high] + WRONG:
+            if kind == 'pair' and isinstance(value, float):
+                value = [value, max(value, 1.0)] if np.isfinite(value) else [value, 1.0]
+            yield {'accelerometer': {name: value}}
+
+
 def _device_cases():
     """Every ranged device field at its bounds, denormals and beyond."""
     for group in ('geometry', 'material', 'gas', 'drive'):
@@ -105,8 +116,8 @@ def _device_cases():
                 yield {'device': {'preset': 'paper', group: {spec.name: value}}}
 
 
-@pytest.mark.parametrize('cases', [_term_cases, _sensor_cases, _device_cases],
-                         ids=['extended', 'sensor', 'device'])
+@pytest.mark.parametrize('cases', [_term_cases, _sensor_cases, _accel_cases, _device_cases],
+                         ids=['extended', 'sensor', 'accelerometer', 'device'])
 def test_every_field_ends_in_finite_samples_or_one_line(tmp_path, cases):
     outcomes = {'ok': 0, 'refused': 0}
     for i, mapping in enumerate(cases()):
@@ -117,15 +128,15 @@ def test_every_field_ends_in_finite_samples_or_one_line(tmp_path, cases):
 def test_random_combinations_end_in_finite_samples_or_one_line(tmp_path):
     """Several fields at once, drawn from the extremes, bounds and ordinary values."""
     rng = np.random.default_rng(34)
-    singles = list(_term_cases()) + list(_sensor_cases())
+    singles = list(_term_cases()) + list(_sensor_cases()) + list(_accel_cases())
     outcomes = {'ok': 0, 'refused': 0}
     for i in range(150):
         mapping = {'extended': {}}
         for k in rng.choice(len(singles), size=int(rng.integers(2, 6)), replace=False):
             case = singles[k]
             for key, value in case.items():
-                if key == 'extended':
-                    mapping['extended'].update(value)
+                if key in ('extended', 'accelerometer'):
+                    mapping.setdefault(key, {}).update(value)
                 else:
                     mapping[key] = value
         outcomes[_outcome(_write(tmp_path, i, mapping))] += 1

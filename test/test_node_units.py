@@ -9,6 +9,7 @@ import types
 from gyro_emulator.emulation import profiles, scenario
 from gyro_emulator.emulation.driver import commands, parameters
 from gyro_emulator.emulation.driver.block_stepper import BlockStepper
+from gyro_emulator.emulation.run_profile import samples_with_force
 from gyro_emulator.ros import params
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
@@ -220,7 +221,8 @@ def test_node_and_simulate_share_one_gravity_default_and_a_driver_like_temperatu
     assert defaults['default_linear_acceleration_m_s2'] == list(profiles.LEVEL_ACCEL_M_S2)
     assert profiles.LEVEL_ACCEL_M_S2 == (0.0, 0.0, 9.80665)
     for name in profiles.PROFILE_NAMES:
-        accel = profiles.make_profile(name, 10.0).samples(np.array([0.0, 5.0])).accel_m_s2
+        accel = samples_with_force(profiles.make_profile(name, 10.0),
+                                   np.array([0.0, 5.0])).accel_m_s2
         assert np.array_equal(accel, np.tile(profiles.LEVEL_ACCEL_M_S2, (2, 1))), name
     assert 1.0 <= defaults['temperature_rate_hz'] <= 10.0
     assert defaults['seed'] == parameters.SEED_FROM_NAME and defaults['fault.type'] == 'none'

@@ -7,7 +7,7 @@ is along ``axis``), plus what the player needs: how often to re-send the
 commands, a grid of every rate at every temperature, the node's parameters
 and a fault schedule. A :class:`Scenario` is a profile of the one protocol
 (:class:`~gyro_emulator.emulation.profiles.Profile`): its steps are
-constant segments with labels (:class:`~.profiles.Segment`), its samples
+constant segments with labels (:class:`~.segments.Segment`), its samples
 those of the scripted profile they make. :func:`summarize` averages the
 output the player collected over each step; the ROS edge that plays it is
 :mod:`gyro_emulator.ros.scenario`.
@@ -40,6 +40,7 @@ import os
 import warnings
 
 from gyro_emulator.emulation import profiles
+from gyro_emulator.emulation import segments as schema
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.sensor import faults
 from gyro_emulator.validation import quote
@@ -72,7 +73,7 @@ class Scenario:
         Unit rate direction in the sensor frame.
     publish_rate_hz : float
         How often the player re-sends the commands, Hz.
-    steps : tuple of gyro_emulator.emulation.profiles.Segment
+    steps : tuple of gyro_emulator.emulation.segments.Segment
         Constant segments, each with the label of its rate (e.g. ``10 RPM``).
     node_parameters : dict
         Parameters a runner should give the node.
@@ -98,6 +99,16 @@ class Scenario:
         """Return the steps as a :class:`~.profiles.ScriptedProfile`."""
         return profiles.ScriptedProfile(self.name, self.steps)
 
+    @property
+    def initial_attitude_wxyz(self):
+        """Attitude at time 0 (level): the steps give their specific force (level)."""
+        return self.profile.initial_attitude_wxyz
+
+    @property
+    def gravity_m_s2(self):
+        """Magnitude of gravity, m/s^2 (standard)."""
+        return self.profile.gravity_m_s2
+
     def samples(self, time_s):
         """Return the profile's samples at ``time_s`` (:class:`~.profiles.ProfileSamples`)."""
         return self.profile.samples(time_s)
@@ -121,7 +132,7 @@ def _number(where, key, value, low=None, high=None, low_open=False):
 
 
 def _rate(where, mapping, plural=False):
-    names = {('rates_' + k[5:] if plural else k): k for k in profiles.RATE_UNITS}
+    names = {('rates_' + k[5:] if plural else k): k for k in schema.RATE_UNITS}
     found = [n for n in names if n in mapping]
     if len(found) != 1:
         raise ValueError(f'{where}: give exactly one of {", ".join(names)}')
@@ -129,17 +140,17 @@ def _rate(where, mapping, plural=False):
 
 
 def _step(where, raw, axis):
-    """Parse one step with the shared segment schema (:func:`.profiles.parse_segment`)."""
+    """Parse one step with the shared segment schema (:func:`.segments.parse_segment`)."""
     if not isinstance(raw, dict):
         raise ValueError(f'{where} = {quote(raw)} must be a mapping')
-    raw = profiles.canonical_segment(where, raw)
+    raw = schema.canonical_segment(where, raw)
     key = _rate(where, raw)[0]
     value = _number(where, key, raw[key])
     if 'temp_c' not in raw:
         raise ValueError(f'{where}.temp_c = None is not a finite number')
     if 'duration_s' in raw:
         _number(where, 'duration_s', raw['duration_s'], 0.0, 86400.0, True)
-    segment = profiles.parse_segment(where, raw, axis)
+    segment = schema.parse_segment(where, raw, axis)
     return _constant_step(where, segment, f'{value:g} {RATE_LABELS[key]}')
 
 
@@ -185,7 +196,7 @@ def parse_scenario(doc, source='profile'):
     if unknown:
         raise ValueError(f'{source}: unknown key(s) {", ".join(unknown)}; allowed: '
                          f'{", ".join(sorted(allowed))}')
-    axis = profiles.unit_axis(source, doc.get('axis', list(profiles.DEFAULT_AXIS)))
+    axis = schema.unit_axis(source, doc.get('axis', list(schema.DEFAULT_AXIS)))
     rate_hz = _number(source, 'publish_rate_hz', doc.get('publish_rate_hz', 50.0),
                       0.0, 1000.0, True)
     steps = []
@@ -223,7 +234,7 @@ def load_scenario(path=None):
 class StepResult:
     """Commanded vs measured for one step (rates along the axis, deg/s; the step a Segment)."""
 
-    step: profiles.Segment
+    step: schema.Segment
     commanded_deg_s: float
     measured_deg_s: float
     std_deg_s: float

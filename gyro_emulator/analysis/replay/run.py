@@ -13,7 +13,7 @@ import os
 
 from gyro_emulator.analysis.replay.inputs import emulate, load_inputs
 from gyro_emulator.analysis.replay.report import compare, report_text, write_report
-from gyro_emulator.emulation.emulator_bag import white_noise_sigma, write_output_bag
+from gyro_emulator.emulation.emulator_bag import noise_sigmas, write_output_bag
 from gyro_emulator.emulation.simulate import staged_output
 from gyro_emulator.recording import record
 from gyro_emulator.recording.files import inside_bag
@@ -149,13 +149,13 @@ def replay_bag(bag_path, out_dir, config=None, seed=None, plots=True, overwrite=
     comparison = compare(inputs, batch)
     header = [f'bag: {os.path.abspath(bag_path)}', f'sensor config: {config_name}',
               f'seed: {seed}'] + [f'recovered: {note}' for note in reader.problems]
-    sigma = white_noise_sigma(sensor_config, inputs.rate_hz)
+    sigma, accel_sigma = noise_sigmas(sensor_config, inputs.rate_hz)
     with staged_output(bag_dir, overwrite) as partial:     # complete or absent
         write_output_bag(partial, inputs, batch, comparison, sigma, custom_data={
             'generator': 'gyro-emulator replay', 'source_bag': os.path.abspath(bag_path),
             'sensor_config': str(config_name), 'seed': str(seed),
             'rate_hz': repr(inputs.rate_hz), 'source': inputs.source},
-            name=os.path.abspath(bag_dir))
+            accel_sigma_m_s2=accel_sigma, name=os.path.abspath(bag_dir))
     paths = write_report(out_dir, comparison, inputs, header, plots=plots)
     return ReplayRun(bag_dir=bag_dir, samples=len(inputs.stamp_ns),
                      report=report_text(comparison, inputs, header), paths=paths)

@@ -183,6 +183,8 @@ NODE_SPECS = {spec.name: spec for spec in NODE_PARAMS}
 SENSOR_DESCRIPTIONS = {
     'extended': 'Extended terms (sensor.extensions: the causes diagnose names); structural: '
                 'set in the sensor_config YAML under extended:, not a runtime parameter',
+    'accelerometer': 'The accelerometer (sensor.accel); structural: set in the sensor_config '
+                     'YAML under accelerometer:, not a runtime parameter',
     'device': 'Physics device of every axis: a physics preset name (paper, '
               'paper_sutherland, paper_sealed); empty = the sensor_config one',
     'mode_split_hz': 'Drive/sense frequency split of the sense dynamics (x, y, z), Hz',
@@ -278,9 +280,10 @@ def _check_triple(spec, value):
 
 def _config_fields():
     # ``extended`` (sensor.extensions) is structural: it comes from the
-    # sensor_config YAML only and is not a runtime parameter.
+    # sensor_config YAML only and is not a runtime parameter; so, for now, is
+    # the ``accelerometer`` (sensor.accel).
     return [f.name for f in fields(sensor_config.SensorConfig)
-            if f.name not in ('terms', 'extended')]
+            if f.name not in ('terms', 'extended', 'accelerometer')]
 
 
 def sensor_param_values(config):
