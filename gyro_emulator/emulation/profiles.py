@@ -207,8 +207,8 @@ class ScriptedProfile:
         object.__setattr__(self, 'segments', tuple(self.segments))
         given = {s.accel_m_s2 is not None for s in self.segments}
         if len(given) > 1:
-            raise ValueError(f'Profile {quote(self.name)}: some segments give accel_m_s2 and some do '
-                             'not: give the specific force in every segment or in none')
+            raise ValueError(f'Profile {quote(self.name)}: some segments give accel_m_s2 and some '
+                             'do not: give the specific force in every segment or in none')
         owner = f'Profile {quote(self.name)}'
         object.__setattr__(self, 'initial_attitude_wxyz', tuple(
             check_attitude(self.initial_attitude_wxyz, owner).tolist()))

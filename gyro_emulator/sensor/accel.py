@@ -169,8 +169,8 @@ class AccelConfig:
         object.__setattr__(self, 'output_filter_order', int(self.output_filter_order))
         band = self.bias_instability_band_s
         if band[0] > band[1]:
-            raise ValueError(f'{owner}.bias_instability_band_s = {quote(band)} is not allowed: the '
-                             'first (shortest) correlation time must not exceed the second')
+            raise ValueError(f'{owner}.bias_instability_band_s = {quote(band)} is not allowed: '
+                             'the first (shortest) correlation time must not exceed the second')
         check_zero_diagonal(owner, self.misalignment)
 
     @classmethod

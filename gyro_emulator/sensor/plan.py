@@ -72,10 +72,11 @@ def _group_axes(keys):
     return groups
 
 
-#: Lowest output-filter cut-off as a fraction of the sample rate, by order: in
-#: transfer-function form the Butterworth's DC gain stays within 1e-6 of 1 and its
-#: poles inside the unit circle down to it (order 4 at 1e-5 f_s is unstable).
-MIN_FILTER_FRACTION = {1: 1e-6, 2: 1e-5, 3: 1e-4, 4: 1e-3}
+#: Lowest output-filter cut-off as a fraction of the sample rate, by order: down to
+#: it the Butterworth in transfer-function form keeps its DC gain within 1e-6 of 1
+#: and its poles inside the unit circle (order 4 at 1e-5 f_s is unstable), and its
+#: white-noise gain (a discrete Lyapunov equation) stays well conditioned.
+MIN_FILTER_FRACTION = {1: 1e-6, 2: 1e-5, 3: 1e-3, 4: 1e-2}
 
 
 def _noise_gain(b, a):
