@@ -80,26 +80,44 @@ class TerminateOnSignal:
     previous handlers are restored. :attr:`received` keeps the exception
     raised: a library that swallows exceptions in its callbacks (llvmlite
     loading numba's cache) can lose it, and the caller then still knows.
+
+    With ``defer`` the handlers only record the signal until :meth:`arm`
+    (a start-up phase: parsing the command line), which then raises it at
+    once; :meth:`restore` gives the signals back to their previous handlers
+    early (a program with its own handling).
     """
 
-    def __init__(self, signals=TERMINATING_SIGNALS):
+    def __init__(self, signals=TERMINATING_SIGNALS, defer=False):
         self.signals = tuple(signals)
         self._previous = {}
+        self._deferring = defer
         self.received = None
 
     def _on_signal(self, signum, frame):
-        for sig in self.signals:
-            signal.signal(sig, signal.SIG_IGN)
+        if self.received is not None:
+            return
         self.received = Terminated(signum)
-        raise self.received
+        if not self._deferring:
+            raise self.received
+
+    def arm(self):
+        """Raise from now on; a signal that came while deferring is raised here."""
+        self._deferring = False
+        if self.received is not None:
+            raise self.received
+
+    def restore(self):
+        """Give the signals back to their previous handlers."""
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous = {}
 
     def __enter__(self):
-        """Install the raising handlers."""
+        """Install the handlers."""
         self._previous = {sig: signal.signal(sig, self._on_signal) for sig in self.signals}
         return self
 
     def __exit__(self, kind, error, traceback):
         """Restore the previous handlers; exceptions pass."""
-        for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
+        self.restore()
         return False

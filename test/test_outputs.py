@@ -246,3 +246,15 @@ def test_a_bad_row_of_a_long_log_is_named_with_the_file_s_row(tmp_path):
     with pytest.raises(ValueError, match='time_s does not increase at data row 4001'):
         binning.read_csv_bounded(str(path), ('time_s',), 'nondecreasing', max_rows=1000,
                                  block_rows=1500)
+
+
+def test_a_signal_while_deferring_is_raised_when_armed(tmp_path):
+    """The command line is parsed with the signals deferred; arming acts on one that came."""
+    guard = TerminateOnSignal(defer=True)
+    with pytest.raises(Terminated) as caught:
+        with guard:
+            os.kill(os.getpid(), signal.SIGHUP)
+            time.sleep(0.05)                    # deferred: nothing raised here
+            assert guard.received is not None
+            guard.arm()
+    assert caught.value.status == 129

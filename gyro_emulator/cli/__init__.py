@@ -99,25 +99,32 @@ def main(argv=None, signals=False):
     (:class:`gyro_emulator.interrupts.Terminated`), and the status is 143 or
     129. ``gyro-emulator ros`` keeps the ROS programs' own handling.
     """
-    from gyro_emulator.interrupts import TerminateOnSignal, Terminated
+    from gyro_emulator.interrupts import TERMINATING_SIGNALS, TerminateOnSignal, Terminated
 
-    parser = build_parser()
-    args = parser.parse_args(argv)
-    guard = TerminateOnSignal(() if not signals or args.command == 'ros' else
-                              TerminateOnSignal().signals)
+    args = None
+    guard = TerminateOnSignal(TERMINATING_SIGNALS if signals else (), defer=True)
     try:
         with guard:
+            args = build_parser().parse_args(argv)
+            if args.command == 'ros':
+                guard.restore()                 # the ROS programs' own handling
+            guard.arm()                         # a signal while parsing stops here
             status = int(args.run(args) or 0)
         if guard.received is not None:         # raised where a library swallowed it
             raise guard.received
         return status
     except (ValueError, OSError) as exc:
-        print(f'gyro-emulator {args.command}: error: {one_line(exc)}', file=sys.stderr)
+        print(f'{_label(args)}: error: {one_line(exc)}', file=sys.stderr)
         return 2
     except Terminated as exc:
-        print(f'gyro-emulator {args.command}: stopped by {exc.name}; unfinished outputs '
-              'removed', file=sys.stderr)
+        print(f'{_label(args)}: stopped by {exc.name}; unfinished outputs removed',
+              file=sys.stderr)
         return exc.status
     except KeyboardInterrupt:
-        print(f'gyro-emulator {args.command}: interrupted', file=sys.stderr)
+        print(f'{_label(args)}: interrupted', file=sys.stderr)
         return 130
+
+
+def _label(args):
+    """Return ``gyro-emulator COMMAND`` for a message (before parsing: ``gyro-emulator``)."""
+    return 'gyro-emulator' + (f' {args.command}' if args is not None else '')
