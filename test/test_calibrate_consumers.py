@@ -541,7 +541,7 @@ def test_cli_px4_warns_without_the_gyro_id_and_vins_needs_the_accelerometer(
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1] == f'gyro-emulator calibrate: warning: {export_thermal.PX4_NO_ID}'
     assert cli.main(['calibrate', 'thermal', str(log), '--format', 'px4', '-o', str(out),
-                     '--px4-gyro-id', '2621474']) == 0
+                     '--px4-gyro-id', '2621474', '--overwrite']) == 0
     assert 'TC_G0_ID is not' not in capsys.readouterr().err
     assert '\tTC_G0_ID\t2621474\t6' in out.read_text()
     vins = tmp_path / 'vins.yaml'

@@ -24,7 +24,8 @@ import math
 import os
 import sys
 
-from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator import outputs
+from gyro_emulator.cli.jsonout import add_overwrite, write_json
 from gyro_emulator.units import AXES
 
 HELP = 'overlapping Allan deviation of a gyro record and its IEEE Std 952 noise terms'
@@ -48,6 +49,7 @@ def add_arguments(parser):
                         help='Imu topic of a bag (default: the only Imu topic)')
     parser.add_argument('--json', metavar='OUT', help='write the results as JSON')
     parser.add_argument('--plot', metavar='PNG', help='write the Allan deviation plot')
+    add_overwrite(parser)
     parser.add_argument('--gap-factor', type=float, default=3.0, metavar='F',
                         help='a time step over F median steps is a gap '
                              '(default: %(default)s)')
@@ -102,6 +104,8 @@ def run(args):
     from gyro_emulator.analysis import allan
     from gyro_emulator.recording.record import load_record
 
+    outputs.check([outputs.file('--json', args.json), outputs.file('--plot', args.plot)],
+                  inputs=[args.file], overwrite=args.overwrite)
     info, result, fit = allan.analyse_record(load_record(args.file, {'gyro': args.topic}),
                                              args.axis, args.max_tau_fraction, args.gap_factor,
                                              outlier_threshold=outlier_threshold(args))

@@ -33,6 +33,7 @@ first comment line says whether it is a whole file or a block to paste.
 """
 
 from gyro_emulator.cli.allan import add_outlier_arguments
+from gyro_emulator.cli.jsonout import add_overwrite
 
 HELP = 'calibrate noise or thermal terms from a log; export to Kalibr, VINS, PX4, ...'
 
@@ -58,6 +59,7 @@ def _common_log(parser, many=False):
     parser.add_argument('--topic', default=None, help='Imu topic of a bag')
     parser.add_argument('--json', metavar='OUT', help='write the results as JSON')
     parser.add_argument('--plot', metavar='PNG', help='write a plot')
+    add_overwrite(parser)
     add_outlier_arguments(parser)
 
 

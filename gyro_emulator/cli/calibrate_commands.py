@@ -9,7 +9,7 @@ statsmodels (1-4 s), and ``gyro-emulator --help`` imports every command module.
 import os
 import sys
 
-from gyro_emulator import atomic, units
+from gyro_emulator import atomic, outputs, units
 from gyro_emulator.analysis.allan import plot_adev
 from gyro_emulator.analysis.allan.analyse import summary
 from gyro_emulator.analysis.calibrate import (export_noise, export_thermal, noise, plots,
@@ -26,6 +26,26 @@ def _write(path, text):
     os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
     atomic.write_text(path, text)
     print(f'wrote {path}')
+
+
+def _check_outputs(args, plots=None):
+    """Check every output of the action before it reads the log (:mod:`gyro_emulator.outputs`)."""
+    logs = args.log if isinstance(args.log, list) else [args.log]
+    plots = [args.plot] if plots is None else plots
+    outputs.check([outputs.file('--out', getattr(args, 'out', None)),
+                   outputs.file('--json', args.json)]
+                  + [outputs.file('--plot', p) for p in plots if p],
+                  inputs=logs + [getattr(args, 'config', None), getattr(args, 'px4', None)],
+                  overwrite=args.overwrite)
+
+
+def _noise_plots(args):
+    """Return the plots ``calibrate noise --plot`` may write: one, or one per axis of the log."""
+    if not args.plot:
+        return []
+    if args.axis != 'all':
+        return [args.plot]
+    return [args.plot] + [_axis_path(args.plot, axis) for axis in units.AXES]
 
 
 def _calibrate(args):
@@ -62,6 +82,7 @@ def run_noise(args):
     """Identify the noise terms and write the chosen format."""
     accel = _accel(args)
     export_noise.require_accel(args.format, accel)      # before the fit, which takes seconds
+    _check_outputs(args, _noise_plots(args))
     cal = _calibrate(args)
     _print_noise(cal)
     text = export_noise.write_noise(cal, args.format, args.inflate, args.rate_hz, accel)
@@ -136,6 +157,7 @@ def _thermal_doc(fit):
 
 def run_thermal(args):
     """Fit bias against temperature and write the chosen format."""
+    _check_outputs(args)
     log, fit = _thermal(args)
     _print_thermal(fit)
     if args.format == 'preset':
@@ -155,6 +177,7 @@ def run_thermal(args):
 
 def run_check_noise(args):
     """Simulate the fitted preset and compare its Allan deviation with the log's."""
+    _check_outputs(args)
     config = load_sensor_config(args.config)
     cal = _calibrate(args)
     with tqdm(total=args.seeds, desc='simulated records', file=sys.stderr,
@@ -183,6 +206,7 @@ def run_check_noise(args):
 
 def run_check_thermal(args):
     """Simulate the fitted preset along the log's temperature; apply a PX4 file if given."""
+    _check_outputs(args)
     config = load_sensor_config(args.config)
     log, fit = _thermal(args)
     _print_thermal(fit)

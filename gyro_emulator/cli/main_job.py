@@ -222,7 +222,7 @@ def _run(opts):
     """Run the paper part and the scenario; return (exit status, why in a few words)."""
     if not opts.skip_paper:
         print('== paper reproduction', flush=True)
-        status = cli.main(['paper', '--json', 'out/paper/paper.json'])
+        status = cli.main(['paper', '--json', 'out/paper/paper.json', '--overwrite'])
         if status:
             return status, 'the paper reproduction failed (above)'
         if opts.paper_only:

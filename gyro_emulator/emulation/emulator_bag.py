@@ -287,7 +287,7 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
 
 
 def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=None,
-                     accel_sigma_m_s2=(0.0, 0.0, 0.0)):
+                     accel_sigma_m_s2=(0.0, 0.0, 0.0), name=None):
     """
     Write the replay result as a bag: inputs, emulated output, truth, measured, residual.
 
@@ -308,9 +308,13 @@ def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=N
         rosbag2 ``custom_data``.
     accel_sigma_m_s2 : array_like
         The accelerometer's white-noise sigma for its covariance.
+    name : str, optional
+        The bag's final name when ``path`` is a staging temporary (it names
+        the MCAP file).
 
     """
-    with bag.BagWriter(path, custom_data=custom_data, flush_interval_s=60.0) as writer:
+    with bag.BagWriter(path, custom_data=custom_data, flush_interval_s=60.0,
+                       name=name) as writer:
         out = EmulatorBagWriter(writer, inputs.frame_id, sigma_rad_s,
                                 extra=(MEASURED_TOPIC, RESIDUAL_TOPIC)
                                 if comparison.matched else (), accel_sigma_m_s2=accel_sigma_m_s2)

@@ -104,6 +104,7 @@ from gyro_emulator.emulation.segments import (DEFAULT_AXIS, LEVEL_ACCEL_M_S2, pa
 from gyro_emulator.physics.kinematics import check_attitude, check_gravity, LEVEL_WXYZ
 from gyro_emulator.resources import read_yaml
 from gyro_emulator.units import deg_s_to_rad_s, rpm_to_rad_s, STANDARD_GRAVITY_M_S2
+from gyro_emulator.validation import quote
 import numpy as np
 
 PROFILE_NAMES = ('static', 'steps', 'temp-ramp')
@@ -202,13 +203,13 @@ class ScriptedProfile:
     def __post_init__(self):
         """Require at least one segment, one kind of specific force, a unit attitude, a gravity."""
         if not self.segments:
-            raise ValueError(f'Profile {self.name!r} has no segments')
+            raise ValueError(f'Profile {quote(self.name)} has no segments')
         object.__setattr__(self, 'segments', tuple(self.segments))
         given = {s.accel_m_s2 is not None for s in self.segments}
         if len(given) > 1:
-            raise ValueError(f'Profile {self.name!r}: some segments give accel_m_s2 and some do '
-                             'not: give the specific force in every segment or in none')
-        owner = f'Profile {self.name!r}'
+            raise ValueError(f'Profile {quote(self.name)}: some segments give accel_m_s2 and some '
+                             'do not: give the specific force in every segment or in none')
+        owner = f'Profile {quote(self.name)}'
         object.__setattr__(self, 'initial_attitude_wxyz', tuple(
             check_attitude(self.initial_attitude_wxyz, owner).tolist()))
         object.__setattr__(self, 'gravity_m_s2', check_gravity(self.gravity_m_s2, owner))
@@ -299,7 +300,7 @@ class SampledProfile:
         if self.max_rate_rad_s is None:
             object.__setattr__(self, 'max_rate_rad_s',
                                float(np.max(np.abs(self.rate_rad_s))) if n else 0.0)
-        owner = f'Profile {self.name!r}'
+        owner = f'Profile {quote(self.name)}'
         object.__setattr__(self, 'initial_attitude_wxyz', tuple(
             check_attitude(self.initial_attitude_wxyz, owner).tolist()))
         object.__setattr__(self, 'gravity_m_s2', check_gravity(self.gravity_m_s2, owner))
@@ -506,7 +507,7 @@ def profile_from_mapping(mapping, source='profile'):
     Unknown keys and bad values raise ``ValueError`` naming the segment and key.
     """
     if not isinstance(mapping, dict):
-        raise ValueError(f'{source}: expected a mapping with "segments", got {mapping!r}')
+        raise ValueError(f'{source}: expected a mapping with "segments", got {quote(mapping)}')
     allowed = ('name', 'segments', 'accel_m_s2', 'axis') + _MOTION_KEYS
     unknown = sorted(set(mapping) - set(allowed))
     if unknown:
@@ -570,6 +571,6 @@ def make_profile(name_or_path, duration_s, temp_c=25.0):
     if name_or_path == 'temp-ramp':
         return temperature_ramp(((0.0, 25.0), (duration_s, 85.0)))
     if not os.path.isfile(str(name_or_path)):
-        raise ValueError(f'profile {name_or_path!r} is neither a built-in profile '
+        raise ValueError(f'profile {quote(name_or_path)} is neither a built-in profile '
                          f'({", ".join(PROFILE_NAMES)}) nor a readable YAML file')
     return load_profile(name_or_path)

@@ -32,9 +32,9 @@ from dataclasses import dataclass
 import os
 
 from gyro_emulator.emulation.profiles import SampledProfile
-from gyro_emulator.recording.record import DEFAULT_TOPICS, is_bag, load_record
+from gyro_emulator.recording.record import is_bag, load_record
 from gyro_emulator.units import AXES
-from gyro_emulator.validation import MODEL_TEMP_RANGE_C
+from gyro_emulator.validation import check_record_values, MODEL_TEMP_RANGE_C
 import numpy as np
 
 
@@ -139,6 +139,17 @@ def _rate(record, t, axis, static):
     return rate
 
 
+def default_topics(gyro=None):
+    """
+    Return the bag roles of a recorded profile.
+
+    ``gyro`` (None: the one Imu topic with messages) and the emulator's
+    command topics where the bag has them (None: the defaults of
+    :func:`~gyro_emulator.recording.record.load_record`).
+    """
+    return {'gyro': gyro, 'rate': None, 'temp': None, 'accel': None}
+
+
 def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     """
     Read a measured record as a profile (module docstring).
@@ -156,8 +167,7 @@ def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     topics : dict, optional
         Bag roles (gyro: the sample times; rate, temp, accel) -> topics, as
         for :func:`~gyro_emulator.recording.record.load_record` (default:
-        the bag's one Imu topic and the emulator's command topics,
-        :data:`~gyro_emulator.recording.record.DEFAULT_TOPICS`).
+        :func:`default_topics`).
 
     Returns
     -------
@@ -166,8 +176,12 @@ def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     """
     if axis not in AXES:
         raise ValueError(f'simulate.axis = {axis!r} is not allowed: choose x, y or z')
-    roles = topics or {role: DEFAULT_TOPICS[role] for role in ('gyro', 'rate', 'temp', 'accel')}
+    roles = topics or default_topics()
     record = load_record(path, roles)
+    for role, kind in (('rate', 'rate'), ('temp', 'temp')):     # the rule diagnose applies
+        channel = getattr(record, role)
+        if channel is not None:
+            check_record_values(str(path), channel.source, channel.values, kind)
     t = np.asarray(record.time_s, dtype=float)
     if len(t) < 2 or np.any(np.diff(t) < 0.0) or t[-1] <= t[0]:
         raise ValueError(f'{path}: time_s must not go back and must span at least 2 samples '

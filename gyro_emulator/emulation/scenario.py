@@ -45,6 +45,7 @@ from gyro_emulator.emulation import profiles
 from gyro_emulator.emulation import segments as schema
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.sensor import faults
+from gyro_emulator.validation import quote
 import numpy as np
 
 DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
@@ -122,12 +123,12 @@ class Scenario:
 def _number(where, key, value, low=None, high=None, low_open=False):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or \
             not math.isfinite(value):
-        raise ValueError(f'{where}.{key} = {value!r} is not a finite number')
+        raise ValueError(f'{where}.{key} = {quote(value)} is not a finite number')
     if (low is not None and (value <= low if low_open else value < low)) or (
             high is not None and value > high):
         lo = '-inf' if low is None else f'{low:g}'
         hi = 'inf' if high is None else f'{high:g}'
-        raise ValueError(f'{where}.{key} = {value!r} is out of range: allowed '
+        raise ValueError(f'{where}.{key} = {quote(value)} is out of range: allowed '
                          f'{"(" if low_open else "["}{lo}, {hi}]')
     return float(value)
 
@@ -143,7 +144,7 @@ def _rate(where, mapping, plural=False):
 def _step(where, raw, axis):
     """Parse one step with the shared segment schema (:func:`.segments.parse_segment`)."""
     if not isinstance(raw, dict):
-        raise ValueError(f'{where} = {raw!r} must be a mapping')
+        raise ValueError(f'{where} = {quote(raw)} must be a mapping')
     raw = schema.canonical_segment(where, raw)
     key = _rate(where, raw)[0]
     value = _number(where, key, raw[key])
@@ -157,7 +158,7 @@ def _step(where, raw, axis):
 
 def _grid(where, raw, axis):
     if not isinstance(raw, dict):
-        raise ValueError(f'{where} = {raw!r} must be a mapping')
+        raise ValueError(f'{where} = {quote(raw)} must be a mapping')
     plural, key = _rate(where, raw, plural=True)
     raw = dict(raw)
     if 'temperatures_c' in raw and 'temps_c' not in raw:
@@ -172,7 +173,7 @@ def _grid(where, raw, axis):
     temps, rates = raw.get('temps_c'), raw[plural]
     for name, values in (('temps_c', temps), (plural, rates)):
         if not isinstance(values, list) or not values:
-            raise ValueError(f'{where}.{name} = {values!r} must be a non-empty list')
+            raise ValueError(f'{where}.{name} = {quote(values)} must be a non-empty list')
     hold = raw.get('hold_s')
     steps = []
     for temp in temps:
@@ -190,7 +191,7 @@ def parse_scenario(doc, source='profile'):
     Raises ValueError naming the key, the value and the allowed range.
     """
     if not isinstance(doc, dict):
-        raise ValueError(f'{source}: expected a mapping, got {doc!r}')
+        raise ValueError(f'{source}: expected a mapping, got {quote(doc)}')
     allowed = {'name', 'description', 'axis', 'publish_rate_hz', 'grid', 'segments',
                'node_parameters', 'faults'}
     unknown = sorted(set(doc) - allowed)
@@ -205,13 +206,13 @@ def parse_scenario(doc, source='profile'):
         steps += _grid(f'{source}.grid', doc['grid'], axis)
     segments = doc.get('segments', [])
     if not isinstance(segments, list):
-        raise ValueError(f'{source}.segments = {segments!r} must be a list')
+        raise ValueError(f'{source}.segments = {quote(segments)} must be a list')
     steps += [_step(f'{source}.segments[{i}]', s, axis) for i, s in enumerate(segments)]
     if not steps:
         raise ValueError(f'{source}: no steps (give grid and/or segments)')
     node_parameters = doc.get('node_parameters') or {}
     if not isinstance(node_parameters, dict):
-        raise ValueError(f'{source}.node_parameters = {node_parameters!r} must be a mapping')
+        raise ValueError(f'{source}.node_parameters = {quote(node_parameters)} must be a mapping')
     schedule = faults.parse_schedule(f'{source}.faults', doc.get('faults'))
     return Scenario(str(doc.get('name', os.path.basename(str(source)))),
                     axis, rate_hz, tuple(steps),

@@ -16,7 +16,7 @@ from types import MappingProxyType
 import warnings
 
 from gyro_emulator.units import deg_s_to_rad_s, rpm_to_rad_s, STANDARD_GRAVITY_M_S2
-from gyro_emulator.validation import MODEL_TEMP_RANGE_C
+from gyro_emulator.validation import MODEL_TEMP_RANGE_C, quote
 import numpy as np
 
 #: Specific force of a gyro at rest, z up (REP 103), m/s^2.
@@ -62,24 +62,24 @@ class Segment:
     def __post_init__(self):
         """Validate the duration, temperatures and vectors."""
         if not (np.isfinite(self.duration_s) and self.duration_s > 0.0):
-            raise ValueError(f'Segment.duration_s = {self.duration_s!r} is out of range: '
+            raise ValueError(f'Segment.duration_s = {quote(self.duration_s)} is out of range: '
                              'allowed > 0 s')
         lo, hi = MODEL_TEMP_RANGE_C
         for name in ('temp_start_c', 'temp_end_c'):
             value = getattr(self, name)
             if not (np.isfinite(value) and lo <= value <= hi):
-                raise ValueError(f'Segment.{name} = {value!r} is out of range: allowed '
+                raise ValueError(f'Segment.{name} = {quote(value)} is out of range: allowed '
                                  f'[{lo}, {hi}] C')
         for name in ('rate_start_rad_s', 'rate_end_rad_s', 'accel_m_s2', 'linear_accel_m_s2'):
             if name == 'accel_m_s2' and self.accel_m_s2 is None:
                 continue
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-                raise ValueError(f'Segment.{name} = {getattr(self, name)!r} is not '
+                raise ValueError(f'Segment.{name} = {quote(getattr(self, name))} is not '
                                  'allowed: expected 3 finite numbers (x, y, z)')
             object.__setattr__(self, name, tuple(float(v) for v in arr))
         if not (np.isfinite(self.settle_s) and 0.0 <= self.settle_s <= self.duration_s):
-            raise ValueError(f'Segment.settle_s = {self.settle_s!r} is out of range: allowed '
+            raise ValueError(f'Segment.settle_s = {quote(self.settle_s)} is out of range: allowed '
                              f'[0, {self.duration_s:g}] s (the duration)')
 
 
@@ -101,7 +101,7 @@ def _start_end(where, key, value, shape):
     if arr is not None and arr.shape == (2,) + shape:
         return arr[0], arr[1]
     want = 'a number' if shape == () else '3 numbers'
-    raise ValueError(f'{where}: {key} = {value!r} is not allowed: give {want} or '
+    raise ValueError(f'{where}: {key} = {quote(value)} is not allowed: give {want} or '
                      f'[start, end] of {want}')
 
 
@@ -138,7 +138,7 @@ def parse_segment(where, seg, axis=DEFAULT_AXIS, last_temp_c=25.0,
     keys and bad values raise ``ValueError`` naming ``where`` and the key.
     """
     if not isinstance(seg, dict):
-        raise ValueError(f'{where} must be a mapping, got {seg!r}')
+        raise ValueError(f'{where} must be a mapping, got {quote(seg)}')
     seg = canonical_segment(where, seg)
     unknown = sorted(set(seg) - set(_SEGMENT_KEYS))
     if unknown:
@@ -174,8 +174,8 @@ def unit_axis(source, axis):
     """Return ``axis`` (3 numbers, not all zero) scaled to unit length."""
     arr = np.asarray(axis, dtype=float) if isinstance(axis, (list, tuple)) else None
     if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f'{source}.axis = {axis!r} must be a list of 3 numbers')
+        raise ValueError(f'{source}.axis = {quote(axis)} must be a list of 3 numbers')
     norm = float(np.linalg.norm(arr))
     if norm == 0.0:
-        raise ValueError(f'{source}.axis = {axis!r} is the zero vector')
+        raise ValueError(f'{source}.axis = {quote(axis)} is the zero vector')
     return tuple(float(v) / norm for v in arr)

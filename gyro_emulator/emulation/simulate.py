@@ -24,7 +24,7 @@ import datetime
 import os
 import time
 
-from gyro_emulator import atomic
+from gyro_emulator import atomic, outputs
 from gyro_emulator.emulation.emulator_bag import simulation_custom_data, write_simulation_bag
 from gyro_emulator.emulation.profiles import make_profile
 from gyro_emulator.emulation.recorded_profile import RecordedProfile
@@ -204,11 +204,16 @@ def write_simulation_csv(path, chunks, progress=None, total=None):
                                   CSV_FORMATS, progress, total)
 
 
-def check_output(out, overwrite=False):
-    """Refuse an existing ``out`` unless ``overwrite``; make its folder; return it absolute."""
+def output(out):
+    """Return the :class:`gyro_emulator.outputs.Output` of ``--out``: a CSV file or a bag."""
     out = os.path.abspath(out)
-    if os.path.exists(out) and not overwrite:
-        raise ValueError(f'--out {out} exists: pass --overwrite to replace it')
+    return (outputs.file if is_csv_path(out) else outputs.directory)('--out', out)
+
+
+def check_output(out, overwrite=False):
+    """Refuse an existing ``out`` unless ``overwrite`` (:mod:`.outputs`); make its folder."""
+    outputs.check([output(out)], overwrite=overwrite)
+    out = os.path.abspath(out)
     os.makedirs(os.path.dirname(out), exist_ok=True)
     return out
 

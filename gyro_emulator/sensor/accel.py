@@ -31,6 +31,7 @@ from dataclasses import dataclass, field, fields
 from gyro_emulator import units
 from gyro_emulator.sensor.fields import (check_lsb, check_zero_diagonal, checked, converter,
                                          spell, Switches, YamlKey)
+from gyro_emulator.validation import quote
 
 #: The widest full-scale range of common MEMS IMUs, 16 g, m/s^2.
 DEFAULT_RANGE_M_S2 = 16.0 * units.STANDARD_GRAVITY_M_S2
@@ -155,7 +156,7 @@ class AccelConfig:
         """Normalise per-axis fields to tuples and validate every field."""
         owner = 'AccelConfig'
         if not isinstance(self.terms, AccelTerms):
-            raise ValueError(f'{owner}.terms = {self.terms!r} is not allowed: expected an '
+            raise ValueError(f'{owner}.terms = {quote(self.terms)} is not allowed: expected an '
                              'AccelTerms')
         for kind, ranges in _RANGES.items():
             for name, limits in ranges.items():
@@ -163,13 +164,13 @@ class AccelConfig:
                                                        limits, name in _OPEN_LOW))
         check_lsb(owner, 'lsb_m_s2', self.lsb_m_s2, MIN_LSB_M_S2, 10.0, 'm/s^2')
         if self.output_filter_order != int(self.output_filter_order):
-            raise ValueError(f'{owner}.output_filter_order = {self.output_filter_order!r} is '
+            raise ValueError(f'{owner}.output_filter_order = {quote(self.output_filter_order)} is '
                              'not allowed: choose 1, 2, 3 or 4')
         object.__setattr__(self, 'output_filter_order', int(self.output_filter_order))
         band = self.bias_instability_band_s
         if band[0] > band[1]:
-            raise ValueError(f'{owner}.bias_instability_band_s = {band!r} is not allowed: the '
-                             'first (shortest) correlation time must not exceed the second')
+            raise ValueError(f'{owner}.bias_instability_band_s = {quote(band)} is not allowed: '
+                             'the first (shortest) correlation time must not exceed the second')
         check_zero_diagonal(owner, self.misalignment)
 
     @classmethod
@@ -225,7 +226,7 @@ def accel_from_mapping(mapping, source='accelerometer'):
         mapping = {}
     if not isinstance(mapping, dict):
         raise ValueError(f'{source}: expected a mapping of accelerometer settings, got '
-                         f'{mapping!r}')
+                         f'{quote(mapping)}')
     names = [f.name for f in fields(AccelConfig)]
     kwargs = {}
     for key, value in mapping.items():
@@ -233,7 +234,7 @@ def accel_from_mapping(mapping, source='accelerometer'):
             kwargs['terms'] = AccelTerms.from_mapping(value, source)
             continue
         if key not in YAML_ALIASES and key not in names:
-            raise ValueError(f'{source}: unknown key {key!r}; allowed: '
+            raise ValueError(f'{source}: unknown key {quote(key)}; allowed: '
                              f'{", ".join(sorted(set(names) | set(YAML_ALIASES)))}')
         target = YAML_ALIASES[key][0] if key in YAML_ALIASES else key
         if target in kwargs:
@@ -242,7 +243,7 @@ def accel_from_mapping(mapping, source='accelerometer'):
             try:
                 value = YAML_ALIASES[key][1](value)
             except (TypeError, ValueError):
-                raise ValueError(f'{source}: {key} = {value!r} is not a number or a list '
+                raise ValueError(f'{source}: {key} = {quote(value)} is not a number or a list '
                                  'of numbers') from None
         kwargs[target] = value
     try:

@@ -29,9 +29,10 @@ from gyro_emulator.physics.params import Device, from_mapping
 from gyro_emulator.physics.presets import DEFAULT_PRESET, physics_preset, PHYSICS_PRESETS
 from gyro_emulator.resources import config_dir, read_yaml
 from gyro_emulator.sensor.accel import accel_from_mapping, accel_yaml_value, AccelConfig
-from gyro_emulator.sensor.extensions import ExtendedTerms
+from gyro_emulator.sensor.extensions import ExtendedTerms, MIN_TIME_CONSTANT_S
 from gyro_emulator.sensor.fields import (check_lsb, check_zero_diagonal, checked, converter,
                                          spell, Switches, YamlKey)
+from gyro_emulator.validation import quote
 import numpy as np
 
 #: Sensor presets shipped in ``config/sensor_<name>.yaml``.
@@ -223,29 +224,33 @@ class SensorConfig:
         object.__setattr__(self, 'device', _devices(self.device))
         if not isinstance(self.extended, ExtendedTerms):
             raise ValueError(
-                f'SensorConfig.extended = {self.extended!r} is not allowed: expected '
+                f'SensorConfig.extended = {quote(self.extended)} is not allowed: expected '
                 'an ExtendedTerms')
         if not isinstance(self.terms, ErrorTerms):
             raise ValueError(
-                f'SensorConfig.terms = {self.terms!r} is not allowed: expected '
+                f'SensorConfig.terms = {quote(self.terms)} is not allowed: expected '
                 'an ErrorTerms')
         if not isinstance(self.accelerometer, AccelConfig):
-            raise ValueError(f'SensorConfig.accelerometer = {self.accelerometer!r} is not '
+            raise ValueError(f'SensorConfig.accelerometer = {quote(self.accelerometer)} is not '
                              'allowed: expected an AccelConfig')
         for kind, ranges in _RANGES.items():
             for name, limits in ranges.items():
                 object.__setattr__(self, name, checked('SensorConfig', name, getattr(self, name),
                                                        kind, limits, name in _OPEN_LOW))
         check_lsb('SensorConfig', 'lsb_rad_s', self.lsb_rad_s, MIN_LSB_RAD_S, 1, 'rad/s')
+        tau = self.thermal_time_constant_s
+        if 0.0 < tau < MIN_TIME_CONSTANT_S:
+            raise ValueError(f'SensorConfig.thermal_time_constant_s = {tau!r} is out of range: '
+                             f'allowed 0 (no lag) or [{MIN_TIME_CONSTANT_S:g}, 1e+05] s')
         if self.output_filter_order != int(self.output_filter_order):
             raise ValueError(
-                f'SensorConfig.output_filter_order = {self.output_filter_order!r}'
+                f'SensorConfig.output_filter_order = {quote(self.output_filter_order)}'
                 ' is not allowed: choose 1, 2, 3 or 4')
         object.__setattr__(self, 'output_filter_order', int(self.output_filter_order))
         band = self.bias_instability_band_s
         if band[0] > band[1]:
             raise ValueError(
-                f'SensorConfig.bias_instability_band_s = {band!r} is not allowed:'
+                f'SensorConfig.bias_instability_band_s = {quote(band)} is not allowed:'
                 ' the first (shortest) correlation time must not exceed the second')
         check_zero_diagonal('SensorConfig', self.misalignment)
 
@@ -293,7 +298,7 @@ def _device_from_spec(spec, owner):
                 merged[key] = value
         return from_mapping(Device, merged, owner)
     raise ValueError(
-        f'{owner} = {spec!r} is not allowed: give a physics preset name '
+        f'{owner} = {quote(spec)} is not allowed: give a physics preset name '
         f'({", ".join(sorted(PHYSICS_PRESETS))}), a mapping of device fields '
         '(optionally with "preset") or a list of three of those')
 
@@ -357,7 +362,7 @@ def config_from_mapping(mapping, source=''):
         mapping = {}
     if not isinstance(mapping, dict):
         raise ValueError(f'{source or "SensorConfig"}: expected a mapping of settings, '
-                         f'got {mapping!r}')
+                         f'got {quote(mapping)}')
     given, source = source, source or 'SensorConfig'
     field_names = [f.name for f in fields(SensorConfig)]
     kwargs = {}
@@ -369,7 +374,7 @@ def config_from_mapping(mapping, source=''):
             try:
                 kwargs[target] = convert(value)
             except (TypeError, ValueError):
-                raise ValueError(f'{source}: {key} = {value!r} is not a number or a '
+                raise ValueError(f'{source}: {key} = {quote(value)} is not a number or a '
                                  'list of numbers') from None
         elif key == 'terms':
             kwargs['terms'] = ErrorTerms.from_mapping(value, source)
@@ -387,7 +392,7 @@ def config_from_mapping(mapping, source=''):
             kwargs[key] = value
         else:
             allowed = sorted(set(field_names) | set(YAML_ALIASES))
-            raise ValueError(f'{source}: unknown key {key!r}; allowed: '
+            raise ValueError(f'{source}: unknown key {quote(key)}; allowed: '
                              f'{", ".join(allowed)}')
     try:
         return SensorConfig(**kwargs)
@@ -426,7 +431,7 @@ def load_sensor_config(name_or_path=None):
     path = preset_path(name) if name in PRESET_NAMES else name
     if not os.path.isfile(path):
         raise ValueError(
-            f'sensor config {name!r} is neither a preset '
+            f'sensor config {quote(name)} is neither a preset '
             f'({", ".join(PRESET_NAMES)}) nor a readable file')
     return config_from_mapping(read_yaml(path), source=path)
 

@@ -21,7 +21,7 @@ the YAML aliases from a function of :mod:`gyro_emulator.units`.
 
 from dataclasses import dataclass, fields
 
-from gyro_emulator.validation import check_range
+from gyro_emulator.validation import check_range, quote
 import numpy as np
 
 
@@ -39,7 +39,7 @@ class Switches:
             value = getattr(self, f.name)
             if not isinstance(value, (bool, np.bool_)):
                 raise ValueError(
-                    f'{type(self).__name__}.{f.name} = {value!r} is not allowed: '
+                    f'{type(self).__name__}.{f.name} = {quote(value)} is not allowed: '
                     'choose true or false')
             object.__setattr__(self, f.name, bool(value))
 
@@ -61,7 +61,7 @@ class Switches:
     def from_mapping(cls, value, source):
         """Return switches from a YAML mapping ``term: true/false`` (unknown terms refused)."""
         if not isinstance(value, dict):
-            raise ValueError(f'{source}: terms = {value!r} must be a mapping of '
+            raise ValueError(f'{source}: terms = {quote(value)} must be a mapping of '
                              'term: true/false')
         unknown = sorted(set(value) - set(cls.names()))
         if unknown:
@@ -105,16 +105,17 @@ def checked(owner, name, value, kind, limits, low_open=False):
         return check_range(owner, name, value, low, high, unit, low_open)
     shape = SHAPES[kind]
     if has_non_number(value):
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list of numbers '
-                         '(true/false and text are not numbers)')
+        raise ValueError(f'{owner}.{name} = {quote(value)} is not a number or a list of '
+                         'numbers (true/false and text are not numbers)')
     try:
         arr = np.array(value, dtype=float)
     except (TypeError, ValueError):
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list '
+        raise ValueError(f'{owner}.{name} = {quote(value)} is not a number or a list '
                          'of numbers') from None
     if kind == 'axis' and arr.ndim == 0:
         arr = np.full(3, float(arr))
     if kind == 'matrix' and arr.ndim == 0:
+        check_range(owner, name, float(arr), low, high, unit, low_open)    # before inf * 0
         arr = np.full((3, 3), float(arr)) * (1.0 - np.eye(3)) \
             if name == 'misalignment' else np.eye(3) * float(arr)
     if kind == 'matrix' and arr.shape == (3,) and name != 'misalignment':
@@ -122,7 +123,7 @@ def checked(owner, name, value, kind, limits, low_open=False):
     if arr.shape != shape:
         what = {(3,): 'a number or a list of 3 (x, y, z)', (): 'a number',
                 (2,): 'a list of 2 numbers', (3, 3): 'a 3x3 matrix'}[shape]
-        raise ValueError(f'{owner}.{name} = {value!r} has shape {arr.shape}: '
+        raise ValueError(f'{owner}.{name} = {quote(value)} has shape {arr.shape}: '
                          f'expected {what}')
     check_elements(owner, name, arr, low, high, unit, low_open)
     if kind == 'scalar':
@@ -162,7 +163,7 @@ def check_lsb(owner, name, values, minimum, high, unit):
     """Refuse a quantisation step above 0 but below ``minimum`` (0 = no quantisation)."""
     for i, lsb in enumerate(values):
         if 0.0 < lsb < minimum:
-            raise ValueError(f'{owner}.{name}[{i}] = {lsb!r} is out of range: allowed 0 '
+            raise ValueError(f'{owner}.{name}[{i}] = {quote(lsb)} is out of range: allowed 0 '
                              f'(no quantisation) or [{minimum:g}, {high:g}] {unit}')
 
 
@@ -171,7 +172,7 @@ def check_zero_diagonal(owner, matrix):
     diag = [matrix[i][i] for i in range(3)]
     if any(d != 0.0 for d in diag):
         raise ValueError(
-            f'{owner}.misalignment has diagonal {diag!r}: allowed only '
+            f'{owner}.misalignment has diagonal {quote(diag)}: allowed only '
             '0 (a gain error belongs in scale_factor_error)')
 
 

@@ -30,7 +30,8 @@ import math
 
 from gyro_emulator.sensor import kernel
 from gyro_emulator.sensor.channel import new_outputs, NONE_ROWS, SenseChannel
-from gyro_emulator.sensor.model import GyroModel, kernel_input, SensorBatch, SensorSample
+from gyro_emulator.sensor.model import (GyroModel, kernel_input, NonFiniteOutput, SensorBatch,
+                                        SensorSample)
 from gyro_emulator.sensor.plan import accel_channel, Plan
 import numpy as np
 
@@ -281,7 +282,23 @@ class ImuModel:
         out = new_outputs(n)
         if n:
             self._accel.advance(force, die_c, NONE_ROWS, out)
+            if not math.isfinite(np.add.reduce(out.gyro, axis=None)):
+                self._non_finite(out.gyro)
         return out.gyro, force, out.bias, out.gain, out.sat
+
+    def _non_finite(self, values):
+        """Stop on, or count, accelerometer samples that are not finite (as the gyro's)."""
+        gyro = self._gyro
+        rows = ~np.isfinite(values).all(axis=1)
+        cause = ('the accelerometer gives a non-finite specific force (its configuration is '
+                 'degenerate)')
+        gyro.non_finite_samples += int(rows.sum())
+        gyro.non_finite_cause = cause
+        if gyro.on_non_finite != 'flag':
+            raise NonFiniteOutput(f'ImuModel: accelerometer sample '
+                                  f'{gyro.sample_index - len(rows) + int(np.argmax(rows))} '
+                                  f'would be {values[int(np.argmax(rows))].tolist()} m/s^2, not '
+                                  f'finite: {cause}', cause)
 
 
 def _specific_force(value, n, call):

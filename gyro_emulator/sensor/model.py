@@ -68,7 +68,22 @@ from gyro_emulator.sensor.plan import Plan, TemperatureTable
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
 
-__all__ = ['GyroModel', 'SensorBatch', 'SensorSample', 'TemperatureTable']
+__all__ = ['GyroModel', 'NonFiniteOutput', 'SensorBatch', 'SensorSample', 'TemperatureTable']
+
+
+class NonFiniteOutput(ValueError):
+    """
+    The model would emit a sample that is not finite; :attr:`cause` names the term.
+
+    A valid configuration never does (every field has a physical range); this
+    is the guard behind the ranges. Offline commands stop with its one-line
+    message; a node sets ``GyroModel.on_non_finite = 'flag'`` and withholds
+    such samples instead.
+    """
+
+    def __init__(self, message, cause):
+        super().__init__(message)
+        self.cause = cause
 
 
 @dataclass(frozen=True)
@@ -174,6 +189,11 @@ class GyroModel:
         self._gyro = SenseChannel(rng)
         self._extended = extensions.new_state()
         self._ext = None
+        #: ``'raise'``: a non-finite sample raises :class:`NonFiniteOutput`; ``'flag'``:
+        #: it is counted (:attr:`non_finite_samples`) and left in the batch.
+        self.on_non_finite = 'raise'
+        self.non_finite_samples = 0
+        self.non_finite_cause = None
         self.update_config(config)
 
     def copy(self):
@@ -275,9 +295,10 @@ class GyroModel:
         """
         number = isinstance(elapsed_s, (int, float, np.integer, np.floating))
         value = float(elapsed_s) if number and not isinstance(elapsed_s, bool) else math.nan
-        if not abs(value) <= extensions.TIME_LIMIT_S:
+        limit = extensions.ELAPSED_LIMIT_S
+        if not abs(value) <= limit:
             raise ValueError(f'GyroModel.elapsed_s = {elapsed_s!r} is out of range: allowed '
-                             f'[-{extensions.TIME_LIMIT_S:g}, {extensions.TIME_LIMIT_S:g}] s')
+                             f'[-{limit:g}, {limit:g}] s')
         extensions.set_elapsed(self._extended, value)
 
     @property
@@ -421,11 +442,53 @@ class GyroModel:
         bad = self._gyro.advance(rate, temp, accel, out, extended)
         if bad:
             raise_die_out_of_range(out.die[bad - 1])
+        before = self._extended
         if ext is None:     # the record time runs on while the extended terms are off
             self._extended[extensions.Z_COUNT] += n
         else:
             self._extended = extended[1]
+        if not math.isfinite(np.add.reduce(out.gyro, axis=None)):
+            self._non_finite(out, temp, before if ext is not None else None)
         return fields
+
+    def _non_finite(self, out, temp, before):
+        """
+        Account for samples of which some are not finite (NaN or inf).
+
+        With :attr:`on_non_finite` ``'raise'`` (the default) raise
+        :class:`NonFiniteOutput` naming the first such sample and the term that
+        gave it; with ``'flag'`` count them in :attr:`non_finite_samples`, keep
+        the cause in :attr:`non_finite_cause` and leave them in the batch, for
+        a caller that publishes only finite samples. ``before`` is the
+        extended terms' state before these samples (None when they are off).
+        """
+        rows = ~np.isfinite(out.gyro).all(axis=1)
+        first = int(np.flatnonzero(rows)[0])
+        cause = self._cause(out, first, temp, before)
+        self.non_finite_samples += int(rows.sum())
+        self.non_finite_cause = cause
+        if self.on_non_finite != 'flag':
+            index = self.sample_index - len(rows) + first
+            raise NonFiniteOutput(f'GyroModel: sample {index} would be '
+                                  f'{out.gyro[first].tolist()} rad/s, not finite: {cause}',
+                                  cause)
+
+    def _cause(self, out, first, temp, before):
+        """Name the term that made sample ``first`` non-finite (see :meth:`_non_finite`)."""
+        config = self.config
+        if before is not None:
+            term = extensions.first_non_finite(config.extended, config.device,
+                                               self._gyro.plan.cal_temp_c, self.dt_s, temp,
+                                               before)
+            if term is not None:
+                return (f'the extended term {term} gives a non-finite bias or gain '
+                        f'({getattr(config.extended, term)})')
+        if not np.isfinite(out.bias[first]).all():
+            return 'the bias terms give a non-finite bias (the configuration is degenerate)'
+        if not np.isfinite(out.gain[first]).all():
+            return ('the scale factor is not finite (the device physics or '
+                    'scale_factor_error is degenerate)')
+        return 'the sense dynamics, output filter or output stage diverge'
 
     def _check_temp(self, temp):
         lo, hi = MODEL_TEMP_RANGE_C

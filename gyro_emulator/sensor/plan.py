@@ -72,6 +72,13 @@ def _group_axes(keys):
     return groups
 
 
+#: Lowest output-filter cut-off as a fraction of the sample rate, by order: down to
+#: it the Butterworth in transfer-function form keeps its DC gain within 1e-6 of 1
+#: and its poles inside the unit circle (order 4 at 1e-5 f_s is unstable), and its
+#: white-noise gain (a discrete Lyapunov equation) stays well conditioned.
+MIN_FILTER_FRACTION = {1: 1e-6, 2: 1e-5, 3: 1e-3, 4: 1e-2}
+
+
 def _noise_gain(b, a):
     """RMS gain sqrt(sum h[k]^2) of a digital filter to white noise (Lyapunov)."""
     ad, bd, cd, dd = signal.tf2ss(b, a)
@@ -370,6 +377,12 @@ class Plan:
                 f'{ch.owner}.output_filter_hz = {ch.lpf_hz!r} is out of '
                 f'range at {fs:g} Hz sampling: allowed (0, {0.5 * fs:g}) Hz (below '
                 'Nyquist), or 0 for no filter')
+        low = MIN_FILTER_FRACTION[int(ch.lpf_order)] * fs
+        if ch.lpf_hz < low:
+            raise ValueError(
+                f'{ch.owner}.output_filter_hz = {ch.lpf_hz!r} is out of range at {fs:g} Hz '
+                f'sampling and order {int(ch.lpf_order)}: allowed [{low:g}, {0.5 * fs:g}) Hz '
+                '(below, the coefficients lose the DC gain), or 0 for no filter')
         self.flags[kernel.F_LPF] = 1
         b, a = signal.butter(ch.lpf_order, ch.lpf_hz, fs=fs)
         self.lpf_b, self.lpf_a = np.tile(b, (3, 1)), np.tile(a, (3, 1))

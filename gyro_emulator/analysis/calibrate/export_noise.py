@@ -612,7 +612,8 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
               f"Simulate it at the log's rate: --rate-hz {calibration.rate_hz:g}."]
     if len(twin.per_axis) < 3:
         lines.append(f'Axes {", ".join(n for n in AXES if n not in twin.per_axis)} copy '
-                     f'axis {next(iter(twin.per_axis))} (not in the calibration).')
+                     f"axis {next(iter(twin.per_axis))}'s noise (not in the calibration); "
+                     "their turn-on bias is 0: a bias is the axis's own, not measured.")
     return config_yaml(twin_config(fields), preset_layout(fields), as_comments(lines))
 
 
@@ -641,9 +642,11 @@ def twin_config(fields):
 
     Every figure is the 6-digit value the file holds (the configuration reads
     back from its text exactly); axes the calibration lacks copy its first
-    axis; every term the log does not measure is off.
+    axis's noise (N, B, K) and get no turn-on bias (a bias is the axis's own:
+    not measured); every term the log does not measure is off.
     """
-    axes = [fields.per_axis.get(name) or next(iter(fields.per_axis.values())) for name in AXES]
+    first = next(iter(fields.per_axis.values()))
+    axes = [fields.per_axis.get(name) or dict(first, turn_on_bias_deg_s=0.0) for name in AXES]
     figures = {name: [as_written(a[name]) for a in axes] for name in _PRESET_FIGURES
                if name in axes[0]}
     figures['bias_instability_band_s'] = [as_written(t) for t in

@@ -39,7 +39,7 @@ back.
 from dataclasses import dataclass, replace
 import os
 
-from gyro_emulator import atomic
+from gyro_emulator import atomic, outputs
 from gyro_emulator.resources import read_yaml
 from gyro_emulator.sensor.config import (config_from_mapping, config_yaml, PRESET_NAMES,
                                          preset_path, SensorConfig, YAML_ALIASES, YamlKey)
@@ -93,7 +93,8 @@ class ExtendedModel:
     ``config`` is the :class:`~gyro_emulator.sensor.config.SensorConfig`,
     ``layout`` its keys in order (:class:`~gyro_emulator.sensor.config.YamlKey`),
     ``header`` the provenance comment block, ``axis`` the diagnosed axis and
-    ``commented`` the causes written commented out: (cause id, values, reason).
+    ``commented`` the causes written commented out: (cause id, values, reason);
+    ``noise`` whether the record's noise terms were added (:meth:`with_noise`).
     """
 
     config: SensorConfig
@@ -101,6 +102,7 @@ class ExtendedModel:
     header: str
     axis: str
     commented: tuple
+    noise: bool = False
 
     @property
     def warnings(self):
@@ -110,7 +112,8 @@ class ExtendedModel:
     def text(self):
         """Return the sensor YAML (:func:`gyro_emulator.sensor.config.config_yaml`)."""
         footer = ''.join(f'  # {c}: {v}   # not active: {why}\n' for c, v, why in self.commented)
-        return config_yaml(self.config, self.layout, self.header, _comments(self.axis), footer)
+        return config_yaml(self.config, self.layout, self.header,
+                           _comments(self.axis, self.config, self.noise), footer)
 
     def with_noise(self, noise):
         """
@@ -151,7 +154,8 @@ class ExtendedModel:
         config = _checked(replace, self.config, terms=replace(self.config.terms, **switches),
                           **changes)
         header = self.header + ''.join(f'# {line}\n' for line in noise.comment_lines())
-        return replace(self, config=config, layout=tuple(layout.values()), header=header)
+        return replace(self, config=config, layout=tuple(layout.values()), header=header,
+                       noise=True)
 
 
 def _checked(make, *args, **kwargs):
@@ -329,13 +333,29 @@ def extended_model(diagnosis, config, axis='z', config_name='paper', device=None
                          _header(diagnosis, config_name, axis, active), axis, tuple(commented))
 
 
-def _comments(axis):
-    others = ', '.join(a for a in AXES if a != axis)
-    per_axis = f'diagnosed axis {axis}; {others} 0: not measured'
-    out = {name: per_axis for kinds in TERMS.values() for name, kind in kinds.items()
-           if kind == 'axis'}
-    out.update({'bias_temp_coeff_rad_s_k': per_axis, 'bias_temp_coeff2_rad_s_k2': per_axis,
-                'g_sensitivity_rad_s_m_s2': f'row {axis}: diagnosed axis',
+#: Per-axis fields ``with_noise`` writes for the diagnosed axis.
+NOISE_FIELDS = ('electronics_noise_rad_s_sqrt_hz', 'bias_instability_rad_s',
+                'rate_random_walk_rad_s_sqrt_s', 'turn_on_bias_rad_s', 'lsb_rad_s')
+
+
+def _per_axis_comment(config, name, axis):
+    """Say what the diagnosed axis's value is and, truly, where the other axes' come from."""
+    others = [a for a in AXES if a != axis]
+    values = [getattr(config, name)] if hasattr(config, name) else []
+    values += [getattr(t, name) for t in (getattr(config.extended, n) for n in TERM_TYPES)
+               if t is not None and hasattr(t, name)]
+    if all(v[AXES.index(a)] == 0.0 for v in values for a in others):
+        return f'diagnosed axis {axis}; {", ".join(others)} 0: not measured'
+    return (f"diagnosed axis {axis}; {', '.join(others)}: the starting configuration's, not "
+            'measured here')
+
+
+def _comments(axis, config, noise=False):
+    names = [name for kinds in TERMS.values() for name, kind in kinds.items() if kind == 'axis']
+    names += ['bias_temp_coeff_rad_s_k', 'bias_temp_coeff2_rad_s_k2']
+    names += list(NOISE_FIELDS) if noise else []
+    out = {name: _per_axis_comment(config, name, axis) for name in names}
+    out.update({'g_sensitivity_rad_s_m_s2': f'row {axis}: diagnosed axis',
                 'start_time_s': 'record time of the first sample, s',
                 'time_origin_s': "mid-record: the origin of diagnose's time polynomials, s",
                 'ref_temp_c': "diagnose's reference temperature, C",
@@ -383,8 +403,5 @@ def write_text(path, text, overwrite=False):
 
 
 def check_target(path, overwrite):
-    """Raise ValueError for an existing ``path`` unless ``overwrite``."""
-    if os.path.exists(path) and not overwrite:
-        raise ValueError(f'{path} exists: give --overwrite to replace it')
-    if os.path.isdir(path):
-        raise ValueError(f'{path} is a directory: give a file name')
+    """Raise ValueError for an existing ``path`` unless ``overwrite`` (one check: outputs)."""
+    outputs.check([outputs.file('--write-config', path)], overwrite=overwrite)
