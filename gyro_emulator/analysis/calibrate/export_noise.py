@@ -106,7 +106,10 @@ def _update_rate(calibration, rate_hz):
 
 def _topic(calibration, topic=None):
     """
-    Return (the IMU topic to write or None, the comment beside it or None).
+    Return (the IMU topic to write or None, a comment line on it or None).
+
+    The line goes into the header: cv::FileStorage (OpenVINS) reads a
+    comment after a plain text value as part of the value.
 
     ``topic`` is the one given (``--rostopic``); else the bag's Imu topic
     the gyro came from; a CSV log has none.
@@ -116,8 +119,8 @@ def _topic(calibration, topic=None):
     if not topic or topic == own:
         return own, None
     if own is None:
-        return topic, 'a CSV log has no topic: --rostopic (default /imu0)'
-    return topic, f"--rostopic (the log's Imu topic is {own})"
+        return topic, f'rostopic {topic}: a CSV log has no topic (--rostopic; default /imu0).'
+    return topic, f"rostopic {topic}: --rostopic (the log's Imu topic is {own})."
 
 
 def _kalibr_keys(ex, accel):
@@ -156,8 +159,7 @@ def kalibr(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     keys, comments = _kalibr_keys(ex, accel)
     data = ({'rostopic': topic} if topic else {}) | {'update_rate': Figure(rate)} | keys
     comments['update_rate'] = 'Hz'
-    if topic_note:
-        comments['rostopic'] = topic_note
+    lines += [topic_note] if topic_note else []
     lines += _kalibr_missing(topic, accel, 'Kalibr stops with "[ImuConfig Reader]: Field '
                                            '\'<name>\' missing in file: ..."')
     return as_comments(lines) + dump_yaml(data, comments)
@@ -182,14 +184,13 @@ def openvins(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     imu = {'T_i_b': _identity(4)} | keys
     if topic:
         imu['rostopic'] = topic
-    if topic_note:
-        comments['rostopic'] = topic_note
     imu |= {'time_offset': 0.0, 'update_rate': Figure(rate), 'model': Quoted('kalibr'),
             'Tw': _identity(3), 'R_IMUtoGYRO': _identity(3), 'Ta': _identity(3),
             'R_IMUtoACC': _identity(3), 'Tg': _identity(3, 0.0)}
     lines = ['OpenVINS kalibr_imu_chain.yaml: a whole file (relative_config_imu of '
              'estimator_config.yaml); cv::FileStorage needs %YAML:1.0 as its first line.']
     lines += noise_lines(calibration, ex, 'openvins', convention, accel)
+    lines += [topic_note] if topic_note else []
     lines += _kalibr_missing(topic, accel, 'OpenVINS prints "the node <name> of type [...] '
                                            'was not found..." and exits with "unable to '
                                            'parse all parameters, please fix"')
