@@ -224,6 +224,24 @@ def test_rostopic_and_vins_from_the_log(tmp_path, capsys):
     assert doc['acc_n'] == pytest.approx(n_a * np.sqrt(RATE_HZ), rel=1e-3)
 
 
+def test_an_accelerometer_reading_zero_throughout_is_taken_as_absent(walk_record, tmp_path,
+                                                                     capsys):
+    """A gyro-only driver's placeholder (0, 0, 0): the gyro's files, a warning, no crash."""
+    path = tmp_path / 'zeros.csv'
+    gyro = walk_record.gyro
+    csvio.write_csv(str(path), {'time_s': walk_record.time_s[:30_000],
+                                **{f'gyro_{a}_rad_s': gyro[a][:30_000] for a in 'xyz'},
+                                **{f'accel_{a}_m_s2': np.zeros(30_000) for a in 'xyz'}})
+    out = tmp_path / 'imu.yaml'
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'kalibr', '-o', str(out)],
+                     capsys)
+    assert code == 0 and 'reads exactly 0 throughout' in got.err
+    assert 'accelerometer_noise_density:' not in out.read_text().replace('# ', '#')
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'vins', '-o', str(out)],
+                     capsys)
+    assert code == 2 and '--format vins needs --accel-noise-density' in got.err
+
+
 def test_a_bag_gives_its_imu_topic_and_linear_acceleration(tmp_path, capsys):
     """The consumer preset (accelerometer 400 ug/sqrt(Hz)) in a simulated bag."""
     bag = str(tmp_path / 'bag')

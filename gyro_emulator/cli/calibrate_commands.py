@@ -6,6 +6,7 @@ only when a calibration runs: the calibration modules load scipy and
 statsmodels (1-4 s), and ``gyro-emulator --help`` imports every command module.
 """
 
+from dataclasses import replace
 import os
 import sys
 
@@ -20,6 +21,7 @@ from gyro_emulator.cli.allan import outlier_threshold, print_terms
 from gyro_emulator.cli.jsonout import write_json
 from gyro_emulator.recording.record import load_record
 from gyro_emulator.sensor.config import load_sensor_config
+import numpy as np
 from tqdm import tqdm
 
 
@@ -39,19 +41,35 @@ def _calibrate(args):
     record = load_record(args.log, {'gyro': args.topic, 'imu_accel': args.topic})
     axes = None if args.axis == 'all' else (args.axis,)
     threshold = outlier_threshold(args)
+    notes = []
+    if record.accel is not None and not np.any(record.accel.values):
+        notes.append('accelerometer: it reads exactly 0 throughout (a gyro-only driver): '
+                     'taken as absent')
+        record = replace(record, accel=None)
     if record.accel is None and args.accel_scale != 1.0:
         raise ValueError(f'--accel-scale {args.accel_scale:g}: {record.path} has no '
                          "accelerometer (accel_{x,y,z}_m_s2 columns or an Imu's "
                          'linear_acceleration)')
-    if getattr(args, 'format', None) == 'vins' and record.accel is None:
+    if record.accel is not None:        # a log in g is refused before any fit
+        noise.gravity_at_rest(record.accel.values * args.accel_scale, record.path,
+                              args.accel_scale)
+    elif getattr(args, 'format', None) == 'vins':
         export_noise.require_accel('vins', _accel(args))    # before the fit: it takes seconds
     cal = noise.calibrate_noise(record, axes, outlier_threshold=threshold)
-    accel = None if record.accel is None else noise.calibrate_noise(
-        record, axes, outlier_threshold=threshold, sense=ACCEL, scale=args.accel_scale)
-    for note in cal.recovery + cal.skipped + cal.timing:
+    accel = None
+    if record.accel is not None:
+        try:
+            accel = noise.calibrate_noise(record, axes, outlier_threshold=threshold,
+                                          sense=ACCEL, scale=args.accel_scale)
+        except ValueError as exc:
+            notes.append(f'accelerometer: not calibrated, the files are those of a gyro-only '
+                         f'log: {exc}')
+    if accel is not None:
+        notes += [f'accelerometer: {note}' for note in accel.skipped + accel.notes]
+    for note in cal.recovery + cal.skipped + cal.timing + tuple(notes):
         print(f'gyro-emulator calibrate: warning: {note}', file=sys.stderr)
-    for note in () if accel is None else accel.skipped + accel.notes:
-        print(f'gyro-emulator calibrate: warning: accelerometer: {note}', file=sys.stderr)
+    if accel is None and getattr(args, 'format', None) == 'vins':
+        export_noise.require_accel('vins', _accel(args))
     return cal, accel, record
 
 
@@ -170,7 +188,7 @@ def _thermal(args):
     roles = thermal.bag_topics(args.topic, args.temperature_topic)
     records = [load_record(path, roles, thermal.REQUIRED_COLUMNS) for path in args.log]
     for rec in records:         # a log in g is refused before any fit
-        if rec.accel is not None:
+        if rec.accel is not None and np.any(rec.accel.values):
             noise.gravity_at_rest(rec.accel.values * args.accel_scale, rec.path,
                                   args.accel_scale)
     log = thermal.thermal_log(records)
@@ -186,7 +204,7 @@ def _accel_thermal(args, records, what):
     ``why`` is None when no log has an accelerometer (the export says it is
     not measured); a log in g was refused by :func:`_thermal` (``--accel-scale``).
     """
-    with_accel = [r for r in records if r.accel is not None]
+    with_accel = [r for r in records if r.accel is not None and np.any(r.accel.values)]
     if not with_accel:
         if args.accel_scale != 1.0:
             raise ValueError(f'--accel-scale {args.accel_scale:g}: no log given has an '
