@@ -15,12 +15,14 @@ specific force a; SI units)::
   device (Young's modulus, gas damping with the selected viscosity law,
   pressure), tabulated once every 0.01 C (relative error < 1e-10) and
   interpolated linearly per sample.
-* H_sense is the exact ZOH discretisation of the sense-mode envelope
-  (:func:`gyro_emulator.physics.dynamics.rate_channel_discrete`, DC gain 1) at the
-  calibration temperature and the configured mode split; H_filter is the
-  ASIC's digital Butterworth low-pass. Both run as transposed direct form II
-  recursions (the arithmetic of ``scipy.signal.lfilter``), started in steady
-  state at their first input.
+* H_sense is the exact discretisation of the sense-mode envelope at the
+  output's sample instants (:func:`gyro_emulator.physics.dynamics.rate_channel_discrete`:
+  the rate over each sample period, the envelope read at the end of it,
+  DC gain 1, no delay of the samples) at the calibration temperature and
+  the configured mode split; H_filter is the ASIC's digital Butterworth
+  low-pass (the part's own group delay, configured). Both run as
+  transposed direct form II recursions (the arithmetic of
+  ``scipy.signal.lfilter``), started in steady state at their first input.
 * w_i is white rate noise of two-sided density N_i(T) = sqrt(N_mech(T)^2 +
   N_elec^2) with N_mech = sqrt(4 k_B T C_sense) / (2 M V_drive)
   (:func:`gyro_emulator.sensor.noise.brownian_arw_rad_s_sqrt_hz`); per-sample sigma

@@ -296,7 +296,14 @@ class Plan:
         self.flags[kernel.F_NONLIN] = ch.nonlinearity_on and np.any(self.axis[kernel.A_NONLIN])
 
     def _sense_dynamics(self, ch):
-        """Set the 2nd-order sense-mode envelope filter of each axis (exact ZOH, DC gain 1)."""
+        """
+        Set the 2nd-order sense-mode envelope filter of each axis (exact, DC gain 1).
+
+        H(z) = Cd (zI - Ad)^-1 Bd + Dd with (Ad, Bd, C Ad, C Bd) of
+        :func:`~gyro_emulator.physics.dynamics.rate_channel_discrete`: the
+        output at a sample's instant, so b[0] = C Bd != 0 and the samples
+        are not delayed.
+        """
         self.dyn_b = np.zeros((3, 3))
         self.dyn_a = np.zeros((3, 3))
         self.dyn_zi = np.zeros((3, 2))

@@ -58,6 +58,7 @@ from gyro_emulator.analysis.calibrate.accel_figures import (  # noqa: F401 (the 
     ACCEL_OPTIONS, AccelFigures, require_accel)
 from gyro_emulator.analysis.calibrate.export_gazebo import (  # noqa: F401 (the API)
     ACCEL_CORRELATION_TIME_S, gauss_markov_match, gazebo)
+from gyro_emulator.analysis.calibrate.lowpass import identify_output_filter
 from gyro_emulator.analysis.calibrate.noise import export_noise
 from gyro_emulator.analysis.calibrate.provenance import as_comments, CONTINUOUS, noise_lines
 from gyro_emulator.analysis.calibrate.twin import emulator_fit, PER_DECADE
@@ -395,14 +396,18 @@ class TwinNoise:
     (``electronics_arw_deg_sqrt_h``, ``bias_instability_deg_h``,
     ``rate_random_walk_deg_h_sqrt_h``, ``turn_on_bias_deg_s``); ``shared``
     holds the fields of every axis (the flicker band, terms per decade, the
-    LSB when found); ``terms_on`` the :class:`ErrorTerms` switched on
-    (every other noise term off); ``twin`` the emulator fit behind them.
+    LSB when found, the output filter's cut-off and order when one is
+    identified); ``terms_on`` the :class:`ErrorTerms` switched on (every
+    other noise term off); ``twin`` the emulator fit behind them;
+    ``output_filter`` the identified low-pass
+    (:class:`~gyro_emulator.analysis.calibrate.lowpass.OutputFilter`) or None.
     """
 
     per_axis: dict
     shared: dict
     terms_on: frozenset
     twin: object
+    output_filter: object = None
 
 
 #: Noise terms of :class:`ErrorTerms` a noise calibration decides (on or off).
@@ -418,7 +423,10 @@ def twin_noise(calibration, inflate=1.0):
     (the emulator's own noise model fitted to the log's Allan curves, over
     the flicker band of :func:`flicker_band`), times ``inflate``; the
     turn-on bias is the axis's mean. The measured N carries the whole white
-    noise, so ``mechanical_noise`` is off.
+    noise, so ``mechanical_noise`` is off. The part's output low-pass, when
+    its PSD shows one (:func:`~gyro_emulator.analysis.calibrate.lowpass.identify_output_filter`),
+    is the ``output_filter`` term: the twin's Allan deviation then follows
+    the log's at the band-limited taus the fit left out.
     """
     export_noise(calibration, inflate)          # checks inflate
     twin = emulator_fit(calibration, flicker_band(calibration))
@@ -436,7 +444,12 @@ def twin_noise(calibration, inflate=1.0):
     if calibration.lsb_rad_s > 0.0:
         on.add('quantization')
         shared['lsb_deg_s'] = units.rad_s_to_deg_s(calibration.lsb_rad_s)
-    return TwinNoise(per_axis, shared, frozenset(on), twin)
+    lowpass = identify_output_filter(calibration)
+    if lowpass is not None:
+        on.add('output_filter')
+        shared['output_filter_hz'] = lowpass.cutoff_hz
+        shared['output_filter_order'] = lowpass.order
+    return TwinNoise(per_axis, shared, frozenset(on), twin, lowpass)
 
 
 def preset(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
@@ -467,8 +480,10 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
                  'squares (bias correlation times end there)' if twin.saving > 0 else '')
               + '. Its N excludes the quantisation noise of the LSB, which the quantiser adds.',
               'Only the fitted terms are on: the measured N carries the whole white noise '
-              '(mechanical_noise off), no output filter (the band-limited taus were left out '
-              'of the fit), no temperature terms.',
+              '(mechanical_noise off), no temperature terms; '
+              + ('output filter (the band-limited taus the fit left out): '
+                 + fields.output_filter.describe() + '.' if fields.output_filter is not None
+                 else 'no output filter (the PSD shows no low-pass below Nyquist).'),
               'turn_on_bias_deg_s is the mean of this run (it includes the projection of '
               "Earth's rate); its run-to-run spread is not measured.",
               f"Simulate it at the log's rate: --rate-hz {calibration.rate_hz:g}."]
@@ -490,11 +505,17 @@ _PRESET_FIGURES = ('electronics_arw_deg_sqrt_h', 'bias_instability_deg_h',
                    'rate_random_walk_deg_h_sqrt_h', 'turn_on_bias_deg_s')
 
 
+#: The output filter's keys, written when the PSD shows a low-pass (:mod:`.lowpass`).
+_FILTER_FIGURES = ('output_filter_hz', 'output_filter_order')
+
+
 def preset_layout(fields):
     """Return the keys ``--format preset`` writes (:class:`.sensor.config.YamlKey`)."""
     lsb = (YamlKey('lsb_deg_s', '.6g', scalar=True),) if 'lsb_deg_s' in fields.shared else ()
+    lowpass = tuple(YamlKey(name, '.6g', scalar=True) for name in _FILTER_FIGURES
+                    if name in fields.shared)
     return ((YamlKey('device'), YamlKey('terms'))
-            + tuple(YamlKey(name, '.6g') for name in _PRESET_FIGURES) + lsb)
+            + tuple(YamlKey(name, '.6g') for name in _PRESET_FIGURES) + lsb + lowpass)
 
 
 def twin_config(fields):
@@ -512,8 +533,9 @@ def twin_config(fields):
                                           fields.shared['bias_instability_band_s']]
     figures['bias_instability_per_decade'] = as_written(
         fields.shared['bias_instability_per_decade'])
-    if 'lsb_deg_s' in fields.shared:
-        figures['lsb_deg_s'] = as_written(fields.shared['lsb_deg_s'])
+    for name in ('lsb_deg_s',) + _FILTER_FIGURES:
+        if name in fields.shared:
+            figures[name] = as_written(fields.shared[name])
     terms = {name: name in fields.terms_on for name in ErrorTerms.names()}
     return config_from_mapping({'device': 'paper', 'terms': terms, **figures})
 
@@ -533,7 +555,9 @@ def accel_twin_noise(accel, inflate=1.0):
     accelerometer's Allan curves (its own flicker band), times ``inflate``;
     the turn-on bias is the mean less gravity
     (:meth:`~gyro_emulator.analysis.calibrate.noise.NoiseCalibration.turn_on_bias`).
-    Figures the user gave replace the fitted N and K on every axis.
+    Figures the user gave replace the fitted N and K on every axis. Its
+    output low-pass, when its PSD shows one, is identified as the gyro's
+    (:func:`~gyro_emulator.analysis.calibrate.lowpass.identify_output_filter`).
     """
     cal = accel.calibration
     twin = emulator_fit(cal, flicker_band(cal))
@@ -551,7 +575,12 @@ def accel_twin_noise(accel, inflate=1.0):
     if cal.lsb > 0.0:
         on.add('quantization')
         shared['lsb_m_s2'] = cal.lsb
-    return TwinNoise(per_axis, shared, frozenset(on), twin)
+    lowpass = identify_output_filter(cal)
+    if lowpass is not None:
+        on.add('output_filter')
+        shared['output_filter_hz'] = lowpass.cutoff_hz
+        shared['output_filter_order'] = lowpass.order
+    return TwinNoise(per_axis, shared, frozenset(on), twin, lowpass)
 
 
 def accel_config(fields):
@@ -565,16 +594,18 @@ def accel_config(fields):
                              else as_written(value))
         else:
             mapping[name] = [as_written(a[name]) for a in axes]
-    if 'lsb_m_s2' in fields.shared:
-        mapping['lsb_m_s2'] = as_written(fields.shared['lsb_m_s2'])
+    for name in ('lsb_m_s2',) + _FILTER_FIGURES:
+        if name in fields.shared:
+            mapping[name] = as_written(fields.shared[name])
     return accel_from_mapping(mapping, 'the accelerometer twin')
 
 
 def accel_layout(fields):
     """Return the ``accelerometer:`` key of ``--format preset`` (its switches and figures)."""
-    lsb = (YamlKey('lsb_m_s2', '.6g', scalar=True),) if 'lsb_m_s2' in fields.shared else ()
+    scalars = tuple(YamlKey(name, '.6g', scalar=True) for name in ('lsb_m_s2',) + _FILTER_FIGURES
+                    if name in fields.shared)
     return YamlKey('accelerometer', parts=(YamlKey('terms'),) + tuple(
-        YamlKey(name, '.6g') for name in _ACCEL_FIGURES) + lsb)
+        YamlKey(name, '.6g') for name in _ACCEL_FIGURES) + scalars)
 
 
 def accel_twin_lines(accel, fields):
@@ -584,7 +615,10 @@ def accel_twin_lines(accel, fields):
     lines = [f"Accelerometer twin: the emulator's model (white + flicker over "
              f'{twin.band_s[0]:.3g} .. {twin.band_s[1]:.4g} s + random walk) fitted to its '
              'Allan curves; mechanical_noise off (the measured N_a is the whole white noise), '
-             'no temperature, scale-factor, misalignment or output-filter terms.',
+             'no temperature, scale-factor or misalignment terms; '
+             + (f'output filter: {fields.output_filter.describe()}.'
+                if fields.output_filter is not None else 'no output filter (the PSD shows no '
+                                                         'low-pass below Nyquist).'),
              'turn_on_bias_m_s2 is the mean less gravity. The log is taken as static with '
              'the attitude along its mean: gravity is g = 9.80665 m/s^2 along the mean '
              f'direction ({", ".join(f"{v:.5g}" for v in g)} m/s^2), so the bias along gravity '

@@ -123,6 +123,9 @@ class ExtendedModel:
         the terms the record measures are switched on and mechanical_noise
         off (the measured N carries the whole white noise), as ``calibrate
         noise --format preset`` does. An axis whose record shows no LSB gets 0.
+        The output low-pass the record's PSD shows (cut-off and order) is
+        written with its switch on; without one the starting configuration's
+        filter stays as it is.
         """
         i = AXES.index(self.axis)
         layout = {key.name: key for key in self.layout}
@@ -135,9 +138,11 @@ class ExtendedModel:
             old[i] = convert(value)
             changes[target] = tuple(old)
             _rewrite(layout, target)
-        for key in ('bias_instability_band_s', 'bias_instability_per_decade'):
-            changes[key] = noise.fields.shared[key]
-            layout[key] = YamlKey(key)
+        for key in ('bias_instability_band_s', 'bias_instability_per_decade',
+                    'output_filter_hz', 'output_filter_order'):
+            if key in noise.fields.shared:      # the filter: when the record shows one
+                changes[key] = noise.fields.shared[key]
+                layout[key] = YamlKey(key)
         names = _switch_names(layout) + [t for t in sorted(noise.fields.terms_on)
                                          if t not in _switch_names(layout)]
         switches = dict.fromkeys(noise.fields.terms_on, True)

@@ -7,11 +7,12 @@ the emulator fit its ``--format preset`` writes
 (:func:`gyro_emulator.analysis.calibrate.export_noise.twin_noise`), here run
 on what the written model leaves of the record::
 
-    e(t) = y(t) - o(t) - s g(t) Omega(t)
+    e(t) = y(t) - o(t) - s r(t)
 
-o and g are the offset and gain of the written configuration's
-deterministic output (noise off, :func:`.emulated.offset_and_gain`) on the
-record's temperature and acceleration; s is one scale factor fitted by least
+o and r are the offset and the rate part of the written configuration's
+deterministic output (noise off, :func:`.emulated.offset_and_rate`: what
+``simulate --profile RECORD`` outputs, rate dynamics and output filter
+included) on the record's inputs; s is one scale factor fitted by least
 squares with a constant (1 when the record has no rate excitation), the
 user's calibration as diagnose's baseline has it. The noise terms are those
 of e, not of y: a bias that follows temperature, now a term of the model,
@@ -81,14 +82,15 @@ class RecordNoise:
             f"{values['rate_random_walk_deg_h_sqrt_h']:.4g} deg/h/sqrt(h), turn-on bias "
             f"{values['turn_on_bias_deg_s']:.6g} deg/s, flicker band {band[0]:.3g} .. "
             f'{band[1]:.4g} s (every axis)')
+        if self.fields.output_filter is not None:
+            lines.append(f'  output filter: {self.fields.output_filter.describe()}')
         return lines
 
 
 def residual(config, data, axis):
     """Return (e(t), s) of the module docstring for a sensor configuration."""
-    offset, gain = emulated.offset_and_gain(config, data, axis)
+    offset, applied = emulated.offset_and_rate(config, data, axis)
     y = np.asarray(data.gyro_rad_s, dtype=float) - offset
-    applied = gain * np.asarray(data.rate_cmd_rad_s, dtype=float)
     if math.sqrt(float(np.mean(applied ** 2))) < MIN_RATE_RMS_RAD_S:
         return y, 1.0
     design = np.column_stack([np.ones(len(y)), applied])
