@@ -74,14 +74,21 @@ def outlier_threshold(args):
     return math.inf if args.keep_outliers else outliers.THRESHOLD
 
 
-def print_terms(info, out=None, indent='  '):
-    """Print the fitted terms, their intervals and read-offs of an ``analyse_record`` dict."""
+def print_terms(info, out=None, indent='  ', labels=None):
+    """
+    Print the fitted terms, their intervals and read-offs of an ``analyse_record`` dict.
+
+    ``labels`` names each term (``gyro_emulator.analysis.sense.Sense.labels``;
+    default the gyro's).
+    """
     out = sys.stdout if out is None else out
     fit = info['fit']
     lo, hi = fit['tau_range_s']
     print(f'{indent}fit over tau {lo:.3g} .. {hi:.4g} s, {100 * fit["ci"]:.0f} % intervals '
           f'(model discrepancy {100 * fit["misfit"]:.1f} %)', file=out)
-    for term, name in _ROWS:
+    rows = _ROWS if labels is None else tuple((term, f'{labels[term]:<21}')
+                                              for term, _ in _ROWS)
+    for term, name in rows:
         row = fit['terms'][term]
         if term in ('quantization', 'rate_ramp') and not row['resolved']:
             continue

@@ -354,6 +354,36 @@ class Record:
         axis = next(a for a, c in self.gyro_sources.items() if c == column)
         return self.gyro[axis], column
 
+    def accel_axis(self, axis):
+        """
+        Return (specific force, m/s^2; its column or topic field) of accelerometer ``axis``.
+
+        ValueError when the record has no accelerometer.
+        """
+        if self.accel is None:
+            raise ValueError(f'{self.path}: no accelerometer (columns '
+                             f'{", ".join(CSV_COLUMNS["accel"])}, or an Imu topic\'s '
+                             'linear_acceleration)')
+        i = AXES.index(axis)
+        names = self.accel.source.split(', ')
+        column = names[i] if len(names) == 3 else f'{self.accel.source}.{axis}'
+        return np.asarray(self.accel.values, dtype=float)[:, i], column
+
+    def accel_timing(self, gap_factor=GAP_FACTOR):
+        """
+        Return the :class:`~gyro_emulator.recording.timing.Timing` of the accelerometer's times.
+
+        The gyro's (:meth:`timing`) when they are the same samples (a CSV,
+        or an Imu's linear_acceleration), else worked out once and kept.
+        """
+        times = self.accel.time_s
+        if len(times) == len(self.time_s) and np.array_equal(times, self.time_s):
+            return self.timing(gap_factor)
+        key = ('accel', float(gap_factor))
+        if key not in self._timings:
+            self._timings[key] = timing_of(times, float(gap_factor))
+        return self._timings[key]
+
     def require_gyro(self):
         """Return the record; ValueError naming the accepted gyro columns when it has none."""
         if not self.gyro:
@@ -382,10 +412,10 @@ def load_record(path, topics=None, required=('time_s',), only=None,
         sensor_msgs/Imu topic); an accel of ``'none'`` is skipped; a role
         left out is not read (without 'gyro' the record has no gyro and its
         clock starts at the first message read). 'die_temp' fills
-        :attr:`Record.temp`; 'imu_accel' (a named sensor_msgs/Imu) fills
-        :attr:`Record.accel` with its ``linear_acceleration`` unless the Imu
-        marks it absent (REP 145: covariance element 0 = -1). Default: the
-        gyro only.
+        :attr:`Record.temp`; 'imu_accel' (a named sensor_msgs/Imu; None:
+        the gyro's, when 'gyro' comes first) fills :attr:`Record.accel` with
+        its ``linear_acceleration`` unless the Imu marks it absent (REP 145:
+        covariance element 0 = -1). Default: the gyro only.
     required, only, time_order
         CSV: see :func:`gyro_emulator.recording.csvio.read_csv`.
     use_log_time : bool
@@ -591,6 +621,8 @@ def _load_bag(reader, path, roles, use_log_time=False):
     for key, given in roles.items():
         if key not in _BAG_ROLES:
             continue
+        if key == 'imu_accel' and given is None and 'gyro' in read:
+            given = read['gyro'][0].topic           # the gyro's own Imu
         topic = _role_topic(reader, path, key, given, notes)
         if topic is None:
             continue

@@ -127,6 +127,8 @@ def _write_config(request, diagnosis, record, console):
         with quiet_numerics():
             model = model.with_noise(record_noise.identify(
                 model.config, record, request.sense_axis, request.outlier_sigma))
+            model = model.with_accel_noise(record_noise.identify_accel(
+                record, request.outlier_sigma, request.gyro_topic))
     text = model.text()
     export.write_text(request.write_config, text, request.overwrite)
     for cause, why in model.warnings:

@@ -41,6 +41,7 @@ import os
 
 from gyro_emulator import atomic, outputs
 from gyro_emulator.resources import read_yaml
+from gyro_emulator.sensor.accel import YAML_ALIASES as ACCEL_ALIASES
 from gyro_emulator.sensor.config import (config_from_mapping, config_yaml, PRESET_NAMES,
                                          preset_path, SensorConfig, YAML_ALIASES, YamlKey)
 from gyro_emulator.sensor.extensions import TERM_TYPES
@@ -156,6 +157,53 @@ class ExtendedModel:
         header = self.header + ''.join(f'# {line}\n' for line in noise.comment_lines())
         return replace(self, config=config, layout=tuple(layout.values()), header=header,
                        noise=True)
+
+    def with_accel_noise(self, accel):
+        """
+        Return this model with the record's accelerometer noise (``record_noise.identify_accel``).
+
+        ``accel`` None (the record has no accelerometer) changes nothing. The
+        accelerometer's N, B, K, turn-on bias, flicker band and LSB replace the
+        starting configuration's, with the same switches as ``calibrate noise
+        --format preset`` (mechanical_noise off); its other settings (range,
+        temperature terms) stay. Not identified, the header says why.
+        """
+        if accel is None:
+            return self
+        header = self.header + ''.join(f'# {line}\n' for line in accel.comment_lines())
+        if accel.fields is None:
+            return replace(self, header=header)
+        start = self.config.accelerometer
+        changes = {name: tuple(v[name] for v in _per_axis(accel.fields.per_axis))
+                   for name in next(iter(accel.fields.per_axis.values()))}
+        changes.update(accel.fields.shared)
+        changes['terms'] = replace(start.terms, mechanical_noise=False, **dict.fromkeys(
+            accel.fields.terms_on, True))
+        accelerometer = _checked(replace, start, **changes)
+        config = _checked(replace, self.config, accelerometer=accelerometer)
+        layout = {key.name: key for key in self.layout}
+        layout['accelerometer'] = _accel_key(layout.get('accelerometer'), changes)
+        return replace(self, config=config, layout=tuple(layout.values()), header=header)
+
+
+def _per_axis(per_axis):
+    """Return the three axes' fields of a calibration: an axis it lacks copies the first."""
+    return [per_axis.get(a) or next(iter(per_axis.values())) for a in AXES]
+
+
+def _accel_key(start, changes):
+    """
+    Return the ``accelerometer`` key: the starting one's settings, then ``changes`` (SI names).
+
+    A starting setting ``changes`` replaces, directly or through a datasheet
+    alias, is dropped; the switches are written whole.
+    """
+    given = {} if start is None or start.given is None else dict(start.given)
+    replaced = set(changes)
+    parts = [YamlKey(k, given=v) for k, v in given.items() if k != 'terms' and
+             (ACCEL_ALIASES[k][0] if k in ACCEL_ALIASES else k) not in replaced]
+    return YamlKey('accelerometer', parts=(YamlKey('terms'), *parts,
+                                           *(YamlKey(n) for n in changes if n != 'terms')))
 
 
 def _checked(make, *args, **kwargs):

@@ -24,17 +24,28 @@ The record must give the terms: the fit must span at least
 is missing). The mean of e over the
 samples the identification keeps is the turn-on bias, so that the emulator's
 mean follows the record's.
+
+The accelerometer (:func:`identify_accel`) is identified as ``calibrate
+noise`` identifies it, on the record's own accelerometer (a CSV's
+``accel_{x,y,z}_m_s2``, a bag's output Imu ``linear_acceleration``), and
+only on a static record: one whose applied rate stays below
+:data:`~gyro_emulator.analysis.diagnose.baseline.MIN_RATE_RMS_RAD_S` rms
+(gravity turns with the part otherwise). Its fields are the
+accelerometer twin of ``calibrate noise --format preset``.
 """
 
 from dataclasses import dataclass
 import math
 
+from gyro_emulator import units
 from gyro_emulator.analysis.calibrate import export_noise
+from gyro_emulator.analysis.calibrate.accel_figures import accel_figures
 from gyro_emulator.analysis.calibrate.noise import calibrate_noise
 from gyro_emulator.analysis.calibrate.provenance import axis_lines
 from gyro_emulator.analysis.diagnose import emulated
 from gyro_emulator.analysis.diagnose.baseline import MIN_RATE_RMS_RAD_S
-from gyro_emulator.recording.record import Record
+from gyro_emulator.analysis.sense import ACCEL
+from gyro_emulator.recording.record import is_bag, load_record, Record
 import numpy as np
 
 #: Shortest tau span (longest / shortest tau used) that separates N from B and K.
@@ -138,3 +149,73 @@ def _check_span(cal):
                'longer or at a higher rate')
     if why:
         raise ValueError(f'--noise: the record cannot give its noise terms: {why}')
+
+
+@dataclass(frozen=True)
+class AccelNoise:
+    """
+    The accelerometer of a record for ``--noise``: its calibration and twin fields, or why not.
+
+    ``fields`` is the accelerometer's
+    :class:`~gyro_emulator.analysis.calibrate.export_noise.TwinNoise` (SI
+    AccelConfig names) or None, ``why`` then says why it was not identified.
+    """
+
+    calibration: object = None
+    fields: object = None
+    why: str = None
+
+    def comment_lines(self):
+        """Provenance: the IEEE Std 952 terms, the twin's values, or why none are written."""
+        if self.fields is None:
+            return [f'Accelerometer (--noise): not identified: {self.why}.']
+        cal = self.calibration
+        lines = ['Accelerometer (--noise): IEEE Std 952 fit of calibrate noise on the '
+                 "record's accelerometer (a static record; as calibrate noise --format preset):"]
+        for item in cal.axes:
+            lines += axis_lines(item, ACCEL)
+        lines += [f'  note: {note}' for note in cal.notes]
+        for axis, v in self.fields.per_axis.items():
+            n = float(units.m_s2_sqrt_hz_to_ug_sqrt_hz(v['electronics_noise_m_s2_sqrt_hz']))
+            lines.append(
+                f'  written, axis {axis}: N {n:.4g}'
+                f" ug/sqrt(Hz), B {float(units.m_s2_to_mg(v['bias_instability_m_s2'])):.4g} mg, "
+                f"K {v['random_walk_m_s3_sqrt_hz']:.4g} m/s^3/sqrt(Hz), turn-on bias "
+                f"{v['turn_on_bias_m_s2']:.6g} m/s^2 (the mean less gravity along the mean "
+                'direction: a bias across gravity cannot be told from a tilt and is taken as '
+                'none)')
+        return lines
+
+
+def _accel_record(data, gyro_topic):
+    """Return a record of the measured accelerometer of ``data``, or None when it has none."""
+    if is_bag(data.source):
+        record = load_record(data.source, {'gyro': gyro_topic, 'imu_accel': None})
+        return record if record.accel is not None else None
+    if data.accel_m_s2 is None:
+        return None
+    return Record.from_arrays(data.time_s, data.gyro_rad_s, accel_m_s2=data.accel_m_s2,
+                              path=data.source or 'the record')
+
+
+def identify_accel(data, outlier_threshold, gyro_topic=None):
+    """
+    Return the :class:`AccelNoise` of a record (module docstring), or None without one.
+
+    ``gyro_topic`` is a bag's output Imu topic (its ``linear_acceleration``).
+    """
+    applied = np.asarray(data.rate_cmd_rad_s, dtype=float)
+    record = _accel_record(data, gyro_topic)
+    if record is None:
+        return None
+    rms = math.sqrt(float(np.mean(applied ** 2)))
+    if rms >= MIN_RATE_RMS_RAD_S:
+        return AccelNoise(why=f'the record is not static (applied rate '
+                              f'{float(units.rad_s_to_deg_s(rms)):.3g} deg/s rms): gravity turns '
+                              "with the part, and the accelerometer's noise needs it at rest")
+    try:
+        cal = calibrate_noise(record, outlier_threshold=outlier_threshold, sense=ACCEL)
+        fields = export_noise.accel_twin_noise(accel_figures(cal))
+    except ValueError as exc:
+        return AccelNoise(why=str(exc))
+    return AccelNoise(cal, fields)
