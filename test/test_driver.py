@@ -84,7 +84,8 @@ def test_samples_equal_the_offline_model_with_commands_applied_at_their_stamps()
     driver, inbox, _ = make(command_timeout_s=0.0)
     inbox.push('rate', T0_NS + 10 * PERIOD_NS, (0.0, 0.0, 1.0))
     inbox.push('temperature', T0_NS + 30 * PERIOD_NS, 40.0)
-    inbox.push('linear_acceleration', 0, (0.0, 9.80665, 0.0))      # 0: on receipt
+    # 0: on receipt; applied acceleration: with gravity the specific force is (0, g, 0)
+    inbox.push('linear_acceleration', 0, (0.0, 9.80665, -9.80665))
     out = ticks(driver, 0, 60)
     model = offline(driver)
     want = []
@@ -97,7 +98,8 @@ def test_samples_equal_the_offline_model_with_commands_applied_at_their_stamps()
     assert all(np.array_equal(o.gyro.bias_rad_s, s.bias_rad_s) and
                np.array_equal(o.gyro.true_rate_rad_s, s.true_rate_rad_s) and
                o.die_temp_c == s.die_temp_c for o, s in zip(out, want))
-    assert out[0].passed_accel_m_s2 is None            # not passed through unless asked
+    assert all(o.accel.true_specific_force_m_s2 == (0.0, 9.80665, 0.0) for o in out)
+    assert all(o.accel_shown for o in out)        # the accelerometer is published by default
 
 
 def test_the_covariance_is_the_white_noise_and_temperature_comes_every_nth_sample():
@@ -357,7 +359,9 @@ def test_one_output_per_message_stamped_at_its_stamp_with_the_rate_from_the_stam
         out += driver.ideal_imu(T0_NS + k * dt, (0.0, 0.0, 0.01 * k), (1.0, 0.0, 9.0))
     assert [o.sample_ns for o in out] == [o.stamp_ns for o in out] == \
         [T0_NS + k * dt for k in range(10)]
-    assert all(o.passed_accel_m_s2 == (1.0, 0.0, 9.0) for o in out)     # always passed through
+    # the simulator's acceleration is the specific force the accelerometer senses
+    assert all(o.accel.true_specific_force_m_s2 == (1.0, 0.0, 9.0) and o.accel_shown
+               for o in out)
     assert 'input rate 250 Hz from the imu/ideal stamps: model re-planned' in log.text()
     model = offline(driver)
     want = [model.step((0.0, 0.0, 0.0), 25.0, (1.0, 0.0, 9.0))]

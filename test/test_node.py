@@ -19,9 +19,12 @@ from conftest import ros_env
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from gyro_emulator.emulation import profiles
+from gyro_emulator.emulation.driver.attitude import AttitudeState
 from gyro_emulator.physics import first_order
+from gyro_emulator.physics.kinematics import LEVEL_WXYZ
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
+from gyro_emulator.sensor.imu import ImuModel
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -209,16 +212,24 @@ def test_imu_contents_follow_rep_145(wall):
     fresh(wall)
     wall.probe.spin_until(lambda: len(wall.topics['imu']) >= 100, 10.0, '100 Imu')
     imu = wall.topics['imu']
-    offline = sensor_model.GyroModel(sensor_config.load_sensor_config(wall.sensor_yaml), 200.0,
-                                     np.random.default_rng(0))
+    offline = ImuModel(sensor_config.load_sensor_config(wall.sensor_yaml), 200.0,
+                       np.random.default_rng(0))
     sigma = offline.white_noise_sigma_rad_s
+    accel_sigma = offline.accel_white_noise_sigma_m_s2
     for msg in imu:
         assert msg.header.frame_id == 'gyro_test'
         assert msg.orientation_covariance[0] == -1.0
-        assert msg.linear_acceleration_covariance[0] == -1.0
         cov = np.asarray(msg.angular_velocity_covariance).reshape(3, 3)
         assert np.allclose(np.diag(cov), sigma ** 2, rtol=1e-9)
         assert np.count_nonzero(cov - np.diag(np.diag(cov))) == 0
+        # the accelerometer is there from the first message, its covariance from the model
+        cov = np.asarray(msg.linear_acceleration_covariance).reshape(3, 3)
+        assert np.allclose(np.diag(cov), accel_sigma ** 2, rtol=1e-9) and cov[0, 0] > 0
+        assert np.count_nonzero(cov - np.diag(np.diag(cov))) == 0
+    # level at rest: gravity reads +g on z (REP 103), within the noise
+    accel = np.array([vector(m.linear_acceleration) for m in imu])
+    assert np.allclose(accel.mean(axis=0), profiles.LEVEL_ACCEL_M_S2,
+                       atol=6 * accel_sigma.max() / math.sqrt(len(imu)))
     stamps = np.array([stamp_ns(m.header) for m in imu])
     assert np.all(np.diff(stamps) > 0)
     # The timer period is 1/rate_hz: the median stamp spacing is 5 ms.
@@ -480,11 +491,13 @@ def expected_samples(sensor_yaml, seed, warmup):
     """Step the offline model: ``warmup`` resting samples, then the script per tick."""
     model = sensor_model.GyroModel(sensor_config.load_sensor_config(sensor_yaml), 200.0,
                                    np.random.default_rng(seed))
-    # The node's specific force before any command: level, +1 g on z (the one
-    # default shared with simulate's profiles).
-    rate, temp, accel = (0.0, 0.0, 0.0), 25.0, profiles.LEVEL_ACCEL_M_S2
+    # The node's specific force at rest before any command: level, +1 g on z (the
+    # one default shared with simulate's profiles).
+    rate, temp, accel = (0.0, 0.0, 0.0), 25.0, (0.0, 0.0, 0.0)
+    attitude = AttitudeState(LEVEL_WXYZ, profiles.LEVEL_ACCEL_M_S2[2])
+    assert attitude.specific_force(accel) == profiles.LEVEL_ACCEL_M_S2
     for _ in range(warmup):
-        model.step(rate, temp, accel)
+        model.step(rate, temp, attitude.specific_force(accel))
     out = []
     for k in range(TICKS + 1):
         for tick, kind, value in SCRIPT:
@@ -495,7 +508,9 @@ def expected_samples(sensor_yaml, seed, warmup):
                     temp = value
                 else:
                     accel = value
-        out.append(model.step(rate, temp, accel))
+        # gravity turns with the part: the attitude integrates the commanded rate
+        attitude.advance(T0_NS + k * PERIOD_NS, rate)
+        out.append(model.step(rate, temp, attitude.specific_force(accel)))
     return out
 
 
@@ -588,7 +603,7 @@ def test_sim_time_output_is_exactly_the_offline_model_and_reproducible(tmp_path)
         # taken one of each; a best-effort reader drops what arrives before it
         # has matched the writer.
         handshake = [('rate', (0.0, 0.0, 0.0)), ('temp', 25.0),
-                     ('accel', profiles.LEVEL_ACCEL_M_S2)]
+                     ('accel', (0.0, 0.0, 0.0))]
 
         def shake(values):
             for ns in nodes:

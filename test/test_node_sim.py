@@ -18,6 +18,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
+from gyro_emulator.sensor.imu import ImuModel
 import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -64,7 +65,8 @@ def wait_for(proc, probe, timeout_s=120.0):
 def test_behind_a_simulator_one_output_per_input_on_sim_time(tmp_path):
     env = ros_env()
     args = ['-p', 'input_source:=imu', '-p', 'use_sim_time:=true',
-            '-p', 'sensor_config:=consumer', '-p', 'sensor.terms.timestamp_jitter:=false',
+            '-p', 'qos_reliability:=reliable', '-p', 'sensor_config:=consumer',
+            '-p', 'sensor.terms.timestamp_jitter:=false',
             '-p', 'diagnostics_period_s:=0.2', '-p', 'temperature_rate_hz:=5.0']
     for override in reliable_links():
         args += ['-p', override]
@@ -74,6 +76,7 @@ def test_behind_a_simulator_one_output_per_input_on_sim_time(tmp_path):
         out, sub = listen_matched(probe, Imu, 'imu/data_raw')
         truth = probe.listen(Vector3Stamped, 'gyro_emulator/truth/scale_factor', DEEP)
         bias = probe.listen(Vector3Stamped, 'gyro_emulator/truth/bias', DEEP)
+        truth_imu = probe.listen(Imu, 'gyro_emulator/truth/imu', DEEP)
         diags = probe.listen(DiagnosticArray, '/diagnostics', 50)
         wait_matched(probe, [sub])
         sim = run_simulator(env, tmp_path / 'sent.json', '--subscribers', '1')
@@ -94,11 +97,22 @@ def test_behind_a_simulator_one_output_per_input_on_sim_time(tmp_path):
     config = sensor_config.load_sensor_config('consumer')
     latency_ns = round(config.latency_s * 1e9)
     assert [stamp_ns(m.header) for m in out] == [s + latency_ns for s in stamps]
-    # Specific force passes through (and feeds g-sensitivity); orientation absent.
-    assert [m.linear_acceleration.x for m in out] == [1e-4 * k for k in range(len(stamps))]
-    assert all(m.linear_acceleration.z == 9.80665 for m in out)
-    assert all(m.orientation_covariance[0] == -1.0 and
-               m.linear_acceleration_covariance[0] == 0.0 for m in out)
+    # The simulator's specific force is the accelerometer's true input (and feeds
+    # g-sensitivity): exact on ~/truth/imu; imu/data_raw carries the accelerometer's
+    # noisy output with its covariance at the input rate; orientation absent.
+    sent_force = {(s, 1e-4 * k, 9.80665) for k, s in enumerate(stamps)}
+    assert len(truth_imu) >= 0.9 * len(stamps)
+    assert all((stamp_ns(m.header), m.linear_acceleration.x, m.linear_acceleration.z)
+               in sent_force for m in truth_imu)
+    assert all(m.orientation_covariance[0] == -1.0 for m in out)
+    accel_sigma = ImuModel(config, 250.0, np.random.default_rng(0)).accel_white_noise_sigma_m_s2
+    assert all(m.linear_acceleration_covariance[0] == pytest.approx(accel_sigma[0] ** 2,
+                                                                    rel=0.01)
+               for m in out[phases['slow']:phases['pause']])
+    error = np.array([[m.linear_acceleration.x - 1e-4 * k, m.linear_acceleration.z - 9.80665]
+                      for k, m in enumerate(out)])
+    turn_on = np.array(config.accelerometer.turn_on_bias_sigma_m_s2)[[0, 2]]
+    assert np.all(np.std(error, axis=0) > 0) and np.all(np.abs(error.mean(axis=0)) < 6 * turn_on)
     # dt from the stamps: the model runs at 250 Hz, not at rate_hz (200 Hz), and
     # the covariance is its white-noise sigma^2 there.
     assert 'input rate 250 Hz from the imu/ideal stamps' in log

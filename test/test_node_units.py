@@ -10,6 +10,7 @@ from gyro_emulator.emulation import profiles, scenario
 from gyro_emulator.emulation.driver import commands, parameters
 from gyro_emulator.emulation.driver.block_stepper import BlockStepper
 from gyro_emulator.emulation.run_profile import samples_with_force
+from gyro_emulator.physics import kinematics
 from gyro_emulator.ros import params
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
@@ -218,7 +219,11 @@ def test_shipped_defaults_define_every_node_parameter_and_validate():
 def test_node_and_simulate_share_one_gravity_default_and_a_driver_like_temperature_rate():
     """Issue 15: level and at rest, +1 g on z (REP 103) in both; imu/temperature at 1-10 Hz."""
     defaults = params.node_defaults()
-    assert defaults['default_linear_acceleration_m_s2'] == list(profiles.LEVEL_ACCEL_M_S2)
+    # The node senses gravity from its attitude: level, at rest, no applied acceleration.
+    at_rest = kinematics.specific_force(
+        kinematics.from_roll_pitch_yaw(*defaults['initial_attitude_rpy_rad']),
+        defaults['default_linear_acceleration_m_s2'], defaults['gravity_m_s2'])
+    assert at_rest.tolist() == list(profiles.LEVEL_ACCEL_M_S2)
     assert profiles.LEVEL_ACCEL_M_S2 == (0.0, 0.0, 9.80665)
     for name in profiles.PROFILE_NAMES:
         accel = samples_with_force(profiles.make_profile(name, 10.0),

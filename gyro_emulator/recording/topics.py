@@ -76,19 +76,24 @@ RATE_CMD, ODOM_CMD, TEMPERATURE_CMD, ACCEL_CMD = (Topic(*row) for row in (
     ('cmd/angular_velocity', VECTOR3_STAMPED, 'reliable', 'in', 'true body rate, rad/s'),
     ('cmd/odom', ODOMETRY, 'reliable', 'in', 'twist.twist.angular as the true rate'),
     ('cmd/temperature', TEMPERATURE, 'reliable', 'in', 'ambient temperature, deg C'),
-    ('cmd/linear_acceleration', VECTOR3_STAMPED, 'reliable', 'in', 'specific force, m/s^2'),
+    ('cmd/linear_acceleration', VECTOR3_STAMPED, 'reliable', 'in',
+     'applied linear acceleration, body frame, m/s^2 (gravity is added from the attitude)'),
 ))
 #: The ideal IMU of a simulator (``input_source: imu``), e.g. through ros_gz_bridge.
 IMU_IDEAL_IN = Topic('imu/ideal', IMU, 'sensor_data', 'in',
                      'ideal IMU from a simulator: angular velocity rad/s, specific force m/s^2')
 IMU_OUT, DIE_TEMPERATURE_OUT, DIAGNOSTICS = (Topic(*row) for row in (
-    ('imu/data_raw', IMU, 'sensor_data', 'out', 'gyro output (REP 145), rad/s'),
+    ('imu/data_raw', IMU, 'sensor_data', 'out',
+     'gyro (rad/s) and accelerometer (m/s^2) output (REP 145)'),
     ('imu/temperature', TEMPERATURE, 'sensor_data', 'out', 'die temperature, deg C'),
     ('/diagnostics', DIAGNOSTIC_ARRAY, 'reliable', 'out', 'driver status'),
 ))
 TRUTH_RATE, TRUTH_BIAS, TRUTH_SCALE_FACTOR = (
     Topic(f'~/truth/{what}', VECTOR3_STAMPED, 'sensor_data', 'out', f'true {what} per sample')
     for what in ('rate', 'bias', 'scale_factor'))
+TRUTH_IMU = Topic('~/truth/imu', IMU, 'sensor_data', 'out',
+                  'true attitude (orientation, sensor to ENU world), rate and specific force '
+                  'per sample')
 TRUTH_FAULT = Topic('~/truth/fault', DIAGNOSTIC_ARRAY, 'latched', 'out',
                     'the injected fault and its state, on each change')
 
@@ -109,8 +114,8 @@ TRUTH_TOPICS = MappingProxyType({'rate': TRUTH_RATE, 'bias': TRUTH_BIAS,
 
 #: Every topic of the node's interface, in the order of the README's table.
 NODE_TOPICS = (RATE_CMD, ODOM_CMD, TEMPERATURE_CMD, ACCEL_CMD, IMU_IDEAL_IN, IMU_OUT,
-               DIE_TEMPERATURE_OUT, TRUTH_RATE, TRUTH_BIAS, TRUTH_SCALE_FACTOR, TRUTH_FAULT,
-               DIAGNOSTICS)
+               DIE_TEMPERATURE_OUT, TRUTH_RATE, TRUTH_BIAS, TRUTH_SCALE_FACTOR, TRUTH_IMU,
+               TRUTH_FAULT, DIAGNOSTICS)
 
 #: What the recorder takes by default: the emulator's inputs and outputs.
 RECORDED_BY_DEFAULT = (RATE_CMD, TEMPERATURE_CMD, ACCEL_CMD, IMU_OUT,

@@ -24,7 +24,9 @@ qualified name (``seed: -1``, a SeedSequence of the name): the instances are
 independent and each is the same on every run. Its tolerance draw comes from
 a generator seeded the same way (name + ``/tolerances``), so a part keeps its
 errors from run to run. An explicit ``seed`` in ``parameters`` fixes the
-noise, not the part.
+noise, not the part. Each instance publishes in a frame of its own,
+``<name>_imu_link`` (``<name>_<frame_id>`` when the common ``parameters``
+give a ``frame_id``; an instance's own ``frame_id`` is taken as it is).
 
 This module reads the spec and builds each instance's parameters (no ROS
 imports); :func:`main` runs the nodes as child processes and stops them
@@ -54,6 +56,8 @@ import numpy as np
 import yaml
 
 DEFAULT_SPEC = 'gyro_array.yaml'
+#: The frame every instance's own frame_id ends with, unless the spec names one.
+DEFAULT_FRAME = 'imu_link'
 #: prctl option: the signal a child gets when its parent dies (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
 #: Node exit statuses that mean "stopped by the signal the array passed on".
@@ -159,6 +163,8 @@ def load_spec(path=None):
             raise ValueError(f'{where}.name = {name!r} is used twice')
         names.add(name)
         values = dict(common)
+        # Each part has its own frame: <name>_<common frame_id or imu_link>, unless set.
+        values['frame_id'] = f'{name}_{common.get("frame_id", DEFAULT_FRAME)}'
         values.update(_flatten('', _mapping(f'{where}.parameters', entry.get('parameters'))))
         if 'sensor_config' in entry:
             values['sensor_config'] = entry['sensor_config']

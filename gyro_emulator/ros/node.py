@@ -17,16 +17,19 @@ instead: one sample per ``imu/ideal`` message (sensor_msgs/Imu), the time
 step from the stamps (:mod:`gyro_emulator.emulation.driver.imu_timeline`).
 Either way it publishes (:mod:`.outputs`):
 
-* ``imu/data_raw`` (sensor_msgs/Imu, REP 145/103): the gyro output in rad/s,
-  ``angular_velocity_covariance`` = diag(sigma^2) of the model's white noise
-  at this rate, orientation absent (``orientation_covariance[0] = -1``),
-  linear acceleration absent (``[0] = -1``) unless passed through (always
-  passed through from ``imu/ideal``). Stamp = sample instant + the model's
-  output delay (latency and jitter).
+* ``imu/data_raw`` (sensor_msgs/Imu, REP 145/103): the gyro output in rad/s
+  and the accelerometer's in m/s^2 (its input the specific force of the
+  attitude the driver keeps, :mod:`gyro_emulator.emulation.driver.attitude`),
+  each covariance diag(sigma^2) of the model's white noise at this rate,
+  orientation absent (``orientation_covariance[0] = -1``); with
+  ``publish_linear_acceleration: false`` the acceleration is absent too.
+  Stamp = sample instant + the model's output delay (latency and jitter);
+  reliability ``qos_reliability``.
 * ``imu/temperature`` (sensor_msgs/Temperature): die temperature, deg C.
 * ``~/truth/rate``, ``~/truth/bias``, ``~/truth/scale_factor``
   (geometry_msgs/Vector3Stamped, stamped at the sample instant): true rate
   (rad/s), total bias (rad/s) and total gain (ratio) of the same sample;
+  ``~/truth/imu`` (sensor_msgs/Imu): the true attitude, rate and specific force;
   ``~/truth/fault`` (diagnostic_msgs/DiagnosticArray, latched) on each change
   of the injected fault (:mod:`gyro_emulator.emulation.driver.fault_state`).
 * ``/diagnostics`` (diagnostic_msgs/DiagnosticArray), see
@@ -36,7 +39,8 @@ It subscribes to ``cmd/angular_velocity`` (geometry_msgs/Vector3Stamped,
 rad/s, sensor frame) or, with ``rate_source = odometry``, ``cmd/odom``
 (nav_msgs/Odometry, twist.twist.angular), to ``cmd/temperature``
 (sensor_msgs/Temperature, ambient deg C) and ``cmd/linear_acceleration``
-(geometry_msgs/Vector3Stamped, m/s^2), through :mod:`.intake`; input rules:
+(geometry_msgs/Vector3Stamped, the applied linear acceleration, body frame,
+m/s^2), through :mod:`.intake`; input rules:
 :mod:`gyro_emulator.emulation.driver.commands`. ``--help`` prints the
 parameters and topics and exits.
 """
@@ -107,7 +111,7 @@ class GyroEmulatorNode(Node):
                               follow_timer=not self.get_parameter('use_sim_time').value,
                               log=self.get_logger(), commands=self._intake)
         self._pending = None
-        self._out = OutputStage(self, self.frame_id)
+        self._out = OutputStage(self, self.frame_id, values['qos_reliability'])
         self._name = self.get_fully_qualified_name()
         self._hardware_id = f'gyro_emulator/{values["sensor_config"]}'
         self._timer = None

@@ -3,26 +3,32 @@ What the node publishes per sample: Imu, die temperature, truth and fault truth.
 
 :class:`OutputStage` owns the node's publishers and the serialized templates
 (``ros/rawmsg.py``) of ``imu/data_raw``, ``imu/temperature`` and
-``~/truth/{rate,bias,scale_factor}``, and publishes one
+``~/truth/{rate,bias,scale_factor,imu}``, and publishes one
 :class:`~gyro_emulator.emulation.driver.records.Output` of the driver (the
 fault in force has already acted on it, :mod:`gyro_emulator.sensor.faults`):
 
-* ``imu/data_raw`` (REP 145/103): rad/s in the sensor frame,
-  ``angular_velocity_covariance`` = diag(sigma^2), orientation absent
-  (``orientation_covariance[0] = -1``), linear acceleration absent unless
-  passed through. A dropout publishes nothing; a stuck axis repeats the
-  float64 of the last published value bit for bit.
+* ``imu/data_raw`` (REP 145/103): rad/s and m/s^2 in the sensor frame,
+  ``angular_velocity_covariance`` and ``linear_acceleration_covariance`` =
+  diag(sigma^2), orientation absent (``orientation_covariance[0] = -1``),
+  linear acceleration absent (``[0] = -1``) when the driver says so
+  (``publish_linear_acceleration``). A dropout publishes nothing; a stuck
+  axis repeats the float64 of the last published value bit for bit.
 * ``imu/temperature`` on the samples the driver marks (``temperature_rate_hz``).
-* the truth of the same sample, stamped at the sample instant.
+* the truth of the same sample, stamped at the sample instant; ``~/truth/imu``
+  carries the attitude (``orientation``, sensor frame to ENU world), the true
+  rate and the true specific force.
 * ``~/truth/fault`` (diagnostic_msgs/DiagnosticArray, latched) whenever the
   fault state changes; :func:`fault_message` gives its encoding.
 """
+
+import copy
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from gyro_emulator.recording import topics
 from gyro_emulator.ros import codec
 from gyro_emulator.ros.rawmsg import RawMessage
 from rclpy.event_handler import PublisherEventCallbacks
+from rclpy.qos import ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.time import Time
 
@@ -53,6 +59,17 @@ def fault_message(stamp, name, hardware_id, fault, state, level, since_ns):
     return msg
 
 
+def _qos(topic, reliability):
+    """Return the topic's QoS profile with ``reliability`` (``best_effort`` or ``reliable``)."""
+    qos = codec.topic_qos(topic)
+    if topic.qos != 'sensor_data':
+        return qos
+    qos = copy.copy(qos)
+    qos.reliability = (ReliabilityPolicy.RELIABLE if reliability == 'reliable'
+                       else ReliabilityPolicy.BEST_EFFORT)
+    return qos
+
+
 class OutputStage:
     """
     The node's publishers and message templates.
@@ -63,10 +80,14 @@ class OutputStage:
         The emulator node.
     frame_id : str
         ``header.frame_id`` of every message.
+    reliability : str
+        ``qos_reliability``: ``best_effort`` (sensor data) or ``reliable`` for
+        ``imu/data_raw``, ``imu/temperature`` and ``~/truth/*`` (``qos_overrides``
+        still apply on top).
 
     """
 
-    def __init__(self, node, frame_id):
+    def __init__(self, node, frame_id, reliability='best_effort'):
         # Each publisher's QoS event handlers (incompatible QoS / type warnings)
         # join every executor wake-up; only imu/data_raw, the output that
         # drivers' users subscribe to, keeps them.
@@ -75,13 +96,15 @@ class OutputStage:
 
         def publisher(topic, **kwargs):
             return node.create_publisher(codec.topic_class(topic), topic.name,
-                                         codec.topic_qos(topic), **kwargs)
+                                         _qos(topic, reliability), **kwargs)
         self.imu_pub = publisher(topics.IMU_OUT, qos_overriding_options=options())
         self.temp_pub = publisher(topics.DIE_TEMPERATURE_OUT, event_callbacks=quiet,
                                   qos_overriding_options=options())
         self.truth_pubs = [publisher(topic, qos_overriding_options=options(),
                                      event_callbacks=quiet)
                            for topic in topics.TRUTH_TOPICS.values()]
+        self.truth_imu_pub = publisher(topics.TRUTH_IMU, qos_overriding_options=options(),
+                                       event_callbacks=quiet)
         self.fault_pub = publisher(topics.TRUTH_FAULT, event_callbacks=quiet)
         self.diag_pub = publisher(topics.DIAGNOSTICS, event_callbacks=quiet)
         imu = codec.topic_class(topics.IMU_OUT)()
@@ -92,9 +115,10 @@ class OutputStage:
             'stamp': ('header.stamp', 'time'), 'rate': ('angular_velocity', 'vector3'),
             'cov': ('angular_velocity_covariance', ('array', 9)),
             'accel': ('linear_acceleration', 'vector3'),
-            'accel_cov0': ('linear_acceleration_covariance', ('array', 1))})
+            'accel_cov': ('linear_acceleration_covariance', ('array', 9))})
         self._accel_shown = False
         self._covariance_shown = None
+        self._accel_covariance_shown = None
         temp = codec.topic_class(topics.DIE_TEMPERATURE_OUT)()
         temp.header.frame_id = frame_id
         self.temp_msg = RawMessage(temp, {'stamp': ('header.stamp', 'time'),
@@ -105,6 +129,12 @@ class OutputStage:
             msg.header.frame_id = frame_id
             self.truth_msgs.append(RawMessage(msg, {'stamp': ('header.stamp', 'time'),
                                                     'value': ('vector', 'vector3')}))
+        truth_imu = codec.topic_class(topics.TRUTH_IMU)()
+        truth_imu.header.frame_id = frame_id
+        self.truth_imu = RawMessage(truth_imu, {
+            'stamp': ('header.stamp', 'time'), 'rate': ('angular_velocity', 'vector3'),
+            'force': ('linear_acceleration', 'vector3'),
+            **{'q' + c: ('orientation.' + c, 'double') for c in 'wxyz'}})
 
     def set_covariance(self, covariance):
         """Show ``angular_velocity_covariance`` (9 numbers, rad^2/s^2) from now on."""
@@ -113,18 +143,21 @@ class OutputStage:
         self.imu.put('cov', *covariance)
         self._covariance_shown = covariance
 
-    def set_accel(self, accel):
-        """Pass the specific force through (covariance 0: unknown), or mark it absent (None)."""
-        imu = self.imu
-        if accel is not None:
-            imu.put('accel', *accel)
-            if not self._accel_shown:
-                imu.put('accel_cov0', 0.0)
-                self._accel_shown = True
-        elif self._accel_shown:
-            imu.put('accel', 0.0, 0.0, 0.0)
-            imu.put('accel_cov0', -1.0)
-            self._accel_shown = False
+    def set_accel_covariance(self, covariance):
+        """
+        Show ``linear_acceleration_covariance`` (9 numbers, m^2/s^4) from now on.
+
+        None: the accelerometer is absent (REP 145: element 0 = -1, the rest 0,
+        and the acceleration 0).
+        """
+        if covariance is self._accel_covariance_shown:
+            return
+        if covariance is None:
+            self.imu.put('accel', 0.0, 0.0, 0.0)
+            self.imu.put('accel_cov', -1.0, *(0.0,) * 8)
+        else:
+            self.imu.put('accel_cov', *covariance)
+        self._accel_covariance_shown = covariance
 
     def publish(self, output, truth=True):
         """
@@ -133,33 +166,48 @@ class OutputStage:
         Parameters
         ----------
         output : gyro_emulator.emulation.driver.records.Output
-            The driver's sample: stamps, the gyro channel (rate after any
-            fault, covariance, truth), die temperature, what to show.
+            The driver's sample: stamps, the gyro and accelerometer channels
+            (value, covariance, truth), the attitude, die temperature, what to show.
         truth : bool
             Publish ``~/truth/*``.
 
         """
-        gyro = output.gyro
+        gyro, accel = output.gyro, output.accel
         if gyro.covariance is not self._covariance_shown:
             self.set_covariance(gyro.covariance)
-        if output.passed_accel_m_s2 is not None or self._accel_shown:
-            self.set_accel(output.passed_accel_m_s2)
+        shown = accel.covariance if output.accel_shown else None
+        if shown is not self._accel_covariance_shown:
+            self.set_accel_covariance(shown)
         if output.published:
             imu = self.imu
             imu.set_stamp_ns('stamp', output.stamp_ns)
             imu.put('rate', *gyro.rate_rad_s)
+            if shown is not None:
+                imu.put('accel', *accel.accel_m_s2)
             self.imu_pub.publish(imu.payload())
         if truth:
-            for pub, msg, vec in zip(self.truth_pubs, self.truth_msgs,
-                                     (gyro.true_rate_rad_s, gyro.bias_rad_s,
-                                      gyro.scale_factor)):
-                msg.set_stamp_ns('stamp', output.sample_ns)
-                msg.put('value', *vec.tolist())
-                pub.publish(msg.payload())
+            self._publish_truth(output)
         if output.temperature_due:
             self.temp_msg.set_stamp_ns('stamp', output.sample_ns)
             self.temp_msg.put('value', output.die_temp_c)
             self.temp_pub.publish(self.temp_msg.payload())
+
+    def _publish_truth(self, output):
+        """Publish ``~/truth/{rate,bias,scale_factor,imu}`` of one sample, at its instant."""
+        gyro = output.gyro
+        for pub, msg, vec in zip(self.truth_pubs, self.truth_msgs,
+                                 (gyro.true_rate_rad_s, gyro.bias_rad_s, gyro.scale_factor)):
+            msg.set_stamp_ns('stamp', output.sample_ns)
+            msg.put('value', *vec.tolist())
+            pub.publish(msg.payload())
+        w, x, y, z = output.attitude_wxyz
+        msg = self.truth_imu
+        msg.set_stamp_ns('stamp', output.sample_ns)
+        for name, value in (('qw', w), ('qx', x), ('qy', y), ('qz', z)):
+            msg.put(name, value)
+        msg.put('rate', *gyro.true_rate_rad_s.tolist())
+        msg.put('force', *output.accel.true_specific_force_m_s2)
+        self.truth_imu_pub.publish(msg.payload())
 
     def publish_fault(self, report, name, hardware_id):
         """Publish a :class:`~gyro_emulator.emulation.driver.records.FaultReport` (a change)."""

@@ -25,13 +25,19 @@ import numpy as np
 SKIP_CHUNK = 10000
 
 
+def _accel_sigma(model):
+    """Return the accelerometer's white-noise sigma of an ImuModel, m/s^2 (None: a gyro)."""
+    sigma = getattr(model, 'accel_white_noise_sigma_m_s2', None)
+    return None if sigma is None else np.asarray(sigma, dtype=float)
+
+
 class BlockStepper:
     """
-    Serve ``GyroModel`` samples one per tick from blocks computed ahead.
+    Serve ``GyroModel`` (or ``ImuModel``) samples one per tick from blocks computed ahead.
 
     Parameters
     ----------
-    model : gyro_emulator.sensor.model.GyroModel
+    model : gyro_emulator.sensor.model.GyroModel or gyro_emulator.sensor.imu.ImuModel
         The model; it advances only through this object from now on.
     max_block : int
         Largest block, samples (1: call ``step`` every tick).
@@ -50,6 +56,7 @@ class BlockStepper:
         self._last_key = None
         self._held = 0
         self.sigma_rad_s = np.asarray(model.white_noise_sigma_rad_s, dtype=float)
+        self.accel_sigma_m_s2 = _accel_sigma(model)
         self.sigma_version = 0
         self._since_sigma = 0
 
@@ -166,5 +173,6 @@ class BlockStepper:
 
     def _refresh_sigma(self):
         self.sigma_rad_s = np.asarray(self.model.white_noise_sigma_rad_s, dtype=float)
+        self.accel_sigma_m_s2 = _accel_sigma(self.model)
         self.sigma_version += 1
         self._since_sigma = 0

@@ -25,9 +25,15 @@ decides, on integer-nanosecond times:
   terms' record time (:mod:`.record_clock`) follow the jump, or the record
   time is re-anchored when it cannot (a jump of 1e9 s); each jump is
   counted and said once on ``/diagnostics``;
+* the attitude and the specific force each sample senses
+  (:mod:`.attitude`): the true rate integrated from
+  ``initial_attitude_rpy_rad``, gravity turned into the sensor frame plus
+  the applied ``cmd/linear_acceleration`` (behind a simulator, its
+  acceleration as it is); the model is the 6-axis
+  :class:`~gyro_emulator.sensor.imu.ImuModel` (gyro and accelerometer);
 * a sample the model gives with a NaN or an infinity anywhere in what
-  would be published is withheld: counted, logged (throttled) and an ERROR
-  on ``/diagnostics``;
+  would be published (the acceleration and the attitude included) is
+  withheld: counted, logged (throttled) and an ERROR on ``/diagnostics``;
 * the start-up bias calibration (``startup_bias_calibration``,
   :mod:`.bias_calibration`);
 * the injected fault (:mod:`.fault_state`) and its changes;
@@ -43,6 +49,7 @@ import math
 import time
 
 from gyro_emulator.emulation.driver import parameters
+from gyro_emulator.emulation.driver.attitude import AttitudeState, initial_attitude
 from gyro_emulator.emulation.driver.bias_calibration import (rest_spread_rad_s,
                                                              StartupBiasCalibration)
 from gyro_emulator.emulation.driver.block_stepper import BlockStepper
@@ -53,20 +60,21 @@ from gyro_emulator.emulation.driver.fault_state import FaultState
 from gyro_emulator.emulation.driver.imu_timeline import (InputTimeline, SpacingRefused,
                                                          StampNotNewer)
 from gyro_emulator.emulation.driver.record_clock import RecordClock
-from gyro_emulator.emulation.driver.records import (Applied, FaultReport, GyroChannel, Inputs,
-                                                    Output, ParameterChange)
+from gyro_emulator.emulation.driver.records import (AccelChannel, Applied, FaultReport,
+                                                    GyroChannel, Inputs, Output,
+                                                    ParameterChange)
 from gyro_emulator.emulation.driver.sample_clock import SampleClock
 from gyro_emulator.sensor import faults
-from gyro_emulator.sensor import model as sensor_model
+from gyro_emulator.sensor.imu import ImuModel
 from gyro_emulator.units import NS_PER_S
 import numpy as np
 
 ZERO3 = (0.0, 0.0, 0.0)
 
 
-def _covariance(sigma_rad_s):
-    """Return diag(sigma^2) as 9 numbers, row-major, rad^2/s^2."""
-    sigma = np.asarray(sigma_rad_s, dtype=float)
+def _covariance(sigma):
+    """Return diag(sigma^2) as 9 numbers, row-major (sigma in rad/s or m/s^2)."""
+    sigma = np.asarray(sigma, dtype=float)
     cov = np.zeros(9)
     cov[[0, 4, 8]] = sigma * sigma
     return tuple(cov.tolist())
@@ -82,7 +90,7 @@ class _NoCommands:
 
 class Driver:
     """
-    The emulated gyro between its inputs and its published samples.
+    The emulated IMU (gyro and accelerometer) between its inputs and its samples.
 
     Parameters
     ----------
@@ -139,7 +147,7 @@ class Driver:
         self._sensor_values = dict(sensor_values)
         self._config = parameters.apply_sensor_params(base_config, self._sensor_values)
         rng = np.random.default_rng(self.seed)
-        model = sensor_model.GyroModel(self._effective_config(), values['rate_hz'], rng)
+        model = ImuModel(self._effective_config(), values['rate_hz'], rng)
         self._fault = FaultState(self._config.range_rad_s,
                                  faults.fault_generator(rng.bit_generator.seed_seq))
         self._stepper = BlockStepper(model, values['block_samples'])
@@ -160,6 +168,9 @@ class Driver:
         self._stale = False
         self._sigma_version = None
         self._covariance = None
+        self._accel_covariance = None
+        self._attitude = AttitudeState(initial_attitude(values['initial_attitude_rpy_rad']),
+                                       values['gravity_m_s2'])
         self._refresh_covariance()
         self._count = 0
         self._set_temperature_decimation(values['rate_hz'])
@@ -177,8 +188,13 @@ class Driver:
 
     @property
     def model(self):
-        """Return the GyroModel; it advances only through the driver."""
+        """Return the ImuModel (gyro and accelerometer); it advances only through the driver."""
         return self._stepper.model
+
+    @property
+    def attitude_wxyz(self):
+        """Return the true attitude (w, x, y, z) at the last sample, sensor to ENU world."""
+        return self._attitude.attitude_wxyz
 
     @property
     def sample_period_s(self):
@@ -237,9 +253,8 @@ class Driver:
             config = parameters.apply_sensor_params(self._base_config, sensor_values)
             # Build the model's plan once to catch rate-dependent limits
             # (e.g. an output filter at or above Nyquist).
-            sensor_model.GyroModel(self._effective_config(config, values['noise_enabled']),
-                                   self._stepper.model.sample_rate_hz,
-                                   np.random.default_rng(0))
+            ImuModel(self._effective_config(config, values['noise_enabled']),
+                     self._stepper.model.sample_rate_hz, np.random.default_rng(0))
         limits = self._limits(values, config)
         if values['temperature_override_enabled']:
             low, high = limits.temp_range_c
@@ -351,6 +366,7 @@ class Driver:
     def _refresh_covariance(self):
         self._sigma_version = self._stepper.sigma_version
         self._covariance = _covariance(self._stepper.sigma_rad_s)
+        self._accel_covariance = _covariance(self._stepper.accel_sigma_m_s2)
 
     def _set_temperature_decimation(self, sample_rate_hz):
         self._temp_every = max(1, int(round(sample_rate_hz
@@ -366,6 +382,7 @@ class Driver:
         self._fault.shift(shift_ns)
         self._stepper.sync()
         self._stepper.model.restart_filters()
+        self._attitude.restart()
         line = f'{why}: command stamps forgotten, filters restarted'
         if shift_ns:
             line += f' ({-shift_ns / NS_PER_S:.9g} s back, to {next_ns / NS_PER_S:.9g} s)'
@@ -412,23 +429,25 @@ class Driver:
             held = self._inputs(first_ns)
             try:
                 self._stepper.skip(due.skipped, held.rate_rad_s, held.ambient_temp_c,
-                                   held.accel_m_s2)
+                                   self._attitude.specific_force(held.accel_m_s2))
             except ValueError as exc:
                 self.book.model_error(str(exc))
-        shown = self.streams.accel.accepted
         outputs = []
         for sample_ns in due.times_ns:
-            inputs = self._inputs(sample_ns)
-            out = self._sample(inputs, sample_ns, inputs.accel_m_s2 if shown else None)
+            out = self._sample(self._inputs(sample_ns), sample_ns)
             if out is not None:
                 outputs.append(out)
         return outputs
 
-    def _sample(self, inputs, sample_ns, shown_accel):
+    def _sample(self, inputs, sample_ns):
         """Step the model once; return its :class:`Output` (None: refused or withheld)."""
         self._ambient_c = inputs.ambient_temp_c
+        attitude = self._attitude.advance(sample_ns, inputs.rate_rad_s)
+        # Behind a simulator its acceleration is the specific force; else gravity turns in.
+        force = inputs.accel_m_s2 if self.imu_mode else \
+            self._attitude.specific_force(inputs.accel_m_s2)
         try:
-            s = self._stepper.step(inputs.rate_rad_s, inputs.ambient_temp_c, inputs.accel_m_s2)
+            s = self._stepper.step(inputs.rate_rad_s, inputs.ambient_temp_c, force)
         except ValueError as exc:
             self.book.model_error(str(exc))
             if self._throttle('model_error') is not None:
@@ -436,8 +455,9 @@ class Driver:
             return None
         # One sum: a NaN or an infinity anywhere in what would go out makes it non-finite.
         if not math.isfinite(sum(s.gyro_rad_s.tolist()) + s.die_temp_c + s.output_delay_s
-                             + sum(s.bias_rad_s.tolist()) + sum(s.scale_factor.tolist())):
-            self._withhold(s)
+                             + sum(s.bias_rad_s.tolist()) + sum(s.scale_factor.tolist())
+                             + sum(s.accel_m_s2.tolist()) + sum(force) + sum(attitude)):
+            self._withhold(s, attitude)
             return None
         self._last_sample = s
         if self._stepper.sigma_version != self._sigma_version:
@@ -457,23 +477,24 @@ class Driver:
                                           self._stepper.model.dt_s)
         self._count += 1
         saturated = s.saturated if pinned is None else s.saturated | pinned
-        show = self.values['pass_through_linear_acceleration'] or self.imu_mode
         out = Output(
             sample_ns, stamp_ns, published, float(s.die_temp_c),
             published and self._count % self._temp_every == 0,
-            shown_accel if show else None,
             GyroChannel(rate, self._covariance, s.true_rate_rad_s, s.bias_rad_s,
                         s.scale_factor, saturated),
+            AccelChannel(tuple(s.accel_m_s2.tolist()), self._accel_covariance, force),
+            self.values['publish_linear_acceleration'], attitude,
             self._fault_report(sample_ns) if self._fault.changed else None)
         self.book.sample(saturated)
         return out
 
-    def _withhold(self, s):
+    def _withhold(self, s, attitude):
         """Count, log (throttled) and report a sample with a NaN or an infinity."""
         text = (f'the model gave a non-finite sample (rate {tuple(s.gyro_rad_s.tolist())}, '
                 f'die temperature {s.die_temp_c!r} C, bias {tuple(s.bias_rad_s.tolist())}, '
                 f'scale factor {tuple(s.scale_factor.tolist())}, output delay '
-                f'{s.output_delay_s!r} s): not published')
+                f'{s.output_delay_s!r} s, acceleration {tuple(s.accel_m_s2.tolist())} m/s^2, '
+                f'attitude {attitude}): not published')
         self.book.non_finite(text)
         held = self._throttle('nonfinite')
         if held is not None:
@@ -536,7 +557,7 @@ class Driver:
                     self._stepper.step(held[0], temp, held[1])
             except ValueError as exc:
                 self.book.model_error(str(exc))
-        out = self._sample(Inputs(rate, temp, accel), stamp_ns, accel)
+        out = self._sample(Inputs(rate, temp, accel), stamp_ns)
         return [] if out is None else [out]
 
     def _replan(self, rate_hz):

@@ -32,6 +32,7 @@ import math
 from gyro_emulator.emulation.driver.commands import InputLimits, TEMPERATURE_POLICIES
 from gyro_emulator.emulation.driver.imu_timeline import MAX_RATE_HZ
 from gyro_emulator.emulation.driver.sample_clock import OVERRUN_POLICIES
+from gyro_emulator.physics.kinematics import MAX_GRAVITY_M_S2
 from gyro_emulator.recording import topics
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import faults
@@ -43,12 +44,18 @@ TERMS_PREFIX = 'sensor.terms.'
 #: Error terms that ``noise_enabled = false`` switches off.
 NOISE_TERMS = ('mechanical_noise', 'electronics_noise', 'bias_instability',
                'rate_random_walk', 'timestamp_jitter')
+#: Accelerometer terms (sensor.accel.AccelTerms) that ``noise_enabled = false`` switches off.
+ACCEL_NOISE_TERMS = ('mechanical_noise', 'electronics_noise', 'bias_instability', 'random_walk')
 #: Values of ``rate_source``: the rate inputs of the topic table.
 RATE_SOURCES = tuple(topics.RATE_INPUTS)
 STALE_RATE_POLICIES = ('zero', 'hold')
 #: Values of ``input_source``: timed commands, or one output per simulator Imu.
 INPUT_SOURCES = ('command', 'imu')
 INT64_MAX = 2 ** 63 - 1
+#: Values of ``qos_reliability``.
+QOS_RELIABILITIES = ('best_effort', 'reliable')
+#: Largest |angle| of ``initial_attitude_rpy_rad``, rad (one turn).
+MAX_ANGLE_RAD = 2.0 * math.pi
 #: ``seed`` value meaning "derive the seed from the node's fully qualified name".
 SEED_FROM_NAME = -1
 #: The runtime fault parameters, in the order of :class:`gyro_emulator.sensor.faults.Fault`.
@@ -76,6 +83,8 @@ class ParamSpec:
         Inclusive range for numbers.
     choices : tuple of str
         Allowed values of a string parameter (empty: any).
+    low_open : bool
+        ``low`` itself is refused: the range is (low, high].
 
     """
 
@@ -86,6 +95,7 @@ class ParamSpec:
     low: float = None
     high: float = None
     choices: tuple = ()
+    low_open: bool = False
 
 
 NODE_PARAMS = (
@@ -134,14 +144,25 @@ NODE_PARAMS = (
               'as the ambient temperature and ignore cmd/temperature'),
     ParamSpec('temperature_override_c', 'double', 'Ambient temperature while the '
               'override is enabled, deg C', False, *MODEL_TEMP_RANGE_C),
-    ParamSpec('default_linear_acceleration_m_s2', 'double_array', 'Specific force before '
-              'the first cmd/linear_acceleration (g-sensitivity), m/s^2, sensor frame; '
-              'default: level and at rest, +1 g on z (REP 103), as simulate assumes', True,
+    ParamSpec('default_linear_acceleration_m_s2', 'double_array', 'Applied linear '
+              'acceleration before the first cmd/linear_acceleration, m/s^2, body frame '
+              '(gravity is added from the attitude: a level part at rest reads +g on z)', True,
               -1e6, 1e6),
-    ParamSpec('pass_through_linear_acceleration', 'bool', 'Copy cmd/linear_acceleration '
-              'into imu/data_raw (else its covariance[0] = -1: absent)'),
-    ParamSpec('publish_truth', 'bool', 'Publish ~/truth/rate, ~/truth/bias and '
-              '~/truth/scale_factor each sample'),
+    ParamSpec('gravity_m_s2', 'double', 'Magnitude of gravity, m/s^2: the specific force is '
+              'the applied acceleration minus gravity rotated into the sensor frame', True,
+              0.0, MAX_GRAVITY_M_S2, low_open=True),
+    ParamSpec('initial_attitude_rpy_rad', 'double_array', 'Attitude at the first sample: '
+              'roll, pitch, yaw (REP 103 fixed axes x, y, z) of the sensor frame in the ENU '
+              'world, rad; [0, 0, 0] = level, gravity +g on z', True, -MAX_ANGLE_RAD,
+              MAX_ANGLE_RAD),
+    ParamSpec('publish_linear_acceleration', 'bool', "Publish the accelerometer (the model's "
+              'noisy linear_acceleration with its covariance) in imu/data_raw; false: absent '
+              '(covariance[0] = -1), for gyro-only setups'),
+    ParamSpec('qos_reliability', 'string', 'Reliability of imu/data_raw, imu/temperature and '
+              '~/truth/*: best_effort (sensor data, the default) or reliable', True,
+              choices=QOS_RELIABILITIES),
+    ParamSpec('publish_truth', 'bool', 'Publish ~/truth/rate, ~/truth/bias, '
+              '~/truth/scale_factor and ~/truth/imu (attitude) each sample'),
     ParamSpec('temperature_rate_hz', 'double', 'Rate of imu/temperature, Hz (at most '
               'rate_hz; the default is lowered to rate_hz when rate_hz is below it)', True,
               0.1, 5000.0),
@@ -260,10 +281,10 @@ def check_value(spec, value):
         value = int(value)
     else:
         value = float(value)
-    if not math.isfinite(value) or (spec.low is not None and value < spec.low) or (
-            spec.high is not None and value > spec.high):
+    below = spec.low is not None and (value <= spec.low if spec.low_open else value < spec.low)
+    if not math.isfinite(value) or below or (spec.high is not None and value > spec.high):
         raise ValueError(f'{spec.name} = {value!r} is out of range: allowed '
-                         f'[{spec.low:g}, {spec.high:g}]')
+                         f'{"(" if spec.low_open else "["}{spec.low:g}, {spec.high:g}]')
     return value
 
 
@@ -383,9 +404,11 @@ def apply_sensor_params(base, values):
 
 
 def without_noise(config):
-    """Return ``config`` with every :data:`NOISE_TERMS` switch off."""
+    """Return ``config`` with every :data:`NOISE_TERMS` switch off, and the accelerometer's."""
     present = [t for t in NOISE_TERMS if t in sensor_config.ErrorTerms.names()]
-    return config.with_terms(**dict.fromkeys(present, False))
+    accel = config.accelerometer
+    quiet = replace(accel, terms=replace(accel.terms, **dict.fromkeys(ACCEL_NOISE_TERMS, False)))
+    return replace(config.with_terms(**dict.fromkeys(present, False)), accelerometer=quiet)
 
 
 def fault_from(values):

@@ -32,7 +32,8 @@ class Inputs:
     ambient_temp_c : float
         Ambient temperature, deg C (already inside the model's range).
     accel_m_s2 : tuple of float
-        Specific force (x, y, z), m/s^2, sensor frame.
+        Applied linear acceleration (x, y, z), m/s^2, body frame (behind a
+        simulator: its specific force).
 
     """
 
@@ -69,6 +70,29 @@ class GyroChannel:
     bias_rad_s: object
     scale_factor: object
     saturated: object
+
+
+@dataclass(slots=True)
+class AccelChannel:
+    """
+    The accelerometer's part of one output sample.
+
+    Attributes
+    ----------
+    accel_m_s2 : tuple of float
+        The linear acceleration to publish (the model's output), m/s^2.
+    covariance : tuple of float
+        ``linear_acceleration_covariance``: diag(sigma^2) of the model's white
+        noise at this rate, 9 numbers row-major, m^2/s^4. The same tuple
+        object until the noise changes.
+    true_specific_force_m_s2 : tuple of float
+        The specific force the part sensed, m/s^2.
+
+    """
+
+    accel_m_s2: tuple
+    covariance: tuple
+    true_specific_force_m_s2: tuple
 
 
 @dataclass(frozen=True)
@@ -116,12 +140,14 @@ class Output:
         Die temperature, deg C.
     temperature_due : bool
         This sample carries the die temperature (``temperature_rate_hz``).
-    passed_accel_m_s2 : tuple of float or None
-        The specific force to copy into the message as it came in (no sensor
-        model: ``pass_through_linear_acceleration``, or behind a simulator),
-        m/s^2; None: absent.
     gyro : GyroChannel
         The rate channel.
+    accel : AccelChannel
+        The accelerometer channel (its truth is published either way).
+    accel_shown : bool
+        Publish the accelerometer (``publish_linear_acceleration``; else absent).
+    attitude_wxyz : tuple of float
+        The true attitude (w, x, y, z), sensor frame to ENU world (REP 103).
     fault : FaultReport or None
         The fault state, when it changed at this sample.
 
@@ -132,8 +158,10 @@ class Output:
     published: bool
     die_temp_c: float
     temperature_due: bool
-    passed_accel_m_s2: tuple
     gyro: GyroChannel
+    accel: AccelChannel
+    accel_shown: bool
+    attitude_wxyz: tuple
     fault: FaultReport = None
 
 
