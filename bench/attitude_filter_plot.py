@@ -64,10 +64,11 @@ def main(argv=None):
             axes[i, 1].plot(t, ref.errors_deg(estimate, truth)[:, i], lw=0.8, label=name)
         bound = tilt if i < 2 else 2 * heading
         for sign in (1, -1):
-            axes[i, 1].axhline(sign * bound, color='grey', ls='--', lw=0.8)
+            axes[i, 1].axhline(sign * bound, color='grey', ls='--', lw=0.8,
+                               label=None if sign < 0 else (
+                                   'sigma_a / g' if i < 2 else 'predicted 2 sigma'))
         plotting.label(axes[i, 0], 'time (s)' if i == 2 else '', f'{angle} (deg)')
-        plotting.label(axes[i, 1], 'time (s)' if i == 2 else '',
-                       f'{angle} error (deg); -- {"sigma_a / g" if i < 2 else "2 sigma drift"}')
+        plotting.label(axes[i, 1], 'time (s)' if i == 2 else '', f'{angle} error (deg)')
     for name, estimate in estimates.items():
         error = ref.errors_deg(estimate, truth)
         rms = np.sqrt(np.mean(error[:, :2] ** 2, axis=0))

@@ -12,8 +12,9 @@ namespaces ``/bare`` and ``/node``:
 * ``bare``: a minimal rclpy node whose timer builds and publishes one
   sensor_msgs/Imu per period (``rclpy.spin``, the executor the node uses);
 * ``node``: ``python -m gyro_emulator.ros.node`` at the same rate with the
-  ``paper`` preset and every output on (``imu/data_raw``, the three
-  ``~/truth`` topics, ``imu/temperature``, ``/diagnostics``).
+  ``paper`` preset and every output on (``imu/data_raw`` with the
+  accelerometer, the four ``~/truth`` topics, ``imu/temperature``,
+  ``/diagnostics``); ``--gyro-only`` marks the acceleration absent.
 
 Windows cycle through three phases (``--repeats`` times, pooled per phase):
 
@@ -155,7 +156,7 @@ class Stream:
         self.payloads.clear()
 
 
-def run(env, rate_hz, seconds, repeats, sensor_config, flood_hz):
+def run(env, rate_hz, seconds, repeats, sensor_config, flood_hz, gyro_only=False):
     """
     Start bare and node side by side and measure alternating windows.
 
@@ -176,7 +177,8 @@ def run(env, rate_hz, seconds, repeats, sensor_config, flood_hz):
                  '--rate-hz', str(rate_hz), '--ros-args', '-r', '__ns:=/bare'],
         'node': [sys.executable, '-m', 'gyro_emulator.ros.node', '--ros-args',
                  '-r', '__ns:=/node', '-p', f'rate_hz:={rate_hz}',
-                 '-p', f'sensor_config:={sensor_config}', '-p', 'command_timeout_s:=0.0']}
+                 '-p', f'sensor_config:={sensor_config}', '-p', 'command_timeout_s:=0.0',
+                 '-p', f'publish_linear_acceleration:={"false" if gyro_only else "true"}']}
     procs = {name: subprocess.Popen(cmd, env=env, cwd=ROOT, stdout=subprocess.DEVNULL,
                                     stderr=subprocess.DEVNULL)
              for name, cmd in commands.items()}
@@ -339,6 +341,9 @@ def main(argv=None):
     parser.add_argument('--sensor-config', default='paper')
     parser.add_argument('--flood-hz', type=float, default=10000.0,
                         help='command rate of the flood phase (default: %(default)s)')
+    parser.add_argument('--gyro-only', action='store_true',
+                        help='the node with publish_linear_acceleration false (the '
+                        'accelerometer still runs: its output is marked absent)')
     parser.add_argument('--bare-publisher', action='store_true', help=argparse.SUPPRESS)
     parser.add_argument('--flood-publisher', action='store_true', help=argparse.SUPPRESS)
     argv = sys.argv[1:] if argv is None else argv
@@ -361,7 +366,7 @@ def main(argv=None):
           f'side by side at {rate:g} Hz; {opts.repeats} x {len(PHASES)} windows of '
           f'{opts.seconds:g} s ({", ".join(PHASES)}), pooled per phase', flush=True)
     results, load = run(env, rate, opts.seconds, opts.repeats, opts.sensor_config,
-                        opts.flood_hz)
+                        opts.flood_hz, opts.gyro_only)
     head = (f'{"phase":<7} {"subject":<5} {"rate rx":>8} {"rate st":>8} '
             f'{"rx jitter p50/p99/max ms":>25} {"stamp jitter p50/p99/max":>25} '
             f'{"CPU %":>6} {"xbare":>6} {"latency p50/p99/max ms":>23}')

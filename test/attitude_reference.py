@@ -39,8 +39,9 @@ import numpy as np
 
 #: Output data rate of the scenario, Hz.
 RATE_HZ = 100.0
-#: (duration s, body rate deg/s (x, y, z)): rest, roll 20 deg, pitch 15 deg, a
-#: 90 deg turn about the body z while tilted, back, and level again.
+#: (duration s, body rate deg/s (x, y, z)): rest, 20 deg about x, 15 deg about y,
+#: a 90 deg turn about the tilted body z, -15 deg about y and -20 deg about x
+#: (the turned body axes: the part ends tilted, roll 35 deg), a -90 deg turn, rest.
 SEGMENTS = ((5.0, (0.0, 0.0, 0.0)), (2.0, (10.0, 0.0, 0.0)), (2.0, (0.0, 0.0, 0.0)),
             (2.0, (0.0, 7.5, 0.0)), (2.0, (0.0, 0.0, 0.0)), (6.0, (0.0, 0.0, 15.0)),
             (2.0, (0.0, 0.0, 0.0)), (2.0, (0.0, -7.5, 0.0)), (2.0, (-10.0, 0.0, 0.0)),

@@ -173,3 +173,17 @@ def test_a_clock_jump_back_keeps_the_attitude_and_restarts_its_time_line():
     back = driver.tick(T0_NS - 10 * PERIOD_NS)   # the clock jumped back
     assert back and back[0].attitude_wxyz == q   # no step across the jump
     assert all(math.isfinite(v) for o in back for v in o.attitude_wxyz)
+
+
+def test_the_one_sample_forms_are_the_batch_forms_bit_for_bit():
+    rng = np.random.default_rng(5)
+    q = kinematics.from_roll_pitch_yaw(*rng.uniform(-3, 3, 3))
+    for _ in range(20):
+        rate, dt = tuple(rng.normal(0, 2, 3)), float(rng.uniform(0, 0.01))
+        accel = tuple(rng.normal(0, 5, 3))
+        _, want = kinematics.propagate(q, [rate], dt)
+        got = kinematics.step(q, rate, dt)
+        assert np.allclose(got, want, rtol=0, atol=1e-15)   # propagate renormalises q first
+        assert kinematics.specific_force_one(tuple(got), accel, 3.7) == \
+            tuple(kinematics.specific_force(got, accel, 3.7).tolist())
+        q = got

@@ -129,6 +129,34 @@ def specific_force(attitude_wxyz, linear_accel_m_s2=None, gravity_m_s2=STANDARD_
     return force + 0.0       # -0.0 -> +0.0: a level part reads exactly (0, 0, g)
 
 
+def specific_force_one(attitude_wxyz, linear_accel_m_s2, gravity_m_s2):
+    """
+    Return :func:`specific_force` of one sample as a tuple, on Python floats (the hot path).
+
+    The same expressions in the same order as :func:`gravity_up_in_body` and
+    :func:`specific_force`, so the same bits; ``gravity_m_s2`` must be
+    checked already (:func:`check_gravity`).
+    """
+    w, x, y, z = attitude_wxyz
+    ax, ay, az = linear_accel_m_s2
+    g = gravity_m_s2
+    return (ax + g * (2.0 * (x * z - w * y)) + 0.0, ay + g * (2.0 * (y * z + w * x)) + 0.0,
+            az + g * (1.0 - 2.0 * (x * x + y * y)) + 0.0)
+
+
+def step(attitude_wxyz, rate_rad_s, dt_s):
+    """
+    Return the attitude (4,) after one step of ``rate_rad_s`` held for ``dt_s`` (the hot path).
+
+    :func:`propagate` on a record of one, on the same compiled loop, without
+    its input checks: ``attitude_wxyz`` a unit float array (4,), the rate
+    three finite numbers, ``dt_s`` finite and >= 0 (the caller checked).
+    """
+    out = np.empty((1, 4))
+    return _propagate(attitude_wxyz, np.array((rate_rad_s,), dtype=float),
+                      np.array((dt_s,), dtype=float), out)
+
+
 @numba.njit(cache=True, error_model='numpy')
 def _propagate(q, rate, dt, out):
     """

@@ -168,7 +168,13 @@ class NormalStreams:
         """Return an independent copy that continues every stream identically."""
         twin = NormalStreams.__new__(NormalStreams)
         twin.generators = [_clone(g) for g in self.generators]
-        twin.buffer = self.buffer.copy()
+        # Only the unread normals are ever read again (a refill moves them to the
+        # front first): copying them alone keeps a copy cheap (the node's block
+        # stepper copies the model every block).
+        twin.buffer = np.empty_like(self.buffer)
+        for k in range(STREAM_COUNT):
+            start, stop = int(self.pos[k]), int(self.end[k])
+            twin.buffer[k, start:stop] = self.buffer[k, start:stop]
         twin.pos = self.pos.copy()
         twin.end = self.end.copy()
         twin._headroom_streams, twin._headroom = None, 0

@@ -5,7 +5,8 @@ The part's attitude and the specific force it senses, sample by sample (no ROS i
 world (REP 103), from the node's ``initial_attitude_rpy_rad``. At each
 sample it advances q by the previous sample's true rate held over the time
 between the two samples, with the exact zero-order-hold step and the
-renormalisation of :func:`gyro_emulator.physics.kinematics.propagate`
+renormalisation of :func:`gyro_emulator.physics.kinematics.propagate` (its
+one-step form :func:`~gyro_emulator.physics.kinematics.step`)
 (Savage, "Strapdown Analytics", Sec 7.1.2), and gives the specific force
 
     f = a_body - R(q)^T (0, 0, -g)        (:func:`kinematics.specific_force`)
@@ -84,7 +85,7 @@ class AttitudeState:
             self._moving = any(rate_rad_s)
             return self.attitude_wxyz
         self._moving = any(rate_rad_s)
-        _, q = kinematics.propagate(self._q, (last_rate,), (sample_ns - last_ns) / NS_PER_S)
+        q = kinematics.step(self._q, last_rate, (sample_ns - last_ns) / NS_PER_S)
         self._q = q
         self.attitude_wxyz = tuple(q.tolist())
         return self.attitude_wxyz
@@ -98,7 +99,10 @@ class AttitudeState:
         """
         key = (self.attitude_wxyz, linear_accel_m_s2)
         if key != self._force_key:
-            force = kinematics.specific_force(self._q, linear_accel_m_s2, self.gravity_m_s2)
-            self._force = tuple(force.tolist())
+            force = kinematics.specific_force_one(self.attitude_wxyz, linear_accel_m_s2,
+                                                  self.gravity_m_s2)
+            # the same tuple object while the force holds: the block stepper's key
+            if force != self._force:
+                self._force = force
             self._force_key = key
         return self._force
