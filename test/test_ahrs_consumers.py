@@ -55,6 +55,8 @@ def test_the_heading_bound_is_calibrated_and_the_tilt_bound_holds_over_seeds():
             finals[name].append(error[-1, 2])
     for name, values in finals.items():
         values = np.array(values)
+        print(f'{name}: heading drift sd / predicted sigma {values.std() / heading:.3f}, '
+              f'{np.sum(np.abs(values) > 2 * heading)} of 30 beyond 2 sigma')
         # 30 draws: the sample sd is within 3 of its own sd (1/sqrt(58) = 0.13) of sigma ...
         assert 0.61 <= values.std() / heading <= 1.39, name
         # ... and beyond 2 sigma at most 5 of 30 (binomial, p = 0.046: P(>= 6) = 0.5 %).
