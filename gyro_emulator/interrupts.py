@@ -106,6 +106,22 @@ class TerminateOnSignal:
         if self.received is not None:
             raise self.received
 
+    def close(self):
+        """
+        End the work: the signals stay blocked until the process exits.
+
+        A signal that came before is raised here (its handler runs at once,
+        in this thread); one that comes later waits, blocked, and ends with
+        the process, whose outputs are then complete. Without this, a
+        signal during the interpreter's exit either killed the process
+        (the default handler back) or ran this handler while Python was
+        finalizing (a crash, not one line).
+        """
+        if self.signals:
+            signal.pthread_sigmask(signal.SIG_BLOCK, self.signals)
+        if self.received is not None and not self._deferring:
+            raise self.received
+
     def restore(self):
         """Give the signals back to their previous handlers."""
         for sig, handler in self._previous.items():

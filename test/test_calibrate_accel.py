@@ -181,7 +181,9 @@ def test_a_log_in_g_is_refused_naming_accel_scale_which_takes_it(tmp_path, capsy
     assert code == 0
     assert 'the logged accelerometer was multiplied by 9.80665 first (--accel-scale)' in got.err
     scaled = yaml.safe_load(out.read_text())
-    code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out)], capsys)
+    code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out),
+                    '--overwrite'], capsys)
+    assert code == 0
     direct = yaml.safe_load(out.read_text())
     for key in ('accelerometer_noise_density', 'accelerometer_random_walk'):
         assert scaled[key] == pytest.approx(direct[key], rel=1e-3)
@@ -195,7 +197,9 @@ def test_magnitude_far_from_g_is_noted_and_the_user_figures_override(tmp_path, c
     assert code == 0 and 'from g = 9.80665: is the log static' in got.err
     assert 'from g = 9.80665: is the log static' in out.read_text()
     code, got = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out),
-                      '--accel-noise-density', '2e-3', '--accel-random-walk', '3e-3'], capsys)
+                      '--accel-noise-density', '2e-3', '--accel-random-walk', '3e-3',
+                      '--overwrite'], capsys)
+    assert code == 0
     text = out.read_text()
     doc = yaml.safe_load(text)
     assert doc['accelerometer_noise_density'] == 2e-3
@@ -212,12 +216,13 @@ def test_rostopic_and_vins_from_the_log(tmp_path, capsys):
     code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out)], capsys)
     assert yaml.safe_load(out.read_text())['rostopic'] == '/imu0'
     code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'openvins', '-o', str(out),
-                    '--rostopic', '/mpu/imu'], capsys)
+                    '--rostopic', '/mpu/imu', '--overwrite'], capsys)
     assert code == 0 and 'rostopic: /mpu/imu' in out.read_text()
     code, got = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out),
-                      '--rostopic', 'two words'], capsys)
+                      '--rostopic', 'two words', '--overwrite'], capsys)
     assert code == 2 and "--rostopic 'two words' is not a topic name" in got.err
-    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'vins', '-o', str(out)], capsys)
+    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'vins', '-o', str(out),
+                      '--overwrite'], capsys)
     assert code == 0                               # no longer refused: the log has them
     doc = yaml.safe_load(out.read_text())
     n_a = float(got.out.split('exported accelerometer: N_a ')[1].split()[0])
@@ -237,8 +242,8 @@ def test_an_accelerometer_reading_zero_throughout_is_taken_as_absent(walk_record
                      capsys)
     assert code == 0 and 'reads exactly 0 throughout' in got.err
     assert 'accelerometer_noise_density:' not in out.read_text().replace('# ', '#')
-    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'vins', '-o', str(out)],
-                     capsys)
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'vins', '-o', str(out),
+                      '--overwrite'], capsys)
     assert code == 2 and '--format vins needs --accel-noise-density' in got.err
 
 
