@@ -34,6 +34,15 @@ def test_the_shipped_spec_gives_three_parts_drawn_within_their_tolerances():
     assert array.load_spec()[0].parameters == instances[0].parameters
 
 
+def test_each_part_publishes_in_its_own_frame(tmp_path):
+    frames = [i.parameters['frame_id'] for i in array.load_spec()]
+    assert frames == ['gyro_a_imu_link', 'gyro_b_imu_link', 'gyro_c_imu_link']
+    instances = array.load_spec(write(tmp_path, {
+        'parameters': {'frame_id': 'imu'},
+        'instances': [{'name': 'left'}, {'name': 'right', 'parameters': {'frame_id': 'r'}}]}))
+    assert [i.parameters['frame_id'] for i in instances] == ['left_imu', 'r']
+
+
 def test_tolerance_draws_over_many_parts_have_the_stated_sigma(tmp_path):
     names = [f'g{k}' for k in range(300)]
     instances = array.load_spec(write(tmp_path, {
