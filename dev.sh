@@ -33,6 +33,23 @@ pick_python() {
     return 1
 }
 
+warm_cache() {
+    # Compile the sensor kernel into numba's cache now, so the first node start
+    # (gyro-emulator-node from the venv; ./dev.sh main and the tests from the
+    # source tree) only loads it. The cache is keyed to each copy's path, hence
+    # both copies, side by side; a failure only means the first start compiles.
+    echo "dev.sh: compiling the sensor kernel into numba's cache (once per install)" >&2
+    local dir pid pids=()
+    for dir in "$VENV" "$ROOT"; do
+        ( cd "$dir" && "$VENV/bin/python" -m gyro_emulator.sensor.warm_cache >/dev/null ) &
+        pids+=($!)
+    done
+    for pid in "${pids[@]}"; do
+        wait "$pid" || echo "dev.sh: warning: the sensor kernel was not cached;" \
+            "the first start compiles it" >&2
+    done
+}
+
 setup() {
     # Serialise concurrent callers (parallel shells share one .venv).
     mkdir -p "$VENV"
@@ -63,6 +80,7 @@ setup() {
         "$VENV/bin/python" -m pip install -q --disable-pip-version-check --no-deps \
             --no-build-isolation --force-reinstall .
         rm -rf build gyro_emulator.egg-info
+        warm_cache
         echo "$want" > "$pkg_stamp"
     fi
     flock -u 9

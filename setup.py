@@ -11,13 +11,24 @@ write them (``install_scripts`` for ``colcon build``, ``develop`` for
 ``colcon build --symlink-install``) drop the ``gyro-emulator-`` prefix when
 they write into ``lib/gyro_emulator``. Wheels (pip) contain no entry-point
 scripts: pip writes them into ``bin`` under their entry names.
+
+``setup.py install`` (what ``colcon build`` runs) ends by compiling the
+sensor kernel into numba's cache beside the installed modules
+(``python -m gyro_emulator.sensor.warm_cache``), so the first ``ros2 run
+gyro_emulator node`` of a fresh install loads it instead of compiling; a
+failure there only warns (the first start compiles then).
+``GYRO_EMULATOR_NO_WARM=1`` skips it. A wheel build (pip) is not an
+install: ``./dev.sh setup`` warms its venv after pip.
 """
 
 from glob import glob
 import os
+import subprocess
+import sys
 
 from setuptools import find_packages, setup
 from setuptools.command.develop import develop
+from setuptools.command.install import install
 from setuptools.command.install_scripts import install_scripts
 
 package_name = 'gyro_emulator'
@@ -61,6 +72,25 @@ class Develop(develop):
                              blockers)
 
 
+class Install(install):
+    """``setup.py install`` (colcon build): then warm the kernel cache of the installed copy."""
+
+    def run(self):
+        """Install, then compile the sensor kernel into the install's numba cache."""
+        super().run()
+        if self.root is not None or os.environ.get('GYRO_EMULATOR_NO_WARM'):
+            return          # a wheel's staging folder (pip), or asked not to
+        env = dict(os.environ)
+        env['PYTHONPATH'] = self.install_lib + (os.pathsep + env['PYTHONPATH']
+                                                if env.get('PYTHONPATH') else '')
+        # cwd: the install, so that ``-m`` imports the installed copy, not the source.
+        done = subprocess.run([sys.executable, '-m', 'gyro_emulator.sensor.warm_cache'],
+                              cwd=self.install_lib, env=env, check=False)
+        if done.returncode:
+            print('gyro_emulator: warning: the sensor kernel was not cached; the first '
+                  'start compiles it', file=sys.stderr)
+
+
 setup(
     name=package_name,
     version='0.1.0',
@@ -82,7 +112,7 @@ setup(
     description='A virtual MEMS vibratory gyroscope for ROS 2, built from physics.',
     license='Apache-2.0',
     tests_require=['pytest'],
-    cmdclass={'install_scripts': InstallScripts, 'develop': Develop},
+    cmdclass={'install': Install, 'install_scripts': InstallScripts, 'develop': Develop},
     entry_points={
         'console_scripts': [
             'gyro-emulator = gyro_emulator.cli.executables:run_cli',

@@ -29,6 +29,13 @@ the library's zstd level is its default (not settable), ours is 1.
 
 Every row gives messages per wall second and per CPU second of this process
 (``time.process_time``), from the fastest of ``--repeat`` runs.
+
+``--tiny-chunks N`` compares instead the same messages (an Imu topic and a
+truth topic whose stamps run 100 ms ahead, as a node's latency puts them) in
+normal chunks and in N tiny ones (one message of each topic a chunk, chunks
+overlapping in time): ``bag info`` (open, info, verify) and the read
+``allan`` does (``read_arrays``), best of ``--repeat``, and their ratio
+(target: tiny within 5x of normal).
 """
 
 import argparse
@@ -36,6 +43,7 @@ from dataclasses import dataclass
 from functools import lru_cache
 import os
 import shutil
+import subprocess
 import sys
 import tempfile
 import time
@@ -251,13 +259,86 @@ def bench_reads(inputs, work, repeat):
     print_row('rosbags Reader messages (raw)', raw)
 
 
+def write_pairs(path, count, chunk_size, offset_ns=100_000_000):
+    """Write ``count`` Imu messages and as many truth messages ``offset_ns`` earlier."""
+    vector = 'geometry_msgs/msg/Vector3Stamped'
+    stamps = 1_700_000_000_000_000_000 + np.arange(count, dtype=np.int64) * 5_000_000
+    rng = np.random.default_rng(1)
+    imu = cdr.encode(IMU, stamps + offset_ns,
+                     1e-3 * rng.standard_normal((count, len(cdr.LAYOUTS[IMU].fields))), FRAME_ID)
+    truth = cdr.encode(vector, stamps,
+                       1e-3 * rng.standard_normal((count, len(cdr.LAYOUTS[vector].fields))),
+                       FRAME_ID)
+    with bag.BagWriter(path, chunk_size=chunk_size) as writer:
+        writer.add_topic(TOPIC, IMU)
+        writer.add_topic('/gyro_emulator/truth/rate', vector)
+        for k in range(count):
+            writer.write('/gyro_emulator/truth/rate', truth[k], int(stamps[k]))
+            writer.write(TOPIC, imu[k], int(stamps[k] + offset_ns))
+
+
+def bench_tiny_chunks(chunks, repeat):
+    """Time bag info and the allan read on normal and on tiny chunks; print the ratios."""
+    work = tempfile.mkdtemp(prefix='bench_bag_tiny_')
+    try:
+        paths = {'normal': os.path.join(work, 'normal'), 'tiny': os.path.join(work, 'tiny')}
+        write_pairs(paths['normal'], chunks, bag.DEFAULT_CHUNK_SIZE)
+        write_pairs(paths['tiny'], chunks, 300)
+        times = {}
+        for kind, path in paths.items():
+            def info():
+                reader = bag.BagReader(path, tolerant=True)
+                reader.info_text()
+                reader.verify()
+
+            def read():
+                bag.BagReader(path, tolerant=True).read_arrays(TOPIC)
+            for label, func in (('bag info', info), ('allan read', read),
+                                ('gyro-emulator bag info', _command('bag', 'info', path)),
+                                ('gyro-emulator allan', _command('allan', path, '--topic',
+                                                                 TOPIC))):
+                times[kind, label] = min(_timed(func) for _ in range(repeat))
+        from mcap.reader import make_reader
+        with open(os.path.join(paths['tiny'], 'tiny_0.mcap'), 'rb') as handle:
+            count = len(make_reader(handle).get_summary().chunk_indexes)
+        print(f'{chunks} Imu + {chunks} truth messages; tiny: {count} chunks overlapping in '
+              f'time; best of {repeat} (the commands: whole processes, as a user runs them)')
+        for label in ('bag info', 'allan read', 'gyro-emulator bag info', 'gyro-emulator allan'):
+            normal, tiny = times['normal', label], times['tiny', label]
+            print(f'  {label:24s}  normal {normal:6.2f} s   tiny {tiny:6.2f} s   '
+                  f'{tiny / normal:4.1f}x (target <= 5x)')
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def _command(*args):
+    """Return a function that runs ``gyro-emulator ARGS`` in a child process."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+    def run():
+        subprocess.run([sys.executable, '-m', 'gyro_emulator.cli', *args], check=True,
+                       stdout=subprocess.DEVNULL, env=dict(os.environ, PYTHONPATH=root))
+    return run
+
+
+def _timed(func):
+    started = time.perf_counter()
+    func()
+    return time.perf_counter() - started
+
+
 def main(argv=None):
     """Run the benchmark and print the tables."""
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--messages', type=int, default=200_000)
     parser.add_argument('--repeat', type=int, default=2)
+    parser.add_argument('--tiny-chunks', type=int, default=None, metavar='N',
+                        help='compare N tiny chunks with normal ones instead (e.g. 100000)')
     args = parser.parse_args(argv)
+    if args.tiny_chunks:
+        bench_tiny_chunks(args.tiny_chunks, args.repeat)
+        return 0
     inputs = make_inputs(args.messages)
     typestore()
     print(f'{inputs.count} sensor_msgs/Imu messages ({len(inputs.payloads[0])} bytes each), '

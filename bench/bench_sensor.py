@@ -30,6 +30,12 @@ least 0.7 of the RNG floor measured in the same run; with the 8 extended
 terms of :mod:`gyro_emulator.sensor.extensions` on, within 15 % of that
 (issue 24).
 
+The 6-axis batch (:class:`gyro_emulator.sensor.imu.ImuModel.run`: the gyro
+and the consumer preset's accelerometer, 12 of its terms on) is printed
+beside its own RNG floor: the 19 standard normals per sample it draws (the
+gyro's 10 and the accelerometer's white, flicker and random walk x 3);
+target (issue 32) >= 0.7 of that floor.
+
 Usage: ``.venv/bin/python bench/bench_sensor.py [--samples N] [--json PATH]``
 """
 
@@ -50,6 +56,7 @@ from gyro_emulator import units  # noqa: E402
 from gyro_emulator.physics import dynamics, first_order  # noqa: E402
 from gyro_emulator.sensor import extensions as ext, noise, streams  # noqa: E402
 from gyro_emulator.sensor.config import load_sensor_config  # noqa: E402
+from gyro_emulator.sensor.imu import ImuModel  # noqa: E402
 from gyro_emulator.sensor.model import GyroModel, TemperatureTable  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import signal  # noqa: E402
@@ -219,6 +226,10 @@ def main():
         rate[:50_000], temp[:50_000], accel[:50_000])
     t_extended = best_of(3, lambda: GyroModel(extended, FS, np.random.default_rng(1)).run(
         rate, temp, accel))
+    ImuModel(config, FS, np.random.default_rng(0)).run(rate[:50_000], temp[:50_000],
+                                                       accel[:50_000])
+    t_imu = best_of(3, lambda: ImuModel(config, FS, np.random.default_rng(1)).run(
+        rate, temp, accel))
 
     n = args.step_samples
     model = GyroModel(config, FS, np.random.default_rng(1))
@@ -244,11 +255,15 @@ def main():
     t_rng = best_of(3, lambda: [g.standard_normal(out=buffer) for g in generators])
     t_compiled = best_of(3, lambda: [streams.fill_standard_normal(g, buffer)
                                      for g in generators])
+    imu_draws = draws + 3 * 3              # + the accelerometer's white, flicker and walk
+    imu_generators = streams.spawn_generators(np.random.default_rng(1), imu_draws)
+    t_imu_rng = best_of(3, lambda: [g.standard_normal(out=buffer) for g in imu_generators])
     with tempfile.TemporaryDirectory() as cache:
         cold = startup_s(cache)
         warm = min(startup_s(cache) for _ in range(2))
     rows = (('batch GyroModel.run', args.samples, t_batch),
             ('batch, + 8 extended terms', args.samples, t_extended),
+            ('6-axis batch ImuModel.run', args.samples, t_imu),
             ('streaming GyroModel.step', n, t_step),
             ('naive per-sample Python loop', n_naive, t_naive))
     load = os.getloadavg()[0] if hasattr(os, 'getloadavg') else float('nan')
@@ -279,6 +294,12 @@ def main():
           f'per CPU-second, {ext_cpu / floor_cpu:.2f} of the RNG floor, '
           f'{100 * (1 - ext_cpu / batch_cpu):.1f} % below the batch without them (target: '
           f'within 15 %: {"met" if ext_cpu >= 0.85 * batch_cpu else "NOT met"})')
+    imu_cpu = args.samples / t_imu[1]
+    imu_floor = args.samples / t_imu_rng[1]
+    print(f'6-axis batch (gyro + accelerometer, ImuModel.run): {imu_cpu:,.0f} samples per '
+          f'CPU-second; its RNG floor ({imu_draws} normals per sample): {imu_floor:,.0f}; '
+          f'6-axis batch / its RNG floor {imu_cpu / imu_floor:.2f} (target 0.70: '
+          f'{"met" if imu_cpu >= 0.7 * imu_floor else "NOT met"})')
     print(f'start-up of a fresh process (wall): import {cold[0]:.2f} s + model and first '
           f'sample {cold[1]:.2f} s with an empty numba cache (JIT compile); import '
           f'{warm[0]:.2f} s + {warm[1]:.2f} s cached')
@@ -291,6 +312,9 @@ def main():
         figures['batch_over_rng_floor'] = batch_cpu / floor_cpu
         figures['compiled_draw_samples_per_s'] = compiled_cpu
         figures['batch_extended_samples_per_s'] = ext_cpu
+        figures['imu_batch_samples_per_s'] = imu_cpu
+        figures['imu_rng_floor_samples_per_s'] = imu_floor
+        figures['imu_batch_over_rng_floor'] = imu_cpu / imu_floor
         figures['batch_over_compiled_draw'] = batch_cpu / compiled_cpu
         figures['startup_cold_s'] = list(cold)
         figures['startup_cached_s'] = list(warm)

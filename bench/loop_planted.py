@@ -10,9 +10,9 @@ claimed for the extension with its 95 % interval, and the RMSE of the
 emulator's own output (the second run's baseline). The suite runs four of
 these (``test/test_diagnose_export.py``); this prints all of them. An SF
 drift in time has no truth-generator mechanism: its record is made by the
-emulator itself (:func:`sf_drift_record`); there the one-sample delay of the
-emulator's output (a ``time_delay`` with no term to write) is also found,
-in both runs: the emulator's RMSE is then read after it.
+emulator itself (:func:`sf_drift_record`). Where the second run finds a
+cause the written file cannot carry (no emulator term), the emulator's RMSE
+is read after it.
 
 Usage: python bench/loop_planted.py [--rate-hz R] [--seed N]
 """

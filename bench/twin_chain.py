@@ -14,7 +14,9 @@ Runs the commands a user runs (each a ``gyro-emulator`` subprocess)::
 then prints the figures (held-out RMSE before and after with their 95 %
 intervals, the second run's verdict, the mean difference between the
 measured and the emulated output per 0.5 K temperature bin against the
-standard error of the bin means) and draws the measured and emulated
+standard error of the bin means, the Allan deviation of the measured and
+emulated outputs at the shortest taus, where the part's output filter
+shapes it) and draws the measured and emulated
 outputs against temperature and time side by side (samples as dots, the
 mean of each stretch between the log's gaps as markers). Default LOG: the
 LSM6DSM chamber log (x axis) of ``../shared/data/real``.
@@ -80,6 +82,19 @@ def binned_difference(temp_c, measured, emulated):
     return np.array(rows)
 
 
+def short_tau_adev(log, emulated, twin, axis, count=3):
+    """Return the shortest taus and the Allan deviation there: measured, emulated, twin."""
+    from gyro_emulator.analysis.calibrate.noise import calibrate_noise
+    from gyro_emulator.recording.record import load_record
+
+    out = []
+    for path, name in ((log, None), (emulated, axis), (twin, axis)):
+        record = load_record(path)
+        result = calibrate_noise(record, axes=None if name is None else [name]).axes[0].result
+        out.append(result.adev[:count])
+    return result.taus_s[:count], out
+
+
 def burst_means(t, *columns, gap_s=10.0):
     """Return the mean of each column over each stretch of samples between gaps > ``gap_s``."""
     edges = np.r_[0, np.flatnonzero(np.diff(t) > gap_s) + 1, len(t)]
@@ -113,6 +128,8 @@ def plot(t, temp, measured, emulated, twin, path, title):
 
 def main(argv=None):
     """Run the chain on a log, print the figures, draw the plots."""
+    from gyro_emulator.sensor.config import load_sensor_config
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     parser.add_argument('log', nargs='?', default=LOG)
     parser.add_argument('--axis', default='x', choices=('x', 'y', 'z'))
@@ -156,6 +173,16 @@ def main(argv=None):
     for label, values in (('measured', measured), ('emulated', emulated)):
         print(f'  {label}: sample-to-sample sigma (first differences / sqrt 2, across no gap) '
               f'{1e3 * np.std(np.diff(values)[step]) / np.sqrt(2):.4g} mrad/s')
+    taus, (m_adev, e_adev, t_adev) = short_tau_adev(args.log, p['emulated.csv'], p['twin.csv'],
+                                                    args.axis)
+    part = load_sensor_config(p['part.yaml'])
+    lowpass = (f'{part.output_filter_hz:.4g} Hz, order {part.output_filter_order}'
+               if part.terms.output_filter and part.output_filter_hz > 0.0 else 'none')
+    print(f'Allan deviation at the shortest taus (output filter of part.yaml: {lowpass}):')
+    for k, tau in enumerate(taus):
+        print(f'  tau {tau:.3g} s: measured {1e3 * m_adev[k]:.4g} mrad/s; emulated '
+              f'{1e3 * e_adev[k]:.4g} ({100 * (e_adev[k] / m_adev[k] - 1):+.1f} %); twin.yaml '
+              f'{1e3 * t_adev[k]:.4g} ({100 * (t_adev[k] / m_adev[k] - 1):+.1f} %)')
     os.makedirs(args.img_dir, exist_ok=True)
     path = os.path.join(args.img_dir, f'{args.name}.png')
     plot(t, temp, measured, emulated, twin, path,

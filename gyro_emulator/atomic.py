@@ -14,22 +14,69 @@ and the target is left as it was.
 :func:`write_text`, :func:`write_bytes` and :func:`write_json` the common
 cases. ``os.replace`` is called here and nowhere else in the package, apart
 from ``recording/repair.py``, which swaps the files of a bag in place.
+
+A process killed outright (SIGKILL, a power cut) cannot remove its
+temporary; :func:`remove_stale` removes those whose process is proven dead,
+and every command calls it on its output folders before it writes
+(:func:`gyro_emulator.outputs.check`).
 """
 
 from contextlib import contextmanager
+import errno
 import json
 import os
+import re
 import secrets
 import shutil
 
+#: A full disk, a file size limit (RLIMIT_FSIZE) or a quota: said with the output's name.
+_NO_ROOM = (errno.ENOSPC, errno.EFBIG, errno.EDQUOT)
 #: Suffix of every staged temporary (``.<name>.<pid>.<hex>.tmp``).
 TMP_SUFFIX = '.tmp'
+#: The name of a staged temporary: the target's name, the writer's pid, 8 hex digits.
+_TMP_NAME = re.compile(r'^\.(?P<name>.+)\.(?P<pid>[0-9]+)\.[0-9a-f]{8}'
+                       + re.escape(TMP_SUFFIX) + '$')
 
 
 def temporary_name(path):
     """Return a fresh temporary path beside ``path`` (hidden, same folder)."""
     folder, name = os.path.split(os.path.abspath(path))
     return os.path.join(folder, f'.{name}.{os.getpid()}.{secrets.token_hex(4)}{TMP_SUFFIX}')
+
+
+def _pid_alive(pid):
+    """Whether process ``pid`` may be alive (only a failed ``kill(pid, 0)`` proves it dead)."""
+    if pid <= 0:
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:         # EPERM: alive, another user's
+        return True
+    return True
+
+
+def remove_stale(folder):
+    """
+    Remove the staging temporaries in ``folder`` whose writer is proven dead; return them.
+
+    A temporary is ``.<name>.<pid>.<hex>.tmp`` (:func:`temporary_name`); it is
+    removed (a file or a directory tree) only when no process ``pid`` exists.
+    A live pid, even one reused by another program, keeps it: it cannot be
+    proven stale.
+    """
+    try:
+        entries = os.listdir(folder)
+    except OSError:
+        return []
+    removed = []
+    for entry in entries:
+        match = _TMP_NAME.match(entry)
+        if match and not _pid_alive(int(match.group('pid'))):
+            remove(os.path.join(folder, entry))
+            removed.append(entry)
+    return removed
 
 
 def _fsync_path(path):
@@ -94,6 +141,12 @@ def staged(path):
         _fsync_path(tmp)
         os.replace(tmp, path)
         _fsync_dir(os.path.dirname(os.path.abspath(path)))
+    except OSError as exc:
+        remove(tmp)
+        if exc.errno in _NO_ROOM:     # say which output, and that it is absent
+            raise OSError(exc.errno, f'{path} not written ({exc.strerror}); nothing of it '
+                          'was left') from None
+        raise
     except BaseException:
         remove(tmp)
         raise

@@ -47,3 +47,77 @@ class StartupInterrupt:
         """Restore the previous handler; exceptions pass."""
         signal.signal(signal.SIGINT, self._previous)
         return False
+
+
+class Terminated(KeyboardInterrupt):
+    """
+    SIGTERM or SIGHUP turned into an exception, so that the writes in flight are undone.
+
+    A subclass of ``KeyboardInterrupt``: every handler that undoes a
+    half-done step on a Ctrl-C (:func:`gyro_emulator.atomic.staged` removes
+    its temporary, a fleet keeps its finished tasks) does the same on a
+    SIGTERM or SIGHUP. :attr:`status` is the exit status the shell expects
+    (128 + the signal number: 143, 129).
+    """
+
+    def __init__(self, signum):
+        super().__init__(signum)
+        self.signum = signum
+        self.name = signal.Signals(signum).name
+        self.status = 128 + signum
+
+
+#: The signals :class:`TerminateOnSignal` turns into :class:`Terminated`.
+TERMINATING_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
+
+
+class TerminateOnSignal:
+    """
+    Context manager: inside it, SIGTERM and SIGHUP raise :class:`Terminated`.
+
+    The first such signal raises; any later one is ignored, so that the
+    clean-up the exception sets off is not cut short. On leaving, the
+    previous handlers are restored. :attr:`received` keeps the exception
+    raised: a library that swallows exceptions in its callbacks (llvmlite
+    loading numba's cache) can lose it, and the caller then still knows.
+
+    With ``defer`` the handlers only record the signal until :meth:`arm`
+    (a start-up phase: parsing the command line), which then raises it at
+    once; :meth:`restore` gives the signals back to their previous handlers
+    early (a program with its own handling).
+    """
+
+    def __init__(self, signals=TERMINATING_SIGNALS, defer=False):
+        self.signals = tuple(signals)
+        self._previous = {}
+        self._deferring = defer
+        self.received = None
+
+    def _on_signal(self, signum, frame):
+        if self.received is not None:
+            return
+        self.received = Terminated(signum)
+        if not self._deferring:
+            raise self.received
+
+    def arm(self):
+        """Raise from now on; a signal that came while deferring is raised here."""
+        self._deferring = False
+        if self.received is not None:
+            raise self.received
+
+    def restore(self):
+        """Give the signals back to their previous handlers."""
+        for sig, handler in self._previous.items():
+            signal.signal(sig, handler)
+        self._previous = {}
+
+    def __enter__(self):
+        """Install the handlers."""
+        self._previous = {sig: signal.signal(sig, self._on_signal) for sig in self.signals}
+        return self
+
+    def __exit__(self, kind, error, traceback):
+        """Restore the previous handlers; exceptions pass."""
+        self.restore()
+        return False

@@ -204,3 +204,54 @@ def ppm_to_ratio(value_ppm):
 def ratio_to_ppm(ratio):
     """Convert a plain ratio to parts per million."""
     return np.asarray(ratio, dtype=float) * 1e6
+
+
+def percent_to_ratio(value_pct):
+    """Convert a percentage to a plain ratio (1 % = 0.01)."""
+    return np.asarray(value_pct, dtype=float) * 0.01
+
+
+def ratio_to_percent(ratio):
+    """Convert a plain ratio to a percentage."""
+    return np.asarray(ratio, dtype=float) * 100.0
+
+
+# --- Datasheet units of accelerometer errors -------------------------------
+#
+# The same conventions as the gyro's (IEEE Std 952 terms carried over to
+# specific force): the velocity random walk N is the square root of the
+# TWO-SIDED power spectral density of the white acceleration noise, in
+# m/s^2/sqrt(Hz) (= m/s/sqrt(s)); datasheets give it as a noise density in
+# ug/sqrt(Hz) or as a VRW in m/s/sqrt(h) (1 m/s/sqrt(h) = 1/60 m/s^2/sqrt(Hz)).
+# The acceleration random walk K is in m/s^3/sqrt(Hz) (= m/s^2/sqrt(s)), the
+# bias instability B in m/s^2 (datasheets: mg or ug). 1 g is
+# STANDARD_GRAVITY_M_S2.
+
+def mg_to_m_s2(accel_mg):
+    """Convert an acceleration (or an acceleration per K) from milli-g to m/s^2."""
+    return np.asarray(accel_mg, dtype=float) * (STANDARD_GRAVITY_M_S2 * 1e-3)
+
+
+def m_s2_to_mg(accel_m_s2):
+    """Convert an acceleration (or an acceleration per K) from m/s^2 to milli-g."""
+    return np.asarray(accel_m_s2, dtype=float) / (STANDARD_GRAVITY_M_S2 * 1e-3)
+
+
+def ug_sqrt_hz_to_m_s2_sqrt_hz(density_ug_sqrt_hz):
+    """Convert an acceleration noise density from micro-g/sqrt(Hz) to m/s^2/sqrt(Hz)."""
+    return np.asarray(density_ug_sqrt_hz, dtype=float) * (STANDARD_GRAVITY_M_S2 * 1e-6)
+
+
+def m_s2_sqrt_hz_to_ug_sqrt_hz(density_m_s2_sqrt_hz):
+    """Convert an acceleration noise density from m/s^2/sqrt(Hz) to micro-g/sqrt(Hz)."""
+    return np.asarray(density_m_s2_sqrt_hz, dtype=float) / (STANDARD_GRAVITY_M_S2 * 1e-6)
+
+
+def vrw_m_s_sqrt_h_to_m_s2_sqrt_hz(vrw_m_s_sqrt_h):
+    """Convert a velocity random walk from m/s/sqrt(h) to m/s^2/sqrt(Hz) (divide by 60)."""
+    return np.asarray(vrw_m_s_sqrt_h, dtype=float) / 60.0
+
+
+def m_s2_sqrt_hz_to_vrw_m_s_sqrt_h(density_m_s2_sqrt_hz):
+    """Convert a (two-sided) acceleration noise density m/s^2/sqrt(Hz) to a VRW in m/s/sqrt(h)."""
+    return np.asarray(density_m_s2_sqrt_hz, dtype=float) * 60.0

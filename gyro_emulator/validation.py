@@ -16,6 +16,87 @@ MODEL_TEMP_RANGE_C = (-60.0, 200.0)
 #: full-scale range of any MEMS gyro (+-20,000 deg/s for the widest, the ADXRS649).
 #: A reading beyond it is a bad cell, not a rate.
 GYRO_LIMIT_RAD_S = 1000.0
+#: Largest |time| of a record, s (about 300 years; epoch seconds are 1.7e9): a
+#: record's ``time_s`` and every record time a configuration holds (the extended
+#: terms' ``start_time_s``, ``step_time_s``, ``time_origin_s``).
+RECORD_TIME_LIMIT_S = 1e10
+#: Longest quotation of a value in an error message, characters.
+QUOTE_CHARS = 200
+#: The physical limits of a measured record's values, one rule for every command
+#: (``diagnose``, ``simulate --profile``, ``replay``): kind -> (low, high, unit, why).
+RECORD_LIMITS = {
+    'rate': (-GYRO_LIMIT_RAD_S, GYRO_LIMIT_RAD_S, 'rad/s', 'the widest MEMS full scale'),
+    'temp': MODEL_TEMP_RANGE_C + ('C', 'the physics model range'),
+}
+
+
+def shorten(text, limit=QUOTE_CHARS):
+    """Return ``text``, cut to ``limit`` characters with its length said when longer."""
+    text = str(text)
+    if len(text) <= limit:
+        return text
+    return f'{text[:limit]}... ({len(text)} characters)'
+
+
+def _small(value, budget=2000):
+    """Whether ``value`` holds fewer than ``budget`` items at any depth (counted lazily)."""
+    stack, count = [value], 0
+    while stack:
+        item = stack.pop()
+        count += 1
+        if count > budget:
+            return False
+        if isinstance(item, dict):
+            stack.extend(item.keys())
+            stack.extend(item.values())
+        elif isinstance(item, (list, tuple, set, frozenset)):
+            stack.extend(item)
+        elif isinstance(item, np.ndarray) and item.size > budget:
+            return False
+    return True
+
+
+def quote(value, limit=QUOTE_CHARS):
+    """
+    Return ``repr(value)``, cut to about ``limit`` characters with its length said.
+
+    Every error message that shows a value the user gave uses it, so a
+    huge value (a nested list of millions of items) gives a short message;
+    the repr of a large value is built only as far as it is shown
+    (``reprlib``).
+    """
+    if _small(value):
+        return shorten(repr(value), limit)
+    import reprlib
+
+    short = reprlib.Repr()
+    short.maxlevel, short.maxlist, short.maxtuple, short.maxdict = 3, 10, 10, 8
+    short.maxstring = short.maxother = short.maxlong = limit
+    return short.repr(value)[:limit] + '... (a large value, shown in part)'
+
+
+def check_record_values(owner, name, values, kind):
+    """
+    Raise ValueError naming the first value beyond :data:`RECORD_LIMITS` ``[kind]`` and its row.
+
+    ``owner.name`` names the column or channel in the message; ``values`` is a
+    1-D array (sample i is data row i + 1) or (N, 3). Returns ``values``.
+    """
+    low, high, unit, why = RECORD_LIMITS[kind]
+    arr = np.asarray(values, dtype=float)
+    beyond = (arr < low) | (arr > high)
+    if beyond.ndim > 1:
+        beyond = beyond.any(axis=tuple(range(1, beyond.ndim)))
+    outside_rows = np.flatnonzero(beyond)
+    if len(outside_rows):
+        i = int(outside_rows[0])
+        row = arr[i]
+        value = float(row) if np.ndim(row) == 0 else float(row[(row < low) | (row > high)][0])
+        raise ValueError(
+            f'{owner}.{name} = {value!r} at sample {i} (data row {i + 1}) is beyond '
+            f'[{low:g}, {high:g}] {unit} ({why}; {len(outside_rows)} of {len(arr)} samples '
+            'beyond)')
+    return values
 
 
 def check_range(owner, name, value, low, high, unit='',
@@ -46,9 +127,9 @@ def check_range(owner, name, value, low, high, unit='',
     """
     try:
         arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(
-            f'{owner}.{name} = {value!r} is not a number') from None
+            f'{owner}.{name} = {quote(value)} is not a number') from None
     if _all_inside(arr, low, high, low_open, high_open):
         return float(arr) if arr.ndim == 0 else arr
     bad = outside(arr, low, high, low_open, high_open)
@@ -99,7 +180,7 @@ def check_choice(owner, name, value, choices):
     """Raise ValueError unless ``value`` is one of ``choices``."""
     if value not in choices:
         raise ValueError(
-            f'{owner}.{name} = {value!r} is not allowed: choose one of '
+            f'{owner}.{name} = {quote(value)} is not allowed: choose one of '
             f'{", ".join(repr(c) for c in choices)}')
     return value
 

@@ -370,7 +370,7 @@ def test_calibrate_cli(noise_log, thermal_log, tmp_path, capsys):
     assert yaml.safe_load(out.read_text())['gyroscope_noise_density'] > 0
     assert 'exported: N' in capsys.readouterr().out
     assert cli.main(['calibrate', 'noise', noise_log, '--format', 'kalibr', '-o', str(out),
-                     '--inflate', '0']) == 2
+                     '--inflate', '0', '--overwrite']) == 2
     err = capsys.readouterr().err
     assert 'inflate = 0.0 is out of range' in err and 'Traceback' not in err
     assert cli.main(['calibrate', 'noise', str(tmp_path / 'nope.csv'), '--format', 'vins',

@@ -18,14 +18,22 @@ parser where one installs from PyPI:
 * the SDF against the element tree and types of sdformat's sdf/1.9
   (same in 1.10 to 1.12) imu.sdf and noise.sdf;
 * PX4's QGroundControl parameter rows (Tools/process_sensor_caldata.py).
+
+The MPU-6050 log (gyro and accelerometer) is calibrated by real
+``gyro-emulator calibrate noise`` processes without any hand-given figure,
+and each file must load complete in its consumer's parser (issue 32).
 """
 
 from dataclasses import replace
+import os
+import subprocess
+import sys
 import xml.etree.ElementTree as ElementTree
 
 import cv2
 from gyro_emulator import cli, units
 from gyro_emulator.analysis.calibrate import export_noise, export_thermal, noise, thermal
+from gyro_emulator.analysis.calibrate.accel_figures import accel_figures
 from gyro_emulator.recording.record import load_record, Record
 from gyro_emulator.sensor.config import SensorConfig
 from gyro_emulator.sensor.model import GyroModel
@@ -36,6 +44,9 @@ import yaml
 
 RATE_HZ = 100.0
 ACCEL = export_noise.AccelFigures(2.0e-3, 3.0e-3)
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+MPU = os.path.join(ROOT, '..', 'shared', 'data', 'real', 'mpu6050_static',
+                   'mpu6050_static_100hz.csv')
 
 
 @pytest.fixture(scope='module')
@@ -541,7 +552,7 @@ def test_cli_px4_warns_without_the_gyro_id_and_vins_needs_the_accelerometer(
     err = capsys.readouterr().err.strip().splitlines()
     assert err[-1] == f'gyro-emulator calibrate: warning: {export_thermal.PX4_NO_ID}'
     assert cli.main(['calibrate', 'thermal', str(log), '--format', 'px4', '-o', str(out),
-                     '--px4-gyro-id', '2621474']) == 0
+                     '--px4-gyro-id', '2621474', '--overwrite']) == 0
     assert 'TC_G0_ID is not' not in capsys.readouterr().err
     assert '\tTC_G0_ID\t2621474\t6' in out.read_text()
     vins = tmp_path / 'vins.yaml'
@@ -550,3 +561,103 @@ def test_cli_px4_warns_without_the_gyro_id_and_vins_needs_the_accelerometer(
     assert cli.main(['calibrate', 'noise', str(log), '--format', 'vins', '-o', str(vins),
                      '--accel-noise-density', '0.002']) == 2
     assert 'give both' in capsys.readouterr().err
+
+
+# --- the MPU-6050 log, gyro and accelerometer, from the log alone -------------
+
+MPU_FORMATS = ('kalibr', 'openvins', 'vins', 'orbslam3', 'orbslam3-settings', 'gazebo')
+
+
+@pytest.fixture(scope='module')
+def mpu_files(tmp_path_factory):
+    """Each format of the MPU-6050 log, written by a ``calibrate noise`` process, no flags."""
+    if not os.path.isfile(MPU):
+        pytest.skip('shared real data not present')
+    folder = tmp_path_factory.mktemp('mpu')
+    env = dict(os.environ, MPLBACKEND='Agg',
+               PYTHONPATH=ROOT + os.pathsep + os.environ.get('PYTHONPATH', ''))
+    files = {}
+    for fmt in MPU_FORMATS:
+        out = folder / f'{fmt}.yaml'
+        done = subprocess.run([sys.executable, '-m', 'gyro_emulator.cli', 'calibrate', 'noise',
+                               MPU, '--format', fmt, '-o', str(out)], cwd=ROOT,
+                              capture_output=True, text=True, env=env)
+        assert done.returncode == 0, done.stderr
+        assert 'Traceback' not in done.stderr
+        # nothing left for the user to fill in but the camera (ORB-SLAM3's commented template)
+        assert not [line for line in out.read_text().splitlines()
+                    if 'FILL_IN' in line and not line.lstrip().startswith('#')], fmt
+        files[fmt] = out.read_text()
+    record = load_record(MPU)
+    files['gyro'] = noise.export_noise(noise.calibrate_noise(record))
+    files['accel'] = noise.export_noise(noise.calibrate_noise(record, sense=noise.ACCEL))
+    return files
+
+
+def test_mpu6050_kalibr_and_openvins_load_complete(mpu_files):
+    gyro, accel = mpu_files['gyro'], mpu_files['accel']
+    imu = KalibrImuParameters(mpu_files['kalibr'])
+    assert imu.getRosTopic() == '/imu0' and imu.getUpdateRate() == RATE_HZ
+    discrete, walk, density = imu.getAccelerometerStatistics()
+    assert density == pytest.approx(accel.arw_rad_s_sqrt_hz, rel=1e-5)
+    assert walk == pytest.approx(accel.rrw_rad_s_sqrt_s, rel=1e-5)
+    assert discrete == pytest.approx(accel.arw_rad_s_sqrt_hz * np.sqrt(RATE_HZ), rel=1e-5)
+    assert imu.getGyroStatistics()[2] == pytest.approx(gyro.arw_rad_s_sqrt_hz, rel=1e-5)
+    got = openvins_imu(mpu_files['openvins'])
+    assert got['rostopic'] == '/imu0'
+    assert got['accelerometer_noise_density'] == pytest.approx(accel.arw_rad_s_sqrt_hz,
+                                                               rel=1e-5)
+    assert got['accelerometer_random_walk'] == pytest.approx(accel.rrw_rad_s_sqrt_s, rel=1e-5)
+    assert got['gyroscope_random_walk'] == pytest.approx(gyro.rrw_rad_s_sqrt_s, rel=1e-5)
+    # the user's figures in place of the log's, said beside each key, load the same way
+    record = load_record(MPU)
+    given = accel_figures(noise.calibrate_noise(record, sense=noise.ACCEL), given=(2e-3, 3e-3))
+    text = export_noise.write_noise(noise.calibrate_noise(record), 'openvins', accel=given,
+                                    topic='/imu0')
+    assert "given by the user (--accel-random-walk), in place of the log's" in text
+    got = openvins_imu(text)
+    assert got['accelerometer_noise_density'] == 2e-3 and got['rostopic'] == '/imu0'
+    # a K_a the record does not resolve goes out as its upper bound, and the file says so
+    assert accel.rrw_is_bound
+    assert 'accelerometer_random_walk: 0.000391268   # m/s^3/sqrt(Hz), K_a (upper bound)' in \
+        mpu_files['kalibr']
+
+
+def test_mpu6050_orbslam3_and_vins_load_complete(mpu_files):
+    gyro, accel = mpu_files['gyro'], mpu_files['accel']
+    got = orbslam3_v1(_uncomment_camera(mpu_files['orbslam3-settings']))
+    assert got['IMU.NoiseAcc'] == pytest.approx(accel.arw_rad_s_sqrt_hz, rel=1e-5)
+    assert got['IMU.AccWalk'] == pytest.approx(accel.rrw_rad_s_sqrt_s, rel=1e-5)
+    assert got['IMU.NoiseGyro'] == pytest.approx(gyro.arw_rad_s_sqrt_hz, rel=1e-5)
+    block = '%YAML:1.0\nFile.version: "1.0"\n' + mpu_files['orbslam3'] + CAMERA
+    assert orbslam3_v1_imu(_storage(block))['IMU.AccWalk'] == pytest.approx(
+        accel.rrw_rad_s_sqrt_s, rel=1e-5)
+    legacy = '%YAML:1.0\n' + mpu_files['orbslam3'].replace(
+        'IMU.Frequency: 100.0', 'IMU.Frequency: 100')
+    assert orbslam3_legacy_imu(_storage(legacy))['IMU.NoiseAcc'] == pytest.approx(
+        accel.arw_rad_s_sqrt_hz, rel=1e-5)
+    config = '%YAML:1.0\nimu: 1\nimu_topic: "/imu0"\n' + mpu_files['vins'] + 'g_norm: 9.81\n'
+    fs = _storage(config)
+    for key in ('acc_n', 'acc_w', 'gyr_n', 'gyr_w'):
+        assert fs.getNode(key).isReal(), key
+    got = vins_fusion_imu(config)
+    sqrt_f = np.sqrt(RATE_HZ)
+    assert got['acc_n'] == pytest.approx(accel.arw_rad_s_sqrt_hz * sqrt_f, rel=1e-5)
+    assert got['acc_w'] == pytest.approx(accel.rrw_rad_s_sqrt_s * sqrt_f, rel=1e-5)
+    assert got['gyr_n'] == pytest.approx(gyro.arw_rad_s_sqrt_hz * sqrt_f, rel=1e-5)
+
+
+def test_mpu6050_gazebo_accelerometer_follows_sdformat(mpu_files):
+    text = mpu_files['gazebo']
+    root = ElementTree.fromstring(text[text.index('<imu>'):])
+    assert sdf_errors(root, SDF_IMU['imu']) == []
+    record = load_record(MPU)
+    cal = noise.calibrate_noise(record, sense=noise.ACCEL)
+    for item in cal.axes:
+        element = root.find(f'linear_acceleration/{item.axis}/noise')
+        assert element.get('type') == 'gaussian_quantized'
+        # per sample at the update rate, as the gyro's: N_a sqrt(f)
+        assert float(element.find('stddev').text) == pytest.approx(
+            item.fit.value('arw') * np.sqrt(RATE_HZ), rel=1e-5)
+        assert float(element.find('precision').text) == pytest.approx(cal.lsb, rel=1e-5)
+        assert float(element.find('dynamic_bias_stddev').text) > 0.0

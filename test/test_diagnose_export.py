@@ -158,7 +158,7 @@ def test_a_term_already_on_or_out_of_range_is_refused(tmp_path):
 def test_the_write_is_atomic_and_needs_overwrite(tmp_path, monkeypatch):
     path = tmp_path / 'part.yaml'
     export.write_text(str(path), 'a: 1\n')
-    with pytest.raises(ValueError, match='exists: give --overwrite'):
+    with pytest.raises(ValueError, match='exists: pass --overwrite'):
         export.write_text(str(path), 'a: 2\n')
 
     def fail(src, dst):
@@ -192,7 +192,7 @@ def test_cli_planted_hysteresis_round_trips_into_the_emulator(tmp_path):
     assert f'Source log: {csv}' in text and 'p = ' in text
     # an existing file needs --overwrite, checked before the diagnosis runs
     proc = _cli('diagnose', str(csv), '--write-config', str(part))
-    assert proc.returncode == 2 and 'exists: give --overwrite' in proc.stderr
+    assert proc.returncode == 2 and 'exists: pass --overwrite' in proc.stderr
     assert 'Traceback' not in proc.stderr and part.read_text() == text
     # the closed loop: against the written model the record shows no further cause,
     # and the baseline is where the first run's extension was

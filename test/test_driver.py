@@ -1,14 +1,18 @@
 """The node's driver without ROS (emulation.driver.core): inputs and times in, samples out."""
 
+import dataclasses
+
 from gyro_emulator.emulation.driver import parameters
+from gyro_emulator.emulation.driver.book import ERROR, OK, WARN
 from gyro_emulator.emulation.driver.commands import CommandInbox
 from gyro_emulator.emulation.driver.core import Driver
 from gyro_emulator.resources import config_file, read_yaml
-from gyro_emulator.sensor.config import load_sensor_config
+from gyro_emulator.sensor.config import ErrorTerms, load_sensor_config
 from gyro_emulator.sensor.model import GyroModel
 from gyro_emulator.units import NS_PER_S
 import numpy as np
 import pytest
+import yaml
 
 T0_NS = 1000 * NS_PER_S
 PERIOD_NS = 5_000_000           # 200 Hz
@@ -414,3 +418,206 @@ def test_a_fault_set_behind_a_simulator_starts_at_the_last_input_stamp():
 def test_the_command_inbox_names_its_streams():
     with pytest.raises(ValueError, match='rate, temperature, linear_acceleration'):
         CommandInbox().push('pressure', 0, 1.0)
+
+
+# --- any clock jump: re-anchored, counted, said once ---------------------------------
+
+def step_part(tmp_path, step_time_s=25.0):
+    """Return the path of a part whose only term is a 0.5 rad/s bias step on x at step_time_s."""
+    path = tmp_path / 'part.yaml'
+    path.write_text(yaml.safe_dump({
+        'terms': dict.fromkeys(ErrorTerms.names(), False),
+        'extended': {'bias_step': {'step_time_s': step_time_s, 'bias_step_rad_s': 0.5}}}))
+    return str(path)
+
+
+def at_s(driver, *times_s):
+    """Tick the driver at the given clock times (s); return the x rates."""
+    return [o.gyro.rate_rad_s[0] for t in times_s for o in driver.tick(int(round(t * NS_PER_S)))]
+
+
+@pytest.mark.parametrize('sensor', ['paper', 'step_part'])
+def test_clock_jumps_of_1e9_s_ahead_and_back_keep_the_node_publishing(tmp_path, sensor):
+    """A /clock from 10 s to epoch seconds (1.7e9 s) and +-1e9 s: no error, one sample each."""
+    sensor = step_part(tmp_path) if sensor == 'step_part' else sensor
+    driver, _, log = make(sensor)
+    times = [10.0, 10.005, 1.7e9, 1.7e9 + 0.005, 1.7e9 - 1e9, 0.7e9 + 1e9, 10.0, 10.005]
+    counts = [len(driver.tick(int(round(t * NS_PER_S)))) for t in times]
+    assert counts == [1] * len(times)
+    assert driver.book.clock_jumps == 4 and driver.book.model_errors == 0
+    text = log.text()
+    assert text.count('jumped') == 4 and 'the clock jumped ahead 1699999989.995 s' in text
+    assert ('record time re-anchored' in text) == (sensor != 'paper')   # extended terms only
+    assert 'clock jumped back: command stamps forgotten, filters restarted (1e+09 s back, ' \
+           'to 700000000 s)' in text
+    report = driver.report(1.0, driver.situation(0), check_rate=False)
+    assert report.level == WARN and report.message.count('jumped') == 4
+    assert dict(report.values)['clock_jumps'] == 4
+    again = driver.report(1.0, driver.situation(0), check_rate=False)
+    assert again.message == 'OK'                                       # said once
+
+
+def test_the_record_time_is_reanchored_when_the_clock_jumps_out_of_its_reach(tmp_path):
+    """The bias step at record time 25 s: off, then on 30 s after each re-anchoring."""
+    driver, _, log = make(step_part(tmp_path))
+    assert at_s(driver, 10.0, 40.0) == [0.0, 0.5]           # follows the clock: 30 s
+    assert at_s(driver, 1.7e9, 1.7e9 + 30.0) == [0.0, 0.5]  # out of reach: re-anchored
+    assert at_s(driver, 0.7e9, 0.7e9 + 20.0) == [0.0, 0.0]  # back before it: that instant
+    situation = driver.situation(0)
+    assert situation['record_time_reanchors'] == 1
+    assert 'record time re-anchored at this sample (the clock at 1.7e+09 s' in log.text()
+
+
+def test_a_jump_to_within_reach_of_record_start_clock_s_puts_the_record_time_on_it(tmp_path):
+    origin_s = 1.7e9 - 100.0
+    driver, _, log = make(step_part(tmp_path), record_start_clock_s=origin_s)
+    assert at_s(driver, 10.0) == [0.0]          # the origin out of reach: the first sample
+    assert 'record_start_clock_s = 1.7e+09 s is not used' in log.text()
+    assert at_s(driver, 1.7e9 - 90.0) == [0.0]  # record time 10 s: before the step
+    assert at_s(driver, 1.7e9 - 60.0) == [0.5]  # 40 s: after it
+    assert 'record time re-anchored at record_start_clock_s' in log.text()
+
+
+def test_behind_a_simulator_an_input_clock_jump_of_1e9_s_is_survived_and_counted():
+    driver, _, log = imu_driver()
+    stamps = [10 * NS_PER_S, 10 * NS_PER_S + PERIOD_NS, int(1.7e18), int(1.7e18) + PERIOD_NS,
+              int(0.7e18), int(0.7e18) + PERIOD_NS]
+    out = [o for t in stamps for o in driver.ideal_imu(t, (0.0,) * 3, LEVEL)]
+    assert [o.sample_ns for o in out] == stamps
+    assert driver.book.clock_jumps == 2 and driver.book.model_errors == 0
+    assert 'a gap of 1699999989.995 s' in log.text()
+
+
+# --- a non-finite sample is never published ------------------------------------------
+
+def test_a_non_finite_sample_is_withheld_counted_logged_throttled_and_an_error():
+    clock = [0.0]
+    values = node_values(sensor_config='paper')
+    log = Log()
+    driver = Driver(values, load_sensor_config('paper'), 7, log=log,
+                    monotonic=lambda: clock[0])
+    driver.start(T0_NS)
+    stepper = driver._stepper
+    real = stepper.step
+    bad = {3: ('gyro_rad_s', 0), 4: ('bias_rad_s', 2), 5: ('scale_factor', 1), 9: ('die', 0),
+           10: ('delay', 0)}
+    calls = [0]
+
+    def step(*args):
+        sample = real(*args)
+        k, calls[0] = calls[0], calls[0] + 1
+        if k not in bad:
+            return sample
+        field, axis = bad[k]
+        if field in ('die', 'delay'):
+            name = 'die_temp_c' if field == 'die' else 'output_delay_s'
+            return dataclasses.replace(sample, **{name: float('nan')})
+        value = np.array(getattr(sample, field), dtype=float)
+        value[axis] = np.inf if k % 2 else np.nan
+        return dataclasses.replace(sample, **{field: value})
+    stepper.step = step
+    out = ticks(driver, 0, 12)
+    assert [(o.sample_ns - T0_NS) // PERIOD_NS for o in out] == [0, 1, 2, 6, 7, 8, 11]
+    assert all(np.isfinite(o.gyro.rate_rad_s).all() and np.isfinite(o.die_temp_c) and
+               np.isfinite(o.gyro.bias_rad_s).all() for o in out)
+    assert driver.book.nonfinite == 5 and driver.book.samples == 7
+    assert np.isfinite(driver.situation(0)['die_temp_c'])   # the last one shown: a good one
+    errors = [text for level, text in log.lines if level == 'error']
+    assert len(errors) == 1 and 'the model gave a non-finite sample (rate (inf' in errors[0]
+    clock[0] = 2.0                                      # the throttle's second is over
+    bad[12] = ('gyro_rad_s', 1)
+    ticks(driver, 12, 1)
+    errors = [text for level, text in log.lines if level == 'error']
+    assert len(errors) == 2 and errors[1].endswith('(4 similar held back)')
+    report = driver.report(1.0, driver.situation(0), check_rate=False)
+    assert report.level == ERROR and '6 non-finite sample(s) withheld' in report.message
+    assert dict(report.values)['nonfinite_samples'] == 6
+    assert '6 non-finite withheld' in driver.summary()
+
+
+# --- the start-up bias calibration ---------------------------------------------------
+
+def pair(sensor='consumer', seed=7, calibration_s=1.0, **overrides):
+    """Return (calibrating driver, plain driver, log of the first): same part, same seed."""
+    cal, inbox, log = make(sensor, seed=seed, startup_bias_calibration=calibration_s,
+                           **overrides)
+    plain, plain_inbox, _ = make(sensor, seed=seed, **overrides)
+    return cal, plain, (inbox, plain_inbox), log
+
+
+def test_the_startup_calibration_removes_the_mean_of_its_window_and_keeps_the_truth():
+    """The consumer preset (turn-on bias sigma 6.67 deg/s), 20 seeds: the bias is gone."""
+    window = 200                                          # 1 s at 200 Hz
+    for seed in range(20):
+        cal, plain, _, log = pair(seed=seed)
+        got, raw = ticks(cal, 0, 3 * window), ticks(plain, 0, 3 * window)
+        assert rates(got[:window]) == rates(raw[:window])          # the window: uncorrected
+        estimate = np.mean(rates(raw[:window]), axis=0)
+        situation = cal.situation(0)
+        assert situation['bias_calibration'] == 'applied'
+        assert situation['bias_calibration.samples'] == window
+        np.testing.assert_allclose([situation[f'bias_calibration.{a}_rad_s'] for a in 'xyz'],
+                                   estimate, rtol=1e-12, atol=1e-15)
+        after = np.array(rates(got[window:]))
+        offset = np.array([situation[f'bias_calibration.{a}_rad_s'] for a in 'xyz'])
+        assert np.array_equal(after, np.array(rates(raw[window:])) - offset)
+        assert all(np.array_equal(a.gyro.bias_rad_s, b.gyro.bias_rad_s)
+                   for a, b in zip(got, raw))                     # the truth keeps it
+        # The turn-on bias (0.05-0.2 rad/s here) is gone: the corrected mean is within
+        # 1e-3 rad/s, about ten standard errors of a 200-sample mean (1e-4 rad/s).
+        assert np.abs(np.mean(rates(raw[window:]), axis=0)).max() > 0.01
+        assert np.abs(after.mean(axis=0)).max() < 1e-3
+    assert 'startup bias calibration over 1 s (200 samples): x ' in log.text()
+    report = cal.report(1.0, cal.situation(0), check_rate=False)
+    assert report.level == OK and 'startup bias calibration over 1 s' in report.message
+
+
+def test_a_commanded_rate_in_the_window_keeps_the_estimate_off_the_output():
+    cal, plain, (inbox, plain_inbox), log = pair(command_timeout_s=0.0)
+    for box in (inbox, plain_inbox):
+        box.push('rate', T0_NS + 100 * PERIOD_NS, (0.0, 0.0, 0.01))
+    assert rates(ticks(cal, 0, 400)) == rates(ticks(plain, 0, 400))
+    situation = cal.situation(0)
+    assert situation['bias_calibration'] == 'not applied'
+    assert situation['bias_calibration.moved'] == 'the commanded rate was not zero'
+    assert 'not applied: the commanded rate was not zero; estimate x ' in log.text()
+    report = cal.report(1.0, situation, check_rate=False)
+    assert report.level == WARN and 'startup bias calibration over 1 s' in report.message
+
+
+def test_motion_the_command_does_not_show_is_caught_by_the_spread():
+    """A 0.05 rad/s bias step on x half way through the window (an uncommanded turn)."""
+    fault = {'fault.type': 'bias_step', 'fault.axis': 'x', 'fault.magnitude': 0.05,
+             'fault.start_s': 0.5}
+    cal, plain, _, log = pair(**fault)
+    assert rates(ticks(cal, 0, 400)) == rates(ticks(plain, 0, 400))
+    moved = cal.situation(0)['bias_calibration.moved']
+    assert moved.startswith('the spread says motion on x (0.02') and ' y' not in moved
+
+
+@pytest.mark.parametrize('sensor', ['paper', 'consumer', 'tactical'])
+def test_the_spread_test_has_no_false_alarms_at_rest(sensor):
+    """60 parts per preset at rest, 0.5 s windows: every estimate applied (limit 3x rest)."""
+    flagged = []
+    for seed in range(60):
+        cal, _, _ = make(sensor, seed=seed, startup_bias_calibration=0.5)
+        ticks(cal, 0, 101)
+        situation = cal.situation(0)
+        if situation['bias_calibration'] != 'applied':
+            flagged.append((seed, situation['bias_calibration.moved']))
+    assert flagged == []
+
+
+def test_without_noise_the_window_is_exact_and_behind_a_simulator_it_counts_periods():
+    cal, _, _ = make('consumer', seed=3, startup_bias_calibration=0.25, noise_enabled=False,
+                     input_source='imu')
+    out = []
+    for k in range(80):
+        out += cal.ideal_imu(T0_NS + k * 4_000_000, (0.0,) * 3, LEVEL)   # 250 Hz
+    situation = cal.situation(0)
+    # 0.25 s of sample periods: the first at the nominal 200 Hz (5 ms), then 61 at
+    # 250 Hz (4 ms) from the stamps: 0.249 s, within half a period of 0.25 s.
+    assert situation['bias_calibration'] == 'applied'
+    assert situation['bias_calibration.samples'] == 62
+    assert len(set(rates(out[:62]))) == 1               # no noise: one value
+    assert set(rates(out[62:])) == {(0.0, 0.0, 0.0)}

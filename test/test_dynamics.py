@@ -285,6 +285,30 @@ def test_rate_channel_discrete_is_exact_zoh_with_unit_dc_gain(split, rate_hz):
     assert dc[0, 0] == pytest.approx(1.0, rel=1e-12)
 
 
+@pytest.mark.parametrize('split', [0.0, 100.0])
+@pytest.mark.parametrize('rate_hz', [100.0, 1000.0, 4000.0])
+def test_sampled_rate_channel_matches_the_time_domain_at_its_instants(split, rate_hz):
+    """A sample reflects the rate at its own instant: no one-sample delay (2-DOF reference)."""
+    disc = dynamics.rate_channel_discrete(PAPER_DEVICE, rate_hz, 25.0, split)
+    gain = float(dynamics.exact_steady_state(PAPER_DEVICE, RATE, 25.0,
+                                             split).sense_in_phase_m)
+    t_n = np.arange(0.0, 0.025, 1.0 / rate_hz)
+    # a rate step just after sample 0: the Eq 3-4 output at every later instant
+    res = dynamics.simulate_time_domain(PAPER_DEVICE, 0.03, lambda t: RATE * (t > 0.0),
+                                        25.0, split)
+    out, _ = dynamics.rate_channel_filter(disc, (t_n > 0.0).astype(float))
+    td = np.interp(t_n, res.time_s, res.in_phase_m / gain)
+    assert np.max(np.abs(out - td)[1:]) < 1e-3
+    # a 20 Hz rate: within the continuous model's own lag (2 pi f / sigma) of Eq 3-4
+    freq = 20.0
+    res = dynamics.simulate_time_domain(
+        PAPER_DEVICE, 0.03, lambda t: RATE * np.sin(2 * np.pi * freq * t), 25.0, split)
+    out, _ = dynamics.rate_channel_filter(disc, np.sin(2 * np.pi * freq * t_n))
+    td = np.interp(t_n, res.time_s, res.in_phase_m / gain)
+    sigma = dynamics.rate_channel_poles(PAPER_DEVICE, 25.0, split).sigma_1_s
+    assert np.max(np.abs(out - td)[t_n > 0.005]) < 2 * np.pi * freq / sigma
+
+
 def test_rate_channel_filter_matches_per_sample_steps():
     disc = dynamics.rate_channel_discrete(PAPER_DEVICE, 2000.0, 25.0, 80.0)
     rng = np.random.default_rng(3)

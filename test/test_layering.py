@@ -19,6 +19,7 @@ LAYERS = {
     'gyro_emulator.plotting': 0,
     'gyro_emulator.interrupts': 0,
     'gyro_emulator.yaml_text': 0,
+    'gyro_emulator.outputs': 0,
     # physics core: device parameters, Eq 5-22, 2-DOF dynamics, the paper
     'gyro_emulator.physics': 1,
     # the error model and the GyroModel API

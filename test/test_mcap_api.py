@@ -25,7 +25,7 @@ CHECKED = {'mcap': '1.6.0', 'mcap-ros2-support': '0.6.0'}
 
 #: Every symbol the package imports from mcap (grep 'from mcap' gyro_emulator/).
 SYMBOLS = [('mcap.data_stream', 'RecordBuilder'), ('mcap.data_stream', 'ReadDataStream'),
-           ('mcap.opcode', 'Opcode'), ('mcap.stream_reader', 'breakup_chunk'),
+           ('mcap.opcode', 'Opcode'), ('mcap.summary', 'Summary'),
            ('mcap.reader', 'make_reader'), ('mcap_ros2.decoder', 'DecoderFactory'),
            ('mcap.exceptions', 'McapError')] + [
     ('mcap.records', name) for name in (
@@ -145,6 +145,48 @@ def test_a_chunk_round_trips_through_builder_stream_and_breakup():
     assert isinstance(message, Message)
     assert (message.channel_id, message.sequence, message.log_time, message.publish_time,
             message.data) == (3, 7, 10, 11, payload)
+    # the scanner's own struct unpacking gives the library's records
+    from gyro_emulator.recording.scan import _chunk, chunk_records
+    assert _chunk(record[9:]) == chunk
+    assert chunk_records(chunk) == breakup_chunk(chunk, validate_crc=True)
+
+
+def test_the_summary_read_by_hand_is_the_library_summary(tmp_path):
+    """read_summary (chunk indexes unpacked with struct) gives get_summary and iter_metadata."""
+    from gyro_emulator.recording import bag, cdr
+    from gyro_emulator.recording.reader import read_summary
+    from mcap.reader import make_reader
+    from mcap.writer import Writer
+    import numpy as np
+    imu = 'sensor_msgs/msg/Imu'
+    ours = tmp_path / 'ours'
+    stamps = 1_700_000_000_000_000_000 + np.arange(500, dtype=np.int64) * 5_000_000
+    values = np.zeros((500, len(cdr.LAYOUTS[imu].fields)))
+    with bag.BagWriter(str(ours), chunk_size=2000, custom_data={'seed': '3'}) as writer:
+        writer.add_topic('/imu/data_raw', imu)
+        writer.write_batches([('/imu/data_raw', cdr.encode(imu, stamps, values, 'imu'),
+                               stamps)])
+    library = tmp_path / 'library.mcap'
+    with open(library, 'wb') as handle:
+        writer = Writer(handle, chunk_size=500)
+        writer.start('ros2', 'test')
+        channel = writer.register_channel('/t', 'cdr', writer.register_schema(
+            's', 'ros2msg', b'float64 x'))
+        for i in range(300):
+            writer.add_message(channel, log_time=i, data=bytes(12), publish_time=i)
+        writer.add_metadata('m', {'k': 'v'})
+        writer.finish()
+    for path in (ours / 'ours_0.mcap', library):
+        with open(path, 'rb') as handle:
+            summary, metadata = read_summary(handle)
+            handle.seek(0)
+            reader = make_reader(handle)
+            expected = reader.get_summary()
+            assert len(summary.chunk_indexes) > 1
+            for name in ('chunk_indexes', 'channels', 'schemas', 'statistics',
+                         'metadata_indexes'):
+                assert getattr(summary, name) == getattr(expected, name), name
+            assert metadata == list(reader.iter_metadata()) and metadata
 
 
 def test_the_library_errors_derive_from_mcap_error():

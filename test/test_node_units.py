@@ -9,6 +9,7 @@ import types
 from gyro_emulator.emulation import profiles, scenario
 from gyro_emulator.emulation.driver import commands, parameters
 from gyro_emulator.emulation.driver.block_stepper import BlockStepper
+from gyro_emulator.emulation.run_profile import samples_with_force
 from gyro_emulator.ros import params
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
@@ -220,7 +221,8 @@ def test_node_and_simulate_share_one_gravity_default_and_a_driver_like_temperatu
     assert defaults['default_linear_acceleration_m_s2'] == list(profiles.LEVEL_ACCEL_M_S2)
     assert profiles.LEVEL_ACCEL_M_S2 == (0.0, 0.0, 9.80665)
     for name in profiles.PROFILE_NAMES:
-        accel = profiles.make_profile(name, 10.0).samples(np.array([0.0, 5.0])).accel_m_s2
+        accel = samples_with_force(profiles.make_profile(name, 10.0),
+                                   np.array([0.0, 5.0])).accel_m_s2
         assert np.array_equal(accel, np.tile(profiles.LEVEL_ACCEL_M_S2, (2, 1))), name
     assert 1.0 <= defaults['temperature_rate_hz'] <= 10.0
     assert defaults['seed'] == parameters.SEED_FROM_NAME and defaults['fault.type'] == 'none'
@@ -398,15 +400,21 @@ def test_a_stopped_scenario_says_where_it_stopped():
     start = 7 * 10 ** 9
     note = scenario.interruption_note(profile, start, start + 2_500_000_000)
     assert note == ('interrupted at 2.5 s of 6 s, in step 2 of 3: steps 2-3 were not '
-                    'finished (NaN where no sample was taken)')
+                    'finished (no samples where none was taken)')
     assert 'in step 3 of 3: step 3 was not finished' in scenario.interruption_note(
         profile, start, start + 5_500_000_000)
     assert scenario.interruption_note(profile, None, start) == (
         'interrupted before the first step: none of the 3 steps was played')
     results = scenario.summarize(profile, start, [(start + 10 ** 9, (0.0, 0.0, 0.0))], [])
     doc = scenario.results_json(profile, results, note)
-    assert doc['interrupted'] == note and math.isnan(doc['steps'][2]['measured_deg_s'])
+    # A step without samples is null in the JSON and named, never a NaN.
+    assert doc['interrupted'] == note and doc['steps'][2]['measured_deg_s'] is None
+    assert doc['steps'][2]['die_temp_c'] is None and doc['steps'][2]['samples'] == 0
+    assert doc['unmeasured'] == ('step 2 (10 deg/s at 25 C) and step 3 (20 deg/s at 45 C) '
+                                 'got no Imu sample after their settle time')
     assert 'interrupted' not in scenario.results_json(profile, results)
+    table = scenario.format_summary(results)
+    assert 'nan' not in table and table.count('no samples') == 2
 
 
 def test_the_main_job_says_the_imu_rate_over_the_stamps_not_over_the_wall_time():
@@ -571,3 +579,17 @@ def test_extended_terms_come_from_sensor_config_and_survive_the_parameters(tmp_p
     assert config.extended == base.extended and config.extended.active() == ('bias_step',)
     with pytest.raises(ValueError, match='unknown error-model parameter'):
         parameters.apply_sensor_params(base, {'sensor.extended': 1.0})
+
+
+def test_the_help_says_default_nodes_share_a_turn_on_bias_and_its_figure_is_true():
+    """The node's --help: the default name's consumer part has z -7.92 deg/s of bias at start."""
+    from gyro_emulator.ros import node_help
+    from gyro_emulator.sensor.streams import seed_from_name
+
+    text = ' '.join(node_help.help_text().split())
+    assert 'every node of the same name is the same part' in text
+    assert 'z -7.92 deg/s' in text and 'startup_bias_calibration' in text
+    rng = np.random.default_rng(seed_from_name('/gyro_emulator'))
+    model = sensor_model.GyroModel(sensor_config.load_sensor_config('consumer'), 200.0, rng)
+    bias_z = math.degrees(model.step((0.0, 0.0, 0.0), 25.0, (0.0, 0.0, 9.80665)).bias_rad_s[2])
+    assert f'{bias_z:+.2f}' == '-7.92'

@@ -119,7 +119,7 @@ def test_array_validation_names_the_element():
     with pytest.raises(ValueError) as err:
         Geometry(thickness_m=np.array([2e-6, -1.0]))
     assert str(err.value) == ('Geometry.thickness_m = -1.0 (element 1) is out of range: '
-                              'allowed (0.0, 0.0001] m')
+                              'allowed [1e-07, 0.0001] m')
 
 
 def test_temperature_validation():

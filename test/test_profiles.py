@@ -4,6 +4,7 @@ import math
 
 from gyro_emulator.emulation import profiles, scenario
 from gyro_emulator.emulation.recorded_profile import RecordedProfile
+from gyro_emulator.emulation.run_profile import samples_with_force
 from gyro_emulator.emulation.truth.drawn import draw_profile, SAMPLED_PROFILES
 import numpy as np
 import pytest
@@ -45,8 +46,16 @@ def test_every_kind_gives_3_axis_samples_on_the_times_asked(kind):
     s = profile.samples(TIMES_S)
     assert s.rate_rad_s.shape == (len(TIMES_S), 3)
     assert s.temp_c.shape == (len(TIMES_S),)
-    assert s.accel_m_s2.shape == (len(TIMES_S), 3)
-    for values in (s.rate_rad_s, s.temp_c, s.accel_m_s2):
+    if s.accel_m_s2 is None:    # left to the motion: the applied acceleration, then the force
+        assert s.linear_accel_m_s2.shape == (len(TIMES_S), 3)
+        assert np.all(np.isfinite(s.linear_accel_m_s2))
+        force = samples_with_force(profile, np.sort(TIMES_S[TIMES_S >= 0.0])).accel_m_s2
+        assert force.shape == (np.count_nonzero(TIMES_S >= 0.0), 3)
+        assert np.all(np.isfinite(force))
+    else:
+        assert s.accel_m_s2.shape == (len(TIMES_S), 3)
+        assert np.all(np.isfinite(s.accel_m_s2))
+    for values in (s.rate_rad_s, s.temp_c):
         assert np.all(np.isfinite(values))
     # the same time gives the same sample, wherever it is asked
     assert np.array_equal(s.rate_rad_s[2], s.rate_rad_s[3])
@@ -81,7 +90,7 @@ def test_scripted_and_sampled_static_agree():
     assert isinstance(scripted, profiles.ScriptedProfile)
     assert isinstance(sampled, profiles.SampledProfile)
     assert len(sampled.time_s) == 400 and sampled.max_rate_rad_s == 0.0
-    a, b = scripted.samples(sampled.time_s), sampled.samples(sampled.time_s)
+    a, b = samples_with_force(scripted, sampled.time_s), sampled.samples(sampled.time_s)
     for name in ('rate_rad_s', 'temp_c', 'accel_m_s2'):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
 
@@ -92,7 +101,7 @@ def test_scripted_and_sampled_temperature_ramp_agree():
     sampled = profiles.temperature_ramp(knots, rate_deg_s=30.0, sample_rate_hz=2.0)
     assert [s.duration_s for s in scripted.segments] == [60.0, 540.0, 60.0, 540.0]
     assert scripted.duration_s == 1200.0 and sampled.time_s[-1] == 1199.5
-    a, b = scripted.samples(sampled.time_s), sampled.samples(sampled.time_s)
+    a, b = samples_with_force(scripted, sampled.time_s), sampled.samples(sampled.time_s)
     np.testing.assert_allclose(a.temp_c, b.temp_c, rtol=0.0, atol=1e-9)
     np.testing.assert_array_equal(a.rate_rad_s, b.rate_rad_s)
     assert a.rate_rad_s[0, 2] == pytest.approx(math.radians(30.0))

@@ -61,11 +61,16 @@ def workspace(tmp_path_factory):
     return ws
 
 
+def installed_site(workspace):
+    """Return the install's site-packages folder."""
+    return os.path.join(str(workspace / 'install' / 'gyro_emulator'), 'lib',
+                        f'python{sys.version_info[0]}.{sys.version_info[1]}', 'site-packages')
+
+
 def installed_env(workspace, monkeypatch):
     """Environment of a shell that sourced the temporary install (and the venv)."""
     prefix = str(workspace / 'install' / 'gyro_emulator')
-    site = os.path.join(prefix, 'lib', f'python{sys.version_info[0]}.{sys.version_info[1]}',
-                        'site-packages')
+    site = installed_site(workspace)
     ament = prefix + os.pathsep + sys.prefix
     monkeypatch.setenv('AMENT_PREFIX_PATH', ament)
     env = ros_env()
@@ -102,8 +107,7 @@ def test_ros2_run_node_publishes_imu_from_the_colcon_install(workspace, monkeypa
     try:
         from sensor_msgs.msg import Imu
         got = probe.listen(Imu, 'imu/data_raw')
-        # A hang guard, not a speed limit: the fresh install's first start compiles
-        # the numba kernels (no cache yet), over a minute on 2 busy cores.
+        # A hang guard, not a speed limit (bench/bench_startup.py times the start).
         probe.spin_until(lambda: len(got) >= 10, 600.0, 'Imu from the installed node')
         assert all(m.header.frame_id == 'installed' for m in got)
         # The installed scenario executable plays a short profile onto it.
@@ -131,6 +135,22 @@ def test_ros2_run_node_publishes_imu_from_the_colcon_install(workspace, monkeypa
                             'print(n.__file__)'], env=env, cwd=str(tmp_path),
                            capture_output=True, text=True)
     assert check.stdout.strip().startswith(site)
+
+
+def test_colcon_build_compiles_the_sensor_kernel_into_the_installs_cache(workspace):
+    """
+    Issue 34: ``setup.py install`` ends with ``python -m gyro_emulator.sensor.warm_cache``.
+
+    numba's cache is keyed to the source file's path, so a fresh install has
+    none; the build writes it beside the installed kernel (and byte-compiles
+    the modules), so the first ``ros2 run`` only loads it.
+    """
+    package = os.path.join(installed_site(workspace), 'gyro_emulator')
+    cache = os.listdir(os.path.join(package, 'sensor', '__pycache__'))
+    assert any(name.startswith('kernel.advance-') and name.endswith('.nbi') for name in cache)
+    assert any(name.startswith('kernel.advance-') and name.endswith('.nbc') for name in cache)
+    assert any(name.startswith('node.') and name.endswith('.pyc')
+               for name in os.listdir(os.path.join(package, 'ros', '__pycache__')))
 
 
 def test_sourcing_install_setup_sh_finds_the_package_and_its_executables(workspace, tmp_path):

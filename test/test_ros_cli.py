@@ -69,6 +69,18 @@ def test_run_echo_hz_list_and_param_set_against_a_running_node(tmp_path):
         refused = ros_cli(env, 'param', 'set', '/gyro_emulator', 'fault.type', 'melted',
                           check=False)
         assert refused.returncode == 1 and 'Setting parameter failed' in refused.stderr
+        # An undeclared name: one line naming it and the close matches, no traceback.
+        for action, name, match in ((['set', '/gyro_emulator', 'rate_hzz', '100'], 'rate_hzz',
+                                     'rate_hz'),
+                                    (['get', '/gyro_emulator', 'fault.typ'], 'fault.typ',
+                                     'fault.type')):
+            wrong = ros_cli(env, 'param', *action, check=False)
+            lines = wrong.stderr.strip().splitlines()
+            assert wrong.returncode == 2 and len(lines) == 1, wrong.stderr
+            head, matches = lines[0].split('; close matches: ')
+            assert head == (f"gyro-emulator ros: error: parameter '{name}' is not declared "
+                            'by /gyro_emulator')
+            assert match in matches.split(', ')
     finally:
         node.send_signal(signal.SIGINT)
         code = node.wait(120)

@@ -174,6 +174,21 @@ def test_sense_dynamics_match_the_dynamics_module():
     assert out.gyro_rad_s[-1, 0] == pytest.approx(0.5, rel=1e-9)    # DC gain 1
 
 
+def test_sense_dynamics_do_not_delay_the_samples():
+    """A sample reflects the rate at its own instant (tau ~ 1 ms << dt at 100 Hz)."""
+    config = _only('sense_dynamics', mode_split_hz=(0.0, 30.0, 0.0))
+    rate = np.zeros((300, 3))
+    rate[100:] = [0.5, 0.5, -0.2]
+    out = GyroModel(config, 100.0, np.random.default_rng(0)).run(rate, 25.0).gyro_rad_s
+    np.testing.assert_allclose(out[:100], 0.0, atol=1e-12)
+    # the step is in the sample it is applied at: exp(-sigma dt) ~ 5e-5 is left of it
+    np.testing.assert_allclose(out[100], [0.5, 0.5, -0.2], rtol=1e-3)
+    lags = np.arange(-3, 4)
+    corr = [np.dot(np.diff(rate[:, 0])[3:-3], np.roll(np.diff(out[:, 0]), -k)[3:-3])
+            for k in lags]
+    assert lags[int(np.argmax(corr))] == 0
+
+
 def test_output_filter_is_3db_down_at_its_cutoff():
     fs, cutoff = 1000.0, 50.0
     t = np.arange(20000) / fs

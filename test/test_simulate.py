@@ -10,6 +10,7 @@ import time
 from gyro_emulator import cli, units
 from gyro_emulator.cli.simulate import Progress
 from gyro_emulator.emulation import profiles, simulate
+from gyro_emulator.emulation.run_profile import samples_with_force
 from gyro_emulator.recording import csvio, timing
 from gyro_emulator.sensor.config import load_sensor_config
 from gyro_emulator.sensor.model import SensorBatch
@@ -44,6 +45,7 @@ def test_steps_and_temperature_ramp_profiles():
     samples = ramp.samples(np.array([0.0, 30.0, 60.0, 90.0]))
     np.testing.assert_allclose(samples.temp_c, [25.0, 55.0, 85.0, 85.0])   # holds after
     np.testing.assert_allclose(samples.rate_rad_s[:, 2], math.radians(60.0))
+    samples = samples_with_force(ramp, np.array([0.0, 30.0, 60.0, 90.0]))
     np.testing.assert_allclose(samples.accel_m_s2[0], [0.0, 0.0, 9.80665])
 
 

@@ -77,15 +77,54 @@ def build_parser():
     return parser
 
 
-def main(argv=None):
-    """Run the command line; return the process exit status."""
-    parser = build_parser()
-    args = parser.parse_args(argv)
+#: Longest error message printed, characters (a value quoted whole could be megabytes).
+MAX_MESSAGE_CHARS = 600
+
+
+def one_line(message, limit=MAX_MESSAGE_CHARS):
+    """Return ``message`` on one line, its middle cut when longer than ``limit``."""
+    text = ' '.join(str(message).split())
+    if len(text) <= limit:
+        return text
+    half = (limit - 30) // 2
+    return f'{text[:half]} ...[{len(text) - 2 * half} characters cut]... {text[-half:]}'
+
+
+def main(argv=None, signals=False):
+    """
+    Run the command line; return the process exit status.
+
+    With ``signals`` (the ``gyro-emulator`` entry point), SIGTERM and SIGHUP
+    stop a command as Ctrl-C does: its unfinished outputs are removed
+    (:class:`gyro_emulator.interrupts.Terminated`), and the status is 143 or
+    129. ``gyro-emulator ros`` keeps the ROS programs' own handling.
+    """
+    from gyro_emulator.interrupts import TERMINATING_SIGNALS, TerminateOnSignal, Terminated
+
+    args = None
+    guard = TerminateOnSignal(TERMINATING_SIGNALS if signals else (), defer=True)
     try:
-        return int(args.run(args) or 0)
+        with guard:
+            args = build_parser().parse_args(argv)
+            if args.command == 'ros':
+                guard.restore()                 # the ROS programs' own handling
+            guard.arm()                         # a signal while parsing stops here
+            status = int(args.run(args) or 0)
+        if guard.received is not None:         # raised where a library swallowed it
+            raise guard.received
+        return status
     except (ValueError, OSError) as exc:
-        print(f'gyro-emulator {args.command}: error: {exc}', file=sys.stderr)
+        print(f'{_label(args)}: error: {one_line(exc)}', file=sys.stderr)
         return 2
+    except Terminated as exc:
+        print(f'{_label(args)}: stopped by {exc.name}; unfinished outputs removed',
+              file=sys.stderr)
+        return exc.status
     except KeyboardInterrupt:
-        print(f'gyro-emulator {args.command}: interrupted', file=sys.stderr)
+        print(f'{_label(args)}: interrupted', file=sys.stderr)
         return 130
+
+
+def _label(args):
+    """Return ``gyro-emulator COMMAND`` for a message (before parsing: ``gyro-emulator``)."""
+    return 'gyro-emulator' + (f' {args.command}' if args is not None else '')

@@ -24,7 +24,8 @@ import math
 import os
 import sys
 
-from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator import outputs
+from gyro_emulator.cli.jsonout import add_overwrite, write_json
 from gyro_emulator.units import AXES
 
 HELP = 'overlapping Allan deviation of a gyro record and its IEEE Std 952 noise terms'
@@ -48,6 +49,7 @@ def add_arguments(parser):
                         help='Imu topic of a bag (default: the only Imu topic)')
     parser.add_argument('--json', metavar='OUT', help='write the results as JSON')
     parser.add_argument('--plot', metavar='PNG', help='write the Allan deviation plot')
+    add_overwrite(parser)
     parser.add_argument('--gap-factor', type=float, default=3.0, metavar='F',
                         help='a time step over F median steps is a gap '
                              '(default: %(default)s)')
@@ -72,14 +74,21 @@ def outlier_threshold(args):
     return math.inf if args.keep_outliers else outliers.THRESHOLD
 
 
-def print_terms(info, out=None, indent='  '):
-    """Print the fitted terms, their intervals and read-offs of an ``analyse_record`` dict."""
+def print_terms(info, out=None, indent='  ', labels=None):
+    """
+    Print the fitted terms, their intervals and read-offs of an ``analyse_record`` dict.
+
+    ``labels`` names each term (``gyro_emulator.analysis.sense.Sense.labels``;
+    default the gyro's).
+    """
     out = sys.stdout if out is None else out
     fit = info['fit']
     lo, hi = fit['tau_range_s']
     print(f'{indent}fit over tau {lo:.3g} .. {hi:.4g} s, {100 * fit["ci"]:.0f} % intervals '
           f'(model discrepancy {100 * fit["misfit"]:.1f} %)', file=out)
-    for term, name in _ROWS:
+    rows = _ROWS if labels is None else tuple((term, f'{labels[term]:<21}')
+                                              for term, _ in _ROWS)
+    for term, name in rows:
         row = fit['terms'][term]
         if term in ('quantization', 'rate_ramp') and not row['resolved']:
             continue
@@ -102,6 +111,8 @@ def run(args):
     from gyro_emulator.analysis import allan
     from gyro_emulator.recording.record import load_record
 
+    outputs.check([outputs.file('--json', args.json), outputs.file('--plot', args.plot)],
+                  inputs=[args.file], overwrite=args.overwrite)
     info, result, fit = allan.analyse_record(load_record(args.file, {'gyro': args.topic}),
                                              args.axis, args.max_tau_fraction, args.gap_factor,
                                              outlier_threshold=outlier_threshold(args))

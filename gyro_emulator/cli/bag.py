@@ -13,6 +13,8 @@ footer with all the messages it can recover (the original is kept as
 Both report what was recovered and what was lost.
 """
 
+from gyro_emulator import outputs
+
 HELP = 'inspect (info) or recover (repair) a rosbag2 MCAP bag'
 
 
@@ -55,6 +57,8 @@ def run(args):
         if reader.problems or corrupt or lost:
             print(f'run: gyro-emulator bag repair {args.bag}')
         return 0
+    # --out: not the bag, not inside it, not holding it; a non-empty one is refused by the repair
+    outputs.check([outputs.directory('--out', args.out)], inputs=[args.bag], overwrite=True)
     report = bag.repair_bag(args.bag, out_dir=args.out, backup=not args.no_backup)
     print(report.describe())
     return 0

@@ -2,20 +2,26 @@
 Calibrate from a measured log, export to the stacks users run, and check the emulated twin.
 
   calibrate noise LOG [--axis x|y|z|all] --format F -o OUT [--inflate F]
+                  [--rostopic TOPIC] [--accel-scale S]
                   [--accel-noise-density A --accel-random-walk W]
       IEEE Std 952 noise identification of a static log (Allan deviation, the
       band-limited short taus left out, five terms with confidence intervals,
       read-offs) written for: kalibr (imu.yaml), openvins (kalibr_imu_chain.yaml),
-      vins (IMU block; needs the accelerometer figures), orbslam3 (IMU block),
-      orbslam3-settings (a whole v1.0 settings file), gazebo (gz-sensors <imu>
-      block) or preset (this emulator's sensor YAML). A gyro log does not give
-      the accelerometer's figures: without them each file makes its consumer
-      stop and name the field (docs/calibrate.md), never load a wrong value.
+      vins (IMU block), orbslam3 (IMU block), orbslam3-settings (a whole v1.0
+      settings file), gazebo (gz-sensors <imu> block) or preset (this emulator's
+      sensor YAML). The gyro and, when the log has one (accel_{x,y,z}_m_s2
+      columns, an Imu's linear_acceleration), the accelerometer, with the same
+      fit: the files are then complete from the log alone. Accelerometer figures
+      given by hand replace the log's (the file says so); a gyro-only log without
+      them leaves each file so that its consumer stops and names the field
+      (docs/calibrate.md), never loads a wrong value (vins is refused).
   calibrate thermal LOG [LOG ...] --format px4|ardupilot|preset -o OUT
-                    [--px4-gyro-id ID]
+                    [--px4-gyro-id ID] [--px4-accel-id ID] [--accel-scale S]
       Bias against die temperature of a static log (temp_c and gyro columns;
       several one-axis files are x, y, z in order), written as PX4 TC_G0_*
-      parameters, ArduPilot INS_TCAL1_* parameters or this emulator's bias terms.
+      parameters, ArduPilot INS_TCAL1_GYR* parameters or this emulator's bias
+      terms; with accelerometer columns too, PX4 TC_A0_*, ArduPilot
+      INS_TCAL1_ACC* and the accelerometer's bias tempco.
       A log that spans too little temperature is refused: order k needs
       5 / 15 / 25 K (k = 1 / 2 / 3) and k + 3 distinct temperatures.
   calibrate check-noise LOG --config FITTED.yaml
@@ -33,6 +39,7 @@ first comment line says whether it is a whole file or a block to paste.
 """
 
 from gyro_emulator.cli.allan import add_outlier_arguments
+from gyro_emulator.cli.jsonout import add_overwrite
 
 HELP = 'calibrate noise or thermal terms from a log; export to Kalibr, VINS, PX4, ...'
 
@@ -56,8 +63,12 @@ def _common_log(parser, many=False):
         parser.add_argument('--axis', choices=('x', 'y', 'z', 'all'), default='all',
                             help='axis to calibrate (default: every axis of the log)')
     parser.add_argument('--topic', default=None, help='Imu topic of a bag')
+    parser.add_argument('--accel-scale', type=float, default=1.0, metavar='S',
+                        help='multiply the logged accelerometer by S first (a log in g: '
+                             '9.80665; default: %(default)s)')
     parser.add_argument('--json', metavar='OUT', help='write the results as JSON')
     parser.add_argument('--plot', metavar='PNG', help='write a plot')
+    add_overwrite(parser)
     add_outlier_arguments(parser)
 
 
@@ -73,10 +84,13 @@ def add_arguments(parser):
                        help='multiply N, B and K by F (stated in the file; default: none)')
     noise.add_argument('--rate-hz', type=float, default=None, metavar='R',
                        help="the estimator's IMU rate for discrete values (default: the log's)")
+    noise.add_argument('--rostopic', default=None, metavar='TOPIC',
+                       help="the IMU topic of Kalibr's rostopic and OpenVINS's (default: the "
+                            "bag's Imu topic; /imu0 for a CSV log)")
     noise.add_argument('--accel-noise-density', type=float, default=None, metavar='A',
                        help='accelerometer white-noise density in m/s^2/sqrt(Hz), continuous '
-                            "(Kalibr's accelerometer_noise_density; a gyro log does not give "
-                            'it); with --accel-random-walk')
+                            "(Kalibr's accelerometer_noise_density): replaces the log's (a "
+                            'gyro-only log does not give it); with --accel-random-walk')
     noise.add_argument('--accel-random-walk', type=float, default=None, metavar='W',
                        help='accelerometer bias random walk in m/s^3/sqrt(Hz), continuous '
                             "(Kalibr's accelerometer_random_walk); with --accel-noise-density")
@@ -91,6 +105,9 @@ def add_arguments(parser):
     therm.add_argument('--px4-gyro-id', type=int, default=None, metavar='ID',
                        help="px4: the gyro's device id (param show CAL_GYRO0_ID), written as "
                             'TC_G0_ID; PX4 corrects no gyro until TC_G0_ID is set')
+    therm.add_argument('--px4-accel-id', type=int, default=None, metavar='ID',
+                       help="px4: the accelerometer's device id (param show CAL_ACC0_ID), "
+                            'written as TC_A0_ID; PX4 corrects no accelerometer until it is set')
     check = sub.add_parser('check-noise', help='simulate the fitted preset; compare ADEV')
     _common_log(check)
     check.add_argument('--config', required=True, metavar='YAML', help='the fitted preset')

@@ -21,7 +21,7 @@ be told apart and which experiment would separate it.
 
 import sys
 
-from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator.cli.jsonout import add_overwrite, write_json
 from gyro_emulator.physics.presets import PHYSICS_PRESETS
 from gyro_emulator.recording import topics
 from gyro_emulator.units import AXES
@@ -51,8 +51,8 @@ def add_arguments(parser):
                              'K, turn-on bias, LSB of the diagnosed axis), from the IEEE 952 '
                              'fit of calibrate noise on the record minus the written model '
                              "(default: the starting config's noise stays)")
-    parser.add_argument('--overwrite', action='store_true',
-                        help='let --write-config replace an existing file')
+    add_overwrite(parser, text='replace existing outputs (--json, the --report files, '
+                               '--write-config; default: refuse them, before any work)')
     parser.add_argument('--axis', default=None, choices=AXES,
                         help='sense axis: the gyro_<axis>_rad_s column of a 3-axis CSV, or the '
                              'axis of a bag (default: gyro_rad_s; z for a bag)')

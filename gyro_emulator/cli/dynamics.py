@@ -16,7 +16,8 @@ Example::
 
 import os
 
-from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator import outputs
+from gyro_emulator.cli.jsonout import add_overwrite, write_json
 from gyro_emulator.physics.presets import physics_preset
 from gyro_emulator.units import deg_s_to_rad_s
 
@@ -38,6 +39,11 @@ def add_arguments(parser):
     parser.add_argument('--plot', metavar='DIR',
                         help='write sense_vs_split.png, step_response.png and '
                              'rate_channel_bode.png into DIR')
+    add_overwrite(parser)
+
+
+#: The plots ``--plot DIR`` writes.
+PLOTS = ('sense_vs_split.png', 'step_response.png', 'rate_channel_bode.png')
 
 
 def run(args):
@@ -46,6 +52,8 @@ def run(args):
     # `gyro-emulator --help` imports every command module.
     from gyro_emulator.analysis import dynamics_report as report
 
+    outputs.check([outputs.file('--json', args.json), outputs.inside('--plot', args.plot, PLOTS)],
+                  overwrite=args.overwrite)
     device = physics_preset(args.preset)
     doc = report.summary(device, args.split_hz, args.rate_dps, args.temp_c)
     doc['preset'] = args.preset
@@ -54,13 +62,12 @@ def run(args):
         os.makedirs(args.plot, exist_ok=True)
         # The plots are normalised; a zero rate would leave nothing to draw.
         rate = float(deg_s_to_rad_s(args.rate_dps or 60.0))
-        for name, draw in (
-                ('sense_vs_split.png', lambda p: report.plot_sense_vs_split(
-                    p, device, rate, args.temp_c, args.split_hz)),
-                ('step_response.png', lambda p: report.plot_step_response(
-                    p, device, rate, args.temp_c, args.split_hz)),
-                ('rate_channel_bode.png', lambda p: report.plot_bode(
-                    p, device, args.temp_c, args.split_hz))):
+        for name, draw in zip(PLOTS, (
+                lambda p: report.plot_sense_vs_split(p, device, rate, args.temp_c,
+                                                     args.split_hz),
+                lambda p: report.plot_step_response(p, device, rate, args.temp_c,
+                                                    args.split_hz),
+                lambda p: report.plot_bode(p, device, args.temp_c, args.split_hz))):
             path = os.path.join(args.plot, name)
             draw(path)
             print(f'wrote {path}')

@@ -63,7 +63,7 @@ def run_cli():
     limit_blas_threads()
     # Imported after the limit, as every entry point's work is (the module docstring).
     from gyro_emulator.cli import main
-    return main()
+    return main(signals=True)
 
 
 def run_node():

@@ -15,6 +15,8 @@ the number of workers or the partitioning.
 import argparse
 import sys
 
+from gyro_emulator import outputs
+
 HELP = 'Monte Carlo of a fleet over fabrication tolerances and temperature: yield per spec'
 
 
@@ -64,8 +66,12 @@ def run(args):
     # The fleet (scipy, pyarrow: 1 s) is imported here, not at the top:
     # `gyro-emulator --help` imports every command module.
     from gyro_emulator.analysis.fleet.config import load_fleet_config
-    from gyro_emulator.analysis.fleet.run import FleetIncomplete, run_fleet
+    from gyro_emulator.analysis.fleet.run import FleetIncomplete, OUTPUTS, run_fleet
 
+    # not an input, a folder that can be written; an earlier fleet there is the run's own
+    # check (--overwrite or --resume)
+    outputs.check([outputs.inside('--out', args.out, OUTPUTS)], inputs=[args.fleet],
+                  overwrite=True)
     config = load_fleet_config(args.fleet)
     try:
         summary = run_fleet(config, args.devices, args.seed, args.out,
@@ -76,10 +82,12 @@ def run(args):
     except FleetIncomplete as exc:
         print(f'gyro-emulator fleet: error: {exc}', file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        print(f'gyro-emulator fleet: interrupted; the finished tasks are kept in {args.out}: '
-              'run again with --resume to finish', file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as exc:
+        how = getattr(exc, 'name', None)
+        print(f'gyro-emulator fleet: {"stopped by " + how if how else "interrupted"}; the '
+              f'finished tasks are kept in {args.out}: run again with --resume to finish',
+              file=sys.stderr)
+        return getattr(exc, 'status', 130)
     run_info = summary['run']
     print(f'{summary["devices"]} parts ({summary["invalid"]} invalid, {summary["clipped"]} '
           f'clipped) over {len(summary["temperatures_c"])} temperatures in '

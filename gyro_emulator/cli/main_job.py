@@ -5,12 +5,19 @@ The README's main job (``./dev.sh main``): the paper's validation test, live.
 2. Start the emulator node (``python -m gyro_emulator.ros.node``) with the
    profile's ``node_parameters``, and the bag recorder when it is installed,
    on a private ROS domain restricted to this machine.
-3. Play ``config/scenario_paper_validation.yaml`` (0, 10, 20, 40 RPM at 25
+3. Wait for the node itself (its subscriptions and its ``imu/data_raw``
+   publisher, not the recorder's) and its first Imu sample, however long
+   its start takes on a loaded machine, saying every 10 s what it still
+   waits for; give up after :data:`NODE_START_TIMEOUT_S`, or at once when
+   the node process ends.
+4. Play ``config/scenario_paper_validation.yaml`` (0, 10, 20, 40 RPM at 25
    to 85 C, time-compressed to 32 s) against the node and print, per step,
    commanded vs measured rate and the error in deg/s, beside the error the
-   first-order physics predicts at the measured die temperature (Fig 6).
-4. Stop everything with SIGINT. Bounded: the node has 30 s to come up and
-   every child is killed on the way out.
+   first-order physics predicts at the measured die temperature (Fig 6). A
+   step without samples is an error that names it.
+5. Stop everything with SIGINT (every child is killed on the way out) and
+   say the exit status and why in one line: 0 every step measured, 1 a
+   step without samples or no node, 2 bad input, 130 interrupted (Ctrl-C).
 """
 
 import argparse
@@ -27,7 +34,10 @@ from gyro_emulator.emulation import scenario
 from gyro_emulator.physics import first_order, presets
 import yaml
 
-NODE_START_TIMEOUT_S = 30.0
+#: Longest wait for the node to run (on the graph and its first sample), s.
+NODE_START_TIMEOUT_S = 300.0
+#: How often the wait for the node is reported, s.
+WAITING_LINE_S = 10.0
 STOP_TIMEOUT_S = 10.0
 
 
@@ -97,7 +107,8 @@ def format_table(profile, results):
     lines[1] = '-' * len(lines[0])
     for i, r in enumerate(results):
         rate = profile.rate_along_axis_rad_s(r.step)
-        lines[i + 2] += f' {physics_error_deg_s(rate, r.die_temp_c):>+11.3f}'
+        error = physics_error_deg_s(rate, r.die_temp_c)
+        lines[i + 2] += f' {error:>+11.3f}' if math.isfinite(error) else f' {"-":>11}'
     return '\n'.join(lines)
 
 
@@ -117,8 +128,22 @@ def samples_line(imu, elapsed_s):
             f'{elapsed_s:.1f} s wall with the node start-up')
 
 
+def _watch(node):
+    """Return play's ``waiting``: a line every WAITING_LINE_S; RuntimeError once the node ended."""
+    from gyro_emulator.ros.scenario import waiting_printer
+    say = waiting_printer('main', NODE_START_TIMEOUT_S, WAITING_LINE_S)
+
+    def waiting(elapsed_s, missing):
+        code = node.poll()
+        if code is not None:
+            raise RuntimeError(f'the node exited with status {code} after {elapsed_s:.0f} s, '
+                               'before it ran')
+        say(elapsed_s, missing)
+    return waiting
+
+
 def run_scenario(opts):
-    """Start node (+ recorder), play the profile, print and save the summary."""
+    """Start node (+ recorder), play the profile, print and save the summary; (status, why)."""
     # rclpy (0.2 s) only for the scenario part: `--paper-only` loads no ROS.
     from gyro_emulator.ros.scenario import play
 
@@ -155,11 +180,11 @@ def run_scenario(opts):
                       f'{step.temp_start_c:5.1f} C', flush=True)
 
             player = play(profile, collect=True, wait_s=NODE_START_TIMEOUT_S,
-                          progress=progress)
+                          progress=progress, waiting=_watch(node))
             elapsed = time.monotonic() - started
         except RuntimeError as exc:
             print(f'main: {exc}; node log: {node_log}', file=sys.stderr)
-            return 1
+            return 1, 'the emulator node did not run (above)'
         finally:
             _stop(recorder, 'recorder')
             _stop(node, 'node')
@@ -169,37 +194,56 @@ def run_scenario(opts):
     print(f'\nCommanded vs measured along {list(profile.axis)} (mean after each '
           f"step's settle time; physics err = Fig 6 first-order prediction at T_die):")
     print(format_table(profile, results))
-    worst = max(results, key=lambda r: abs(r.error_deg_s) if math.isfinite(
-        r.error_deg_s) else -1.0)
-    print(f'largest |error|: {worst.error_deg_s:+.3f} deg/s at {worst.step.label}, '
-          f'{worst.step.temp_start_c:g} C; {samples_line(player.imu, elapsed)}')
+    measured = [r for r in results if r.samples]
+    line = samples_line(player.imu, elapsed)
+    if measured:
+        worst = max(measured, key=lambda r: abs(r.error_deg_s))
+        line = (f'largest |error|: {worst.error_deg_s:+.3f} deg/s at {worst.step.label}, '
+                f'{worst.step.temp_start_c:g} C; {line}')
+    print(line)
     doc = scenario.results_json(profile, results, player.interrupted)
     for row, r in zip(doc['steps'], results):
-        row['physics_error_deg_s'] = physics_error_deg_s(profile.rate_along_axis_rad_s(r.step),
-                                                         r.die_temp_c)
+        row['physics_error_deg_s'] = scenario.number_or_none(physics_error_deg_s(
+            profile.rate_along_axis_rad_s(r.step), r.die_temp_c))
     summary = os.path.join(opts.out_dir, 'summary.json')
     atomic.write_json(summary, doc, indent=1)
     print(f'wrote {summary}; node log {node_log}'
           + (f'; bag {os.path.join(opts.out_dir, "bag")}' if recorder else ''))
-    return 0 if all(r.samples > 0 for r in results) else 1
+    missing = scenario.unmeasured(results)
+    if missing:
+        print(f'main: error: {missing}', file=sys.stderr)
+        if player.interrupted:
+            return 130, f'the scenario was {player.interrupted}'
+        return 1, f'{missing}; node log {node_log}'
+    return 0, f'all {len(results)} steps measured ({len(player.imu)} Imu samples)'
 
 
-def main(argv=None):
-    """Run the main job; return the exit status."""
-    opts = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+def _run(opts):
+    """Run the paper part and the scenario; return (exit status, why in a few words)."""
     if not opts.skip_paper:
         print('== paper reproduction', flush=True)
-        status = cli.main(['paper', '--json', 'out/paper/paper.json'])
-        if status or opts.paper_only:
-            return status
+        status = cli.main(['paper', '--json', 'out/paper/paper.json', '--overwrite'])
+        if status:
+            return status, 'the paper reproduction failed (above)'
+        if opts.paper_only:
+            return 0, 'the paper reproduced (--paper-only)'
     try:
         return run_scenario(opts)
     except (ValueError, OSError) as exc:
         print(f'main: error: {exc}', file=sys.stderr)
-        return 2
+        return 2, 'bad input or a file error (above)'
     except KeyboardInterrupt:
         print('main: interrupted', file=sys.stderr)
-        return 130
+        return 130, 'interrupted'
+
+
+def main(argv=None):
+    """Run the main job; return the exit status, said in its last line."""
+    opts = build_parser().parse_args(sys.argv[1:] if argv is None else argv)
+    status, why = _run(opts)
+    print(f'main: exit status {status}: {why}', file=sys.stderr if status else sys.stdout,
+          flush=True)
+    return status
 
 
 if __name__ == '__main__':

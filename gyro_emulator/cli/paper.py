@@ -6,7 +6,8 @@ Table 1 compares our first-order physics (Eq 5-21) for the paper's device at
 viscosity variants so the effect of the constant-viscosity assumption shows.
 """
 
-from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator import outputs
+from gyro_emulator.cli.jsonout import add_overwrite, write_json
 
 HELP = "reproduce Patel & McCluskey's Table 1, Fig 5 and Fig 6"
 
@@ -20,6 +21,7 @@ def add_arguments(parser):
                              '(default: %(default)s)')
     parser.add_argument('--no-plots', action='store_true',
                         help='skip the PNG figures')
+    add_overwrite(parser)
 
 
 def run(args):
@@ -28,6 +30,10 @@ def run(args):
     # every command module (this one would cost it 2 ms).
     from gyro_emulator.physics import paper
 
+    outputs.check([outputs.file('--json', args.json),
+                   None if args.no_plots else outputs.inside('--out-dir', args.out_dir,
+                                                             paper.FIGURES)],
+                  overwrite=args.overwrite)
     print(paper.summary_text())
     if not args.no_plots:
         for path in paper.write_figures(args.out_dir):

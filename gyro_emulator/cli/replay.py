@@ -20,6 +20,9 @@ identical decoded output.
 
 import sys
 
+from gyro_emulator import outputs
+from gyro_emulator.cli.jsonout import add_overwrite
+
 HELP = 'drive the emulator offline from a bag; write an output bag and a report'
 
 
@@ -50,14 +53,16 @@ def add_arguments(parser):
     parser.add_argument('--use-log-time', action='store_true',
                         help='use receive times instead of header stamps')
     parser.add_argument('--no-plots', action='store_true', help='skip the PNG plots')
-    parser.add_argument('--overwrite', action='store_true',
-                        help='replace an existing output in DIR')
+    add_overwrite(parser, text='replace existing outputs in DIR (default: refuse them, before '
+                               'any work)')
 
 
 def run(args):
     """Replay the bag through the model, write the bag and the report."""
-    from gyro_emulator.analysis.replay.run import replay_bag
+    from gyro_emulator.analysis.replay.run import OUTPUTS, replay_bag
 
+    outputs.check([outputs.inside('--out', args.out, OUTPUTS)], inputs=[args.bag, args.config],
+                  overwrite=args.overwrite)
     run = replay_bag(
         args.bag, args.out, config=args.config, seed=args.seed, plots=not args.no_plots,
         overwrite=args.overwrite,

@@ -7,6 +7,7 @@ normal end of ``topic hz`` and ``topic echo``: they exit 0.
 """
 
 import collections
+import difflib
 import importlib
 import math
 import os
@@ -52,6 +53,9 @@ def param(action, node_name, name, value, timeout_s):
         if not client.wait_for_services(timeout_sec=timeout_s):
             raise OSError(f'node {node_name} not found within {timeout_s:g} s '
                           '(same ROS_DOMAIN_ID and ROS_AUTOMATIC_DISCOVERY_RANGE?)')
+        names = session.wait(client.list_parameters(), timeout_s, node_name).result.names
+        if name not in names:
+            raise ValueError(undeclared(name, node_name, names))
         current = session.wait(client.get_parameters([name]), timeout_s,
                                node_name).values[0]
         if action == 'get':
@@ -73,6 +77,14 @@ def param(action, node_name, name, value, timeout_s):
         print(f'Setting parameter failed: {result.reason}', file=sys.stderr)
         return 1
     return 0
+
+
+def undeclared(name, node_name, names):
+    """Return the one line for a parameter ``name`` that ``node_name`` does not declare."""
+    close = difflib.get_close_matches(name, names, n=3, cutoff=0.6)
+    hint = ('close matches: ' + ', '.join(close)) if close else \
+        f'no close match among its {len(names)} parameters'
+    return f'parameter {name!r} is not declared by {node_name}; {hint}'
 
 
 def topic_list(spin_time_s):

@@ -17,6 +17,7 @@ with the node's topics (see ``gyro_emulator.analysis.replay``), stamped from
 import sys
 import time
 
+from gyro_emulator import outputs
 from gyro_emulator.units import AXES
 
 HELP = 'simulate the sensor over a scripted profile and write CSV or a rosbag2 bag'
@@ -38,6 +39,9 @@ def add_arguments(parser):
     parser.add_argument('--axis', default='z', choices=AXES,
                         help="a measured profile: the sense axis of a CSV's single "
                              'rate_cmd_rad_s column (default: %(default)s)')
+    parser.add_argument('--topic', default=None, metavar='TOPIC',
+                        help='a measured bag profile: the Imu topic whose stamps are the '
+                             "sample times (default: the bag's only Imu topic with messages)")
     parser.add_argument('--static', action='store_true',
                         help='a measured profile without an applied rate: the part was at '
                              'rest (zero rate); without it such a record is refused')
@@ -93,13 +97,19 @@ def run(args):
     from gyro_emulator.sensor import faults
 
     started = time.monotonic()
+    outputs.check([simulate.output(args.out)], inputs=[args.config, args.profile, args.faults],
+                  overwrite=args.overwrite)
     profile, measured = args.profile, recorded_profile.is_record_path(args.profile)
     if measured:
-        profile = recorded_profile.recorded_profile(args.profile, args.axis, args.static,
-                                                    args.temp_c)
+        profile = recorded_profile.recorded_profile(
+            args.profile, args.axis, args.static, args.temp_c,
+            topics=recorded_profile.default_topics(args.topic))
     elif args.static:
         raise ValueError('simulate: --static is for a measured --profile without an applied '
                          "rate; the built-in profile 'static' is zero rate")
+    elif args.topic:
+        raise ValueError(f'simulate: --topic is for a measured bag --profile; {args.profile!r} '
+                         'is not a record')
     start_ns = simulate.parse_start_time(args.start_time)
     schedule = faults.load_schedule(args.faults) if args.faults else ()
     rows = simulate.write_record(args.out, args.config, profile, args.duration_s,

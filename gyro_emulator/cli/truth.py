@@ -18,7 +18,8 @@ hidden truth goes to --answer (or stays hidden).
 
 import os
 
-from gyro_emulator.cli.jsonout import write_json
+from gyro_emulator import outputs
+from gyro_emulator.cli.jsonout import add_overwrite, write_json
 from gyro_emulator.emulation.truth.drawn import SAMPLED_PROFILES
 from gyro_emulator.emulation.truth.effects import TRUTH_EFFECTS
 from gyro_emulator.validation import check_range
@@ -49,6 +50,7 @@ def add_arguments(parser):
                         help='fix an effect parameter, e.g. sutherland_constant_k=110.4')
     parser.add_argument('--answer', metavar='FILE',
                         help='write the hidden truth (effects, parameters) as JSON here')
+    add_overwrite(parser)
 
 
 def run(args):
@@ -59,6 +61,8 @@ def run(args):
     from gyro_emulator.emulation.truth.generator import make_truth
 
     check_range('truth', 'rate', args.rate, 1e-3, 2000.0, 'Hz')
+    outputs.check([outputs.file('OUT.csv', args.output), outputs.file('--answer', args.answer)],
+                  overwrite=args.overwrite)
     params = {}
     for item in args.set:
         name, sep, value = item.partition('=')

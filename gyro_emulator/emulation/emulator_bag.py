@@ -10,7 +10,7 @@ topic                                     type                              cont
 ``/cmd/angular_velocity``                 geometry_msgs/Vector3Stamped      true rate, rad/s
 ``/cmd/temperature``                      sensor_msgs/Temperature           ambient, deg C
 ``/cmd/linear_acceleration``              geometry_msgs/Vector3Stamped      specific force
-``/imu/data_raw``                         sensor_msgs/Imu                   gyro output
+``/imu/data_raw``                         sensor_msgs/Imu                   gyro, accel output
 ``/imu/temperature``                      sensor_msgs/Temperature           die temperature
 ``/gyro_emulator/truth/{rate,bias,...}``  geometry_msgs/Vector3Stamped      model truth
 ========================================  ================================  ==============
@@ -19,10 +19,18 @@ topic                                     type                              cont
 (sample n at ``start_ns + round(t_n 1e9)``, t_n = n ``GyroModel.sample_period_s``;
 the Imu stamp adds the
 model's output delay, as the node does).
+
+Every ``imu/data_raw`` message carries the gyro's ``angular_velocity`` and,
+from an :class:`~gyro_emulator.sensor.imu.ImuModel`, the accelerometer's
+``linear_acceleration``, each with the diagonal covariance of the model's
+white noise at the output (sigma^2: :attr:`ImuModel.white_noise_sigma_rad_s`,
+:attr:`ImuModel.accel_white_noise_sigma_m_s2`); ``orientation_covariance[0]``
+is -1 (REP 145: no orientation), and so is ``linear_acceleration_covariance[0]``
+when the batch has no accelerometer.
 """
 
 from gyro_emulator.recording import bag, cdr, topics
-from gyro_emulator.sensor.model import GyroModel
+from gyro_emulator.sensor.imu import ImuModel
 from gyro_emulator.units import NS_PER_S
 import numpy as np
 
@@ -67,21 +75,27 @@ RESIDUAL_TOPIC = topics.REPLAY_RESIDUAL.bag_name
 DEFAULT_FRAME_ID = 'imu_link'
 
 
-def _imu_values(gyro_rad_s, sigma_rad_s, accel_m_s2=None):
+def _imu_values(gyro_rad_s, sigma_rad_s, accel_m_s2=None, accel_sigma_m_s2=(0.0, 0.0, 0.0)):
     """Return the 37 float64 fields of sensor_msgs/Imu (REP 145: absent = -1)."""
     layout = cdr.LAYOUTS[IMU]
     values = np.zeros((len(gyro_rad_s), len(layout.fields)))
     values[:, layout.columns('angular_velocity')] = gyro_rad_s
-    start = layout.columns('angular_velocity_covariance').start
-    sigma_sq = np.asarray(sigma_rad_s, dtype=float) ** 2
-    for i in range(3):
-        values[:, start + 4 * i] = sigma_sq[i]
+    _diagonal(values, layout.columns('angular_velocity_covariance').start, sigma_rad_s)
     values[:, layout.index('orientation_covariance[0]')] = -1.0
     if accel_m_s2 is None:
         values[:, layout.index('linear_acceleration_covariance[0]')] = -1.0
     else:
         values[:, layout.columns('linear_acceleration')] = accel_m_s2
+        _diagonal(values, layout.columns('linear_acceleration_covariance').start,
+                  accel_sigma_m_s2)
     return values
+
+
+def _diagonal(values, start, sigma):
+    """Write diag(sigma^2) into the 3x3 row-major covariance at column ``start``."""
+    sigma_sq = np.asarray(sigma, dtype=float) ** 2
+    for i in range(3):
+        values[:, start + 4 * i] = sigma_sq[i]
 
 
 class EmulatorBagWriter:
@@ -96,6 +110,8 @@ class EmulatorBagWriter:
         ``header.frame_id`` of every message.
     sigma_rad_s : array_like, shape (3,)
         White-noise sigma for ``angular_velocity_covariance`` (diag sigma^2).
+    accel_sigma_m_s2 : array_like, shape (3,)
+        The accelerometer's, for ``linear_acceleration_covariance``.
     commands : bool
         Also write the ``cmd/*`` inputs.
     truth : bool
@@ -106,10 +122,11 @@ class EmulatorBagWriter:
     """
 
     def __init__(self, writer, frame_id=DEFAULT_FRAME_ID, sigma_rad_s=(0.0, 0.0, 0.0),
-                 commands=True, truth=True, extra=()):
+                 commands=True, truth=True, extra=(), accel_sigma_m_s2=(0.0, 0.0, 0.0)):
         self.writer = writer
         self.frame_id = frame_id
         self.sigma_rad_s = np.asarray(sigma_rad_s, dtype=float)
+        self.accel_sigma_m_s2 = np.asarray(accel_sigma_m_s2, dtype=float)
         self.commands = commands
         self.truth = truth
         sensor_qos = [bag.qos_profile('best_effort', depth=5)]
@@ -141,7 +158,8 @@ class EmulatorBagWriter:
         accel_m_s2 : numpy.ndarray, shape (N, 3), or None
             Specific force, m/s^2 (None: not commanded).
         batch : gyro_emulator.sensor.model.SensorBatch
-            The model output of these samples.
+            The model output of these samples (an ImuBatch: with the
+            accelerometer's, written as the Imu ``linear_acceleration``).
         published : numpy.ndarray of bool, shape (N,), optional
             The samples with an ``imu/data_raw`` (a dropout withholds the
             others); None: all.
@@ -162,9 +180,11 @@ class EmulatorBagWriter:
                 batches.append((ACCEL_TOPIC, cdr.encode(VECTOR3_STAMPED, stamp_ns,
                                                         accel_m_s2, frame), stamp_ns))
         keep = slice(None) if published is None else np.asarray(published, dtype=bool)
-        batches.append((IMU_TOPIC, cdr.encode(
-            IMU, imu_stamp[keep], _imu_values(batch.gyro_rad_s[keep], self.sigma_rad_s),
-            frame), stamp_ns[keep]))
+        measured = getattr(batch, 'accel_m_s2', None)
+        imu = _imu_values(batch.gyro_rad_s[keep], self.sigma_rad_s,
+                          None if measured is None else measured[keep], self.accel_sigma_m_s2)
+        batches.append((IMU_TOPIC, cdr.encode(IMU, imu_stamp[keep], imu, frame),
+                        stamp_ns[keep]))
         die = np.column_stack([batch.die_temp_c, np.zeros(len(stamp_ns))])
         batches.append((DIE_TEMPERATURE_TOPIC, cdr.encode(TEMPERATURE, stamp_ns, die, frame),
                         stamp_ns))
@@ -185,8 +205,20 @@ class EmulatorBagWriter:
 
 
 def white_noise_sigma(config, rate_hz):
-    """Return the model's per-sample white-noise sigma at ``rate_hz`` (3,), rad/s."""
-    return GyroModel(config, rate_hz, np.random.default_rng(0)).white_noise_sigma_rad_s
+    """Return the gyro's per-sample white-noise sigma at ``rate_hz`` (3,), rad/s."""
+    return noise_sigmas(config, rate_hz)[0]
+
+
+def noise_sigmas(config, rate_hz):
+    """
+    Return the per-sample white-noise sigmas of the gyro (rad/s) and the accelerometer (m/s^2).
+
+    :attr:`ImuModel.white_noise_sigma_rad_s` and
+    :attr:`ImuModel.accel_white_noise_sigma_m_s2` at ``rate_hz``, (3,) each:
+    the Imu message's covariances (diag sigma^2).
+    """
+    model = ImuModel(config, rate_hz, np.random.default_rng(0))
+    return model.white_noise_sigma_rad_s, model.accel_white_noise_sigma_m_s2
 
 
 def simulation_custom_data(config_name, profile, duration_s, rate_hz, seed, temp_c):
@@ -214,8 +246,9 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
     total : int, optional
         Total samples, passed to ``progress``.
     config : SensorConfig, optional
-        The model configuration: its white-noise sigma at ``rate_hz`` fills
-        the Imu ``angular_velocity_covariance`` (zeros if omitted).
+        The model configuration: its white-noise sigmas at ``rate_hz`` fill
+        the Imu ``angular_velocity_covariance`` and
+        ``linear_acceleration_covariance`` (zeros if omitted).
     rate_hz : float, optional
         Sample rate, Hz (with ``config``).
     custom_data : dict, optional
@@ -236,13 +269,13 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
         Samples written.
 
     """
-    sigma = np.zeros(3)
+    sigma = accel_sigma = np.zeros(3)
     if config is not None and rate_hz is not None:
-        sigma = white_noise_sigma(config, rate_hz)
+        sigma, accel_sigma = noise_sigmas(config, rate_hz)
     done = 0
     with bag.BagWriter(path, compression=compression, custom_data=custom_data,
                        flush_interval_s=60.0, name=name) as writer:
-        out = EmulatorBagWriter(writer, frame_id, sigma)
+        out = EmulatorBagWriter(writer, frame_id, sigma, accel_sigma_m_s2=accel_sigma)
         for chunk in chunks:
             stamp_ns = start_ns + np.round(chunk.time_s * NS_PER_S).astype(np.int64)
             out.write(stamp_ns, chunk.profile.rate_rad_s, chunk.profile.temp_c,
@@ -253,7 +286,8 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
     return done
 
 
-def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=None):
+def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=None,
+                     accel_sigma_m_s2=(0.0, 0.0, 0.0), name=None):
     """
     Write the replay result as a bag: inputs, emulated output, truth, measured, residual.
 
@@ -264,7 +298,7 @@ def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=N
     inputs : ReplayInputs
         What drove the model.
     batch : gyro_emulator.sensor.model.SensorBatch
-        The emulated output.
+        The emulated output (an ImuBatch: with the accelerometer's).
     comparison : Comparison
         Matched measured samples (written on ``/replay/measured`` and
         ``/replay/residual`` at the emulated output stamps).
@@ -272,12 +306,18 @@ def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=N
         White-noise sigma for the Imu covariance.
     custom_data : dict, optional
         rosbag2 ``custom_data``.
+    accel_sigma_m_s2 : array_like
+        The accelerometer's white-noise sigma for its covariance.
+    name : str, optional
+        The bag's final name when ``path`` is a staging temporary (it names
+        the MCAP file).
 
     """
-    with bag.BagWriter(path, custom_data=custom_data, flush_interval_s=60.0) as writer:
+    with bag.BagWriter(path, custom_data=custom_data, flush_interval_s=60.0,
+                       name=name) as writer:
         out = EmulatorBagWriter(writer, inputs.frame_id, sigma_rad_s,
                                 extra=(MEASURED_TOPIC, RESIDUAL_TOPIC)
-                                if comparison.matched else ())
+                                if comparison.matched else (), accel_sigma_m_s2=accel_sigma_m_s2)
         out.write(inputs.stamp_ns, inputs.rate_rad_s, inputs.temp_c, inputs.accel_m_s2,
                   batch)
         if comparison.matched:

@@ -34,6 +34,19 @@ share it:
 Vocabulary: rad/s, deg C, m/s^2, the level specific force
 :data:`LEVEL_ACCEL_M_S2`, the paper's rates :data:`PAPER_RATES_RPM`.
 
+Specific force. A profile either gives its specific force (``accel_m_s2``:
+the truth generator's drawn profiles, a record's acceleration channel, a
+YAML profile that writes ``accel_m_s2``) or leaves it to the motion: then
+its samples carry ``accel_m_s2`` None and the applied linear acceleration
+in the body frame (``linear_accel_m_s2``, zero unless given), and the one
+chunk loop (:func:`gyro_emulator.emulation.run_profile.run_over_profile`)
+integrates the attitude from the profile's ``initial_attitude_wxyz``
+(level by default) with the profile's rate and takes
+f = a_body - R(q)^T (0, 0, -g) (:mod:`gyro_emulator.physics.kinematics`),
+g = the profile's ``gravity_m_s2``. The gyro's g-sensitivity and the
+accelerometer see that same f. Rotations about z only (the built-in
+profiles) leave gravity exactly on z: (0, 0, g).
+
 Scripted profiles
 -----------------
 
@@ -57,7 +70,9 @@ files of :mod:`.scenario` share it, :func:`parse_segment`)::
 
     name: my-profile                     # optional
     axis: [0, 0, 1]                      # optional: direction of scalar rates
-    accel_m_s2: [0.0, 0.0, 9.80665]      # optional default specific force
+    initial_attitude_wxyz: [1, 0, 0, 0]  # optional (level); body to world, REP 103
+    gravity_m_s2: 9.80665                # optional
+    linear_accel_m_s2: [0.0, 0.0, 0.0]   # optional default applied acceleration, body
     segments:
       - duration_s: 10
         rate_deg_s: [0, 0, 0]            # or rate_rad_s / rate_rpm
@@ -68,6 +83,13 @@ files of :mod:`.scenario` share it, :func:`parse_segment`)::
       - duration_s: 5
         rate_rpm: 40                     # a number: constant, along ``axis``
         settle_s: 1                      # left out of a summary (scenario)
+        linear_accel_m_s2: [0.5, 0, 0]   # applied acceleration, body frame
+
+A profile may instead give its specific force itself, ``accel_m_s2``
+(a profile default and per segment; a segment without it takes the
+default, else level): then the attitude is not integrated, and
+``linear_accel_m_s2``, ``initial_attitude_wxyz`` and ``gravity_m_s2`` are
+refused.
 
 ``temperature_c`` is the old spelling of ``temp_c``: still read, with a
 deprecation warning.
@@ -75,20 +97,17 @@ deprecation warning.
 
 from dataclasses import dataclass
 import os
-from types import MappingProxyType
 from typing import Protocol, runtime_checkable
-import warnings
 
+from gyro_emulator.emulation.segments import (DEFAULT_AXIS, LEVEL_ACCEL_M_S2, parse_segment,
+                                              Segment, unit_axis)
+from gyro_emulator.physics.kinematics import check_attitude, check_gravity, LEVEL_WXYZ
 from gyro_emulator.resources import read_yaml
-from gyro_emulator.units import (deg_s_to_rad_s, rpm_to_rad_s,
-                                 STANDARD_GRAVITY_M_S2)
-from gyro_emulator.validation import MODEL_TEMP_RANGE_C
+from gyro_emulator.units import deg_s_to_rad_s, rpm_to_rad_s, STANDARD_GRAVITY_M_S2
+from gyro_emulator.validation import quote
 import numpy as np
 
 PROFILE_NAMES = ('static', 'steps', 'temp-ramp')
-
-#: Specific force of a gyro at rest, z up (REP 103), m/s^2.
-LEVEL_ACCEL_M_S2 = (0.0, 0.0, STANDARD_GRAVITY_M_S2)
 
 #: Rate-table rates of the paper's validation test, RPM about z.
 PAPER_RATES_RPM = (0.0, 10.0, 20.0, 40.0)
@@ -100,17 +119,27 @@ STEP_LEVELS_RPM = PAPER_RATES_RPM + (0.0,)
 
 @dataclass(frozen=True)
 class ProfileSamples:
-    """Profile values at the sample times: (N, 3) rates and forces, (N,) temperatures."""
+    """
+    Profile values at the sample times: (N, 3) rates and forces, (N,) temperatures.
+
+    ``accel_m_s2`` is the specific force, or None where the profile leaves
+    it to the motion (module docstring); then ``linear_accel_m_s2`` is the
+    applied linear acceleration in the body frame (None: zero).
+    """
 
     rate_rad_s: np.ndarray
     temp_c: np.ndarray
     accel_m_s2: np.ndarray
+    linear_accel_m_s2: np.ndarray = None
 
     @staticmethod
     def concatenate(parts):
         """Join samples in time order."""
-        return ProfileSamples(*(np.concatenate([getattr(p, name) for p in parts])
-                                for name in ('rate_rad_s', 'temp_c', 'accel_m_s2')))
+        def joined(name):
+            values = [getattr(p, name) for p in parts]
+            return None if any(v is None for v in values) else np.concatenate(values)
+        return ProfileSamples(*(joined(name) for name in (
+            'rate_rad_s', 'temp_c', 'accel_m_s2', 'linear_accel_m_s2')))
 
 
 @runtime_checkable
@@ -124,10 +153,18 @@ class Profile(Protocol):
         What the profile is called (a built-in name, a file, a drawn kind).
     duration_s : float
         Its length, s.
+    initial_attitude_wxyz : tuple
+        Attitude at time 0 (w, x, y, z), body to world (REP 103; level
+        :data:`~gyro_emulator.physics.kinematics.LEVEL_WXYZ`), for a
+        profile that leaves its specific force to the motion.
+    gravity_m_s2 : float
+        Magnitude of gravity for that specific force, m/s^2.
 
     """
 
     name: str
+    initial_attitude_wxyz: tuple
+    gravity_m_s2: float
 
     @property
     def duration_s(self):
@@ -150,70 +187,32 @@ class Profile(Protocol):
 
 
 @dataclass(frozen=True)
-class Segment:
-    """
-    One profile segment: linear rate and temperature, constant specific force.
-
-    Attributes
-    ----------
-    duration_s : float
-        Length, s (> 0).
-    rate_start_rad_s, rate_end_rad_s : tuple
-        Body rate (x, y, z) at the start and the end, rad/s.
-    temp_start_c, temp_end_c : float
-        Ambient temperature at the start and the end, deg C.
-    accel_m_s2 : tuple
-        Specific force (x, y, z), m/s^2.
-    settle_s : float
-        Start of the segment a summary leaves out (transients), s.
-    label : str
-        The rate as the profile wrote it (a scenario step's ``10 RPM``), or ''.
-
-    """
-
-    duration_s: float
-    rate_start_rad_s: tuple
-    rate_end_rad_s: tuple
-    temp_start_c: float
-    temp_end_c: float
-    accel_m_s2: tuple = LEVEL_ACCEL_M_S2
-    settle_s: float = 0.0
-    label: str = ''
-
-    def __post_init__(self):
-        """Validate the duration, temperatures and vectors."""
-        if not (np.isfinite(self.duration_s) and self.duration_s > 0.0):
-            raise ValueError(f'Segment.duration_s = {self.duration_s!r} is out of range: '
-                             'allowed > 0 s')
-        lo, hi = MODEL_TEMP_RANGE_C
-        for name in ('temp_start_c', 'temp_end_c'):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and lo <= value <= hi):
-                raise ValueError(f'Segment.{name} = {value!r} is out of range: allowed '
-                                 f'[{lo}, {hi}] C')
-        for name in ('rate_start_rad_s', 'rate_end_rad_s', 'accel_m_s2'):
-            arr = np.asarray(getattr(self, name), dtype=float)
-            if arr.shape != (3,) or not np.all(np.isfinite(arr)):
-                raise ValueError(f'Segment.{name} = {getattr(self, name)!r} is not '
-                                 'allowed: expected 3 finite numbers (x, y, z)')
-            object.__setattr__(self, name, tuple(float(v) for v in arr))
-        if not (np.isfinite(self.settle_s) and 0.0 <= self.settle_s <= self.duration_s):
-            raise ValueError(f'Segment.settle_s = {self.settle_s!r} is out of range: allowed '
-                             f'[0, {self.duration_s:g}] s (the duration)')
-
-
-@dataclass(frozen=True)
 class ScriptedProfile:
-    """A named sequence of :class:`Segment` (module docstring): the scripted kind."""
+    """
+    A named sequence of :class:`Segment` (module docstring): the scripted kind.
+
+    Its segments either all give their specific force or all leave it to
+    the motion, from ``initial_attitude_wxyz`` under ``gravity_m_s2``.
+    """
 
     name: str
     segments: tuple
+    initial_attitude_wxyz: tuple = LEVEL_WXYZ
+    gravity_m_s2: float = STANDARD_GRAVITY_M_S2
 
     def __post_init__(self):
-        """Require at least one segment."""
+        """Require at least one segment, one kind of specific force, a unit attitude, a gravity."""
         if not self.segments:
-            raise ValueError(f'Profile {self.name!r} has no segments')
+            raise ValueError(f'Profile {quote(self.name)} has no segments')
         object.__setattr__(self, 'segments', tuple(self.segments))
+        given = {s.accel_m_s2 is not None for s in self.segments}
+        if len(given) > 1:
+            raise ValueError(f'Profile {quote(self.name)}: some segments give accel_m_s2 and some '
+                             'do not: give the specific force in every segment or in none')
+        owner = f'Profile {quote(self.name)}'
+        object.__setattr__(self, 'initial_attitude_wxyz', tuple(
+            check_attitude(self.initial_attitude_wxyz, owner).tolist()))
+        object.__setattr__(self, 'gravity_m_s2', check_gravity(self.gravity_m_s2, owner))
 
     @property
     def duration_s(self):
@@ -237,12 +236,16 @@ class ScriptedProfile:
         r1 = np.array([s.rate_end_rad_s for s in self.segments])
         t0 = np.array([s.temp_start_c for s in self.segments])
         t1 = np.array([s.temp_end_c for s in self.segments])
-        acc = np.array([s.accel_m_s2 for s in self.segments])
         dur = np.array([s.duration_s for s in self.segments])
         frac = np.clip((t - starts[idx]) / dur[idx], 0.0, 1.0)
         rate = r0[idx] + (r1[idx] - r0[idx]) * frac[:, np.newaxis]
         temp = t0[idx] + (t1[idx] - t0[idx]) * frac
-        return ProfileSamples(rate_rad_s=rate, temp_c=temp, accel_m_s2=acc[idx])
+        if self.segments[0].accel_m_s2 is not None:
+            acc = np.array([s.accel_m_s2 for s in self.segments])
+            return ProfileSamples(rate_rad_s=rate, temp_c=temp, accel_m_s2=acc[idx])
+        linear = np.array([s.linear_accel_m_s2 for s in self.segments])
+        return ProfileSamples(rate_rad_s=rate, temp_c=temp, accel_m_s2=None,
+                              linear_accel_m_s2=linear[idx])
 
 
 @dataclass(frozen=True)
@@ -257,12 +260,18 @@ class SampledProfile:
     time_s : numpy.ndarray
         Sample times, s, shape (N,), non-decreasing.
     rate_rad_s, accel_m_s2 : numpy.ndarray
-        True rate (rad/s) and specific force (m/s^2), shape (N, 3).
+        True rate (rad/s) and specific force (m/s^2), shape (N, 3); a
+        specific force of None is left to the motion (module docstring).
     temp_c : numpy.ndarray
         True (chamber) temperature, deg C, shape (N,).
     max_rate_rad_s : float, optional
         Largest rate the profile commands, rad/s (a lab's table full scale;
         default: the largest magnitude of ``rate_rad_s``).
+    linear_accel_m_s2 : numpy.ndarray, optional
+        Applied linear acceleration in the body frame, (N, 3), m/s^2, with a
+        specific force of None (None: zero).
+    initial_attitude_wxyz, gravity_m_s2
+        As :class:`Profile`.
     rate_knots : tuple, optional
         (times s (K,), rates rad/s (K, 3)) of a rate linear between knots:
         the rate at any time, exactly, between the samples too
@@ -276,13 +285,18 @@ class SampledProfile:
     temp_c: np.ndarray
     accel_m_s2: np.ndarray
     max_rate_rad_s: float = None
+    linear_accel_m_s2: np.ndarray = None
+    initial_attitude_wxyz: tuple = LEVEL_WXYZ
+    gravity_m_s2: float = STANDARD_GRAVITY_M_S2
     rate_knots: tuple = None
 
     def __post_init__(self):
         """Check the shapes: (N,) times and temperatures, (N, 3) rates and forces."""
         n = len(self.time_s)
         for name, shape in (('time_s', (n,)), ('rate_rad_s', (n, 3)), ('temp_c', (n,)),
-                            ('accel_m_s2', (n, 3))):
+                            ('accel_m_s2', (n, 3)), ('linear_accel_m_s2', (n, 3))):
+            if name in ('accel_m_s2', 'linear_accel_m_s2') and getattr(self, name) is None:
+                continue
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.shape != shape:
                 raise ValueError(f'SampledProfile.{name} has shape {arr.shape}: expected '
@@ -291,6 +305,10 @@ class SampledProfile:
         if self.max_rate_rad_s is None:
             object.__setattr__(self, 'max_rate_rad_s',
                                float(np.max(np.abs(self.rate_rad_s))) if n else 0.0)
+        owner = f'Profile {quote(self.name)}'
+        object.__setattr__(self, 'initial_attitude_wxyz', tuple(
+            check_attitude(self.initial_attitude_wxyz, owner).tolist()))
+        object.__setattr__(self, 'gravity_m_s2', check_gravity(self.gravity_m_s2, owner))
 
     @property
     def sample_period_s(self):
@@ -313,10 +331,12 @@ class SampledProfile:
         t = np.asarray(time_s, dtype=float)
 
         def at(values):
+            if values is None:
+                return None
             return np.column_stack([np.interp(t, self.time_s, values[:, k]) for k in range(3)])
 
         return ProfileSamples(at(self.rate_rad_s), np.interp(t, self.time_s, self.temp_c),
-                              at(self.accel_m_s2))
+                              at(self.accel_m_s2), at(self.linear_accel_m_s2))
 
     def rate_at(self, time_s):
         """
@@ -335,8 +355,10 @@ class SampledProfile:
 
     def own_samples(self, start, stop):
         """Return the profile's own samples ``start`` .. ``stop - 1``, as they are."""
+        def rows(values):
+            return None if values is None else values[start:stop]
         return ProfileSamples(self.rate_rad_s[start:stop], self.temp_c[start:stop],
-                              self.accel_m_s2[start:stop])
+                              rows(self.accel_m_s2), rows(self.linear_accel_m_s2))
 
 
 def rate_about_z(rate_rad_s):
@@ -494,82 +516,8 @@ def _step_segments(dwell_s, temps_c, rates_rpm, ramp_k_min):
                           temps_c[i + 1])
 
 
-_SEGMENT_KEYS = ('duration_s', 'rate_rad_s', 'rate_deg_s', 'rate_rpm', 'temp_c',
-                 'accel_m_s2', 'settle_s')
-#: Rate keys of a segment and their conversion to rad/s.
-RATE_UNITS = MappingProxyType({'rate_rad_s': lambda v: v, 'rate_deg_s': deg_s_to_rad_s,
-                               'rate_rpm': rpm_to_rad_s})
-#: Old spellings still read, with a one-line deprecation warning.
-_ALIASES = {'temperature_c': 'temp_c'}
-#: Rate direction of scalar rates when a profile gives no ``axis``: z (REP 103).
-DEFAULT_AXIS = (0.0, 0.0, 1.0)
-
-
-def _start_end(where, key, value, shape):
-    arr = np.asarray(value, dtype=float) if not isinstance(value, (str, bool)) else None
-    if arr is not None and arr.shape == shape:
-        return arr, arr
-    if arr is not None and arr.shape == (2,) + shape:
-        return arr[0], arr[1]
-    want = 'a number' if shape == () else '3 numbers'
-    raise ValueError(f'{where}: {key} = {value!r} is not allowed: give {want} or '
-                     f'[start, end] of {want}')
-
-
-def _rate_start_end(where, key, value, axis):
-    """Rates of a segment: a number along ``axis``, a 3-vector, or [start, end] 3-vectors."""
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        along = np.asarray(axis) * float(value)
-        return along, along
-    return _start_end(where, key, value, (3,))
-
-
-def canonical_segment(where, seg):
-    """Return the segment mapping with old spellings renamed (warned once each)."""
-    out = dict(seg)
-    for old, new in _ALIASES.items():
-        if old in out:
-            if new in out:
-                raise ValueError(f'{where}: give {new} only ({old} is its old spelling)')
-            warnings.warn(f'{where}: {old} is deprecated, write {new}', DeprecationWarning,
-                          stacklevel=3)
-            out[new] = out.pop(old)
-    return out
-
-
-def parse_segment(where, seg, axis=DEFAULT_AXIS, last_temp_c=25.0,
-                  default_accel_m_s2=LEVEL_ACCEL_M_S2):
-    """
-    Build one :class:`Segment` from its mapping (the keys of the module docstring).
-
-    A rate given as a number (or [start, end] of numbers) is along ``axis``;
-    a missing ``temp_c`` holds ``last_temp_c``. Unknown keys and bad values
-    raise ``ValueError`` naming ``where`` and the key.
-    """
-    if not isinstance(seg, dict):
-        raise ValueError(f'{where} must be a mapping, got {seg!r}')
-    seg = canonical_segment(where, seg)
-    unknown = sorted(set(seg) - set(_SEGMENT_KEYS))
-    if unknown:
-        raise ValueError(f'{where}: unknown key(s) {", ".join(map(str, unknown))}; '
-                         f'allowed: {", ".join(_SEGMENT_KEYS)}')
-    if 'duration_s' not in seg:
-        raise ValueError(f'{where}: duration_s is required')
-    rate_keys = [k for k in RATE_UNITS if k in seg]
-    if len(rate_keys) > 1:
-        raise ValueError(f'{where}: give only one of {", ".join(rate_keys)}')
-    r0 = r1 = np.zeros(3)
-    if rate_keys:
-        key = rate_keys[0]
-        r0, r1 = _rate_start_end(where, key, seg[key], axis)
-        r0, r1 = RATE_UNITS[key](r0), RATE_UNITS[key](r1)
-    t0, t1 = _start_end(where, 'temp_c', seg.get('temp_c', last_temp_c), ())
-    acc, _ = _start_end(where, 'accel_m_s2', seg.get('accel_m_s2', default_accel_m_s2), (3,))
-    try:
-        return Segment(float(seg['duration_s']), tuple(r0), tuple(r1), float(t0), float(t1),
-                       tuple(acc), float(seg.get('settle_s', 0.0)))
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f'{where}: {exc}') from None
+#: Profile keys of a specific force left to the motion.
+_MOTION_KEYS = ('linear_accel_m_s2', 'initial_attitude_wxyz', 'gravity_m_s2')
 
 
 def profile_from_mapping(mapping, source='profile'):
@@ -579,35 +527,37 @@ def profile_from_mapping(mapping, source='profile'):
     Unknown keys and bad values raise ``ValueError`` naming the segment and key.
     """
     if not isinstance(mapping, dict):
-        raise ValueError(f'{source}: expected a mapping with "segments", got {mapping!r}')
-    unknown = sorted(set(mapping) - {'name', 'segments', 'accel_m_s2', 'axis'})
+        raise ValueError(f'{source}: expected a mapping with "segments", got {quote(mapping)}')
+    allowed = ('name', 'segments', 'accel_m_s2', 'axis') + _MOTION_KEYS
+    unknown = sorted(set(mapping) - set(allowed))
     if unknown:
         raise ValueError(f'{source}: unknown key(s) {", ".join(map(str, unknown))}; '
-                         'allowed: name, segments, accel_m_s2, axis')
-    default_acc = mapping.get('accel_m_s2', LEVEL_ACCEL_M_S2)
+                         f'allowed: {", ".join(allowed)}')
     axis = unit_axis(source, mapping.get('axis', DEFAULT_AXIS))
     raw = mapping.get('segments')
     if not isinstance(raw, list) or not raw:
         raise ValueError(f'{source}: segments must be a non-empty list')
+    given = 'accel_m_s2' in mapping or any(isinstance(seg, dict) and 'accel_m_s2' in seg
+                                           for seg in raw)
+    motion = [k for k in _MOTION_KEYS if k in mapping]
+    if given and motion:
+        raise ValueError(f'{source}: {", ".join(motion)} is for a specific force left to the '
+                         'motion: give it or accel_m_s2 (the specific force itself), not both')
+    default_acc = mapping.get('accel_m_s2', LEVEL_ACCEL_M_S2) if given else None
+    default_linear = mapping.get('linear_accel_m_s2', (0.0, 0.0, 0.0))
     segments = []
     last_temp = 25.0
     for i, seg in enumerate(raw):
         segment = parse_segment(f'{source}: segment {i + 1}', seg, axis, last_temp,
-                                default_acc)
+                                default_acc, default_linear)
         last_temp = segment.temp_end_c
         segments.append(segment)
-    return ScriptedProfile(str(mapping.get('name', source)), tuple(segments))
-
-
-def unit_axis(source, axis):
-    """Return ``axis`` (3 numbers, not all zero) scaled to unit length."""
-    arr = np.asarray(axis, dtype=float) if isinstance(axis, (list, tuple)) else None
-    if arr is None or arr.shape != (3,) or not np.all(np.isfinite(arr)):
-        raise ValueError(f'{source}.axis = {axis!r} must be a list of 3 numbers')
-    norm = float(np.linalg.norm(arr))
-    if norm == 0.0:
-        raise ValueError(f'{source}.axis = {axis!r} is the zero vector')
-    return tuple(float(v) / norm for v in arr)
+    try:
+        return ScriptedProfile(str(mapping.get('name', source)), tuple(segments),
+                               mapping.get('initial_attitude_wxyz', LEVEL_WXYZ),
+                               mapping.get('gravity_m_s2', STANDARD_GRAVITY_M_S2))
+    except ValueError as exc:
+        raise ValueError(f'{source}: {exc}') from None
 
 
 def load_profile(path):
@@ -641,6 +591,6 @@ def make_profile(name_or_path, duration_s, temp_c=25.0):
     if name_or_path == 'temp-ramp':
         return temperature_ramp(((0.0, 25.0), (duration_s, 85.0)))
     if not os.path.isfile(str(name_or_path)):
-        raise ValueError(f'profile {name_or_path!r} is neither a built-in profile '
+        raise ValueError(f'profile {quote(name_or_path)} is neither a built-in profile '
                          f'({", ".join(PROFILE_NAMES)}) nor a readable YAML file')
     return load_profile(name_or_path)

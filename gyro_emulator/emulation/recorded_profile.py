@@ -5,8 +5,7 @@ A measured record as a ``simulate`` profile: its inputs at its own sample times.
 :func:`gyro_emulator.recording.record.load_record` reads) drives the
 emulator with what the part saw: a :class:`RecordedProfile` is the recorded
 kind of the one profile protocol, a :class:`~.profiles.SampledProfile` on
-the record's times (the model's temperature range,
-:data:`~.profiles.LEVEL_ACCEL_M_S2`):
+the record's times (the model's temperature range):
 
 * the applied rate: a vector channel as it is; a CSV's single
   ``rate_cmd_rad_s`` column about the sense axis ``axis``. A record with no
@@ -14,7 +13,10 @@ the record's times (the model's temperature range,
   rate), as ``diagnose --static`` does;
 * the temperature, interpolated from its own times to the record's
   (without one: ``temp_c``, constant);
-* the specific force likewise (without one: level, z up).
+* the specific force likewise; without one, it is left to the motion:
+  gravity turning with the applied rate from a level start
+  (:mod:`~gyro_emulator.emulation.profiles`; a part at rest reads level,
+  z up).
 
 The output is written at the record's sample times. The model runs on a
 uniform grid at the record's median sample interval from its first sample
@@ -29,10 +31,10 @@ sample has its own output and time-dependent terms see the record's clock;
 from dataclasses import dataclass
 import os
 
-from gyro_emulator.emulation.profiles import LEVEL_ACCEL_M_S2, SampledProfile
-from gyro_emulator.recording.record import DEFAULT_TOPICS, is_bag, load_record
+from gyro_emulator.emulation.profiles import SampledProfile
+from gyro_emulator.recording.record import is_bag, load_record
 from gyro_emulator.units import AXES
-from gyro_emulator.validation import MODEL_TEMP_RANGE_C
+from gyro_emulator.validation import check_record_values, MODEL_TEMP_RANGE_C
 import numpy as np
 
 
@@ -56,7 +58,8 @@ class RecordedProfile(SampledProfile):
         Record sample times, s, non-decreasing (a repeated stamp, from a
         logger's clock resolution, is accepted), shape (N,).
     rate_rad_s, accel_m_s2 : numpy.ndarray
-        Applied rate (rad/s) and specific force (m/s^2), shape (N, 3).
+        Applied rate (rad/s) and specific force (m/s^2), shape (N, 3); a
+        specific force of None is left to the motion.
     temp_c : numpy.ndarray
         Temperature, deg C, shape (N,).
 
@@ -103,7 +106,8 @@ class ModelGrid:
         samples = record.samples(time_s)
         samples.rate_rad_s[at] = record.rate_rad_s[lo:hi]
         samples.temp_c[at] = record.temp_c[lo:hi]
-        samples.accel_m_s2[at] = record.accel_m_s2[lo:hi]
+        if record.accel_m_s2 is not None:
+            samples.accel_m_s2[at] = record.accel_m_s2[lo:hi]
         time_s[at] = record.time_s[lo:hi]
         published = np.zeros(len(grid), bool)
         published[at] = True
@@ -135,6 +139,17 @@ def _rate(record, t, axis, static):
     return rate
 
 
+def default_topics(gyro=None):
+    """
+    Return the bag roles of a recorded profile.
+
+    ``gyro`` (None: the one Imu topic with messages) and the emulator's
+    command topics where the bag has them (None: the defaults of
+    :func:`~gyro_emulator.recording.record.load_record`).
+    """
+    return {'gyro': gyro, 'rate': None, 'temp': None, 'accel': None}
+
+
 def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     """
     Read a measured record as a profile (module docstring).
@@ -152,8 +167,7 @@ def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     topics : dict, optional
         Bag roles (gyro: the sample times; rate, temp, accel) -> topics, as
         for :func:`~gyro_emulator.recording.record.load_record` (default:
-        the bag's one Imu topic and the emulator's command topics,
-        :data:`~gyro_emulator.recording.record.DEFAULT_TOPICS`).
+        :func:`default_topics`).
 
     Returns
     -------
@@ -162,8 +176,12 @@ def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     """
     if axis not in AXES:
         raise ValueError(f'simulate.axis = {axis!r} is not allowed: choose x, y or z')
-    roles = topics or {role: DEFAULT_TOPICS[role] for role in ('gyro', 'rate', 'temp', 'accel')}
+    roles = topics or default_topics()
     record = load_record(path, roles)
+    for role, kind in (('rate', 'rate'), ('temp', 'temp')):     # the rule diagnose applies
+        channel = getattr(record, role)
+        if channel is not None:
+            check_record_values(str(path), channel.source, channel.values, kind)
     t = np.asarray(record.time_s, dtype=float)
     if len(t) < 2 or np.any(np.diff(t) < 0.0) or t[-1] <= t[0]:
         raise ValueError(f'{path}: time_s must not go back and must span at least 2 samples '
@@ -174,10 +192,9 @@ def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     if not (np.all(np.isfinite(temp)) and lo <= temp.min() and temp.max() <= hi):
         raise ValueError(f'{path}: temp_c = {temp.min():.4g} .. {temp.max():.4g} C is out of '
                          f'range: allowed [{lo}, {hi}] C')
-    accel = (np.tile(LEVEL_ACCEL_M_S2, (len(t), 1)) if record.accel is None
-             else _on_record_times(record.accel, t, 3))
+    accel = None if record.accel is None else _on_record_times(record.accel, t, 3)
     rate = _rate(record, t, axis, static)
     for name, values in (('rate', rate), ('accel', accel)):
-        if not np.all(np.isfinite(values)):
+        if values is not None and not np.all(np.isfinite(values)):
             raise ValueError(f'{path}: the {name} channel has values that are not finite')
     return RecordedProfile(str(path), t, rate, temp, accel)

@@ -19,16 +19,27 @@ published):
 * :meth:`~gyro_emulator.emulation.recorded_profile.RecordedProfile.on_model_grid`:
   a measured record on the model's uniform grid (``simulate --profile LOG``).
 
+A profile that leaves its specific force to the motion (its samples'
+``accel_m_s2`` is None: :mod:`gyro_emulator.emulation.profiles`) gets it
+here (:class:`MotionForce`): the attitude integrated from the profile's
+``initial_attitude_wxyz`` with its rate held from sample to sample
+(:class:`gyro_emulator.physics.kinematics.AttitudeTrack`), and
+f = a_body - R(q)^T (0, 0, -g). The model (a
+:class:`~gyro_emulator.sensor.model.GyroModel` or an
+:class:`~gyro_emulator.sensor.imu.ImuModel`) gets that f: the gyro's
+g-sensitivity and the accelerometer alike.
+
 The model's batch API is partition-invariant (its random draws happen in
-the same order however a record is cut), so the chunk size changes no
-result.
+the same order however a record is cut), and so is the attitude, so the
+chunk size changes no result.
 """
 
 from dataclasses import dataclass, replace
 
 from gyro_emulator.emulation.profiles import ProfileSamples
+from gyro_emulator.physics import kinematics
 from gyro_emulator.sensor import faults as sensor_faults
-from gyro_emulator.sensor.model import SensorBatch
+from gyro_emulator.units import STANDARD_GRAVITY_M_S2
 import numpy as np
 
 #: Samples per chunk of :func:`run_over_profile`.
@@ -42,13 +53,48 @@ class ProfileChunk:
 
     ``published`` (N,) is False for the samples a ``dropout`` fault withholds
     or a record's grid has no sample for (None: all are published); the
-    writers leave them out of the output.
+    writers leave them out of the output. ``batch`` is a ``SensorBatch``
+    (a GyroModel) or an ``ImuBatch`` (an ImuModel). ``attitude_wxyz`` (N, 4)
+    is the attitude where the specific force came from the motion, else None.
     """
 
     time_s: np.ndarray
     profile: ProfileSamples
-    batch: SensorBatch
+    batch: object
     published: np.ndarray = None
+    attitude_wxyz: np.ndarray = None
+
+
+class MotionForce:
+    """
+    The specific force of a profile that leaves it to the motion (module docstring).
+
+    Parameters
+    ----------
+    profile : gyro_emulator.emulation.profiles.Profile
+        Its ``initial_attitude_wxyz`` and ``gravity_m_s2`` are used.
+
+    """
+
+    def __init__(self, profile):
+        self.gravity_m_s2 = kinematics.check_gravity(
+            getattr(profile, 'gravity_m_s2', STANDARD_GRAVITY_M_S2), 'profile')
+        self.track = kinematics.AttitudeTrack(
+            getattr(profile, 'initial_attitude_wxyz', kinematics.LEVEL_WXYZ))
+
+    def complete(self, time_s, samples):
+        """
+        Return ``(samples, attitudes)``: the samples with their specific force, and the attitudes.
+
+        Samples that give their specific force come back as they are (attitudes
+        None); the next samples of the record follow in the next call.
+        """
+        if samples.accel_m_s2 is not None:
+            return samples, None
+        attitudes = self.track.at(time_s, samples.rate_rad_s)
+        force = kinematics.specific_force(attitudes, samples.linear_accel_m_s2,
+                                          self.gravity_m_s2)
+        return replace(samples, accel_m_s2=force), attitudes
 
 
 @dataclass(frozen=True)
@@ -85,6 +131,19 @@ class OwnSamples:
     def inputs(self, start, stop):
         """Return the times, the samples and None (all published)."""
         return self.profile.time_s[start:stop], self.profile.own_samples(start, stop), None
+
+
+def samples_with_force(profile, time_s):
+    """
+    Return ``profile.samples(time_s)`` with its specific force, from the motion if need be.
+
+    The attitude starts at the profile's initial attitude at the first time
+    and the rate is held from each time to the next (:class:`MotionForce`),
+    as the chunk loop does on a run's own samples: ``time_s`` is a record's
+    sample times from its start, non-decreasing.
+    """
+    time_s = np.asarray(time_s, dtype=float)
+    return MotionForce(profile).complete(time_s, profile.samples(time_s))[0]
 
 
 def fault_injector(faults, config, rng):
@@ -125,8 +184,9 @@ def run_over_profile(model, timeline, chunk_samples=CHUNK_SAMPLES, injector=None
         Faults applied to the output as the node applies them
         (:func:`fault_injector`); a dropout withholds samples.
     specific_force : bool
-        Give the model the profile's specific force (False: none, so its
-        g-sensitivity sees none: a noise run).
+        Give the model the profile's specific force, the profile's own or
+        from the motion (:class:`MotionForce`) (False: none, so the gyro's
+        g-sensitivity sees none and an accelerometer reads zero: a noise run).
     configs : dict, optional
         Sample index -> SensorConfig, applied with
         :meth:`~gyro_emulator.sensor.model.GyroModel.update_config` before
@@ -140,10 +200,14 @@ def run_over_profile(model, timeline, chunk_samples=CHUNK_SAMPLES, injector=None
     """
     configs = configs or {}
     edges = chunk_edges(timeline.count, chunk_samples, configs)
+    motion = MotionForce(timeline.profile) if specific_force else None
     for start, stop in zip(edges[:-1], edges[1:]):
         if start in configs:
             model.update_config(configs[start])
         time_s, samples, published = timeline.inputs(start, stop)
+        attitudes = None
+        if motion is not None:
+            samples, attitudes = motion.complete(time_s, samples)
         batch = model.run(samples.rate_rad_s, samples.temp_c,
                           samples.accel_m_s2 if specific_force else None)
         if injector is not None:
@@ -151,17 +215,18 @@ def run_over_profile(model, timeline, chunk_samples=CHUNK_SAMPLES, injector=None
             batch = replace(batch, gyro_rad_s=effect.gyro_rad_s,
                             saturated=batch.saturated | effect.saturated)
             published = effect.published if published is None else published & effect.published
-        yield ProfileChunk(time_s, samples, batch, published)
+        yield ProfileChunk(time_s, samples, batch, published, attitudes)
 
 
 def join_chunks(chunks):
     """
-    Return a whole run from its chunks: (time_s, ProfileSamples, SensorBatch).
+    Return a whole run from its chunks: (time_s, ProfileSamples, batch).
 
+    The batch is of the model's kind (``SensorBatch`` or ``ImuBatch``).
     ``published`` is not joined: a run with withheld samples is written from
     its chunks, not joined.
     """
     chunks = list(chunks)
     return (np.concatenate([c.time_s for c in chunks]),
             ProfileSamples.concatenate([c.profile for c in chunks]),
-            SensorBatch.concatenate([c.batch for c in chunks]))
+            type(chunks[0].batch).concatenate([c.batch for c in chunks]))

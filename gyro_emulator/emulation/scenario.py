@@ -7,10 +7,12 @@ is along ``axis``), plus what the player needs: how often to re-send the
 commands, a grid of every rate at every temperature, the node's parameters
 and a fault schedule. A :class:`Scenario` is a profile of the one protocol
 (:class:`~gyro_emulator.emulation.profiles.Profile`): its steps are
-constant segments with labels (:class:`~.profiles.Segment`), its samples
+constant segments with labels (:class:`~.segments.Segment`), its samples
 those of the scripted profile they make. :func:`summarize` averages the
-output the player collected over each step; the ROS edge that plays it is
-:mod:`gyro_emulator.ros.scenario`.
+output the player collected over each step; a step that got no sample in
+its measurement window is not a number but an error :func:`unmeasured`
+names (the table says "no samples", the JSON null). The ROS edge that
+plays it is :mod:`gyro_emulator.ros.scenario`.
 
 Scenario keys (SI unless the name says otherwise)::
 
@@ -40,8 +42,10 @@ import os
 import warnings
 
 from gyro_emulator.emulation import profiles
+from gyro_emulator.emulation import segments as schema
 from gyro_emulator.resources import config_file, read_yaml
 from gyro_emulator.sensor import faults
+from gyro_emulator.validation import quote
 import numpy as np
 
 DEFAULT_PROFILE = 'scenario_paper_validation.yaml'
@@ -71,7 +75,7 @@ class Scenario:
         Unit rate direction in the sensor frame.
     publish_rate_hz : float
         How often the player re-sends the commands, Hz.
-    steps : tuple of gyro_emulator.emulation.profiles.Segment
+    steps : tuple of gyro_emulator.emulation.segments.Segment
         Constant segments, each with the label of its rate (e.g. ``10 RPM``).
     node_parameters : dict
         Parameters a runner should give the node.
@@ -97,6 +101,16 @@ class Scenario:
         """Return the steps as a :class:`~.profiles.ScriptedProfile`."""
         return profiles.ScriptedProfile(self.name, self.steps)
 
+    @property
+    def initial_attitude_wxyz(self):
+        """Attitude at time 0 (level): the steps give their specific force (level)."""
+        return self.profile.initial_attitude_wxyz
+
+    @property
+    def gravity_m_s2(self):
+        """Magnitude of gravity, m/s^2 (standard)."""
+        return self.profile.gravity_m_s2
+
     def samples(self, time_s):
         """Return the profile's samples at ``time_s`` (:class:`~.profiles.ProfileSamples`)."""
         return self.profile.samples(time_s)
@@ -109,18 +123,18 @@ class Scenario:
 def _number(where, key, value, low=None, high=None, low_open=False):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or \
             not math.isfinite(value):
-        raise ValueError(f'{where}.{key} = {value!r} is not a finite number')
+        raise ValueError(f'{where}.{key} = {quote(value)} is not a finite number')
     if (low is not None and (value <= low if low_open else value < low)) or (
             high is not None and value > high):
         lo = '-inf' if low is None else f'{low:g}'
         hi = 'inf' if high is None else f'{high:g}'
-        raise ValueError(f'{where}.{key} = {value!r} is out of range: allowed '
+        raise ValueError(f'{where}.{key} = {quote(value)} is out of range: allowed '
                          f'{"(" if low_open else "["}{lo}, {hi}]')
     return float(value)
 
 
 def _rate(where, mapping, plural=False):
-    names = {('rates_' + k[5:] if plural else k): k for k in profiles.RATE_UNITS}
+    names = {('rates_' + k[5:] if plural else k): k for k in schema.RATE_UNITS}
     found = [n for n in names if n in mapping]
     if len(found) != 1:
         raise ValueError(f'{where}: give exactly one of {", ".join(names)}')
@@ -128,23 +142,23 @@ def _rate(where, mapping, plural=False):
 
 
 def _step(where, raw, axis):
-    """Parse one step with the shared segment schema (:func:`.profiles.parse_segment`)."""
+    """Parse one step with the shared segment schema (:func:`.segments.parse_segment`)."""
     if not isinstance(raw, dict):
-        raise ValueError(f'{where} = {raw!r} must be a mapping')
-    raw = profiles.canonical_segment(where, raw)
+        raise ValueError(f'{where} = {quote(raw)} must be a mapping')
+    raw = schema.canonical_segment(where, raw)
     key = _rate(where, raw)[0]
     value = _number(where, key, raw[key])
     if 'temp_c' not in raw:
         raise ValueError(f'{where}.temp_c = None is not a finite number')
     if 'duration_s' in raw:
         _number(where, 'duration_s', raw['duration_s'], 0.0, 86400.0, True)
-    segment = profiles.parse_segment(where, raw, axis)
+    segment = schema.parse_segment(where, raw, axis)
     return _constant_step(where, segment, f'{value:g} {RATE_LABELS[key]}')
 
 
 def _grid(where, raw, axis):
     if not isinstance(raw, dict):
-        raise ValueError(f'{where} = {raw!r} must be a mapping')
+        raise ValueError(f'{where} = {quote(raw)} must be a mapping')
     plural, key = _rate(where, raw, plural=True)
     raw = dict(raw)
     if 'temperatures_c' in raw and 'temps_c' not in raw:
@@ -159,7 +173,7 @@ def _grid(where, raw, axis):
     temps, rates = raw.get('temps_c'), raw[plural]
     for name, values in (('temps_c', temps), (plural, rates)):
         if not isinstance(values, list) or not values:
-            raise ValueError(f'{where}.{name} = {values!r} must be a non-empty list')
+            raise ValueError(f'{where}.{name} = {quote(values)} must be a non-empty list')
     hold = raw.get('hold_s')
     steps = []
     for temp in temps:
@@ -177,14 +191,14 @@ def parse_scenario(doc, source='profile'):
     Raises ValueError naming the key, the value and the allowed range.
     """
     if not isinstance(doc, dict):
-        raise ValueError(f'{source}: expected a mapping, got {doc!r}')
+        raise ValueError(f'{source}: expected a mapping, got {quote(doc)}')
     allowed = {'name', 'description', 'axis', 'publish_rate_hz', 'grid', 'segments',
                'node_parameters', 'faults'}
     unknown = sorted(set(doc) - allowed)
     if unknown:
         raise ValueError(f'{source}: unknown key(s) {", ".join(unknown)}; allowed: '
                          f'{", ".join(sorted(allowed))}')
-    axis = profiles.unit_axis(source, doc.get('axis', list(profiles.DEFAULT_AXIS)))
+    axis = schema.unit_axis(source, doc.get('axis', list(schema.DEFAULT_AXIS)))
     rate_hz = _number(source, 'publish_rate_hz', doc.get('publish_rate_hz', 50.0),
                       0.0, 1000.0, True)
     steps = []
@@ -192,13 +206,13 @@ def parse_scenario(doc, source='profile'):
         steps += _grid(f'{source}.grid', doc['grid'], axis)
     segments = doc.get('segments', [])
     if not isinstance(segments, list):
-        raise ValueError(f'{source}.segments = {segments!r} must be a list')
+        raise ValueError(f'{source}.segments = {quote(segments)} must be a list')
     steps += [_step(f'{source}.segments[{i}]', s, axis) for i, s in enumerate(segments)]
     if not steps:
         raise ValueError(f'{source}: no steps (give grid and/or segments)')
     node_parameters = doc.get('node_parameters') or {}
     if not isinstance(node_parameters, dict):
-        raise ValueError(f'{source}.node_parameters = {node_parameters!r} must be a mapping')
+        raise ValueError(f'{source}.node_parameters = {quote(node_parameters)} must be a mapping')
     schedule = faults.parse_schedule(f'{source}.faults', doc.get('faults'))
     return Scenario(str(doc.get('name', os.path.basename(str(source)))),
                     axis, rate_hz, tuple(steps),
@@ -222,7 +236,7 @@ def load_scenario(path=None):
 class StepResult:
     """Commanded vs measured for one step (rates along the axis, deg/s; the step a Segment)."""
 
-    step: profiles.Segment
+    step: schema.Segment
     commanded_deg_s: float
     measured_deg_s: float
     std_deg_s: float
@@ -275,17 +289,49 @@ def summarize(profile, start_ns, imu, temps):
     return results
 
 
+def _cell(value, width, spec):
+    """Format a number for the table; '-' where there is none (NaN)."""
+    return f'{value:>{width}{spec}}' if math.isfinite(value) else f'{"-":>{width}}'
+
+
 def format_summary(results):
-    """Return the summary table as text (one row per step)."""
+    """Return the summary table as text (one row per step; "no samples" where none came)."""
     head = (f'{"step":>4} {"T_amb C":>8} {"T_die C":>8} {"rate":>10} {"cmd deg/s":>10} '
             f'{"meas deg/s":>11} {"err deg/s":>10} {"std deg/s":>10} {"n":>6}')
     lines = [head, '-' * len(head)]
     for i, r in enumerate(results):
-        lines.append(
-            f'{i:>4} {r.step.temp_start_c:>8.1f} {r.die_temp_c:>8.2f} '
-            f'{r.step.label:>10} {r.commanded_deg_s:>10.3f} {r.measured_deg_s:>11.3f} '
-            f'{r.error_deg_s:>+10.3f} {r.std_deg_s:>10.3f} {r.samples:>6d}')
+        row = (f'{i:>4} {r.step.temp_start_c:>8.1f} {_cell(r.die_temp_c, 8, ".2f")} '
+               f'{r.step.label:>10} {r.commanded_deg_s:>10.3f} ')
+        if r.samples:
+            row += (f'{r.measured_deg_s:>11.3f} {r.error_deg_s:>+10.3f} '
+                    f'{_cell(r.std_deg_s, 10, ".3f")} {r.samples:>6d}')
+        else:
+            row += f'{"no samples":>33} {0:>6d}'
+        lines.append(row)
     return '\n'.join(lines)
+
+
+def describe_step(index, step):
+    """Name a step for a message: ``step 3 (10 RPM at 25 C)`` (numbered from 1)."""
+    return f'step {index + 1} ({step.label} at {step.temp_start_c:g} C)'
+
+
+def unmeasured(results):
+    """
+    Name the steps that got no output sample in their measurement window.
+
+    Returns
+    -------
+    str or None
+        E.g. "step 1 (0 RPM at 25 C) and step 2 (10 RPM at 25 C) got no Imu
+        sample after their settle time"; None when every step has samples.
+
+    """
+    empty = [describe_step(i, r.step) for i, r in enumerate(results) if not r.samples]
+    if not empty:
+        return None
+    names = empty[0] if len(empty) == 1 else ', '.join(empty[:-1]) + ' and ' + empty[-1]
+    return f'{names} got no Imu sample after {"its" if len(empty) == 1 else "their"} settle time'
 
 
 def interruption_note(profile, start_ns, stop_ns):
@@ -321,17 +367,31 @@ def interruption_note(profile, start_ns, stop_ns):
     steps = f'step {index + 1}' if index + 1 == count else f'steps {index + 1}-{count}'
     return (f'interrupted at {elapsed:.1f} s of {profile.duration_s:g} s, in step '
             f'{index + 1} of {count}: {steps} {"was" if index + 1 == count else "were"} not '
-            'finished (NaN where no sample was taken)')
+            'finished (no samples where none was taken)')
+
+
+def number_or_none(value):
+    """Return ``value``, or None (JSON null) where it is not a number (no samples)."""
+    return value if math.isfinite(value) else None
 
 
 def results_json(profile, results, interrupted=None):
-    """Return the summary as a JSON-ready dict (``interrupted``: the note, when it was)."""
+    """
+    Return the summary as a JSON-ready dict (``interrupted``: the note, when it was).
+
+    A figure with no samples behind it is null; ``unmeasured`` names those steps.
+    """
     doc = {'profile': profile.name, 'axis': list(profile.axis)}
     if interrupted:
         doc['interrupted'] = interrupted
+    missing = unmeasured(results)
+    if missing:
+        doc['unmeasured'] = missing
     doc['steps'] = [
         {'temperature_c': r.step.temp_start_c, 'rate': r.step.label,
-         'commanded_deg_s': r.commanded_deg_s, 'measured_deg_s': r.measured_deg_s,
-         'error_deg_s': r.error_deg_s, 'std_deg_s': r.std_deg_s,
-         'die_temp_c': r.die_temp_c, 'samples': r.samples} for r in results]
+         'commanded_deg_s': r.commanded_deg_s,
+         'measured_deg_s': number_or_none(r.measured_deg_s),
+         'error_deg_s': number_or_none(r.error_deg_s),
+         'std_deg_s': number_or_none(r.std_deg_s),
+         'die_temp_c': number_or_none(r.die_temp_c), 'samples': r.samples} for r in results]
     return doc

@@ -1,5 +1,5 @@
 """
-Offline simulation: a scripted profile through the gyro model, in chunks.
+Offline simulation: a profile through the IMU model (gyro and accelerometer), in chunks.
 
 :func:`iter_simulation` yields the record chunk by chunk (bounded memory, for
 long runs and for any writer: CSV here, a rosbag2 writer later);
@@ -10,9 +10,12 @@ that a failed run leaves nothing behind (what ``gyro-emulator simulate`` does).
 
 Sample n is at time_s = n T, T the part's sample period (1 / rate_hz, made
 shorter or longer by its clock drift: ``GyroModel.sample_period_s``). The
-model runs over the profile in the one chunk loop,
-:func:`gyro_emulator.emulation.run_profile.run_over_profile`; the record is
-identical whatever the chunk size.
+model (:class:`~gyro_emulator.sensor.imu.ImuModel`: the gyro and the
+accelerometer of ``SensorConfig.accelerometer``; the gyro's samples are
+those of a ``GyroModel`` on the same seed) runs over the profile in the one
+chunk loop, :func:`gyro_emulator.emulation.run_profile.run_over_profile`;
+the record is identical whatever the chunk size. The specific force is the
+profile's, or from the motion (gravity turning with the rate).
 """
 
 import contextlib
@@ -21,7 +24,7 @@ import datetime
 import os
 import time
 
-from gyro_emulator import atomic
+from gyro_emulator import atomic, outputs
 from gyro_emulator.emulation.emulator_bag import simulation_custom_data, write_simulation_bag
 from gyro_emulator.emulation.profiles import make_profile
 from gyro_emulator.emulation.recorded_profile import RecordedProfile
@@ -29,13 +32,15 @@ from gyro_emulator.emulation.run_profile import (CHUNK_SAMPLES, fault_injector, 
                                                  OnClock, run_over_profile)
 from gyro_emulator.recording import csvio
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
-from gyro_emulator.sensor.model import GyroModel
+from gyro_emulator.sensor.imu import ImuModel
 import numpy as np
 
-#: Columns of the simulation CSV, in order.
+#: Columns of the simulation CSV, in order: the accelerometer's output under the
+#: names of the measured-record CSV (:data:`gyro_emulator.recording.record.CSV_COLUMNS`).
 CSV_COLUMNS = ('time_s', 'rate_x_rad_s', 'rate_y_rad_s', 'rate_z_rad_s', 'temp_c',
-               'gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s')
-CSV_FORMATS = ('%.9f',) + ('%.10g',) * 7
+               'gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s',
+               'accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')
+CSV_FORMATS = ('%.9f',) + ('%.10g',) * 10
 
 #: Longest simulation accepted, samples (about 2.4 GB of output arrays).
 MAX_SAMPLES = 20_000_000
@@ -98,7 +103,7 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
         return
     config, profile, n, rate_hz = _resolve(config, profile, duration_s, rate_hz, temp_c)
     rng = np.random.default_rng(seed)
-    model = GyroModel(config, rate_hz, rng)
+    model = ImuModel(config, rate_hz, rng)
     yield from run_over_profile(model, OnClock(profile, n, model.sample_period_s), chunk_samples,
                                 fault_injector(faults, config, rng))
 
@@ -119,7 +124,7 @@ def _iter_recorded(config, profile, seed, chunk_samples, faults):
     config = replace(config, extended=replace(config.extended,
                                               start_time_s=float(profile.time_s[0])))
     rng = np.random.default_rng(seed)
-    model = GyroModel(config, profile.rate_hz, rng)
+    model = ImuModel(config, profile.rate_hz, rng)
     grid = profile.on_model_grid(model.sample_period_s)
     if grid.count > MAX_SAMPLES:
         raise ValueError(f'{profile.name}: {grid.count} samples at {profile.rate_hz:g} Hz '
@@ -146,8 +151,8 @@ def run_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
         Sample times, s, shape (N,).
     profile : ProfileSamples
         True rates (N, 3), ambient temperatures (N,) and specific force (N, 3).
-    batch : SensorBatch
-        The sensor output.
+    batch : gyro_emulator.sensor.imu.ImuBatch
+        The sensor output (gyro and accelerometer).
 
     """
     total = sample_count(duration_s, rate_hz)
@@ -166,9 +171,9 @@ def run_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
 
 def csv_columns(chunk):
     """Return the :data:`CSV_COLUMNS` arrays of a chunk's published samples, in order."""
-    rate, gyro = chunk.profile.rate_rad_s, chunk.batch.gyro_rad_s
+    rate, gyro, accel = chunk.profile.rate_rad_s, chunk.batch.gyro_rad_s, chunk.batch.accel_m_s2
     columns = [chunk.time_s, rate[:, 0], rate[:, 1], rate[:, 2], chunk.profile.temp_c,
-               gyro[:, 0], gyro[:, 1], gyro[:, 2]]
+               gyro[:, 0], gyro[:, 1], gyro[:, 2], accel[:, 0], accel[:, 1], accel[:, 2]]
     if chunk.published is None:
         return columns
     return [column[chunk.published] for column in columns]
@@ -199,11 +204,16 @@ def write_simulation_csv(path, chunks, progress=None, total=None):
                                   CSV_FORMATS, progress, total)
 
 
-def check_output(out, overwrite=False):
-    """Refuse an existing ``out`` unless ``overwrite``; make its folder; return it absolute."""
+def output(out):
+    """Return the :class:`gyro_emulator.outputs.Output` of ``--out``: a CSV file or a bag."""
     out = os.path.abspath(out)
-    if os.path.exists(out) and not overwrite:
-        raise ValueError(f'--out {out} exists: pass --overwrite to replace it')
+    return (outputs.file if is_csv_path(out) else outputs.directory)('--out', out)
+
+
+def check_output(out, overwrite=False):
+    """Refuse an existing ``out`` unless ``overwrite`` (:mod:`.outputs`); make its folder."""
+    outputs.check([output(out)], overwrite=overwrite)
+    out = os.path.abspath(out)
     os.makedirs(os.path.dirname(out), exist_ok=True)
     return out
 

@@ -3,12 +3,13 @@ The rate channel's envelope (reduced-order) model of Eq 4.
 
 The demodulated sense envelope is one complex pole p = -sigma + j delta
 (:func:`rate_channel_poles`), cheap enough to run per output sample in a
-node: continuous state space with DC gain 1, its exact zero-order-hold
-discretisation, per-sample and batch filters, frequency and step responses
-and the bandwidth. Every function takes the device, the die temperature
-``temp_c`` (deg C), the drive-sense split ``split_hz`` (f_y - f_x, Hz) and
-optionally the drive frequency ``drive_freq_hz`` (Hz, default f_x), as
-:func:`rate_channel_poles` documents.
+node: continuous state space with DC gain 1, its exact discretisation at
+the output's sample instants (no delay of the samples), per-sample and
+batch filters, frequency and step responses and the bandwidth. Every
+function takes the device, the die temperature ``temp_c`` (deg C), the
+drive-sense split ``split_hz`` (f_y - f_x, Hz) and optionally the drive
+frequency ``drive_freq_hz`` (Hz, default f_x), as :func:`rate_channel_poles`
+documents.
 """
 
 from dataclasses import dataclass
@@ -118,16 +119,33 @@ def rate_channel_state_space(device, temp_c=25.0, split_hz=0.0,
 def rate_channel_discrete(device, sample_rate_hz, temp_c=25.0, split_hz=0.0,
                           drive_freq_hz=None):
     """
-    Exact zero-order-hold discretisation of the rate-channel envelope model.
+    Exact discretisation of the rate-channel envelope model, sampled at its output instants.
 
-    The model is one complex pole p = -sigma + j delta, so the ZOH has a
+    Sample n is the output at its instant t_n = n dt, dt = 1 / ``sample_rate_hz``,
+    and the rate ``u[n]`` is the one applied over the period that ends there,
+    (t_{n-1}, t_n] (the convention of the die-temperature lag and of every
+    other term of the sensor model: a sample reflects the input at its own
+    instant). The state is the envelope one sample earlier,
+    ``x[n] = x(t_{n-1})``, and integrating the model exactly over the period::
+
+        x(t_n) = Ad x(t_{n-1}) + Bd u[n],   Ad = e^{A dt},  Bd = int_0^dt e^{A s} ds B
+        y[n]   = C x(t_n) = (C Ad) x[n] + (C Bd) u[n]
+
+    so the discrete system is ``(Ad, Bd, Cd, Dd) = (Ad, Bd, C Ad, C Bd)``: the
+    zero-order-hold state update with the output read after it (direct
+    feedthrough ``C Bd``). Its DC gain is that of the continuous model,
+    C Ad (I - Ad)^-1 Bd + C Bd = C (I - Ad)^-1 Bd = -C A^-1 B = 1, and its step
+    response at the sample instants is the continuous one,
+    y[n] = s((n + 1) dt) for a rate applied from t_{-1} on. Reading the output
+    before the update (``Cd = C``, ``Dd = 0``) would make y[n] answer
+    u[n - 1]: a one-sample delay of the output that no part has.
+
+    The model is one complex pole p = -sigma + j delta, so Ad and Bd have a
     closed form: Ad = e^{-sigma dt} [[cos, -sin], [sin, cos]](delta dt) and
-    Bd = (Re, Im) of sigma (e^{p dt} - 1) / p, i.e. exactly e^{A dt} and
-    int_0^dt e^{A s} ds B (what ``scipy.signal.cont2discrete(..., 'zoh')``
-    returns); Cd = C, Dd = D, dt = 1 / ``sample_rate_hz``. ZOH keeps the DC
-    gain exactly 1. Run it per sample as ``x = Ad @ x + Bd[:, 0] * u`` with
-    output ``Cd @ x`` (:func:`rate_channel_step`) or over a batch with
-    :func:`rate_channel_filter`.
+    Bd = (Re, Im) of sigma (e^{p dt} - 1) / p (what
+    ``scipy.signal.cont2discrete(..., 'zoh')`` returns for them). Run it per
+    sample as ``y = Cd @ x + Dd u; x = Ad @ x + Bd[:, 0] * u``
+    (:func:`rate_channel_step`) or over a batch with :func:`rate_channel_filter`.
 
     Parameters
     ----------
@@ -146,13 +164,13 @@ def rate_channel_discrete(device, sample_rate_hz, temp_c=25.0, split_hz=0.0,
     """
     rate_hz = check_range('rate_channel_discrete', 'sample_rate_hz',
                           sample_rate_hz, 0.0, 1e9, 'Hz')
-    a, b, c, d = rate_channel_state_space(device, temp_c, split_hz, drive_freq_hz)
+    a, b, c, _ = rate_channel_state_space(device, temp_c, split_hz, drive_freq_hz)
     p = complex(a[0, 0], a[1, 0])
     lam = np.exp(p / rate_hz)
     beta = b[0, 0] * (lam - 1.0) / p
     ad = np.array([[lam.real, -lam.imag], [lam.imag, lam.real]])
     bd = np.array([[beta.real], [beta.imag]])
-    return ad, bd, c, d
+    return ad, bd, c @ ad, c @ bd
 
 
 def rate_channel_step(discrete, state, rate_rad_s):
@@ -166,13 +184,14 @@ def rate_channel_step(discrete, state, rate_rad_s):
     state : numpy.ndarray
         Envelope state, shape (2,).
     rate_rad_s : float
-        True rate held over the sample, rad/s.
+        True rate over the sample's period (the one that ends at its instant), rad/s.
 
     Returns
     -------
     tuple
-        ``(new_state, output_rad_s)``; the output belongs to ``state``
-        (y_k = C x_k + D u_k, then x_{k+1} = Ad x_k + Bd u_k).
+        ``(new_state, output_rad_s)``: y_k = Cd x_k + Dd u_k, then
+        x_{k+1} = Ad x_k + Bd u_k (with :func:`rate_channel_discrete`'s
+        matrices, y_k is the envelope at the sample's instant, C x_{k+1}).
 
     """
     ad, bd, cd, dd = discrete

@@ -193,11 +193,15 @@ def plot_fig6(path, device=PAPER_DEVICE):
     plotting.save(fig, path)
 
 
+#: The files :func:`write_figures` writes.
+FIGURES = ('fig5.png', 'fig6.png')
+
+
 def write_figures(directory, device=PAPER_DEVICE):
     """Write fig5.png and fig6.png into ``directory`` (made if absent); return the paths."""
     os.makedirs(directory, exist_ok=True)
     paths = []
-    for name, plot in (('fig5.png', plot_fig5), ('fig6.png', plot_fig6)):
+    for name, plot in zip(FIGURES, (plot_fig5, plot_fig6)):
         paths.append(os.path.join(directory, name))
         plot(paths[-1], device)
     return paths

@@ -16,7 +16,8 @@ not design rules.
 
 from dataclasses import dataclass, field, fields, replace
 
-from gyro_emulator.validation import check_choice, check_range, check_temperature_c
+from gyro_emulator.validation import (
+    check_choice, check_range, check_temperature_c, MODEL_TEMP_RANGE_C, quote)
 import numpy as np
 
 VISCOSITY_LAWS = ('constant', 'sutherland')
@@ -27,6 +28,16 @@ YOUNGS_MODULUS_LAWS = ('paper', 'silicon')
 #: 19(2), 2010; the paper's polysilicon law, Eq 22, has -250 ppm/K).
 SILICON_YOUNGS_TEMP_COEFF_PER_K = -60e-6
 CAVITY_KINDS = ('vented', 'sealed')
+#: Physical lower bounds of the sizes, closed: a zero or a denormal gives no device,
+#: only an overflow (1/0, 1/5e-324) that would reach the output as NaN.
+#: A structural film or beam is >= 100 nm thick or wide (surface micromachining).
+MIN_FILM_M = 1e-7
+#: A plate side or beam length is >= 1 um.
+MIN_FEATURE_M = 1e-6
+#: A gap, finger or overlap is >= 10 nm.
+MIN_GAP_M = 1e-8
+#: A cavity holds >= 1 mPa (a high vacuum; vacuum-packaged gyros hold 0.1-100 Pa).
+MIN_PRESSURE_PA = 1e-3
 
 
 def _ranged(default, low, high, unit, low_open=True):
@@ -61,29 +72,29 @@ class Geometry:
     type 1 and four of type 2 suspend it (Eq 6). Lengths in m, counts plain.
     """
 
-    thickness_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
-    plate_side_m: float = _ranged(855.5e-6, 0.0, 1e-2, 'm')
+    thickness_m: float = _ranged(2.0e-6, MIN_FILM_M, 1e-4, 'm', low_open=False)
+    plate_side_m: float = _ranged(855.5e-6, MIN_FEATURE_M, 1e-2, 'm', low_open=False)
     clearance_m: float = _ranged(5.0e-6, 0.0, 1e-3, 'm', low_open=False)
     frame_width_m: float = _ranged(20.0e-6, 0.0, 1e-3, 'm', low_open=False)
     frame_count: int = _ranged(2, 0, 10, '', low_open=False)
     hole_count: int = _ranged(2100, 0, 1e6, '', low_open=False)
     hole_side_m: float = _ranged(5.0e-6, 0.0, 1e-4, 'm', low_open=False)
-    beam1_width_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
-    beam1_length_m: float = _ranged(54.9e-6, 0.0, 1e-2, 'm')
-    beam2_width_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
-    beam2_length_m: float = _ranged(54.9e-6, 0.0, 1e-2, 'm')
-    substrate_gap_m: float = _ranged(2.0e-6, 0.0, 1e-3, 'm')
-    flow_length_m: float = _ranged(2.0e-6, 0.0, 1e-3, 'm')
-    comb_gap_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
-    finger_width_m: float = _ranged(2.0e-6, 0.0, 1e-4, 'm')
-    drive_capacitor_count: int = _ranged(400, 0, 1e5, '')
+    beam1_width_m: float = _ranged(2.0e-6, MIN_FILM_M, 1e-4, 'm', low_open=False)
+    beam1_length_m: float = _ranged(54.9e-6, MIN_FEATURE_M, 1e-2, 'm', low_open=False)
+    beam2_width_m: float = _ranged(2.0e-6, MIN_FILM_M, 1e-4, 'm', low_open=False)
+    beam2_length_m: float = _ranged(54.9e-6, MIN_FEATURE_M, 1e-2, 'm', low_open=False)
+    substrate_gap_m: float = _ranged(2.0e-6, MIN_GAP_M, 1e-3, 'm', low_open=False)
+    flow_length_m: float = _ranged(2.0e-6, MIN_GAP_M, 1e-3, 'm', low_open=False)
+    comb_gap_m: float = _ranged(2.0e-6, MIN_GAP_M, 1e-4, 'm', low_open=False)
+    finger_width_m: float = _ranged(2.0e-6, MIN_GAP_M, 1e-4, 'm', low_open=False)
+    drive_capacitor_count: int = _ranged(400, 1, 1e5, '', low_open=False)
     drive_finger_count: int = _ranged(200, 0, 1e5, '', low_open=False)
     drive_finger_length_m: float = _ranged(30.0e-6, 0.0, 1e-2, 'm', low_open=False)
-    drive_overlap_m: float = _ranged(19.75e-6, 0.0, 1e-2, 'm')
-    sense_capacitor_count: int = _ranged(152, 0, 1e5, '')
+    drive_overlap_m: float = _ranged(19.75e-6, MIN_GAP_M, 1e-2, 'm', low_open=False)
+    sense_capacitor_count: int = _ranged(152, 1, 1e5, '', low_open=False)
     sense_finger_count: int = _ranged(76, 0, 1e5, '', low_open=False)
     sense_finger_length_m: float = _ranged(135.0e-6, 0.0, 1e-2, 'm', low_open=False)
-    sense_overlap_m: float = _ranged(124.5e-6, 0.0, 1e-2, 'm')
+    sense_overlap_m: float = _ranged(124.5e-6, MIN_GAP_M, 1e-2, 'm', low_open=False)
 
     def __post_init__(self):
         """Validate every field; see the class docstring for units."""
@@ -109,7 +120,7 @@ class Material:
     silicon), and ``youngs_temp_coeff_pa_k`` is not used.
     """
 
-    density_kg_m3: float = _ranged(2330.0, 0.0, 3e4, 'kg/m^3')
+    density_kg_m3: float = _ranged(2330.0, 100.0, 3e4, 'kg/m^3', low_open=False)
     youngs_modulus_pa: float = _ranged(160.0e9, 1e9, 1e12, 'Pa')
     youngs_ref_temp_c: float = _ranged(25.0, -100.0, 300.0, 'C', low_open=False)
     youngs_temp_coeff_pa_k: float = _ranged(-0.04e9, -1e9, 1e9, 'Pa/K', low_open=False)
@@ -120,6 +131,36 @@ class Material:
         _validate(self)
         check_choice('Material', 'youngs_modulus_law', self.youngs_modulus_law,
                      YOUNGS_MODULUS_LAWS)
+        lowest = np.asarray(lowest_youngs_modulus_pa(self))
+        if np.any(lowest < MIN_YOUNGS_MODULUS_PA):
+            first = float(lowest[lowest < MIN_YOUNGS_MODULUS_PA].flat[0]) if lowest.ndim \
+                else float(lowest)
+            raise ValueError(
+                f'Material.youngs_temp_coeff_pa_k = {quote(self.youngs_temp_coeff_pa_k)} takes '
+                f'E(T) down to {first:.4g} Pa within the model temperatures '
+                f'{list(MODEL_TEMP_RANGE_C)} C: allowed E(T) >= {MIN_YOUNGS_MODULUS_PA:g} Pa '
+                'there')
+
+
+#: Smallest Young's modulus at any model temperature, Pa (the field's own lower bound).
+MIN_YOUNGS_MODULUS_PA = 1e9
+
+
+def lowest_youngs_modulus_pa(material):
+    """
+    Return the least E(T) over :data:`~gyro_emulator.validation.MODEL_TEMP_RANGE_C`, Pa.
+
+    E(T) is linear in T (either law), so its least value is at an end of the
+    range; element-wise for arrays of parts.
+    """
+    ends = [np.asarray(t, dtype=float) - material.youngs_ref_temp_c for t in MODEL_TEMP_RANGE_C]
+    if material.youngs_modulus_law == 'silicon':
+        values = [material.youngs_modulus_pa * (1.0 + SILICON_YOUNGS_TEMP_COEFF_PER_K * d)
+                  for d in ends]
+    else:
+        values = [material.youngs_modulus_pa + material.youngs_temp_coeff_pa_k * d
+                  for d in ends]
+    return np.minimum(*values)
 
 
 @dataclass(frozen=True)
@@ -135,11 +176,11 @@ class Gas:
     """
 
     molecule_diameter_m: float = _ranged(3.70e-10, 1e-11, 1e-8, 'm')
-    viscosity_pa_s: float = _ranged(1.85e-5, 0.0, 1e-2, 'Pa s')
+    viscosity_pa_s: float = _ranged(1.85e-5, 1e-7, 1e-2, 'Pa s', low_open=False)
     viscosity_ref_temp_c: float = _ranged(25.0, -100.0, 300.0, 'C', low_open=False)
     viscosity_law: str = 'constant'
     sutherland_constant_k: float = _ranged(110.4, 0.0, 1000.0, 'K', low_open=False)
-    pressure_pa: float = _ranged(101325.0, 0.0, 1e7, 'Pa')
+    pressure_pa: float = _ranged(101325.0, MIN_PRESSURE_PA, 1e7, 'Pa', low_open=False)
     pressure_ref_temp_c: float = _ranged(25.0, -100.0, 300.0, 'C', low_open=False)
     cavity: str = 'vented'
     relative_permittivity: float = _ranged(1.00059, 1.0, 100.0, '', low_open=False)
@@ -155,9 +196,9 @@ class Gas:
 class DriveElectronics:
     """Comb-drive excitation (Eq 12): F_d = k_f N eps t V_dc V_ac / g_c."""
 
-    dc_voltage_v: float = _ranged(27.0, 0.0, 1000.0, 'V')
-    ac_voltage_v: float = _ranged(20.0, 0.0, 1000.0, 'V')
-    comb_force_factor: float = _ranged(2.28, 0.0, 100.0, '')
+    dc_voltage_v: float = _ranged(27.0, 1e-3, 1000.0, 'V', low_open=False)
+    ac_voltage_v: float = _ranged(20.0, 1e-3, 1000.0, 'V', low_open=False)
+    comb_force_factor: float = _ranged(2.28, 1e-3, 100.0, '', low_open=False)
 
     def __post_init__(self):
         """Validate every field; see the class docstring for units."""
@@ -185,7 +226,7 @@ class Device:
                            ('gas', Gas), ('drive', DriveElectronics)):
             if not isinstance(getattr(self, name), kind):
                 raise ValueError(
-                    f'Device.{name} = {getattr(self, name)!r} is not allowed: '
+                    f'Device.{name} = {quote(getattr(self, name))} is not allowed: '
                     f'expected a {kind.__name__}')
         check_temperature_c(self.calibration_temp_c, 'Device',
                             'calibration_temp_c')
@@ -208,7 +249,7 @@ def from_mapping(cls, mapping, owner=None):
     """
     owner = owner or cls.__name__
     if not isinstance(mapping, dict):
-        raise ValueError(f'{owner} must be a mapping, got {mapping!r}')
+        raise ValueError(f'{owner} must be a mapping, got {quote(mapping)}')
     known = {f.name: f for f in fields(cls) if not f.name.startswith('_')}
     unknown = sorted(set(mapping) - set(known))
     if unknown:
@@ -224,7 +265,7 @@ def from_mapping(cls, mapping, owner=None):
         elif isinstance(value, bool) or (
                 not isinstance(value, (int, float, str))):
             raise ValueError(
-                f'{owner}.{key} = {value!r} is not a number or a name')
+                f'{owner}.{key} = {quote(value)} is not a number or a name')
         else:
             kwargs[key] = value
     return cls(**kwargs)

@@ -14,6 +14,7 @@ or corrupt ``.gz`` file is one line too, never a traceback.
 
 import gzip
 import io
+import itertools
 import os
 import zlib
 
@@ -156,17 +157,73 @@ def _read_columns(path, required, time_order, only):
     if data.shape[1] != len(wanted):
         raise ValueError(_find_bad_cell(path, names, skip, wanted))
     columns = {name: data[:, i].copy() for i, name in enumerate(wanted)}
-    for name, values in columns.items():
-        bad = ~np.isfinite(values)
-        if np.any(bad):
-            i = int(np.flatnonzero(bad)[0])
-            raise ValueError(f'{path}: data row {i + 1}, column {name}: '
-                             f'{float(values[i])!r} is not finite')
+    check_finite(path, columns)
     if 'time_s' in columns:
         check_increasing(columns['time_s'], f'{path}: time_s',
                          strict=time_order == 'increasing')
         check_time_base(columns['time_s'], f'{path}: time_s')
     return columns
+
+
+#: Rows parsed at a time by :func:`iter_csv_blocks`.
+BLOCK_ROWS = 500_000
+
+
+def iter_csv_blocks(path, required=(), only=None, block_rows=BLOCK_ROWS):
+    """
+    Yield ``(first data row, columns, characters)`` blocks of a CSV, for files too long to hold.
+
+    Missing columns and cells that are not numbers are refused as
+    :func:`read_csv` refuses them (the file's own row numbers); the caller
+    checks the values (:func:`check_finite`) and the time order.
+    """
+    path = os.fspath(path)
+    try:
+        names, skip = _header(path)
+        missing = [c for c in required if c not in names]
+        if missing:
+            raise ValueError(f'{path}: missing required column(s) {", ".join(missing)}; the '
+                             f'file has {", ".join(names)}')
+        wanted = names if only is None else [n for n in names if n in only]
+        index = [names.index(n) for n in wanted]
+        first = 0
+        with _open_text(path, 'r') as handle:
+            for _ in range(skip):
+                next(handle)
+            while True:
+                lines = list(itertools.islice(handle, block_rows))
+                if not lines:
+                    break
+                columns = _parse_block(path, names, skip, wanted, index, lines, first)
+                yield first, columns, sum(map(len, lines))
+                first += len(columns[wanted[0]])
+        if first == 0:
+            raise ValueError(f'{path}: no data rows after the header')
+    except (EOFError, zlib.error, gzip.BadGzipFile, UnicodeDecodeError) as exc:
+        raise ValueError(f'{path}: cannot read the file: it is truncated or corrupt '
+                         f'({type(exc).__name__}: {exc})') from None
+
+
+def _parse_block(path, names, skip, wanted, index, lines, first):
+    """Parse the data lines of one block into columns (see :func:`iter_csv_blocks`)."""
+    try:
+        data = np.loadtxt(lines, delimiter=',', comments='#', ndmin=2, dtype=float,
+                          usecols=index)
+    except ValueError:
+        raise ValueError(_find_bad_cell(path, names, skip, wanted)) from None
+    if data.size and data.shape[1] != len(wanted):
+        raise ValueError(_find_bad_cell(path, names, skip, wanted))
+    return {name: np.ascontiguousarray(data[:, i]) for i, name in enumerate(wanted)}
+
+
+def check_finite(path, columns, first=0):
+    """Raise ValueError naming the first value that is not finite (column by column)."""
+    for name, values in columns.items():
+        bad = ~np.isfinite(values)
+        if np.any(bad):
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(f'{path}: data row {first + i + 1}, column {name}: '
+                             f'{float(values[i])!r} is not finite')
 
 
 def gyro_columns(columns, path=''):

@@ -14,7 +14,7 @@ import os
 
 from gyro_emulator.recording.mcap_writer import MCAP_MAGIC
 from gyro_emulator.recording.metadata import METADATA_FILE
-import yaml
+from gyro_emulator.resources import load_yaml_text, read_bytes_bounded
 
 #: Largest ``metadata.yaml`` read, bytes (rosbag2 writes a few kB per topic).
 MAX_METADATA_BYTES = 8 << 20
@@ -23,23 +23,11 @@ REPAIR_TMP = '.repair-tmp'
 BACKUP = '.orig'
 _SCALARS = (str, int, float, bool)
 
-try:
-    _Loader = yaml.CSafeLoader
-except AttributeError:          # PyYAML built without libyaml
-    _Loader = yaml.SafeLoader
-
 
 def _yaml_document(text, path):
     """Return the YAML document of ``text``; ValueError for aliases or malformed YAML."""
-    try:
-        for event in yaml.parse(text, Loader=_Loader):
-            if isinstance(event, yaml.AliasEvent):
-                raise ValueError(f'{path}: YAML alias *{event.anchor} refused (rosbag2 '
-                                 'metadata has none; aliases can expand without bound)')
-        return yaml.load(text, Loader=_Loader)
-    except yaml.YAMLError as exc:
-        text = ' '.join(str(exc).split())
-        raise ValueError(f'{path} is not rosbag2 metadata: malformed YAML: {text}') from None
+    # the package's one bounded loader; rosbag2 metadata has no aliases: none is taken
+    return load_yaml_text(text, f'{path} (rosbag2 metadata)', aliases=False)
 
 
 def _type_error(path, name, value, expected):
@@ -92,13 +80,7 @@ def load_metadata(path):
         One line naming the file, the field, its value and what was expected.
 
     """
-    try:
-        with open(path, 'rb') as handle:
-            raw = handle.read(MAX_METADATA_BYTES + 1)
-    except OSError as exc:
-        raise ValueError(f'{path}: cannot read: {exc}') from None
-    if len(raw) > MAX_METADATA_BYTES:
-        raise ValueError(f'{path} is over {MAX_METADATA_BYTES >> 20} MiB: not rosbag2 metadata')
+    raw = read_bytes_bounded(path, MAX_METADATA_BYTES, 'rosbag2 metadata file')
     text = raw.decode('utf-8', 'replace')
     loaded = _yaml_document(text, path)
     meta = loaded.get('rosbag2_bagfile_information') if isinstance(loaded, dict) else None

@@ -3,6 +3,7 @@
 from dataclasses import dataclass, field
 import os
 
+from gyro_emulator.resources import load_yaml_text
 import yaml
 
 #: rosbag2 metadata.yaml format version written (Jazzy).
@@ -48,11 +49,12 @@ def dump_qos(profiles):
 
 
 def load_qos(text):
+    """Return the QoS profiles a bag's ``offered_qos_profiles`` text holds ([] if unreadable)."""
     if not text:
         return []
     try:
-        loaded = yaml.safe_load(text)
-    except yaml.YAMLError:
+        loaded = load_yaml_text(text, 'offered_qos_profiles', aliases=False)
+    except ValueError:
         return []
     return loaded if isinstance(loaded, list) else []
 

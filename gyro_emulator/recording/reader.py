@@ -2,6 +2,7 @@
 
 from dataclasses import dataclass
 import heapq
+import io
 import os
 import struct
 from typing import NamedTuple
@@ -9,7 +10,7 @@ import zlib
 
 from gyro_emulator.recording import cdr
 from gyro_emulator.recording.files import resolve_bag
-from gyro_emulator.recording.mcap_writer import RECORD_HEAD
+from gyro_emulator.recording.mcap_writer import MCAP_MAGIC, RECORD_HEAD
 from gyro_emulator.recording.metadata import FileInfo, topic_from, TopicInfo
 from gyro_emulator.recording.scan import scan_mcap, ScanReport, summary_crc_problem
 import lz4.frame
@@ -17,7 +18,9 @@ from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.opcode import Opcode
 from mcap.reader import make_reader
-from mcap.records import Channel, Chunk, Message, Metadata, Schema
+from mcap.records import (Channel, Chunk, ChunkIndex, Message, Metadata, MetadataIndex, Schema,
+                          Statistics)
+from mcap.summary import Summary
 from mcap_ros2.decoder import DecoderFactory
 import numpy as np
 import zstandard
@@ -96,9 +99,7 @@ def index_file(path, tolerant):
             problem = summary_crc_problem(handle, os.fstat(handle.fileno()).st_size)
             if problem is not None:
                 raise ValueError(problem)
-            handle.seek(0)
-            reader = make_reader(handle)
-            summary = reader.get_summary()
+            summary, metadata = read_summary(handle)
             if summary is not None and summary.statistics is not None:
                 stats = summary.statistics
                 topics = {}
@@ -107,7 +108,7 @@ def index_file(path, tolerant):
                         channel, summary.schemas.get(channel.schema_id),
                         stats.channel_message_counts.get(cid, 0))
                 custom = {}
-                for meta in reader.iter_metadata():
+                for meta in metadata:
                     if meta.name == 'gyro_emulator':
                         custom = dict(meta.metadata)
                 return FileInfo(path, topics, stats.message_count,
@@ -143,6 +144,80 @@ def index_file(path, tolerant):
     return FileInfo(path, topics, sum(counts.values()), start or 0, max(end, start or 0),
                     complete=report.complete and not report.summary_problem,
                     custom_data=custom, scan=report)
+
+
+#: The fixed fields of a chunk index after its head: start, end, chunk offset, chunk
+#: length, and the byte length of its message-index offsets.
+_CHUNK_INDEX_HEAD = struct.Struct('<QQQQI')
+_FOOTER_FIELDS = struct.Struct('<QQ')
+#: Summary records read with the mcap library (few); chunk indexes are unpacked here.
+_SUMMARY_READERS = {Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel,
+                    Opcode.STATISTICS: Statistics, Opcode.METADATA_INDEX: MetadataIndex}
+
+
+def _chunk_index(body):
+    """Return the ChunkIndex record of ``body`` (``struct``: a file may hold 1e5 of them)."""
+    start, end, offset, length, map_len = _CHUNK_INDEX_HEAD.unpack_from(body, 0)
+    at = _CHUNK_INDEX_HEAD.size
+    offsets = dict(struct.iter_unpack('<HQ', body[at:at + map_len]))
+    at += map_len
+    index_len, name_len = struct.unpack_from('<QI', body, at)
+    at += 12
+    compression = str(body[at:at + name_len], 'utf-8')
+    compressed, uncompressed = struct.unpack_from('<QQ', body, at + name_len)
+    return ChunkIndex(chunk_length=length, chunk_start_offset=offset, compression=compression,
+                      compressed_size=compressed, message_end_time=end,
+                      message_index_length=index_len, message_index_offsets=offsets,
+                      message_start_time=start, uncompressed_size=uncompressed)
+
+
+def read_summary(handle):
+    """
+    Return ``(summary, metadata records)`` of an open MCAP file: ``(None, [])`` without one.
+
+    What ``mcap``'s ``get_summary`` and ``iter_metadata`` give, read in one
+    pass over the summary section; its chunk indexes, one per chunk, are
+    unpacked with ``struct`` (a file of 1e5 tiny chunks: 0.1 s, not seconds).
+    Raises on a malformed summary (the caller then scans the file).
+    """
+    size = handle.seek(0, os.SEEK_END)
+    handle.seek(size - len(MCAP_MAGIC) - 9 - _FOOTER_FIELDS.size - 4)
+    opcode, _ = RECORD_HEAD.unpack(handle.read(9))
+    summary_start, _ = _FOOTER_FIELDS.unpack(handle.read(_FOOTER_FIELDS.size))
+    if opcode != Opcode.FOOTER:
+        raise ValueError('no footer before the closing magic')
+    if summary_start == 0:
+        return None, []
+    handle.seek(summary_start)
+    buf = handle.read(size - summary_start)
+    summary, pos = Summary(), 0
+    while pos + 9 <= len(buf):
+        opcode, length = RECORD_HEAD.unpack_from(buf, pos)
+        body = buf[pos + 9:pos + 9 + length]
+        if len(body) != length:
+            raise ValueError(f'a summary record at byte {summary_start + pos} is truncated')
+        pos += 9 + length
+        if opcode == Opcode.FOOTER:
+            break
+        if opcode == Opcode.CHUNK_INDEX:
+            summary.chunk_indexes.append(_chunk_index(body))
+        elif opcode in _SUMMARY_READERS:
+            record = _SUMMARY_READERS[opcode].read(ReadDataStream(io.BytesIO(body)))
+            if opcode == Opcode.SCHEMA:
+                summary.schemas[record.id] = record
+            elif opcode == Opcode.CHANNEL:
+                summary.channels[record.id] = record
+            elif opcode == Opcode.STATISTICS:
+                summary.statistics = record
+            else:
+                summary.metadata_indexes.append(record)
+    metadata = []
+    for index in summary.metadata_indexes:
+        handle.seek(index.offset)
+        opcode, length = RECORD_HEAD.unpack(handle.read(9))
+        if opcode == Opcode.METADATA:
+            metadata.append(Metadata.read(ReadDataStream(io.BytesIO(handle.read(length)))))
+    return summary, metadata
 
 
 def _decompressor(compression):

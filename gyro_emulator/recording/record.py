@@ -30,12 +30,12 @@ log times always. Streams are returned in time order (a stable sort, so
 messages with equal times keep the bag's order).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import os
 from types import MappingProxyType
 
-from gyro_emulator.recording import bag, csvio, topics as table
+from gyro_emulator.recording import bag, binning, csvio, topics as table
 from gyro_emulator.recording.timing import check_increasing, GAP_FACTOR, timing_of
 from gyro_emulator.units import AXES
 import numpy as np
@@ -267,7 +267,8 @@ class Record:
     path : str
         Where it was read from (a synthetic record: a name).
     recovery : tuple of str
-        What a damaged bag lost, one note each; () if sound.
+        What a damaged bag lost, or what reading a long CSV averaged away
+        (``max_rows`` of :func:`load_record`), one note each; () if neither.
     gyro_stamp_ns : numpy.ndarray of int64 or None
         A bag's gyro message times, ns; None for CSV.
     names : tuple of str
@@ -353,6 +354,36 @@ class Record:
         axis = next(a for a, c in self.gyro_sources.items() if c == column)
         return self.gyro[axis], column
 
+    def accel_axis(self, axis):
+        """
+        Return (specific force, m/s^2; its column or topic field) of accelerometer ``axis``.
+
+        ValueError when the record has no accelerometer.
+        """
+        if self.accel is None:
+            raise ValueError(f'{self.path}: no accelerometer (columns '
+                             f'{", ".join(CSV_COLUMNS["accel"])}, or an Imu topic\'s '
+                             'linear_acceleration)')
+        i = AXES.index(axis)
+        names = self.accel.source.split(', ')
+        column = names[i] if len(names) == 3 else f'{self.accel.source}.{axis}'
+        return np.asarray(self.accel.values, dtype=float)[:, i], column
+
+    def accel_timing(self, gap_factor=GAP_FACTOR):
+        """
+        Return the :class:`~gyro_emulator.recording.timing.Timing` of the accelerometer's times.
+
+        The gyro's (:meth:`timing`) when they are the same samples (a CSV,
+        or an Imu's linear_acceleration), else worked out once and kept.
+        """
+        times = self.accel.time_s
+        if len(times) == len(self.time_s) and np.array_equal(times, self.time_s):
+            return self.timing(gap_factor)
+        key = ('accel', float(gap_factor))
+        if key not in self._timings:
+            self._timings[key] = timing_of(times, float(gap_factor))
+        return self._timings[key]
+
     def require_gyro(self):
         """Return the record; ValueError naming the accepted gyro columns when it has none."""
         if not self.gyro:
@@ -365,7 +396,7 @@ class Record:
 
 
 def load_record(path, topics=None, required=('time_s',), only=None,
-                time_order='nondecreasing', use_log_time=False):
+                time_order='nondecreasing', use_log_time=False, max_rows=None):
     """
     Read a record: a bag directory or ``.mcap`` file, else a CSV file (``.gz`` ok).
 
@@ -381,14 +412,18 @@ def load_record(path, topics=None, required=('time_s',), only=None,
         sensor_msgs/Imu topic); an accel of ``'none'`` is skipped; a role
         left out is not read (without 'gyro' the record has no gyro and its
         clock starts at the first message read). 'die_temp' fills
-        :attr:`Record.temp`; 'imu_accel' (a named sensor_msgs/Imu) fills
-        :attr:`Record.accel` with its ``linear_acceleration`` unless the Imu
-        marks it absent (REP 145: covariance element 0 = -1). Default: the
-        gyro only.
+        :attr:`Record.temp`; 'imu_accel' (a named sensor_msgs/Imu; None:
+        the gyro's, when 'gyro' comes first) fills :attr:`Record.accel` with
+        its ``linear_acceleration`` unless the Imu marks it absent (REP 145:
+        covariance element 0 = -1). Default: the gyro only.
     required, only, time_order
         CSV: see :func:`gyro_emulator.recording.csvio.read_csv`.
     use_log_time : bool
         Bag: log (receive) times for every topic (the module's stamp rule).
+    max_rows : int, optional
+        CSV: most rows held; a longer file is read in blocks and averaged over
+        time bins to at most this many (:mod:`gyro_emulator.recording.binning`,
+        said in :attr:`Record.recovery`). Default: every row.
 
     Returns
     -------
@@ -401,8 +436,9 @@ def load_record(path, topics=None, required=('time_s',), only=None,
     path = os.fspath(path)
     if is_bag(path):
         return _load_bag(bag.BagReader(path, tolerant=True), path, roles, use_log_time)
-    columns = csvio.read_csv(path, required, time_order, only)
-    return _from_columns(path, columns)
+    columns, note = binning.read_csv_bounded(path, required, time_order, only, max_rows)
+    record = _from_columns(path, columns)
+    return record if note is None else replace(record, recovery=(str(note),))
 
 
 def _from_columns(path, columns):
@@ -426,13 +462,24 @@ def _from_columns(path, columns):
         path=path, names=tuple(columns))
 
 
-def _only_imu(reader, path):
-    """Return the bag's one sensor_msgs/Imu topic; ValueError naming them otherwise."""
+def _only_imu(reader, path, notes):
+    """
+    Return the bag's one sensor_msgs/Imu topic, or the one of several that has messages.
+
+    Choosing among several is said in ``notes``; ValueError naming the topics
+    when none or more than one has messages.
+    """
     imu = [name for name, info in reader.topics.items() if info.type_name == table.IMU]
-    if len(imu) != 1:
-        raise ValueError(f'{path}: {len(imu)} sensor_msgs/Imu topics '
-                         f'({", ".join(imu) or "none"}): choose one with --topic')
-    return imu[0]
+    if len(imu) == 1:
+        return imu[0]
+    full = [name for name in imu if reader.topics[name].message_count]
+    if len(imu) > 1 and len(full) == 1:
+        empty = ', '.join(name for name in imu if name != full[0])
+        notes.append(f'{len(imu)} sensor_msgs/Imu topics: using {full[0]}, the only one with '
+                     f'messages ({empty} has none)')
+        return full[0]
+    raise ValueError(f'{path}: {len(imu)} sensor_msgs/Imu topics '
+                     f'({", ".join(imu) or "none"}): choose one with --topic')
 
 
 #: What drives a model replaying a bag: ``command`` (the rate, temperature and
@@ -546,11 +593,12 @@ _BAG_ROLES = MappingProxyType({'gyro': 'gyro', 'rate': 'rate', 'temp': 'temp',
                                'die_temp': 'temp', 'accel': 'accel', 'imu_accel': 'accel'})
 
 
-def _role_topic(reader, path, key, given):
+def _role_topic(reader, path, key, given, notes):
     """Return the topic of role ``key`` (:func:`load_record`), or None to skip it."""
     role = _BAG_ROLES[key]
     if key == 'gyro':
-        return _only_imu(reader, path) if given is None else find_topic(reader, 'gyro', given)
+        return (_only_imu(reader, path, notes) if given is None
+                else find_topic(reader, 'gyro', given))
     if key == 'accel' and given == 'none':
         return None
     if given:
@@ -569,11 +617,13 @@ def _imu_accel_absent(stream):
 
 def _load_bag(reader, path, roles, use_log_time=False):
     """Read the roles of a bag (see :func:`load_record`) onto the gyro's clock."""
-    streams, read = {}, {}
+    streams, read, notes = {}, {}, []
     for key, given in roles.items():
         if key not in _BAG_ROLES:
             continue
-        topic = _role_topic(reader, path, key, given)
+        if key == 'imu_accel' and given is None and 'gyro' in read:
+            given = read['gyro'][0].topic           # the gyro's own Imu
+        topic = _role_topic(reader, path, key, given, notes)
         if topic is None:
             continue
         if topic not in streams:
@@ -597,7 +647,7 @@ def _load_bag(reader, path, roles, use_log_time=False):
     channels = {role: Channel((stream.times_ns - t0) * 1e-9, values, f'{stream.topic} {source}',
                               stream.times_ns)
                 for role, (stream, values, source) in read.items() if role != 'gyro'}
-    return Record(time_s, gyro, sources, path=path, recovery=tuple(reader.problems),
+    return Record(time_s, gyro, sources, path=path, recovery=tuple(reader.problems + notes),
                   gyro_stamp_ns=gyro_stamp_ns,
                   topics={role: r[0].topic for role, r in read.items()},
                   frames={role: str(r[0].arrays.decoded.frame_id[0]) for role, r in read.items()},

@@ -258,13 +258,25 @@ def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
 
     """
     found = resolve_bag(path, metadata_errors='ignore')
+    if out_dir is None:
+        return _repair_into(found, found.bag_dir, None, backup, compression)
+    out_dir = os.path.abspath(out_dir)
+    if os.path.exists(out_dir) and os.listdir(out_dir):
+        raise FileExistsError(f'output directory {out_dir} exists and is not empty')
+    os.makedirs(os.path.dirname(out_dir), exist_ok=True)
+    with atomic.staged(out_dir) as staging:     # the repaired bag is complete or absent
+        os.makedirs(staging)
+        report = _repair_into(found, staging, out_dir, backup, compression)
+        if os.path.isdir(out_dir):
+            os.rmdir(out_dir)                   # the empty directory it replaces
+    report.bag_dir = out_dir
+    report.rewritten = [os.path.join(out_dir, os.path.basename(p)) for p in report.rewritten]
+    return report
+
+
+def _repair_into(found, target_dir, out_dir, backup, compression):
+    """Repair the files ``found`` lists into ``target_dir`` (see :func:`repair_bag`)."""
     bag_dir, meta = found.bag_dir, found.metadata
-    if out_dir is not None:
-        out_dir = os.path.abspath(out_dir)
-        if os.path.exists(out_dir) and os.listdir(out_dir):
-            raise FileExistsError(f'output directory {out_dir} exists and is not empty')
-        os.makedirs(out_dir, exist_ok=True)
-    target_dir = out_dir or bag_dir
     report = RepairReport(target_dir, notes=[n for n in found.notes if 'interrupted' not in n])
     infos = []
     custom = dict((meta or {}).get('custom_data') or {})

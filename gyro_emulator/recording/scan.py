@@ -6,6 +6,7 @@ footer (a recording cut short by a crash) and reports what it holds and
 where it stops.
 """
 
+import bisect
 from dataclasses import dataclass
 import io
 import os
@@ -16,8 +17,8 @@ from gyro_emulator.recording.mcap_writer import MCAP_MAGIC, RECORD_HEAD
 from mcap.data_stream import ReadDataStream
 from mcap.opcode import Opcode
 from mcap.records import Channel, Chunk, DataEnd, Footer, Header, Message, Metadata, Schema
-from mcap.stream_reader import breakup_chunk
 import numpy as np
+import zstandard
 
 _VALID_OPCODES = frozenset(int(op) for op in Opcode)
 #: The footer record: opcode, length, summary_start, summary_offset_start, summary_crc.
@@ -141,14 +142,75 @@ class ScanReport:
         return f'{self.path}: {state}; ' + ', '.join(parts)
 
 
+#: The records the scanner reads (others, such as indexes, are skipped unparsed).
+_READERS = {Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.METADATA: Metadata,
+            Opcode.HEADER: Header, Opcode.FOOTER: Footer, Opcode.DATA_END: DataEnd}
+_PARSED = frozenset(_READERS) | {Opcode.CHUNK, Opcode.MESSAGE}
+
+
 def _parse_record(opcode, body):
-    stream = ReadDataStream(io.BytesIO(body))
+    if opcode == Opcode.CHUNK:
+        return _chunk(body)
     if opcode == Opcode.MESSAGE:
-        return Message.read(stream, len(body))
-    reader = {Opcode.SCHEMA: Schema, Opcode.CHANNEL: Channel, Opcode.CHUNK: Chunk,
-              Opcode.METADATA: Metadata, Opcode.HEADER: Header,
-              Opcode.FOOTER: Footer, Opcode.DATA_END: DataEnd}.get(opcode)
-    return reader.read(stream) if reader else None
+        return Message.read(ReadDataStream(io.BytesIO(body)), len(body))
+    reader = _READERS.get(opcode)
+    return reader.read(ReadDataStream(io.BytesIO(body))) if reader else None
+
+
+#: A message record's fixed fields: channel id, sequence, log time, publish time.
+_MESSAGE_FIELDS = struct.Struct('<HIQQ')
+_ZSTD = zstandard.ZstdDecompressor()
+
+
+def _chunk(body):
+    """Return the Chunk record of ``body`` (its fields unpacked with ``struct``)."""
+    start, end, size, crc, name_len = _CHUNK_FIELDS.unpack_from(body, 0)
+    at = _CHUNK_FIELDS.size
+    compression = str(body[at:at + name_len], 'utf-8')
+    data_len, = struct.unpack_from('<Q', body, at + name_len)
+    at += name_len + 8
+    if at + data_len > len(body):
+        raise ValueError(f'the chunk data ({data_len} bytes) runs past its record')
+    return Chunk(compression=compression, data=body[at:at + data_len], message_end_time=end,
+                 message_start_time=start, uncompressed_crc=crc, uncompressed_size=size)
+
+
+def chunk_records(chunk):
+    """
+    Return the Schema, Channel and Message records of a chunk; raise if it is damaged.
+
+    Decompresses (zstd, lz4 or none), checks the CRC when the writer stored
+    one, and unpacks the message records with ``struct`` (what
+    ``mcap.stream_reader.breakup_chunk`` does, a record at a time); records of
+    other kinds are skipped, as there.
+    """
+    if chunk.compression == 'zstd':
+        buf = _ZSTD.decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+    elif chunk.compression == 'lz4':
+        import lz4.frame
+
+        buf = lz4.frame.decompress(chunk.data)
+    elif chunk.compression == '':
+        buf = chunk.data
+    else:
+        raise ValueError(f'unsupported chunk compression {chunk.compression!r}')
+    if chunk.uncompressed_crc and zlib.crc32(buf) != chunk.uncompressed_crc:
+        raise ValueError('CRC mismatch')
+    records, pos, end = [], 0, len(buf)
+    unpack_head, unpack_msg = RECORD_HEAD.unpack_from, _MESSAGE_FIELDS.unpack_from
+    while pos < end:
+        opcode, length = unpack_head(buf, pos)
+        body_at, pos = pos + 9, pos + 9 + length
+        if pos > end:
+            raise ValueError(f'a record at chunk byte {body_at - 9} runs past the chunk end')
+        if opcode == Opcode.MESSAGE:
+            cid, seq, log_time, pub_time = unpack_msg(buf, body_at)
+            records.append(Message(channel_id=cid, log_time=log_time,
+                                   data=bytes(buf[body_at + 22:pos]), publish_time=pub_time,
+                                   sequence=seq))
+        elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
+            records.append(_parse_record(opcode, bytes(buf[body_at:pos])))
+    return records
 
 
 class Repeats:
@@ -158,16 +220,46 @@ class Repeats:
     A chunk whose time range, sizes and compressed bytes (CRC-32) equal an
     earlier chunk's is a repeat; in a chunk whose log-time range overlaps
     an earlier chunk's, each message equal to one of that chunk's (channel,
-    sequence, log and publish time, data) is a repeat. Keeps 8 bytes per
-    message (a hash), and compares only chunks that overlap in time.
+    sequence, log and publish time, data) is a repeat. Keeps a hash per
+    message (8 bytes in a large chunk), and compares only chunks that overlap
+    in time.
+
+    The chunks a recorder writes come in order of their start times; among
+    them the earlier chunks that overlap a new one are the tail after the
+    first whose running maximum end reaches its start (a binary search),
+    so a file of many tiny chunks costs a few comparisons per chunk, not one
+    per earlier chunk. A chunk that starts before an earlier one (a chunk
+    written twice, a writer restarted) is kept apart and compared with all.
     """
+
+    #: Up to this many keys, a chunk keeps them as a Python list and membership is a
+    #: Python set (numpy's ``isin`` costs tens of microseconds a call, whatever the
+    #: size); larger chunks keep an int64 array (8 bytes a message).
+    SMALL = 256
 
     def __init__(self):
         self._chunks = set()
-        self._starts = np.zeros(64, dtype=np.int64)
-        self._ends = np.zeros(64, dtype=np.int64)
-        self._keys = []
-        self._max_end = None
+        # chunks in order of start time: starts, ends, running maximum of the ends, keys
+        self._starts, self._ends, self._max_ends, self._keys = [], [], [], []
+        self._late = []         # (start, end, keys) of chunks out of start order
+
+    def _overlapping(self, start, end):
+        """Return the key arrays of the earlier chunks whose time range meets [start, end]."""
+        found = [keys for s, e, keys in self._late if s <= end and e >= start]
+        starts, ends = self._starts, self._ends
+        for k in range(bisect.bisect_left(self._max_ends, start), len(starts)):
+            if starts[k] <= end and ends[k] >= start:
+                found.append(self._keys[k])
+        return found
+
+    def _add(self, start, end, keys):
+        if self._starts and start < self._starts[-1]:
+            self._late.append((start, end, keys))
+            return
+        self._starts.append(start)
+        self._ends.append(end)
+        self._max_ends.append(max(end, self._max_ends[-1]) if self._max_ends else end)
+        self._keys.append(keys)
 
     def drop(self, chunk, messages):
         """Return ``(kept messages, repeated count, whole chunk repeated)``."""
@@ -176,26 +268,26 @@ class Repeats:
         if key in self._chunks:
             return [], len(messages), True
         self._chunks.add(key)
-        keys = np.fromiter((hash((m.channel_id, m.sequence, m.log_time, m.publish_time,
-                                  m.data)) for m in messages), dtype=np.int64,
-                           count=len(messages))
+        keys = [hash((m.channel_id, m.sequence, m.log_time, m.publish_time, m.data))
+                for m in messages]
         start, end = chunk.message_start_time, chunk.message_end_time
-        seen = np.zeros(len(keys), dtype=bool)
-        count = len(self._keys)
-        if count and self._max_end >= start:
-            overlap = np.flatnonzero((self._starts[:count] <= end)
-                                     & (self._ends[:count] >= start))
-            for k in overlap:
-                seen |= np.isin(keys, self._keys[k])
-        if count == len(self._starts):
-            self._starts = np.resize(self._starts, 2 * count)
-            self._ends = np.resize(self._ends, 2 * count)
-        self._starts[count], self._ends[count] = start, end
-        self._keys.append(keys)
-        self._max_end = end if self._max_end is None else max(self._max_end, end)
-        if not seen.any():
+        earlier = self._overlapping(start, end)
+        self._add(start, end, keys if len(keys) <= self.SMALL
+                  else np.array(keys, dtype=np.int64))
+        if not earlier:
             return messages, 0, False
-        return [m for m, s in zip(messages, seen) if not s], int(seen.sum()), False
+        if len(keys) + sum(len(k) for k in earlier) <= self.SMALL:
+            known = set()
+            for k in earlier:
+                known.update(k.tolist() if isinstance(k, np.ndarray) else k)
+            seen = [k in known for k in keys]
+        else:
+            seen = np.isin(np.array(keys, dtype=np.int64), np.concatenate(
+                [np.asarray(k, dtype=np.int64) for k in earlier])).tolist()
+        repeated = sum(seen)
+        if not repeated:
+            return messages, 0, False
+        return [m for m, s in zip(messages, seen) if not s], repeated, False
 
 
 def _intact_chunk_at(buf, i, at, size):
@@ -234,7 +326,7 @@ def next_intact_chunk(handle, start, size, window=1 << 20):
                 opcode, length = RECORD_HEAD.unpack(handle.read(9))
                 try:
                     chunk = _parse_record(opcode, handle.read(length))
-                    records = breakup_chunk(chunk, validate_crc=True)
+                    records = chunk_records(chunk)
                 except Exception:  # noqa: B902 - not a chunk after all
                     records = None
                 if records is not None and chunk.uncompressed_crc:
@@ -328,12 +420,13 @@ def _scan_records(handle, report, size):
             why = (f'truncated {Opcode(opcode).name.lower()} record at byte {position} '
                    f'({size - position - 9} of {length} bytes present)')
         record = inner = None
-        if why is None:
+        if why is None and opcode not in _PARSED:     # an index or the like: not read
+            handle.seek(length, os.SEEK_CUR)
+        elif why is None:
             body = handle.read(length)
             try:
                 record = _parse_record(opcode, body)
-                inner = breakup_chunk(record, validate_crc=True) \
-                    if opcode == Opcode.CHUNK else None
+                inner = chunk_records(record) if opcode == Opcode.CHUNK else None
             except Exception as exc:  # noqa: B902 - any decoder error means corrupt data
                 if opcode == Opcode.CHUNK:
                     report.bad_chunks += 1
@@ -369,11 +462,16 @@ def _scan_records(handle, report, size):
             continue
         if report.data_end:
             continue        # summary section: repeated schemas/channels, indexes
-        if inner is not None:
-            inner = _drop_repeats(repeats, record, inner, report)
-        for item in (inner if inner is not None else (record,)):
-            if isinstance(item, Message):
+        if inner is None:
+            if isinstance(record, (Schema, Channel, Message, Metadata)):
+                if isinstance(record, Message):
+                    report.messages += 1
+                    report.last_log_time_ns = record.log_time
+                yield record
+            continue
+        inner = _drop_repeats(repeats, record, inner, report)
+        for item in inner:          # a chunk holds schemas, channels and messages only
+            if type(item) is Message:
                 report.messages += 1
                 report.last_log_time_ns = item.log_time
-            if isinstance(item, (Schema, Channel, Message, Metadata)):
-                yield item
+            yield item

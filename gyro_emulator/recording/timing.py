@@ -16,6 +16,7 @@ once, as a :class:`Timing`; a record carries its own
 
 from dataclasses import dataclass
 
+from gyro_emulator.validation import RECORD_TIME_LIMIT_S
 import numpy as np
 
 
@@ -32,8 +33,8 @@ def check_increasing(time_s, what='time_s', strict=True):
 
 
 #: Largest |time_s|, s: 317 years, past any epoch time in seconds (an epoch time in
-#: ms, us or ns is 1.7e12, 1.7e15 or 1.7e18).
-TIME_LIMIT_S = 1e10
+#: ms, us or ns is 1.7e12, 1.7e15 or 1.7e18); the one limit of record times.
+TIME_LIMIT_S = RECORD_TIME_LIMIT_S
 #: Nominal (median) step allowed, s: 1 MHz to one sample an hour.
 STEP_RANGE_S = (1e-6, 3600.0)
 #: Units a time column is mistaken for, and what turns each into seconds.

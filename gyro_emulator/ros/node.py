@@ -44,7 +44,7 @@ parameters and topics and exits.
 import functools
 import sys
 
-from gyro_emulator.emulation.driver.core import Driver, warm_up
+from gyro_emulator.emulation.driver.core import Driver
 from gyro_emulator.emulation.driver.parameters import SEED_FROM_NAME
 from gyro_emulator.recording import topics
 from gyro_emulator.ros import diagnostics, node_help, params, spinning
@@ -53,6 +53,7 @@ from gyro_emulator.ros.outputs import OutputStage
 from gyro_emulator.ros.self_record import SelfRecorder
 from gyro_emulator.sensor.config import load_sensor_config
 from gyro_emulator.sensor.streams import seed_from_name
+from gyro_emulator.sensor.warm_cache import warm_up
 from gyro_emulator.units import NS_PER_S
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as RosClock, ClockType

@@ -18,7 +18,14 @@ usage: ros2 run gyro_emulator node [--help] [--ros-args ...]
 
 The virtual MEMS gyro as a ROS 2 driver node (docs/node.md). Set parameters
 with --ros-args -p NAME:=VALUE or --params-file FILE (start from a copy of
-config/gyro_emulator.yaml); remap with -r FROM:=TO, e.g. -r __ns:=/gyro."""
+config/gyro_emulator.yaml); remap with -r FROM:=TO, e.g. -r __ns:=/gyro.
+
+With seed -1 (the default) the seed comes from the node's fully qualified
+name, so every node of the same name is the same part: the same turn-on bias
+and noise on every run (/gyro_emulator with sensor_config consumer: z -7.92
+deg/s). Give each gyro its own namespace or seed for independent parts, and
+set startup_bias_calibration (seconds at rest) to remove the bias at start,
+as a driver's start-up calibration does."""
 
 
 def wants_help(argv):

@@ -11,6 +11,13 @@ repaired at the next period. With ``--summary`` it also listens to
 ``imu/data_raw`` and ``imu/temperature`` and prints, per step, the commanded
 and measured rate and the error in deg/s, averaged after ``settle_s``.
 
+Before the first step the player waits for the emulator itself: a node that
+subscribes to both commands and publishes ``imu/data_raw`` (a recorder that
+subscribes to the commands is not one), then for its first Imu sample, so
+no step starts before the node runs, however long its start takes. It says
+what it is still waiting for (:func:`play`'s ``waiting``) and gives up after
+``wait_s`` with one line naming what never came.
+
 A scenario's ``faults`` schedule (times from the start of the profile) is
 played through the node's parameter service: the player sets the node's
 ``fault.*`` parameters (atomically) up to :data:`FAULT_LEAD_S` ahead, with
@@ -30,7 +37,7 @@ import threading
 import time
 
 from gyro_emulator.emulation.scenario import format_summary, interruption_note, \
-    load_scenario, results_json, summarize
+    load_scenario, results_json, summarize, unmeasured
 from gyro_emulator.recording import topics
 from gyro_emulator.ros.codec import topic_class, topic_qos
 from gyro_emulator.ros.spinning import flag_signals, spin_once
@@ -46,6 +53,10 @@ from rclpy.utilities import remove_ros_args
 FAULT_LEAD_S = 0.5
 #: How long after the previous fault's end the next is sent (it replaces it), s.
 FAULT_MARGIN_S = 0.1
+#: How often :func:`play` reports the wait for the emulator, s.
+WAITING_REPORT_S = 1.0
+#: How often the ``scenario`` command prints that it still waits, s.
+WAITING_LINE_S = 5.0
 
 
 # --- the ROS side ----------------------------------------------------------
@@ -61,9 +72,15 @@ class ScenarioPlayer:
     profile : gyro_emulator.emulation.scenario.Scenario
         What to play.
     collect : bool
-        Subscribe to imu/data_raw and imu/temperature for :func:`summarize`.
+        Keep imu/data_raw and imu/temperature for :func:`summarize` (imu/data_raw
+        is subscribed either way: its first sample says the emulator runs).
     loop : bool
         Start over at the end instead of finishing.
+
+    Attributes
+    ----------
+    imu_received : int
+        Imu messages received (kept or not).
 
     """
 
@@ -77,11 +94,14 @@ class ScenarioPlayer:
         self._rate_msg = topic_class(topics.RATE_CMD)()
         self._temp_msg = topic_class(topics.TEMPERATURE_CMD)()
         self.imu, self.temps = [], []
+        self.imu_received = 0
+        self._collect = collect
+        node.create_subscription(topic_class(topics.IMU_OUT), topics.IMU_OUT.name,
+                                 self._on_imu, topic_qos(topics.IMU_OUT))
         if collect:
-            for topic, handler in ((topics.IMU_OUT, self._on_imu),
-                                   (topics.DIE_TEMPERATURE_OUT, self._on_temp)):
-                node.create_subscription(topic_class(topic), topic.name, handler,
-                                         topic_qos(topic))
+            node.create_subscription(topic_class(topics.DIE_TEMPERATURE_OUT),
+                                     topics.DIE_TEMPERATURE_OUT.name, self._on_temp,
+                                     topic_qos(topics.DIE_TEMPERATURE_OUT))
         self.start_ns = None
         self.done = False
         self.stop_ns = None          # set when interrupted (SIGINT, SIGTERM, shutdown)
@@ -100,6 +120,9 @@ class ScenarioPlayer:
             self._fault_client = AsyncParameterClient(node, topics.NODE_NAME)
 
     def _on_imu(self, msg):
+        self.imu_received += 1
+        if not self._collect:
+            return
         v = msg.angular_velocity
         s = msg.header.stamp
         self.imu.append((s.sec * NS_PER_S + s.nanosec, (v.x, v.y, v.z)))
@@ -108,11 +131,42 @@ class ScenarioPlayer:
         s = msg.header.stamp
         self.temps.append((s.sec * NS_PER_S + s.nanosec, msg.temperature))
 
+    def emulator(self):
+        """
+        Return the fully qualified name of the emulator on the graph, or None.
+
+        The emulator is a node that subscribes to both commands and publishes
+        ``imu/data_raw`` (a recorder subscribes to the commands too, but
+        publishes no Imu).
+        """
+        node = self.node
+
+        def nodes(infos):
+            return {(i.node_namespace, i.node_name) for i in infos}
+        found = nodes(node.get_subscriptions_info_by_topic(self.rate_pub.topic_name)) \
+            & nodes(node.get_subscriptions_info_by_topic(self.temp_pub.topic_name)) \
+            & nodes(node.get_publishers_info_by_topic(node.resolve_topic_name(
+                topics.IMU_OUT.name)))
+        if not found:
+            return None
+        namespace, name = min(found)
+        return namespace.rstrip('/') + '/' + name
+
+    def missing(self):
+        """Say what the player still waits for before the first step; None: nothing."""
+        imu = self.node.resolve_topic_name(topics.IMU_OUT.name)
+        if self.emulator() is None:
+            return (f'no node yet subscribes to {self.rate_pub.topic_name} and '
+                    f'{self.temp_pub.topic_name} and publishes {imu}')
+        if self._fault_client is not None and not self._fault_client.services_are_ready():
+            return 'its parameter service (for the fault schedule) is not up yet'
+        if not self.imu_received:
+            return f'its first {imu} sample has not come yet'
+        return None
+
     def connected(self):
-        """Return True once the emulator subscribes to both commands (and serves parameters)."""
-        return self.rate_pub.get_subscription_count() > 0 and \
-            self.temp_pub.get_subscription_count() > 0 and (
-                self._fault_client is None or self._fault_client.services_are_ready())
+        """Return True once the emulator runs: on the graph, serving, its first sample in."""
+        return self.missing() is None
 
     def faults_settled(self):
         """Return True once the node has answered every fault sent."""
@@ -201,7 +255,8 @@ class ScenarioPlayer:
         return interruption_note(self.profile, self.start_ns, self.stop_ns)
 
 
-def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=None):
+def play(profile, collect=True, wait_s=120.0, loop=False, progress=None, args=None,
+         waiting=None):
     """
     Run a profile against a running emulator in a fresh rclpy context.
 
@@ -212,19 +267,23 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
     collect : bool
         Collect the emulator's output for the summary.
     wait_s : float
-        How long to wait for the emulator to subscribe, s.
+        Longest wait for the emulator (on the graph, then its first sample), s.
     loop : bool
         Repeat forever (until SIGINT).
     progress : callable or None
         Called with (step index, step: a constant Segment) when a step begins.
     args : list of str or None
         ROS arguments (e.g. ``['--ros-args', '-r', '__ns:=/gyro']``).
+    waiting : callable or None
+        Called with (seconds waited, what is missing) about every
+        :data:`WAITING_REPORT_S` while the player waits for the emulator;
+        it may raise RuntimeError to stop waiting (its emulator process died).
 
     Returns
     -------
     ScenarioPlayer
         With ``results()`` for the summary. Raises RuntimeError when the
-        emulator never subscribes.
+        emulator is not running within ``wait_s``.
 
     """
     context = rclpy.Context()
@@ -237,20 +296,9 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
     stop = threading.Event()
     previous = flag_signals(stop)
     try:
-        deadline = time.monotonic() + wait_s
-        while not player.connected():
-            if time.monotonic() > deadline:
-                raise RuntimeError(
-                    f'no emulator subscribed to {topics.RATE_CMD.name} and '
-                    f'{topics.TEMPERATURE_CMD.name} (and served its parameters, for a '
-                    f'fault schedule) within {wait_s:g} s (is '
-                    f'`ros2 run gyro_emulator node` running on '
-                    f'ROS_DOMAIN_ID={os.environ.get("ROS_DOMAIN_ID", "0")}?)')
-            _spin(executor, stop)
-        if collect:
-            deadline = time.monotonic() + wait_s
-            while not player.imu and time.monotonic() < deadline:
-                _spin(executor, stop)
+        _wait_for_emulator(player, executor, stop, wait_s, waiting)
+        player.imu.clear()                  # what came before the first step
+        player.temps.clear()
         player.start()
         shown = None
         while not player.done:
@@ -274,6 +322,26 @@ def play(profile, collect=True, wait_s=20.0, loop=False, progress=None, args=Non
         for signum, handler in previous.items():
             signal.signal(signum, handler)
     return player
+
+
+def _wait_for_emulator(player, executor, stop, wait_s, waiting):
+    """Spin until the emulator runs (:meth:`ScenarioPlayer.connected`); RuntimeError at wait_s."""
+    began = time.monotonic()
+    next_report = began + WAITING_REPORT_S
+    while True:
+        missing = player.missing()
+        if missing is None:
+            return
+        now = time.monotonic()
+        if now - began > wait_s:
+            raise RuntimeError(
+                f'no emulator within {wait_s:g} s: {missing} (is `ros2 run '
+                f'gyro_emulator node` running on ROS_DOMAIN_ID='
+                f'{os.environ.get("ROS_DOMAIN_ID", "0")}?)')
+        if waiting is not None and now >= next_report:
+            next_report += WAITING_REPORT_S
+            waiting(now - began, missing)
+        _spin(executor, stop)
 
 
 def _spin(executor, stop):
@@ -303,13 +371,31 @@ def build_parser():
                         help='collect imu/data_raw and print commanded vs measured')
     parser.add_argument('--json', metavar='FILE', help='write the summary as JSON')
     parser.add_argument('--loop', action='store_true', help='repeat until Ctrl-C')
-    parser.add_argument('--wait', type=float, default=20.0, metavar='S',
-                        help='how long to wait for the emulator (default: %(default)s s)')
+    parser.add_argument('--wait', type=float, default=120.0, metavar='S',
+                        help='longest wait for the emulator node and its first sample '
+                             '(default: %(default)s s)')
     return parser
 
 
 def _interrupt(signum, frame):
     raise KeyboardInterrupt
+
+
+def waiting_printer(prefix, limit_s, every_s, stream=sys.stdout):
+    """
+    Return a ``waiting`` callback for :func:`play` that prints a line every ``every_s``.
+
+    The line: ``<prefix>: waiting for the emulator node (12 s, at most 120 s): <what
+    is missing>``.
+    """
+    said = [0]
+
+    def waiting(elapsed_s, missing):
+        if elapsed_s >= (said[0] + 1) * every_s:
+            said[0] = int(elapsed_s // every_s)
+            print(f'{prefix}: waiting for the emulator node ({elapsed_s:.0f} s, at most '
+                  f'{limit_s:g} s): {missing}', file=stream, flush=True)
+    return waiting
 
 
 def main(args=None):
@@ -327,7 +413,8 @@ def main(args=None):
                   f'{step.duration_s:g} s', flush=True)
 
         player = play(profile, collect=opts.summary or bool(opts.json), wait_s=opts.wait,
-                      loop=opts.loop, progress=progress, args=['scenario'] + argv)
+                      loop=opts.loop, progress=progress, args=['scenario'] + argv,
+                      waiting=waiting_printer('scenario', opts.wait, WAITING_LINE_S))
     except (ValueError, RuntimeError, OSError) as exc:
         print(f'scenario: error: {exc}', file=sys.stderr)
         return 2
@@ -343,6 +430,10 @@ def main(args=None):
         if opts.json:
             with open(opts.json, 'w', encoding='utf-8') as handle:
                 json.dump(results_json(profile, results, player.interrupted), handle, indent=1)
+        missing = unmeasured(results)
+        if missing:
+            print(f'scenario: error: {missing}', file=sys.stderr)
+            return 1
     return 0
 
 

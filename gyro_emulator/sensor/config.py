@@ -13,6 +13,10 @@ datasheet units instead through the aliases in :data:`YAML_ALIASES`
 (``bias_instability_deg_h``, ``electronics_arw_deg_sqrt_h``, ...), converted
 by :mod:`gyro_emulator.units`, the one place for unit conversions.
 
+The accelerometer of the part is :attr:`SensorConfig.accelerometer`, an
+:class:`~gyro_emulator.sensor.accel.AccelConfig` (YAML key ``accelerometer``;
+without it, the default: the proof mass's Brownian noise).
+
 Presets live in ``config/sensor_<name>.yaml`` (:data:`PRESET_NAMES`); their
 YAML comments cite the source of every figure.
 """
@@ -24,8 +28,11 @@ from gyro_emulator import units
 from gyro_emulator.physics.params import Device, from_mapping
 from gyro_emulator.physics.presets import DEFAULT_PRESET, physics_preset, PHYSICS_PRESETS
 from gyro_emulator.resources import config_dir, read_yaml
-from gyro_emulator.sensor.extensions import ExtendedTerms
-from gyro_emulator.validation import check_range
+from gyro_emulator.sensor.accel import accel_from_mapping, accel_yaml_value, AccelConfig
+from gyro_emulator.sensor.extensions import ExtendedTerms, MIN_TIME_CONSTANT_S
+from gyro_emulator.sensor.fields import (check_lsb, check_zero_diagonal, checked, converter,
+                                         spell, Switches, YamlKey)
+from gyro_emulator.validation import quote
 import numpy as np
 
 #: Sensor presets shipped in ``config/sensor_<name>.yaml``.
@@ -34,7 +41,7 @@ DEFAULT_SENSOR_PRESET = 'paper'
 
 
 @dataclass(frozen=True)
-class ErrorTerms:
+class ErrorTerms(Switches):
     """
     On/off switch of every term of the error model (all on by default).
 
@@ -64,30 +71,6 @@ class ErrorTerms:
     latency: bool = True
     timestamp_jitter: bool = True
     clock_drift: bool = True
-
-    def __post_init__(self):
-        """Check that every switch is a bool."""
-        for f in fields(self):
-            value = getattr(self, f.name)
-            if not isinstance(value, (bool, np.bool_)):
-                raise ValueError(
-                    f'ErrorTerms.{f.name} = {value!r} is not allowed: '
-                    'choose true or false')
-            object.__setattr__(self, f.name, bool(value))
-
-    @classmethod
-    def none(cls):
-        """Return switches with every term off (the ideal sensor)."""
-        return cls(**dict.fromkeys(cls.names(), False))
-
-    @classmethod
-    def names(cls):
-        """Return the term names in model order."""
-        return tuple(f.name for f in fields(cls))
-
-    def enabled(self):
-        """Return the names of the terms that are on."""
-        return tuple(n for n in self.names() if getattr(self, n))
 
 
 #: Allowed values of the fields by kind ('axis': 3 numbers or one for all
@@ -201,6 +184,9 @@ class SensorConfig:
         The terms of the causes diagnose names beyond these (bias hysteresis,
         polynomials in time, steps, pressure drift, ...; all off by default:
         :mod:`gyro_emulator.sensor.extensions`). YAML key ``extended``.
+    accelerometer : AccelConfig
+        The part's accelerometer (:mod:`gyro_emulator.sensor.accel`; run by
+        :class:`gyro_emulator.sensor.imu.ImuModel`). YAML key ``accelerometer``.
 
     """
 
@@ -231,47 +217,48 @@ class SensorConfig:
     clock_drift_ppm: float = 0.0
     initial_die_temp_c: float = None
     extended: ExtendedTerms = field(default_factory=ExtendedTerms)
+    accelerometer: AccelConfig = field(default_factory=AccelConfig)
 
     def __post_init__(self):
         """Normalise per-axis fields to tuples and validate every field."""
         object.__setattr__(self, 'device', _devices(self.device))
         if not isinstance(self.extended, ExtendedTerms):
             raise ValueError(
-                f'SensorConfig.extended = {self.extended!r} is not allowed: expected '
+                f'SensorConfig.extended = {quote(self.extended)} is not allowed: expected '
                 'an ExtendedTerms')
         if not isinstance(self.terms, ErrorTerms):
             raise ValueError(
-                f'SensorConfig.terms = {self.terms!r} is not allowed: expected '
+                f'SensorConfig.terms = {quote(self.terms)} is not allowed: expected '
                 'an ErrorTerms')
+        if not isinstance(self.accelerometer, AccelConfig):
+            raise ValueError(f'SensorConfig.accelerometer = {quote(self.accelerometer)} is not '
+                             'allowed: expected an AccelConfig')
         for kind, ranges in _RANGES.items():
             for name, limits in ranges.items():
-                object.__setattr__(self, name, _checked(name, getattr(self, name), kind,
-                                                        limits))
-        for i, lsb in enumerate(self.lsb_rad_s):
-            if 0.0 < lsb < MIN_LSB_RAD_S:
-                raise ValueError(f'SensorConfig.lsb_rad_s[{i}] = {lsb!r} is out of range: '
-                                 f'allowed 0 (no quantisation) or [{MIN_LSB_RAD_S:g}, 1] rad/s')
+                object.__setattr__(self, name, checked('SensorConfig', name, getattr(self, name),
+                                                       kind, limits, name in _OPEN_LOW))
+        check_lsb('SensorConfig', 'lsb_rad_s', self.lsb_rad_s, MIN_LSB_RAD_S, 1, 'rad/s')
+        tau = self.thermal_time_constant_s
+        if 0.0 < tau < MIN_TIME_CONSTANT_S:
+            raise ValueError(f'SensorConfig.thermal_time_constant_s = {tau!r} is out of range: '
+                             f'allowed 0 (no lag) or [{MIN_TIME_CONSTANT_S:g}, 1e+05] s')
         if self.output_filter_order != int(self.output_filter_order):
             raise ValueError(
-                f'SensorConfig.output_filter_order = {self.output_filter_order!r}'
+                f'SensorConfig.output_filter_order = {quote(self.output_filter_order)}'
                 ' is not allowed: choose 1, 2, 3 or 4')
         object.__setattr__(self, 'output_filter_order', int(self.output_filter_order))
         band = self.bias_instability_band_s
         if band[0] > band[1]:
             raise ValueError(
-                f'SensorConfig.bias_instability_band_s = {band!r} is not allowed:'
+                f'SensorConfig.bias_instability_band_s = {quote(band)} is not allowed:'
                 ' the first (shortest) correlation time must not exceed the second')
-        diag = [self.misalignment[i][i] for i in range(3)]
-        if any(d != 0.0 for d in diag):
-            raise ValueError(
-                f'SensorConfig.misalignment has diagonal {diag!r}: allowed only '
-                '0 (a gain error belongs in scale_factor_error)')
+        check_zero_diagonal('SensorConfig', self.misalignment)
 
     @classmethod
     def ideal(cls, device=None):
-        """Return a configuration with every error term off: output = true rate."""
+        """Return every error term off (the accelerometer's too): output = true input."""
         kwargs = {} if device is None else {'device': device}
-        return cls(terms=ErrorTerms.none(), **kwargs)
+        return cls(terms=ErrorTerms.none(), accelerometer=AccelConfig.ideal(), **kwargs)
 
     def with_terms(self, **switches):
         """Return a copy with some terms switched (``quantization=False``, ...)."""
@@ -290,69 +277,6 @@ class SensorConfig:
     def axis_array(self, name):
         """Return a per-axis or matrix field as a float numpy array."""
         return np.array(getattr(self, name), dtype=float)
-
-
-def _checked(name, value, kind, limits):
-    low, high, unit = limits
-    owner = 'SensorConfig'
-    low_open = name in _OPEN_LOW
-    if kind == 'optional':
-        if value is None:
-            return None
-        return check_range(owner, name, value, low, high, unit, low_open)
-    shape = {'axis': (3,), 'scalar': (), 'pair': (2,), 'matrix': (3, 3)}[kind]
-    if _has_non_number(value):
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list of numbers '
-                         '(true/false and text are not numbers)')
-    try:
-        arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list '
-                         'of numbers') from None
-    if kind == 'axis' and arr.ndim == 0:
-        arr = np.full(3, float(arr))
-    if kind == 'matrix' and arr.ndim == 0:
-        arr = np.full((3, 3), float(arr)) * (1.0 - np.eye(3)) \
-            if name == 'misalignment' else np.eye(3) * float(arr)
-    if kind == 'matrix' and arr.shape == (3,) and name != 'misalignment':
-        arr = np.diag(arr)
-    if arr.shape != shape:
-        what = {(3,): 'a number or a list of 3 (x, y, z)', (): 'a number',
-                (2,): 'a list of 2 numbers', (3, 3): 'a 3x3 matrix'}[shape]
-        raise ValueError(f'{owner}.{name} = {value!r} has shape {arr.shape}: '
-                         f'expected {what}')
-    _check_elements(owner, name, arr, low, high, unit, low_open)
-    if kind == 'scalar':
-        return float(arr)
-    if kind == 'matrix':
-        return tuple(tuple(float(v) for v in row) for row in arr)
-    return tuple(float(v) for v in arr)
-
-
-def _has_non_number(value):
-    """Return True if ``value`` is, or holds at any depth, a bool or a string."""
-    if isinstance(value, (bool, str, bytes, np.bool_)):
-        return True
-    if isinstance(value, (list, tuple)):
-        return any(_has_non_number(v) for v in value)
-    if isinstance(value, np.ndarray):
-        return value.dtype.kind in 'bSUO' and (value.dtype.kind != 'O' or any(
-            _has_non_number(v) for v in value.ravel()))
-    return False
-
-
-def _check_elements(owner, name, arr, low, high, unit, low_open):
-    """check_range per element, so the message shows a plain number and its index."""
-    flat = arr.ravel()
-    for i, value in enumerate(flat):
-        try:
-            check_range(owner, name, float(value), low, high, unit, low_open)
-        except ValueError as exc:
-            if flat.size == 1:
-                raise
-            where = f'[{i // 3}][{i % 3}]' if arr.ndim == 2 else f'[{i}]'
-            raise ValueError(str(exc).replace(f'{owner}.{name} =',
-                                              f'{owner}.{name}{where} =', 1)) from None
 
 
 def _device_from_spec(spec, owner):
@@ -374,7 +298,7 @@ def _device_from_spec(spec, owner):
                 merged[key] = value
         return from_mapping(Device, merged, owner)
     raise ValueError(
-        f'{owner} = {spec!r} is not allowed: give a physics preset name '
+        f'{owner} = {quote(spec)} is not allowed: give a physics preset name '
         f'({", ".join(sorted(PHYSICS_PRESETS))}), a mapping of device fields '
         '(optionally with "preset") or a list of three of those')
 
@@ -400,38 +324,29 @@ def _devices(spec):
     return (device, device, device)
 
 
-def _scale(converter):
-    def convert(value):
-        arr = np.array(value, dtype=float)
-        out = converter(arr)
-        return out.tolist() if np.ndim(out) else float(out)
-    return convert
-
-
-def _pct(value):
-    return _scale(lambda v: v * 0.01)(value)
+_PCT = converter(units.percent_to_ratio)
 
 
 #: YAML keys in datasheet units: key -> (SensorConfig field, converter).
 YAML_ALIASES = {
     'electronics_arw_deg_sqrt_h': (
-        'electronics_noise_rad_s_sqrt_hz', _scale(units.arw_deg_sqrt_h_to_rad_s_sqrt_hz)),
+        'electronics_noise_rad_s_sqrt_hz', converter(units.arw_deg_sqrt_h_to_rad_s_sqrt_hz)),
     'electronics_noise_deg_s_sqrt_hz': (
-        'electronics_noise_rad_s_sqrt_hz', _scale(units.deg_s_sqrt_hz_to_rad_s_sqrt_hz)),
-    'bias_instability_deg_h': ('bias_instability_rad_s', _scale(units.deg_h_to_rad_s)),
+        'electronics_noise_rad_s_sqrt_hz', converter(units.deg_s_sqrt_hz_to_rad_s_sqrt_hz)),
+    'bias_instability_deg_h': ('bias_instability_rad_s', converter(units.deg_h_to_rad_s)),
     'rate_random_walk_deg_h_sqrt_h': (
-        'rate_random_walk_rad_s_sqrt_s', _scale(units.rrw_deg_h_sqrt_h_to_rad_s_sqrt_s)),
-    'turn_on_bias_deg_s': ('turn_on_bias_rad_s', _scale(units.deg_s_to_rad_s)),
-    'turn_on_bias_sigma_deg_s': ('turn_on_bias_sigma_rad_s', _scale(units.deg_s_to_rad_s)),
-    'bias_temp_coeff_deg_s_k': ('bias_temp_coeff_rad_s_k', _scale(units.deg_s_to_rad_s)),
-    'bias_temp_coeff2_deg_s_k2': ('bias_temp_coeff2_rad_s_k2', _scale(units.deg_s_to_rad_s)),
-    'scale_factor_error_ppm': ('scale_factor_error', _scale(units.ppm_to_ratio)),
-    'scale_factor_error_pct': ('scale_factor_error', _pct),
-    'misalignment_pct': ('misalignment', _pct),
+        'rate_random_walk_rad_s_sqrt_s', converter(units.rrw_deg_h_sqrt_h_to_rad_s_sqrt_s)),
+    'turn_on_bias_deg_s': ('turn_on_bias_rad_s', converter(units.deg_s_to_rad_s)),
+    'turn_on_bias_sigma_deg_s': ('turn_on_bias_sigma_rad_s', converter(units.deg_s_to_rad_s)),
+    'bias_temp_coeff_deg_s_k': ('bias_temp_coeff_rad_s_k', converter(units.deg_s_to_rad_s)),
+    'bias_temp_coeff2_deg_s_k2': ('bias_temp_coeff2_rad_s_k2', converter(units.deg_s_to_rad_s)),
+    'scale_factor_error_ppm': ('scale_factor_error', converter(units.ppm_to_ratio)),
+    'scale_factor_error_pct': ('scale_factor_error', _PCT),
+    'misalignment_pct': ('misalignment', _PCT),
     'g_sensitivity_deg_s_g': (
-        'g_sensitivity_rad_s_m_s2', _scale(units.deg_s_per_g_to_rad_s_per_m_s2)),
-    'lsb_deg_s': ('lsb_rad_s', _scale(units.deg_s_to_rad_s)),
-    'range_deg_s': ('range_rad_s', _scale(units.deg_s_to_rad_s)),
+        'g_sensitivity_rad_s_m_s2', converter(units.deg_s_per_g_to_rad_s_per_m_s2)),
+    'lsb_deg_s': ('lsb_rad_s', converter(units.deg_s_to_rad_s)),
+    'range_deg_s': ('range_rad_s', converter(units.deg_s_to_rad_s)),
 }
 
 
@@ -447,7 +362,7 @@ def config_from_mapping(mapping, source=''):
         mapping = {}
     if not isinstance(mapping, dict):
         raise ValueError(f'{source or "SensorConfig"}: expected a mapping of settings, '
-                         f'got {mapping!r}')
+                         f'got {quote(mapping)}')
     given, source = source, source or 'SensorConfig'
     field_names = [f.name for f in fields(SensorConfig)]
     kwargs = {}
@@ -459,18 +374,12 @@ def config_from_mapping(mapping, source=''):
             try:
                 kwargs[target] = convert(value)
             except (TypeError, ValueError):
-                raise ValueError(f'{source}: {key} = {value!r} is not a number or a '
+                raise ValueError(f'{source}: {key} = {quote(value)} is not a number or a '
                                  'list of numbers') from None
         elif key == 'terms':
-            if not isinstance(value, dict):
-                raise ValueError(f'{source}: terms = {value!r} must be a mapping of '
-                                 'term: true/false')
-            unknown = sorted(set(value) - set(ErrorTerms.names()))
-            if unknown:
-                raise ValueError(
-                    f'{source}: unknown term(s) {", ".join(map(str, unknown))} in terms;'
-                    f' allowed: {", ".join(ErrorTerms.names())}')
-            kwargs['terms'] = ErrorTerms(**value)
+            kwargs['terms'] = ErrorTerms.from_mapping(value, source)
+        elif key == 'accelerometer':
+            kwargs['accelerometer'] = accel_from_mapping(value, f'{source}: accelerometer')
         elif key == 'extended':
             try:
                 kwargs['extended'] = ExtendedTerms.from_mapping(value or {}, 'extended')
@@ -483,7 +392,7 @@ def config_from_mapping(mapping, source=''):
             kwargs[key] = value
         else:
             allowed = sorted(set(field_names) | set(YAML_ALIASES))
-            raise ValueError(f'{source}: unknown key {key!r}; allowed: '
+            raise ValueError(f'{source}: unknown key {quote(key)}; allowed: '
                              f'{", ".join(allowed)}')
     try:
         return SensorConfig(**kwargs)
@@ -522,16 +431,12 @@ def load_sensor_config(name_or_path=None):
     path = preset_path(name) if name in PRESET_NAMES else name
     if not os.path.isfile(path):
         raise ValueError(
-            f'sensor config {name!r} is neither a preset '
+            f'sensor config {quote(name)} is neither a preset '
             f'({", ".join(PRESET_NAMES)}) nor a readable file')
     return config_from_mapping(read_yaml(path), source=path)
 
 
 # --- the inverse of config_from_mapping: a SensorConfig as sensor YAML text ----------
-
-def _percent(ratio):
-    return np.asarray(ratio, dtype=float) * 100.0
-
 
 #: Each alias of :data:`YAML_ALIASES`: SI value -> the alias's unit (the inverse converters).
 _FROM_SI = {
@@ -539,41 +444,20 @@ _FROM_SI = {
     'electronics_noise_deg_s_sqrt_hz': units.rad_s_sqrt_hz_to_deg_s_sqrt_hz,
     'bias_instability_deg_h': units.rad_s_to_deg_h,
     'rate_random_walk_deg_h_sqrt_h': units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h,
-    'scale_factor_error_ppm': units.ratio_to_ppm, 'scale_factor_error_pct': _percent,
-    'misalignment_pct': _percent, 'g_sensitivity_deg_s_g': units.rad_s_per_m_s2_to_deg_s_per_g,
+    'scale_factor_error_ppm': units.ratio_to_ppm,
+    'scale_factor_error_pct': units.ratio_to_percent, 'misalignment_pct': units.ratio_to_percent,
+    'g_sensitivity_deg_s_g': units.rad_s_per_m_s2_to_deg_s_per_g,
     **dict.fromkeys(('turn_on_bias_deg_s', 'turn_on_bias_sigma_deg_s', 'bias_temp_coeff_deg_s_k',
                      'bias_temp_coeff2_deg_s_k2', 'lsb_deg_s', 'range_deg_s'),
                     units.rad_s_to_deg_s)}
 
 
-@dataclass(frozen=True)
-class YamlKey:
-    """
-    One key of a sensor YAML file as :func:`config_yaml` writes it.
-
-    ``name``: at the top a :class:`SensorConfig` field, an alias of
-    :data:`YAML_ALIASES` (the field in the alias's unit), ``device``,
-    ``terms`` or ``extended``; below, a switch, ``start_time_s``, a cause id
-    or a term's field. ``spec``: format of its numbers, ``''`` the shortest
-    text that reads back exactly, ``'.6g'`` a measured figure. ``scalar``:
-    a per-axis field as one number. ``parts``: the keys written inside
-    ``terms``, ``extended`` or a term (default all). ``given``: the value as
-    the caller spells it (parsed YAML, ``Figure``, ``Flow``), written as it
-    is; it must denote the configuration's value (the file is checked).
-    """
-
-    name: str
-    spec: str = ''
-    scalar: bool = False
-    parts: tuple = None
-    given: object = None
-
-
 def default_layout(config):
     """Return the keys that spell every field of ``config`` (full precision, SI names)."""
-    names = [f.name for f in fields(SensorConfig) if f.name != 'extended']
+    names = [f.name for f in fields(SensorConfig) if f.name not in ('extended', 'accelerometer')]
     return tuple(YamlKey(n) for n in names) + (YamlKey('extended', parts=tuple(
-        YamlKey(t) for t in ('start_time_s',) + config.extended.active())),)
+        YamlKey(t) for t in ('start_time_s',) + config.extended.active())),
+        YamlKey('accelerometer'))
 
 
 def config_yaml(config, layout=None, provenance='', comments=None, footer=''):
@@ -637,10 +521,12 @@ def _value(config, key):
     if key.name == 'extended':
         out = {p.name: _extended_value(config.extended, p) for p in key.parts or ()}
         return out or None
+    if key.name == 'accelerometer':
+        return accel_yaml_value(config.accelerometer, key.parts)
     if key.name in YAML_ALIASES:
         value = getattr(config, YAML_ALIASES[key.name][0])
-        return _numbers(np.asarray(_FROM_SI[key.name](np.array(value))).tolist(), key)
-    return _numbers(getattr(config, key.name), key)
+        return spell(np.asarray(_FROM_SI[key.name](np.array(value))).tolist(), key)
+    return spell(getattr(config, key.name), key)
 
 
 def _extended_value(ext, part):
@@ -648,27 +534,10 @@ def _extended_value(ext, part):
     if part.given is not None:
         return part.given
     if part.name == 'start_time_s':
-        return _numbers(ext.start_time_s, part)
+        return spell(ext.start_time_s, part)
     term = getattr(ext, part.name)
     names = [f.name for f in fields(term)] if part.parts is None else [p.name for p in part.parts]
-    return {n: _numbers(getattr(term, n), part) for n in names}
-
-
-def _numbers(value, key):
-    """Spell a number, a per-axis triple or a matrix (rows in flow style) with ``key.spec``."""
-    from gyro_emulator.yaml_text import Figure, Flow
-
-    if value is None or isinstance(value, (bool, str, int)):
-        return value
-    if isinstance(value[0] if isinstance(value, (list, tuple)) else None, (list, tuple)):
-        return [Flow(Figure(v, key.spec) for v in row) for row in value]
-    if not isinstance(value, (list, tuple)):
-        return Figure(value, key.spec)
-    if key.scalar and len(set(value)) == 1:
-        return Figure(value[0], key.spec)
-    if key.scalar:
-        raise ValueError(f'{key.name} = {value!r}: one number cannot spell three')
-    return Flow(Figure(v, key.spec) for v in value)
+    return {n: spell(getattr(term, n), part) for n in names}
 
 
 def _device_value(device, spec):

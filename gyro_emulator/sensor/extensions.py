@@ -62,12 +62,23 @@ import math
 from gyro_emulator.physics import first_order
 from gyro_emulator.sensor.simd import vpack, vrow, vsplat, vstore4
 from gyro_emulator.units import SECONDS_PER_HOUR
-from gyro_emulator.validation import check_range, MODEL_TEMP_RANGE_C
+from gyro_emulator.validation import (
+    check_range, MODEL_TEMP_RANGE_C, quote, RECORD_TIME_LIMIT_S, shorten)
 import numba
 import numpy as np
 
-#: Largest |record time| accepted, s (about 30 years).
-TIME_LIMIT_S = 1e9
+#: Largest |record time| accepted, s: a record's own limit (epoch seconds, 1.7e9, fit).
+TIME_LIMIT_S = RECORD_TIME_LIMIT_S
+#: Largest |time since the first sample| a model is put at, s (about 30 years).
+ELAPSED_LIMIT_S = 1e9
+#: Smallest play half width, K: below it T +- w rounds to T at any model
+#: temperature (float64 resolves 3e-14 K at 200 C) long before 1/w overflows,
+#: and the term would vanish or give NaN; a real hysteresis is >= 0.01 K.
+MIN_WIDTH_K = 1e-6
+#: Smallest time constant, s: below it exp(-dt/tau) and 1/tau leave the range of
+#: float64 at any sample rate the model runs at; a thermal or warm-up time
+#: constant is >= 1 ms.
+MIN_TIME_CONSTANT_S = 1e-6
 #: Hours per second.
 PER_HOUR = 1.0 / SECONDS_PER_HOUR
 
@@ -76,16 +87,17 @@ def _axis(owner, name, value, low, high, unit):
     """Return a per-axis value (a number or 3) as a tuple of 3 checked floats."""
     if isinstance(value, (bool, str, np.bool_)) or (
             isinstance(value, (list, tuple)) and any(isinstance(v, (bool, str)) for v in value)):
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list of 3 numbers')
+        raise ValueError(f'{owner}.{name} = {quote(value)} is not a number or a list of 3 '
+                         'numbers')
     try:
         arr = np.array(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number or a list of 3 '
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f'{owner}.{name} = {quote(value)} is not a number or a list of 3 '
                          'numbers') from None
     if arr.ndim == 0:
         arr = np.full(3, float(arr))
     if arr.shape != (3,):
-        raise ValueError(f'{owner}.{name} = {value!r} has shape {arr.shape}: expected a '
+        raise ValueError(f'{owner}.{name} = {quote(value)} has shape {arr.shape}: expected a '
                          'number or a list of 3 (x, y, z)')
     check_range(owner, name, arr, low, high, unit, low_open=False)
     return tuple(float(v) for v in arr)
@@ -93,7 +105,7 @@ def _axis(owner, name, value, low, high, unit):
 
 def _scalar(owner, name, value, low, high, unit, low_open):
     if isinstance(value, (bool, str, np.bool_)) or value is None:
-        raise ValueError(f'{owner}.{name} = {value!r} is not a number')
+        raise ValueError(f'{owner}.{name} = {quote(value)} is not a number')
     return check_range(owner, name, value, low, high, unit, low_open)
 
 
@@ -116,8 +128,8 @@ class _Term:
                 value = _scalar(owner, name, value, low, high, unit, kind == 'open')
             object.__setattr__(self, name, value)
         if not isinstance(self.enabled, (bool, np.bool_)):
-            raise ValueError(f'{owner}.enabled = {self.enabled!r} is not allowed: choose '
-                             'true or false')
+            raise ValueError(f'{owner}.enabled = {quote(self.enabled)} is not allowed: '
+                             'choose true or false')
         object.__setattr__(self, 'enabled', bool(self.enabled))
 
 
@@ -131,7 +143,7 @@ class BiasHysteresis(_Term):
     hysteresis_width_k: float = 1.0
     bias_hysteresis_rad_s: tuple = (0.0, 0.0, 0.0)
     enabled: bool = True
-    RANGES = {'hysteresis_width_k': ('open', 0.0, 100.0, 'K'),
+    RANGES = {'hysteresis_width_k': ('closed', MIN_WIDTH_K, 100.0, 'K'),
               'bias_hysteresis_rad_s': ('axis', -1.0, 1.0, 'rad/s')}
 
 
@@ -170,7 +182,7 @@ class BiasTime(_Term):
     bias_drift_rad_s_per_h: tuple = (0.0, 0.0, 0.0)
     time_origin_s: float = 0.0
     enabled: bool = True
-    RANGES = {'warmup_time_constant_s': ('open', 0.0, 1e7, 's'),
+    RANGES = {'warmup_time_constant_s': ('closed', MIN_TIME_CONSTANT_S, 1e7, 's'),
               'warmup_rad_s': ('axis', -1.0, 1.0, 'rad/s'),
               'bias_drift_rad_s_per_h': ('axis', -1.0, 1.0, 'rad/s/h'),
               'time_origin_s': ('closed',) + _T}
@@ -214,7 +226,7 @@ class TemperatureRateBias(_Term):
     gradient_time_constant_s: float = 10.0
     bias_per_temp_rate_rad_s_per_k_s: tuple = (0.0, 0.0, 0.0)
     enabled: bool = True
-    RANGES = {'gradient_time_constant_s': ('open', 0.0, 1e5, 's'),
+    RANGES = {'gradient_time_constant_s': ('closed', MIN_TIME_CONSTANT_S, 1e5, 's'),
               'bias_per_temp_rate_rad_s_per_k_s': ('axis', -10.0, 10.0, 'rad/s per K/s')}
 
 
@@ -257,8 +269,8 @@ class ExtendedTerms:
         for name, cls in TERM_TYPES.items():
             value = getattr(self, name)
             if value is not None and not isinstance(value, cls):
-                raise ValueError(f'ExtendedTerms.{name} = {value!r} is not allowed: expected '
-                                 f'a {cls.__name__} or None')
+                raise ValueError(f'ExtendedTerms.{name} = {quote(value)} is not allowed: '
+                                 f'expected a {cls.__name__} or None')
 
     def active(self):
         """Return the cause ids of the terms that are given and enabled."""
@@ -278,25 +290,28 @@ class ExtendedTerms:
         Unknown causes and parameters raise ValueError naming them.
         """
         if not isinstance(mapping, dict):
-            raise ValueError(f'{source} = {mapping!r} must be a mapping of cause: parameters')
+            raise ValueError(f'{source} = {quote(mapping)} must be a mapping of cause: '
+                             'parameters')
         kwargs = {}
         for key, value in mapping.items():
             if key == 'start_time_s':
                 kwargs[key] = value
                 continue
             if key not in TERM_TYPES:
-                raise ValueError(f'{source}: unknown term {key!r}; allowed: start_time_s, '
-                                 f'{", ".join(TERM_TYPES)}')
+                raise ValueError(f'{source}: unknown term {quote(key)}; allowed: '
+                                 f'start_time_s, {", ".join(TERM_TYPES)}')
             term = TERM_TYPES[key]
             if value is None:
                 continue
             if not isinstance(value, dict):
-                raise ValueError(f'{source}.{key} = {value!r} must be a mapping of parameters')
+                raise ValueError(f'{source}.{key} = {quote(value)} must be a mapping of '
+                                 'parameters')
             allowed = [f.name for f in fields(term)]
             unknown = sorted(set(map(str, value)) - set(allowed))
             if unknown:
-                raise ValueError(f'{source}.{key}: unknown parameter(s) {", ".join(unknown)};'
-                                 f' allowed: {", ".join(allowed)}')
+                raise ValueError(f'{source}.{key}: unknown parameter(s) '
+                                 f'{shorten(", ".join(unknown))}; allowed: '
+                                 f'{", ".join(allowed)}')
             kwargs[key] = term(**value)
         return cls(**kwargs)
 
@@ -409,6 +424,23 @@ class ExtendedPlan:
         """
         _evaluate(temp_c, self.flags, self.scalars, self.axis, self.table, P_CELLS, state,
                   bias, gain)
+
+
+def first_non_finite(ext, devices, cal_temp_c, dt, temp_c, state):
+    """
+    Return the first active term of ``ext`` whose bias or gain over ``temp_c`` is not finite.
+
+    Each term is evaluated alone from a copy of ``state`` (the model's
+    extended state before these samples); None when each is finite alone.
+    """
+    for name in ext.active():
+        alone = ExtendedTerms(start_time_s=ext.start_time_s, **{name: getattr(ext, name)})
+        plan = ExtendedPlan(alone, devices, cal_temp_c, dt)
+        bias, gain = plan.buffers_for(len(temp_c))
+        plan.evaluate(np.ascontiguousarray(temp_c, dtype=float), state.copy(), bias, gain)
+        if not (np.isfinite(bias[:len(temp_c)]).all() and np.isfinite(gain[:len(temp_c)]).all()):
+            return name
+    return None
 
 
 def new_state():

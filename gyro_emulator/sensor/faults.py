@@ -39,6 +39,7 @@ import math
 
 from gyro_emulator.resources import read_yaml
 from gyro_emulator.units import AXES
+from gyro_emulator.validation import quote
 import numpy as np
 
 FAULT_TYPES = ('none', 'stuck', 'bias_step', 'drift', 'spike', 'dropout', 'saturate',
@@ -91,7 +92,7 @@ class Fault:
                                      ('axis', 'axis', FAULT_AXES)):
             value = getattr(self, name)
             if value not in choices:
-                raise ValueError(f'fault.{label} = {value!r} is not allowed: choose one of '
+                raise ValueError(f'fault.{label} = {quote(value)} is not allowed: choose one of '
                                  f'{", ".join(choices)}')
         for name, low, high, unit in (
                 ('magnitude', -MAX_ABS_MAGNITUDE, MAX_ABS_MAGNITUDE,
@@ -100,11 +101,11 @@ class Fault:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, float)) or \
                     not math.isfinite(value) or not low <= value <= high:
-                raise ValueError(f'fault.{name} = {value!r} is out of range: allowed '
+                raise ValueError(f'fault.{name} = {quote(value)} is out of range: allowed '
                                  f'[{low:g}, {high:g}]{" " + unit if unit else ""}')
             object.__setattr__(self, name, float(value))
         if self.kind == 'noise_burst' and self.magnitude < 0.0:
-            raise ValueError(f'fault.magnitude = {self.magnitude!r} is out of range for '
+            raise ValueError(f'fault.magnitude = {quote(self.magnitude)} is out of range for '
                              f'noise_burst: allowed [0, {MAX_ABS_MAGNITUDE:g}] rad/s (sigma)')
 
     @property
@@ -296,12 +297,12 @@ def parse_schedule(where, raw):
     if raw is None:
         return ()
     if not isinstance(raw, list):
-        raise ValueError(f'{where} = {raw!r} must be a list of faults')
+        raise ValueError(f'{where} = {quote(raw)} must be a list of faults')
     allowed = ('type', 'axis', 'magnitude', 'start_s', 'duration_s')
     faults = []
     for i, entry in enumerate(raw):
         if not isinstance(entry, dict):
-            raise ValueError(f'{where}[{i}] = {entry!r} must be a mapping with '
+            raise ValueError(f'{where}[{i}] = {quote(entry)} must be a mapping with '
                              f'{", ".join(allowed)}')
         unknown = sorted(set(entry) - set(allowed))
         if unknown:

@@ -15,12 +15,14 @@ specific force a; SI units)::
   device (Young's modulus, gas damping with the selected viscosity law,
   pressure), tabulated once every 0.01 C (relative error < 1e-10) and
   interpolated linearly per sample.
-* H_sense is the exact ZOH discretisation of the sense-mode envelope
-  (:func:`gyro_emulator.physics.dynamics.rate_channel_discrete`, DC gain 1) at the
-  calibration temperature and the configured mode split; H_filter is the
-  ASIC's digital Butterworth low-pass. Both run as transposed direct form II
-  recursions (the arithmetic of ``scipy.signal.lfilter``), started in steady
-  state at their first input.
+* H_sense is the exact discretisation of the sense-mode envelope at the
+  output's sample instants (:func:`gyro_emulator.physics.dynamics.rate_channel_discrete`:
+  the rate over each sample period, the envelope read at the end of it,
+  DC gain 1, no delay of the samples) at the calibration temperature and
+  the configured mode split; H_filter is the ASIC's digital Butterworth
+  low-pass (the part's own group delay, configured). Both run as
+  transposed direct form II recursions (the arithmetic of
+  ``scipy.signal.lfilter``), started in steady state at their first input.
 * w_i is white rate noise of two-sided density N_i(T) = sqrt(N_mech(T)^2 +
   N_elec^2) with N_mech = sqrt(4 k_B T C_sense) / (2 M V_drive)
   (:func:`gyro_emulator.sensor.noise.brownian_arw_rad_s_sqrt_hz`); per-sample sigma
@@ -59,13 +61,29 @@ import copy
 from dataclasses import dataclass
 import math
 
-from gyro_emulator.sensor import extensions, kernel, noise, streams
+from gyro_emulator.sensor import extensions, streams
+from gyro_emulator.sensor.channel import new_outputs, NONE_ROWS, SenseChannel
 from gyro_emulator.sensor.config import SensorConfig
 from gyro_emulator.sensor.plan import Plan, TemperatureTable
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
 
-__all__ = ['GyroModel', 'SensorBatch', 'SensorSample', 'TemperatureTable']
+__all__ = ['GyroModel', 'NonFiniteOutput', 'SensorBatch', 'SensorSample', 'TemperatureTable']
+
+
+class NonFiniteOutput(ValueError):
+    """
+    The model would emit a sample that is not finite; :attr:`cause` names the term.
+
+    A valid configuration never does (every field has a physical range); this
+    is the guard behind the ranges. Offline commands stop with its one-line
+    message; a node sets ``GyroModel.on_non_finite = 'flag'`` and withholds
+    such samples instead.
+    """
+
+    def __init__(self, message, cause):
+        super().__init__(message)
+        self.cause = cause
 
 
 @dataclass(frozen=True)
@@ -130,27 +148,11 @@ class SensorBatch:
             scale_factor=self.scale_factor[index], saturated=self.saturated[index],
             output_delay_s=float(self.output_delay_s[index]))
 
-    @staticmethod
-    def concatenate(batches):
-        """Join batches in time order."""
-        names = SensorBatch.__dataclass_fields__
-        return SensorBatch(**{n: np.concatenate([getattr(b, n) for b in batches])
-                              for n in names})
-
-
-class _State:
-    """Mutable state carried between calls (copied by ``copy.deepcopy``)."""
-
-    def __init__(self, rng):
-        self.normals = streams.NormalStreams(rng)
-        self.kernel = kernel.State(
-            ints=np.zeros(4, dtype=np.int64),   # sample index, ready flags
-            die_c=np.zeros(1),                  # die temperature of the last sample
-            dyn_z=np.zeros((3, 2)), lpf_z=np.zeros((3, 1)),
-            flicker=np.zeros((3, 1)),           # (axes, sections)
-            rrw=np.zeros(3))
-        self.flicker_key = None
-        self.extended = extensions.new_state()
+    @classmethod
+    def concatenate(cls, batches):
+        """Join batches in time order (of this class: a subclass joins its own fields)."""
+        return cls(**{n: np.concatenate([getattr(b, n) for b in batches])
+                      for n in cls.__dataclass_fields__})
 
 
 class GyroModel:
@@ -184,9 +186,14 @@ class GyroModel:
                              'range: allowed (0, 1e6] Hz')
         self.sample_rate_hz = rate
         self.dt_s = 1.0 / rate
-        self._state = _State(rng)
-        self._turn_on_z = self._state.normals.draw(streams.TURN_ON, 3)
-        self._plan = None
+        self._gyro = SenseChannel(rng)
+        self._extended = extensions.new_state()
+        self._ext = None
+        #: ``'raise'``: a non-finite sample raises :class:`NonFiniteOutput`; ``'flag'``:
+        #: it is counted (:attr:`non_finite_samples`) and left in the batch.
+        self.on_non_finite = 'raise'
+        self.non_finite_samples = 0
+        self.non_finite_cause = None
         self.update_config(config)
 
     def copy(self):
@@ -196,14 +203,28 @@ class GyroModel:
         The copy and the original then produce identical samples for the same
         inputs. The precomputed plan is immutable, so the copy shares it.
         """
-        return copy.deepcopy(self, {id(self._plan): self._plan})
+        return copy.deepcopy(self, self.shared_plans())
+
+    def shared_plans(self):
+        """Return the ``copy.deepcopy`` memo that shares the immutable plan with a copy."""
+        return {id(self._gyro.plan): self._gyro.plan}
+
+    def stream_parent(self):
+        """
+        Return the generator of the gyro's first stream (its turn-on bias).
+
+        An IMU spawns its accelerometer's streams from this generator's
+        SeedSequence (:mod:`gyro_emulator.sensor.imu`): the gyro's own
+        streams and the injected generator's spawn counter stay as they are.
+        """
+        return self._gyro.normals.generators[streams.TURN_ON]
 
     # --- configuration ---------------------------------------------------
 
     @property
     def config(self):
         """Return the active :class:`SensorConfig`."""
-        return self._plan.config
+        return self._gyro.plan.config
 
     @property
     def temp_range_c(self):
@@ -221,30 +242,10 @@ class GyroModel:
         """
         if not isinstance(config, SensorConfig):
             raise ValueError(f'GyroModel.config = {config!r} is not a SensorConfig')
-        old = self._plan
-        plan = Plan(config, self.sample_rate_hz, self._turn_on_z)
-        st = self._state
-        state = st.kernel
-        if old is None or not (np.array_equal(old.dyn_b, plan.dyn_b)
-                               and np.array_equal(old.dyn_a, plan.dyn_a)):
-            state.ints[kernel.I_DYN_READY] = 0
-            state = state._replace(dyn_z=np.zeros((3, plan.dyn_a.shape[1] - 1)))
-        if old is None or not (np.array_equal(old.lpf_b, plan.lpf_b)
-                               and np.array_equal(old.lpf_a, plan.lpf_a)):
-            state.ints[kernel.I_LPF_READY] = 0
-            state = state._replace(lpf_z=np.zeros((3, plan.lpf_a.shape[1] - 1)))
-        if plan.flicker is not None:
-            key = (tuple(plan.flicker.corr_times_s), plan.dt)
-            if st.flicker_key != key:
-                count = len(plan.flicker.phi)
-                z = np.array([st.normals.draw(streams.FLICKER + i, count) for i in range(3)])
-                state = state._replace(flicker=np.ascontiguousarray(
-                    noise.flicker_initial_state(plan.flicker, plan.flicker_b, z.T).T))
-                st.flicker_key = key
-        st.kernel = state
-        self._plan = plan
+        plan = Plan(config, self.sample_rate_hz, self._gyro.turn_on_z)
+        self._gyro.apply(plan)
         self._ext = None
-        st.extended[extensions.Z_WARM_READY] = 0.0     # re-anchor the warm-up exponential
+        self._extended[extensions.Z_WARM_READY] = 0.0     # re-anchor the warm-up exponential
         if config.extended.active():
             self._ext = extensions.ExtendedPlan(config.extended, config.device,
                                                 plan.cal_temp_c, self.dt_s)
@@ -270,7 +271,7 @@ class GyroModel:
         except ValueError:
             self.sample_rate_hz, self.dt_s = old
             raise
-        extensions.rebase(self._state.extended, old[1])
+        extensions.rebase(self._extended, old[1])
 
     def restart_filters(self):
         """
@@ -280,9 +281,7 @@ class GyroModel:
         filters forget their past instead of ringing across the jump. Noise
         states, random walk and die temperature carry on.
         """
-        ints = self._state.kernel.ints
-        ints[kernel.I_DYN_READY] = 0
-        ints[kernel.I_LPF_READY] = 0
+        self._gyro.restart_filters()
 
     def set_elapsed_s(self, elapsed_s):
         """
@@ -296,10 +295,11 @@ class GyroModel:
         """
         number = isinstance(elapsed_s, (int, float, np.integer, np.floating))
         value = float(elapsed_s) if number and not isinstance(elapsed_s, bool) else math.nan
-        if not abs(value) <= extensions.TIME_LIMIT_S:
+        limit = extensions.ELAPSED_LIMIT_S
+        if not abs(value) <= limit:
             raise ValueError(f'GyroModel.elapsed_s = {elapsed_s!r} is out of range: allowed '
-                             f'[-{extensions.TIME_LIMIT_S:g}, {extensions.TIME_LIMIT_S:g}] s')
-        extensions.set_elapsed(self._state.extended, value)
+                             f'[-{limit:g}, {limit:g}] s')
+        extensions.set_elapsed(self._extended, value)
 
     @property
     def white_noise_sigma_rad_s(self):
@@ -310,20 +310,7 @@ class GyroModel:
         current die temperature (the calibration temperature before the first
         sample). Use diag(sigma^2) as sensor_msgs/Imu angular_velocity_covariance.
         """
-        plan = self._plan
-        if not plan.white:
-            return np.zeros(3)
-        die = self.die_temp_c
-        if die is not None:
-            temps = np.full(3, die)
-        elif self.config.initial_die_temp_c is not None:
-            temps = np.full(3, self.config.initial_die_temp_c)
-        else:
-            temps = plan.cal_temp_c
-        sq = plan.elec_sq.copy()
-        for curve, axes in plan.mech_curves:
-            sq[axes] += curve(temps[axes])
-        return np.sqrt(sq) * plan.sqrt_fs * plan.lpf_noise_gain
+        return self._gyro.white_sigma(self.config.initial_die_temp_c)
 
     @property
     def sample_period_s(self):
@@ -344,13 +331,12 @@ class GyroModel:
     @property
     def die_temp_c(self):
         """Die temperature after the last sample (None before the first)."""
-        state = self._state.kernel
-        return float(state.die_c[0]) if state.ints[kernel.I_DIE_READY] else None
+        return self._gyro.die_temp_c
 
     @property
     def sample_index(self):
         """Return the number of samples produced so far."""
-        return int(self._state.kernel.ints[kernel.I_INDEX])
+        return self._gyro.sample_index
 
     # --- the two APIs ----------------------------------------------------
 
@@ -443,37 +429,66 @@ class GyroModel:
         when that is already a C-contiguous float64 array): no copy.
         """
         n = rate.shape[0]
-        rate, temp = _kernel_input(rate), _kernel_input(temp)
-        out = kernel.Outputs(np.empty((n, 3)), np.empty(n), np.empty((n, 3)), np.empty((n, 3)),
-                             np.empty((n, 3), dtype=np.bool_), np.empty(n))
+        rate, temp = kernel_input(rate), kernel_input(temp)
+        out = new_outputs(n)
         fields = (out.gyro, rate, out.die, out.bias, out.gain, out.sat, out.delay)
         if n == 0:
             return fields
-        plan, st = self._plan, self._state
-        accel = _NO_ACCEL if accel is None else _kernel_input(accel)
-        xbias = xgain = _NO_ACCEL
+        accel = NONE_ROWS if accel is None else kernel_input(accel)
         ext = self._ext
+        extended = None
         if ext is not None:     # evaluated on a copy of the state, kept on success
-            ext_state = st.extended.copy()
-            xbias, xgain = ext.buffers_for(streams.BLOCK)
-        normals = st.normals
-        for start in range(0, n, streams.BLOCK):
-            stop = min(start + streams.BLOCK, n)
-            normals.reserve(plan.streams, stop - start)
-            if ext is not None:
-                ext.evaluate(temp[start:stop], ext_state, xbias, xgain)
-            bad = kernel.advance(rate, temp, accel, xbias, xgain, plan.coefficients, st.kernel,
-                                 normals.buffer, normals.pos, out, start, stop)
-            if bad:
-                lo, hi = MODEL_TEMP_RANGE_C
-                raise ValueError(f'GyroModel: die temperature {float(out.die[bad - 1]):g} C '
-                                 '(ambient + self_heating_c) is out of range: allowed '
-                                 f'[{lo}, {hi}] C')
+            extended = (ext, self._extended.copy())
+        bad = self._gyro.advance(rate, temp, accel, out, extended)
+        if bad:
+            raise_die_out_of_range(out.die[bad - 1])
+        before = self._extended
         if ext is None:     # the record time runs on while the extended terms are off
-            st.extended[extensions.Z_COUNT] += n
+            self._extended[extensions.Z_COUNT] += n
         else:
-            st.extended = ext_state
+            self._extended = extended[1]
+        if not math.isfinite(np.add.reduce(out.gyro, axis=None)):
+            self._non_finite(out, temp, before if ext is not None else None)
         return fields
+
+    def _non_finite(self, out, temp, before):
+        """
+        Account for samples of which some are not finite (NaN or inf).
+
+        With :attr:`on_non_finite` ``'raise'`` (the default) raise
+        :class:`NonFiniteOutput` naming the first such sample and the term that
+        gave it; with ``'flag'`` count them in :attr:`non_finite_samples`, keep
+        the cause in :attr:`non_finite_cause` and leave them in the batch, for
+        a caller that publishes only finite samples. ``before`` is the
+        extended terms' state before these samples (None when they are off).
+        """
+        rows = ~np.isfinite(out.gyro).all(axis=1)
+        first = int(np.flatnonzero(rows)[0])
+        cause = self._cause(out, first, temp, before)
+        self.non_finite_samples += int(rows.sum())
+        self.non_finite_cause = cause
+        if self.on_non_finite != 'flag':
+            index = self.sample_index - len(rows) + first
+            raise NonFiniteOutput(f'GyroModel: sample {index} would be '
+                                  f'{out.gyro[first].tolist()} rad/s, not finite: {cause}',
+                                  cause)
+
+    def _cause(self, out, first, temp, before):
+        """Name the term that made sample ``first`` non-finite (see :meth:`_non_finite`)."""
+        config = self.config
+        if before is not None:
+            term = extensions.first_non_finite(config.extended, config.device,
+                                               self._gyro.plan.cal_temp_c, self.dt_s, temp,
+                                               before)
+            if term is not None:
+                return (f'the extended term {term} gives a non-finite bias or gain '
+                        f'({getattr(config.extended, term)})')
+        if not np.isfinite(out.bias[first]).all():
+            return 'the bias terms give a non-finite bias (the configuration is degenerate)'
+        if not np.isfinite(out.gain[first]).all():
+            return ('the scale factor is not finite (the device physics or '
+                    'scale_factor_error is degenerate)')
+        return 'the sense dynamics, output filter or output stage diverge'
 
     def _check_temp(self, temp):
         lo, hi = MODEL_TEMP_RANGE_C
@@ -483,12 +498,14 @@ class GyroModel:
                              f'allowed [{lo}, {hi}] C')
 
 
-#: Stand-in for "no specific force" (the kernel then skips the g-sensitivity).
-_NO_ACCEL = np.zeros((0, 3))
-_NO_ACCEL.flags.writeable = False
+def raise_die_out_of_range(die_c):
+    """Raise the one-line error of a die temperature outside the model range."""
+    lo, hi = MODEL_TEMP_RANGE_C
+    raise ValueError(f'GyroModel: die temperature {float(die_c):g} C (ambient + '
+                     f'self_heating_c) is out of range: allowed [{lo}, {hi}] C')
 
 
-def _kernel_input(arr):
+def kernel_input(arr):
     """C-contiguous, read-only float64 view or copy (one compiled kernel signature)."""
     arr = np.ascontiguousarray(arr, dtype=float)
     if arr.flags.writeable:

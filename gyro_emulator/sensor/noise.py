@@ -22,13 +22,16 @@ Exact discretisation at the sample period dt (no Euler steps):
   :func:`flicker_plan`).
 
 The mechanical-thermal (Brownian) noise of the sense mode sets the physical
-floor of the angle random walk: :func:`brownian_arw_rad_s_sqrt_hz`.
+floor of the angle random walk (:func:`brownian_arw_rad_s_sqrt_hz`) and that
+of the proof mass the floor of the accelerometer's velocity random walk
+(:func:`brownian_vrw_m_s2_sqrt_hz`).
 """
 
 from dataclasses import dataclass
 
 from gyro_emulator.physics import first_order
-from gyro_emulator.units import BOLTZMANN_J_K, celsius_to_kelvin, FLICKER_FLOOR_PER_B
+from gyro_emulator.units import (BOLTZMANN_J_K, celsius_to_kelvin, FLICKER_FLOOR_PER_B,
+                                 one_sided_to_two_sided_density)
 import numpy as np
 
 
@@ -252,3 +255,44 @@ def brownian_arw_from_response(response, temp_c):
     force = np.sqrt(4.0 * BOLTZMANN_J_K * celsius_to_kelvin(temp_c)
                     * p.damping_sense_n_s_m)
     return force / (2.0 * p.mass_kg * response.drive_velocity_m_s)
+
+
+def brownian_vrw_m_s2_sqrt_hz(device, temp_c=25.0):
+    """
+    Velocity random walk N from the Brownian acceleration noise of the proof mass.
+
+    The damping c of the proof mass carries a Brownian force of ONE-sided
+    density sqrt(4 k_B T c) N/sqrt(Hz) (Nyquist), so a proof mass m read at
+    baseband (an accelerometer: no demodulation, unlike the gyro's sense
+    mode) has the one-sided acceleration density (Gabrielson, IEEE Trans.
+    Electron Devices 40(5), 1993)
+
+        a_n = sqrt(4 k_B T c) / m        m/s^2/sqrt(Hz), one-sided,
+
+    and, in the convention of :mod:`gyro_emulator.units` and the gyro's N
+    (IEEE Std 952: S(f) = N^2 two-sided, Allan deviation N / sqrt(tau)),
+
+        N = a_n / sqrt(2) = sqrt(2 k_B T c) / m.
+
+    m is the device's proof mass (Eq 5) and c its sense-mode damping
+    (slide-film under the plate plus the sense comb, Eq 9-11), so N moves
+    with T and with the gas (viscosity law, pressure, a sealed cavity). The
+    physics has the in-plane damping only: every axis gets this figure.
+
+    Parameters
+    ----------
+    device : gyro_emulator.physics.params.Device
+        The device.
+    temp_c : float or array_like
+        Die temperature, deg C.
+
+    Returns
+    -------
+    numpy.ndarray
+        N, m/s^2/sqrt(Hz) (two-sided).
+
+    """
+    p = first_order.lumped_parameters(device, temp_c)
+    one_sided = np.sqrt(4.0 * BOLTZMANN_J_K * celsius_to_kelvin(temp_c)
+                        * p.damping_sense_n_s_m) / p.mass_kg
+    return one_sided_to_two_sided_density(one_sided)

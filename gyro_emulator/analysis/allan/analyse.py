@@ -18,6 +18,7 @@ from dataclasses import replace
 from gyro_emulator import units
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import adev, band, fit as fitting
+from gyro_emulator.analysis.sense import GYRO
 import numpy as np
 
 #: A stretch set aside no longer than this is filled with its neighbours' mean,
@@ -33,7 +34,7 @@ def segments_of(timing, rate):
     return segments
 
 
-def screened_segments(timing, rate, threshold=outliers.THRESHOLD, what='the axis'):
+def screened_segments(timing, rate, threshold=outliers.THRESHOLD, what='the axis', sense=GYRO):
     """
     Set a static record's spikes and motion aside, then split it at gaps.
 
@@ -47,6 +48,9 @@ def screened_segments(timing, rate, threshold=outliers.THRESHOLD, what='the axis
     most the filled share of their variance), and cut out otherwise (the
     record splits there, as at a logging gap, and the rate is that of the
     samples kept, :meth:`~gyro_emulator.recording.timing.Timing.kept`).
+    ``sense`` (:mod:`gyro_emulator.analysis.sense`) gives the samples' unit
+    and physical limits: a constant such as gravity on a static
+    accelerometer is a level, which the local high-pass takes out.
 
     Returns
     -------
@@ -64,7 +68,8 @@ def screened_segments(timing, rate, threshold=outliers.THRESHOLD, what='the axis
     time_s = timing.time_s
     rate = np.asarray(rate, dtype=float)
     outliers.check_not_held(rate, timing.rate_hz, what)
-    screened = outliers.screen_at_rest(time_s, rate, 1.0 / timing.rate_hz, threshold, what)
+    screened = outliers.screen_at_rest(time_s, rate, 1.0 / timing.rate_hz, threshold, what,
+                                       sense.limits, sense.unit)
     filled = rate.copy()
     cut = np.zeros(len(rate), bool)
     n_filled = 0
@@ -82,7 +87,13 @@ def screened_segments(timing, rate, threshold=outliers.THRESHOLD, what='the axis
     kept = timing.kept(~cut)
     return kept.rate_hz, segments_of(kept, filled[~cut]), screened, {
         'filled': n_filled, 'cut': int(np.count_nonzero(cut)),
-        'level_shifts': [{'start_s': lo, 'end_s': hi, 'shift_rad_s': d} for lo, hi, d in steps]}
+        'level_shifts': [{'start_s': lo, 'end_s': hi, shift_key(sense): d}
+                         for lo, hi, d in steps]}
+
+
+def shift_key(sense=GYRO):
+    """Return the JSON key of a level step in ``sense``'s SI unit (``shift_rad_s``, ...)."""
+    return 'shift_' + sense.unit.replace('/', '_').replace('^', '')
 
 
 #: Windows a record is cut into to look for a start-up transient (each a 1/n of it).
@@ -147,16 +158,11 @@ def identify(segments, rate_hz, max_tau_fraction=0.25, ci=0.683):
     return result, replace(found, band=limit, readings=read, warnings=tuple(warnings))
 
 
-def summary(fit):
+def summary(fit, sense=GYRO):
     """Return a :class:`NoiseFit` as JSON: values, intervals, read-offs (datasheet units)."""
-    conv = {'quantization': (lambda v: np.asarray(v) * 1e6, 'urad'),
-            'arw': (units.rad_s_sqrt_hz_to_arw_deg_sqrt_h, 'deg/sqrt(h)'),
-            'bias_instability': (units.rad_s_to_deg_h, 'deg/h'),
-            'rrw': (units.rad_s_sqrt_s_to_rrw_deg_h_sqrt_h, 'deg/h/sqrt(h)'),
-            'rate_ramp': (lambda v: units.rad_s_to_deg_h(v) * 3600.0, 'deg/h/h')}
     terms = {}
     for term in fitting.TERMS:
-        to, unit = conv[term]
+        to, unit = sense.shown[term]
         interval = fit.intervals.get(term)
         reading = fit.readings.get(term)
         share = None
@@ -182,12 +188,13 @@ def summary(fit):
                 'note': limit.note}}
 
 
-def set_aside_summary(screened, handled):
+def set_aside_summary(screened, handled, sense=GYRO):
     """JSON form of what :func:`screened_segments` set aside, with the filled and cut counts."""
     line = screened.describe()
+    to, unit = sense.shift
     for step in handled.get('level_shifts', ()):
-        line += (f'; the level steps by {float(units.rad_s_to_deg_s(step["shift_rad_s"])):+.3g} '
-                 f'deg/s across {step["start_s"]:.1f}-{step["end_s"]:.1f} s (a shock?): the '
+        line += (f'; the level steps by {float(to(step[shift_key(sense)])):+.3g} '
+                 f'{unit} across {step["start_s"]:.1f}-{step["end_s"]:.1f} s (a shock?): the '
                  'record is split there')
     return dict(screened.as_dict(), **handled, description=line)
 

@@ -31,13 +31,19 @@ preset     electronics_arw_deg_sqrt_h, bias_instability_deg_h, rate_random_walk_
 The first comment line of each file says whether it is a whole file or a
 block to paste (after ``%YAML:1.0`` where ``cv::FileStorage`` opens it).
 
-A gyro log does not give the accelerometer figures: the user may
-(:class:`AccelFigures`). Without them no file loads a wrong value silently;
-each one makes its consumer stop and name the field (docs/calibrate.md
-cites each consumer's parser): kalibr, openvins and both orbslam3 formats
-leave the keys out (their own missing-key checks fire), gazebo writes
-``FILL_IN`` where sdformat parses a double, and vins is refused (VINS-Fusion
-checks nothing). Numbers are written by :func:`gyro_emulator.yaml_text.float_text`, a
+The accelerometer's N_a and K_a (:mod:`.accel_figures`) come from the
+log's own accelerometer when it has one, identified as the gyro is, or from
+the user (they override the log's, and the file says so). Without either no
+file loads a wrong value silently; each one makes its consumer stop and
+name the field (docs/calibrate.md cites each consumer's parser): kalibr,
+openvins and both orbslam3 formats leave the keys out (their own
+missing-key checks fire), gazebo writes ``FILL_IN`` where sdformat parses a
+double (:mod:`.export_gazebo`), and vins is refused (VINS-Fusion checks
+nothing). Kalibr's ``rostopic`` and OpenVINS's are the ``topic`` given (the
+command line's ``--rostopic``: by default the bag's Imu topic, or /imu0 for
+a CSV log), else the bag's, else left out.
+
+Numbers are written by :func:`gyro_emulator.yaml_text.float_text`, a
 float to PyYAML and a real to ``cv::FileStorage``; the YAML files (kalibr,
 openvins) are written by PyYAML with the comments added around it, the
 VINS-Fusion and ORB-SLAM3 text by hand, and ``preset`` is a
@@ -45,50 +51,26 @@ VINS-Fusion and ORB-SLAM3 text by hand, and ``preset`` is a
 written by :func:`gyro_emulator.sensor.config.config_yaml`.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from gyro_emulator import units
-from gyro_emulator.analysis.calibrate.noise import axis_values, export_noise
-from gyro_emulator.analysis.calibrate.provenance import (as_comments, MARKER, noise_lines,
-                                                         NOT_MEASURED)
+from gyro_emulator.analysis.calibrate.accel_figures import (  # noqa: F401 (the API)
+    ACCEL_OPTIONS, AccelFigures, require_accel)
+from gyro_emulator.analysis.calibrate.export_gazebo import (  # noqa: F401 (the API)
+    ACCEL_CORRELATION_TIME_S, gauss_markov_match, gazebo)
+from gyro_emulator.analysis.calibrate.lowpass import identify_output_filter
+from gyro_emulator.analysis.calibrate.noise import export_noise
+from gyro_emulator.analysis.calibrate.provenance import as_comments, CONTINUOUS, noise_lines
 from gyro_emulator.analysis.calibrate.twin import emulator_fit, PER_DECADE
-from gyro_emulator.sensor import noise as sensor_noise
+from gyro_emulator.sensor.accel import accel_from_mapping, AccelTerms
 from gyro_emulator.sensor.config import config_from_mapping, config_yaml, ErrorTerms, YamlKey
 from gyro_emulator.units import AXES
 from gyro_emulator.yaml_text import as_written, dump as dump_yaml, Figure, float_text, Flow, Quoted
 import numpy as np
-from scipy import optimize
 
 FORMATS = ('kalibr', 'openvins', 'vins', 'orbslam3', 'orbslam3-settings', 'gazebo', 'preset')
 
-_CONTINUOUS = ('N and K are continuous-time densities (IEEE Std 952): the sampled white noise '
-               'has sigma_d = N sqrt(f), the bias walk steps K / sqrt(f) per sample at rate f.')
-
-
-@dataclass(frozen=True)
-class AccelFigures:
-    """
-    Accelerometer figures the user gives: a gyro log does not measure them.
-
-    Continuous-time IEEE Std 952 / Kalibr coefficients, as Kalibr's
-    ``accelerometer_noise_density`` and ``accelerometer_random_walk``; each
-    writer converts them with the convention it states for the gyro. They
-    are written as given: ``--inflate`` scales only the fitted gyro terms.
-    """
-
-    noise_density_m_s2_sqrt_hz: float
-    random_walk_m_s3_sqrt_hz: float
-
-    def __post_init__(self):
-        """Check that both figures are finite and positive."""
-        for name in ('noise_density_m_s2_sqrt_hz', 'random_walk_m_s3_sqrt_hz'):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0.0):
-                raise ValueError(f'{name} = {value!r} is out of range: allowed (0, inf)')
-
-
-#: The options that give the accelerometer figures (named in messages).
-ACCEL_OPTIONS = '--accel-noise-density and --accel-random-walk'
+_CONTINUOUS = CONTINUOUS
 
 
 _ACCEL_WHY = f'NOT MEASURED by this gyro log (give {ACCEL_OPTIONS} to write them)'
@@ -111,14 +93,6 @@ def _kalibr_missing(topic, accel, stop):
     return _not_written(missing, stop)
 
 
-def require_accel(fmt, accel):
-    """Refuse ``vins`` without the accelerometer figures: VINS-Fusion would not stop on them."""
-    if fmt == 'vins' and accel is None:
-        raise ValueError(f'--format vins needs {ACCEL_OPTIONS}: VINS-Fusion reads a missing '
-                         'acc_n or acc_w as 0 and a text one as 1.8e308, without an error '
-                         '(parameters.cpp), so no file without them can stop it')
-
-
 def _num(value):
     return float_text(value)
 
@@ -131,34 +105,43 @@ def _update_rate(calibration, rate_hz):
     return float(calibration.rate_hz if rate_hz is None else rate_hz)
 
 
-def _topic(calibration):
+def _topic(calibration, topic=None):
+    """
+    Return (the IMU topic to write or None, a comment line on it or None).
+
+    The line goes into the header: cv::FileStorage (OpenVINS) reads a
+    comment after a plain text value as part of the value.
+
+    ``topic`` is the one given (``--rostopic``); else the bag's Imu topic
+    the gyro came from; a CSV log has none.
+    """
     column = calibration.axes[0].column
-    return column.split(' ')[0] if ' angular_velocity' in column else None
-
-
-_ACCEL_COMMENTS = {'accelerometer_noise_density': 'm/s^2/sqrt(Hz); given by the user',
-                   'accelerometer_random_walk': 'm/s^3/sqrt(Hz); given by the user',
-                   'gyroscope_noise_density': 'rad/s/sqrt(Hz), N',
-                   'gyroscope_random_walk': 'rad/s^2/sqrt(Hz), K'}
+    own = column.split(' ')[0] if ' angular_velocity' in column else None
+    if not topic or topic == own:
+        return own, None
+    if own is None:
+        return topic, f'rostopic {topic}: a CSV log has no topic (--rostopic; default /imu0).'
+    return topic, f"rostopic {topic}: --rostopic (the log's Imu topic is {own})."
 
 
 def _kalibr_keys(ex, accel):
     """Return the four noise keys of Kalibr's imu.yaml (and OpenVINS's imu0) and comments."""
-    data = {}
+    data, comments = {}, {}
     if accel is not None:
-        data['accelerometer_noise_density'] = Figure(accel.noise_density_m_s2_sqrt_hz)
-        data['accelerometer_random_walk'] = Figure(accel.random_walk_m_s3_sqrt_hz)
+        for key in ('noise_density', 'random_walk'):
+            data[f'accelerometer_{key}'] = Figure(accel.value(key))
+            comments[f'accelerometer_{key}'] = accel.comment(key)
     data['gyroscope_noise_density'] = Figure(ex.arw_rad_s_sqrt_hz)
     data['gyroscope_random_walk'] = Figure(ex.rrw_rad_s_sqrt_s)
-    comments = dict(_ACCEL_COMMENTS)
-    if ex.rrw_is_bound:
-        comments['gyroscope_random_walk'] += ' (upper bound)'
+    comments['gyroscope_noise_density'] = 'rad/s/sqrt(Hz), N'
+    comments['gyroscope_random_walk'] = 'rad/s^2/sqrt(Hz), K' + (
+        ' (upper bound)' if ex.rrw_is_bound else '')
     return data, comments
 
 
-def kalibr(calibration, inflate=1.0, rate_hz=None, accel=None):
+def kalibr(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     """
-    Kalibr ``imu.yaml``, a whole file (gyroscope_noise_density, gyroscope_random_walk).
+    Kalibr ``imu.yaml``, a whole file (rostopic, update_rate and the four noise densities).
 
     A key this log cannot give (the accelerometer's without ``accel``, the
     rostopic of a CSV log) is left out: Kalibr's ``ImuParameters`` getters
@@ -171,18 +154,19 @@ def kalibr(calibration, inflate=1.0, rate_hz=None, accel=None):
     rate = _update_rate(calibration, rate_hz)
     convention = (_CONTINUOUS + ' Kalibr uses gyroscope_noise_density / sqrt(dt) and '
                   'gyroscope_random_walk * sqrt(dt) with dt = 1 / update_rate.')
-    topic = _topic(calibration)
+    topic, topic_note = _topic(calibration, topic)
     lines = ['Kalibr imu.yaml: a whole file (kalibr_calibrate_imu_camera --imu FILE).']
-    lines += noise_lines(calibration, ex, 'kalibr', convention)
+    lines += noise_lines(calibration, ex, 'kalibr', convention, accel)
     keys, comments = _kalibr_keys(ex, accel)
     data = ({'rostopic': topic} if topic else {}) | {'update_rate': Figure(rate)} | keys
     comments['update_rate'] = 'Hz'
+    lines += [topic_note] if topic_note else []
     lines += _kalibr_missing(topic, accel, 'Kalibr stops with "[ImuConfig Reader]: Field '
                                            '\'<name>\' missing in file: ..."')
     return as_comments(lines) + dump_yaml(data, comments)
 
 
-def openvins(calibration, inflate=1.0, rate_hz=None, accel=None):
+def openvins(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     """
     Write OpenVINS's ``kalibr_imu_chain.yaml``, a whole file (Kalibr's keys, its intrinsics).
 
@@ -196,7 +180,7 @@ def openvins(calibration, inflate=1.0, rate_hz=None, accel=None):
     rate = _update_rate(calibration, rate_hz)
     convention = (_CONTINUOUS + ' OpenVINS reads the Kalibr keys in the same continuous '
                   'units and discretises with the IMU sample period.')
-    topic = _topic(calibration)
+    topic, topic_note = _topic(calibration, topic)
     keys, comments = _kalibr_keys(ex, accel)
     imu = {'T_i_b': _identity(4)} | keys
     if topic:
@@ -206,7 +190,8 @@ def openvins(calibration, inflate=1.0, rate_hz=None, accel=None):
             'R_IMUtoACC': _identity(3), 'Tg': _identity(3, 0.0)}
     lines = ['OpenVINS kalibr_imu_chain.yaml: a whole file (relative_config_imu of '
              'estimator_config.yaml); cv::FileStorage needs %YAML:1.0 as its first line.']
-    lines += noise_lines(calibration, ex, 'openvins', convention)
+    lines += noise_lines(calibration, ex, 'openvins', convention, accel)
+    lines += [topic_note] if topic_note else []
     lines += _kalibr_missing(topic, accel, 'OpenVINS prints "the node <name> of type [...] '
                                            'was not found..." and exits with "unable to '
                                            'parse all parameters, please fix"')
@@ -216,7 +201,7 @@ def openvins(calibration, inflate=1.0, rate_hz=None, accel=None):
     return '%YAML:1.0\n' + as_comments(lines) + '\n' + body
 
 
-def vins(calibration, inflate=1.0, rate_hz=None, accel=None):
+def vins(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     """
     VINS-Fusion's IMU block (not a whole file): acc_n, gyr_n, acc_w, gyr_w per sample.
 
@@ -225,6 +210,7 @@ def vins(calibration, inflate=1.0, rate_hz=None, accel=None):
     missing key is 0 and a text one 1.8e308 (``FileNode::real()``), so a
     block without the accelerometer figures would load a wrong value
     silently. It is refused instead (``ValueError`` naming the options).
+    ``topic`` is not used (the block has no topic key).
     """
     require_accel('vins', accel)
     ex = export_noise(calibration, inflate)
@@ -233,25 +219,29 @@ def vins(calibration, inflate=1.0, rate_hz=None, accel=None):
     gyr_w = ex.rrw_rad_s_sqrt_s * np.sqrt(rate)
     acc_n = float(units.density_to_sample_sigma(accel.noise_density_m_s2_sqrt_hz, rate))
     acc_w = accel.random_walk_m_s3_sqrt_hz * np.sqrt(rate)
+    where = ('the accelerometer figures given' if accel.given
+             else "the log's accelerometer")
     convention = (
         _CONTINUOUS + ' VINS-Fusion documents gyr_n and gyr_w as standard deviations and '
         'its pre-integration (integration_base.h) adds (gyr_n dt / 2)^2 twice and '
         '(gyr_w dt)^2 per sample: per-sample values, so gyr_n = N sqrt(f) and '
-        f'gyr_w = K sqrt(f) at f = {rate:g} Hz (acc_n, acc_w alike from the accelerometer '
-        f'figures given). The continuous N = {_num(ex.arw_rad_s_sqrt_hz)} rad/s/sqrt(Hz) and '
-        f'K = {_num(ex.rrw_rad_s_sqrt_s)} rad/s^2/sqrt(Hz) are what imu_utils and Kalibr-style '
-        'configs enter instead.')
+        f'gyr_w = K sqrt(f) at f = {rate:g} Hz (acc_n, acc_w alike from {where}). The '
+        f'continuous N = {_num(ex.arw_rad_s_sqrt_hz)} rad/s/sqrt(Hz) '
+        f'and K = {_num(ex.rrw_rad_s_sqrt_s)} rad/s^2/sqrt(Hz) are what imu_utils and '
+        'Kalibr-style configs enter instead.')
     lines = ['VINS-Fusion IMU block, not a whole file: paste it into your config (which starts '
              'with %YAML:1.0) in place of its acc_n, gyr_n, acc_w and gyr_w lines.']
-    lines += noise_lines(calibration, ex, 'vins', convention)
-    lines.append(f'Accelerometer: N_a {_num(accel.noise_density_m_s2_sqrt_hz)} m/s^2/sqrt(Hz), '
-                 f'K_a {_num(accel.random_walk_m_s3_sqrt_hz)} m/s^3/sqrt(Hz), given by the user '
-                 '(not inflated).')
+    lines += noise_lines(calibration, ex, 'vins', convention, accel)
+    if accel.given:
+        lines.append(f'Accelerometer: N_a {_num(accel.noise_density_m_s2_sqrt_hz)} '
+                     f'm/s^2/sqrt(Hz), K_a {_num(accel.random_walk_m_s3_sqrt_hz)} '
+                     'm/s^3/sqrt(Hz), given by the user (not inflated).')
     bound = ' (upper bound of K)' if ex.rrw_is_bound else ''
+    bound_a = ' (upper bound of K_a)' if accel.random_walk_is_bound else ''
     return as_comments(lines) + (
         f'acc_n: {_num(acc_n)}   # m/s^2 per sample at {rate:g} Hz\n'
         f'gyr_n: {_num(gyr_n)}   # rad/s per sample at {rate:g} Hz\n'
-        f'acc_w: {_num(acc_w)}   # K_a sqrt(f), m/s^3 per sample at {rate:g} Hz\n'
+        f'acc_w: {_num(acc_w)}   # K_a sqrt(f), m/s^3 per sample at {rate:g} Hz{bound_a}\n'
         f'gyr_w: {_num(gyr_w)}   # K sqrt(f), rad/s^2 per sample at {rate:g} Hz{bound}\n')
 
 
@@ -268,11 +258,19 @@ def _orbslam3_imu(ex, rate, accel):
     bound = ' (upper bound)' if ex.rrw_is_bound else ''
     text = f'IMU.NoiseGyro: {_num(ex.arw_rad_s_sqrt_hz)}   # rad/s/sqrt(Hz)\n'
     if accel is not None:
-        text += f'IMU.NoiseAcc: {_num(accel.noise_density_m_s2_sqrt_hz)}   # m/s^2/sqrt(Hz)\n'
+        text += (f'IMU.NoiseAcc: {_num(accel.noise_density_m_s2_sqrt_hz)}   # '
+                 f'{_orbslam3_acc_comment(accel, "noise_density")}\n')
     text += f'IMU.GyroWalk: {_num(ex.rrw_rad_s_sqrt_s)}   # rad/s^2/sqrt(Hz){bound}\n'
     if accel is not None:
-        text += f'IMU.AccWalk: {_num(accel.random_walk_m_s3_sqrt_hz)}   # m/s^3/sqrt(Hz)\n'
+        text += (f'IMU.AccWalk: {_num(accel.random_walk_m_s3_sqrt_hz)}   # '
+                 f'{_orbslam3_acc_comment(accel, "random_walk")}\n')
     return text + f'IMU.Frequency: {_num(rate)}   # Hz\n'
+
+
+def _orbslam3_acc_comment(accel, key):
+    """Return an accelerometer figure's unit, and where it came from when not given alone."""
+    return accel.comment(key) if accel.calibration is not None else accel.comment(key).split(
+        ';')[0]
 
 
 def _orbslam3_missing(accel):
@@ -284,7 +282,7 @@ def _orbslam3_missing(accel):
                         'exist or is not a real number*")')
 
 
-def orbslam3(calibration, inflate=1.0, rate_hz=None, accel=None):
+def orbslam3(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     """
     ORB-SLAM3's IMU block (not a whole file): IMU.NoiseGyro, IMU.GyroWalk, IMU.Frequency.
 
@@ -302,7 +300,7 @@ def orbslam3(calibration, inflate=1.0, rate_hz=None, accel=None):
              'An older settings file (no File.version) reads IMU.Frequency as an integer: '
              f'there write IMU.Frequency: {int(round(rate))} (it stops with "*IMU.Frequency '
              'parameter doesn\'t exist or is not an integer*" otherwise).']
-    lines += noise_lines(calibration, ex, 'orbslam3', _ORBSLAM3_CONVENTION)
+    lines += noise_lines(calibration, ex, 'orbslam3', _ORBSLAM3_CONVENTION, accel)
     lines += _orbslam3_missing(accel)
     return as_comments(lines) + _orbslam3_imu(ex, rate, accel)
 
@@ -361,7 +359,7 @@ Viewer.ViewpointF: 500.0
 """
 
 
-def orbslam3_settings(calibration, inflate=1.0, rate_hz=None, accel=None):
+def orbslam3_settings(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     """
     Write a whole ORB-SLAM3 v1.0 settings file: ``%YAML:1.0``, ``File.version: "1.0"``, the IMU.
 
@@ -374,136 +372,11 @@ def orbslam3_settings(calibration, inflate=1.0, rate_hz=None, accel=None):
     rate = _update_rate(calibration, rate_hz)
     lines = ['ORB-SLAM3 v1.0 settings: a whole file (./mono_inertial_euroc VOC SETTINGS ...). '
              'The camera and the camera-IMU extrinsics are yours to fill in (below).']
-    lines += noise_lines(calibration, ex, 'orbslam3-settings', _ORBSLAM3_CONVENTION)
+    lines += noise_lines(calibration, ex, 'orbslam3-settings', _ORBSLAM3_CONVENTION, accel)
     lines += _orbslam3_missing(accel)
     return ('%YAML:1.0\n' + as_comments(lines) + '\nFile.version: "1.0"\n\n'
             + _ORBSLAM3_CAMERA_TEMPLATE + '\n# --- IMU, from the log\n'
             + _orbslam3_imu(ex, rate, accel) + _ORBSLAM3_REST)
-
-
-def gauss_markov_match(fit, taus_s):
-    """
-    Gauss-Markov bias (sigma_b, T) closest to the fit's B and K part over ``taus_s``.
-
-    gz-sensors drives its dynamic bias as b[n] = phi b[n-1] + w, phi =
-    exp(-dt/T), var(w) = sigma_b^2 T / 2 (1 - phi^2): steady variance
-    sigma_b^2 T / 2, and a random walk of intensity sigma_b for tau << T.
-    Least squares on the log of the Allan variance (white part included on
-    both sides). Returns (sigma_b in rad/s/sqrt(s), T in s, largest relative
-    deviation error over ``taus_s``).
-    """
-    taus = np.asarray(taus_s, dtype=float)
-    white = fit.arw_rad_s_sqrt_hz ** 2 / taus
-    target = fit.adev(taus) ** 2
-
-    def gm(params):
-        sigma_b, corr = np.exp(params)
-        return white + sensor_noise.gauss_markov_avar(sigma_b ** 2 * corr / 2.0, corr, taus)
-
-    start_corr = max(taus[-1], 1.0)
-    start_sigma = max(fit.rrw_rad_s_sqrt_s, fit.bias_instability_rad_s / np.sqrt(start_corr),
-                      1e-12)
-    best = None
-    for corr in (start_corr / 30.0, start_corr / 3.0, start_corr, 10.0 * start_corr):
-        sol = optimize.least_squares(lambda p: np.log(gm(p)) - np.log(target),
-                                     np.log([start_sigma, corr]))
-        if best is None or sol.cost < best.cost:
-            best = sol
-    sigma_b, corr = np.exp(best.x)
-    error = float(np.max(np.abs(np.sqrt(gm(best.x) / target) - 1.0)))
-    return float(sigma_b), float(corr), error
-
-
-def _gazebo_axis(item, rate, inflate, lsb):
-    n, _, _, _ = axis_values(item)
-    fit = item.fit
-    taus = fit.taus_s
-    sigma_b, corr, error = gauss_markov_match(fit, taus)
-    kind = 'gaussian_quantized' if lsb > 0.0 else 'gaussian'
-    lines = [f'    <{item.axis}>',
-             f'      <!-- N {_num(n)} rad/s/sqrt(Hz) x sqrt({rate:g} Hz); Gauss-Markov bias '
-             f'matches the B and K part of the curve within {100 * error:.0f} % over tau '
-             f'{taus[0]:.3g} .. {taus[-1]:.4g} s -->',
-             f'      <noise type="{kind}">',
-             '        <mean>0.0</mean>',
-             f'        <stddev>{_num(units.density_to_sample_sigma(n * inflate, rate))}</stddev>',
-             '        <!-- turn-on bias: one log cannot measure its run-to-run spread -->',
-             '        <bias_mean>0.0</bias_mean>',
-             '        <bias_stddev>0.0</bias_stddev>',
-             f'        <dynamic_bias_stddev>{_num(sigma_b * inflate)}</dynamic_bias_stddev>',
-             f'        <dynamic_bias_correlation_time>{_num(corr)}'
-             '</dynamic_bias_correlation_time>']
-    if lsb > 0.0:
-        lines.append(f'        <precision>{_num(lsb)}</precision>')
-    lines += ['      </noise>', f'    </{item.axis}>']
-    return lines
-
-
-#: gz-sensors' dynamic bias is Gauss-Markov: the accelerometer's random walk K_a is written
-#: as sigma_b = K_a with this correlation time (a walk of K_a for tau << T; the value
-#: sdformat's noise.sdf calls typical), s.
-ACCEL_CORRELATION_TIME_S = 3600.0
-
-
-def _gazebo_accel(rate, accel):
-    """``<linear_acceleration>``: the figures given, or FILL_IN where sdformat reads a double."""
-    if accel is None:
-        # no double hyphen inside an XML comment: the options are named in the header
-        note = (f'      <!-- {NOT_MEASURED} (or give the accelerometer figures, see the top). '
-                'Left as is, sdformat reports "Invalid argument. Unable to set value [FILL_IN] '
-                'for key[stddev]." -->')
-        stddev = sigma_b = MARKER
-    else:
-        note = (f'      <!-- given by the user: N_a {_num(accel.noise_density_m_s2_sqrt_hz)} '
-                f'm/s^2/sqrt(Hz) x sqrt({rate:g} Hz); K_a '
-                f'{_num(accel.random_walk_m_s3_sqrt_hz)} m/s^3/sqrt(Hz) as a Gauss-Markov '
-                f'bias of correlation time {ACCEL_CORRELATION_TIME_S:g} s -->')
-        stddev = _num(units.density_to_sample_sigma(accel.noise_density_m_s2_sqrt_hz, rate))
-        sigma_b = _num(accel.random_walk_m_s3_sqrt_hz)
-    lines = ['  <linear_acceleration>']
-    for name in AXES:
-        lines += [f'    <{name}>', note, '      <noise type="gaussian">',
-                  '        <mean>0.0</mean>', f'        <stddev>{stddev}</stddev>',
-                  '        <bias_mean>0.0</bias_mean>', '        <bias_stddev>0.0</bias_stddev>',
-                  f'        <dynamic_bias_stddev>{sigma_b}</dynamic_bias_stddev>',
-                  '        <dynamic_bias_correlation_time>'
-                  f'{_num(ACCEL_CORRELATION_TIME_S)}</dynamic_bias_correlation_time>',
-                  '      </noise>', f'    </{name}>']
-    return lines + ['  </linear_acceleration>']
-
-
-def gazebo(calibration, inflate=1.0, rate_hz=None, accel=None):
-    """
-    Write a gz-sensors ``<imu>`` block: per-axis ``<noise>`` of both vectors.
-
-    ``<linear_acceleration>`` holds the accelerometer figures given, or
-    ``FILL_IN`` where sdformat parses a double: it then reports "Unable to
-    set value [FILL_IN] for key[stddev]" (src/Param.cc) instead of
-    simulating a noise-free accelerometer, as a block without it would.
-    """
-    export_noise(calibration, inflate)
-    rate = _update_rate(calibration, rate_hz)
-    convention = (_CONTINUOUS + f' gz-sensors adds stddev per sample at <update_rate> = '
-                  f'{rate:g} Hz (stddev = N sqrt(f)); its dynamic bias is a Gauss-Markov '
-                  'process driven by dynamic_bias_stddev (steady sigma_b sqrt(T/2), a random '
-                  'walk of K = sigma_b for tau << T). gz-sensors has no flicker (B) term: the '
-                  'Gauss-Markov pair is fitted to the B and K part of the Allan curve.')
-    header = as_comments(['gz-sensors imu element, a block, not a whole file: paste it into '
-                          'your <sensor type="imu"> (SDF 1.9 to 1.12 element names).']
-                         + noise_lines(calibration, None, 'gazebo', convention)
-                         + [f'Inflation factor: {inflate:g}']
-                         + ([] if accel else [f'Accelerometer: {NOT_MEASURED}, or give '
-                                              f'{ACCEL_OPTIONS}.']), style='xml')
-    body = ['<imu>', '  <angular_velocity>']
-    axes = {a.axis: a for a in calibration.axes}
-    for name in AXES:
-        item = axes.get(name) or calibration.axes[0]
-        if name not in axes:
-            body.append(f'    <!-- axis {name}: copied from axis {item.axis} (not in the '
-                        'calibration) -->')
-        body += _gazebo_axis(item, rate, inflate, calibration.lsb_rad_s)
-    body += ['  </angular_velocity>'] + _gazebo_accel(rate, accel) + ['</imu>']
-    return header + '\n'.join(body) + '\n'
 
 
 def flicker_band(calibration):
@@ -523,14 +396,18 @@ class TwinNoise:
     (``electronics_arw_deg_sqrt_h``, ``bias_instability_deg_h``,
     ``rate_random_walk_deg_h_sqrt_h``, ``turn_on_bias_deg_s``); ``shared``
     holds the fields of every axis (the flicker band, terms per decade, the
-    LSB when found); ``terms_on`` the :class:`ErrorTerms` switched on
-    (every other noise term off); ``twin`` the emulator fit behind them.
+    LSB when found, the output filter's cut-off and order when one is
+    identified); ``terms_on`` the :class:`ErrorTerms` switched on (every
+    other noise term off); ``twin`` the emulator fit behind them;
+    ``output_filter`` the identified low-pass
+    (:class:`~gyro_emulator.analysis.calibrate.lowpass.OutputFilter`) or None.
     """
 
     per_axis: dict
     shared: dict
     terms_on: frozenset
     twin: object
+    output_filter: object = None
 
 
 #: Noise terms of :class:`ErrorTerms` a noise calibration decides (on or off).
@@ -546,7 +423,10 @@ def twin_noise(calibration, inflate=1.0):
     (the emulator's own noise model fitted to the log's Allan curves, over
     the flicker band of :func:`flicker_band`), times ``inflate``; the
     turn-on bias is the axis's mean. The measured N carries the whole white
-    noise, so ``mechanical_noise`` is off.
+    noise, so ``mechanical_noise`` is off. The part's output low-pass, when
+    its PSD shows one (:func:`~gyro_emulator.analysis.calibrate.lowpass.identify_output_filter`),
+    is the ``output_filter`` term: the twin's Allan deviation then follows
+    the log's at the band-limited taus the fit left out.
     """
     export_noise(calibration, inflate)          # checks inflate
     twin = emulator_fit(calibration, flicker_band(calibration))
@@ -564,25 +444,35 @@ def twin_noise(calibration, inflate=1.0):
     if calibration.lsb_rad_s > 0.0:
         on.add('quantization')
         shared['lsb_deg_s'] = units.rad_s_to_deg_s(calibration.lsb_rad_s)
-    return TwinNoise(per_axis, shared, frozenset(on), twin)
+    lowpass = identify_output_filter(calibration)
+    if lowpass is not None:
+        on.add('output_filter')
+        shared['output_filter_hz'] = lowpass.cutoff_hz
+        shared['output_filter_order'] = lowpass.order
+    return TwinNoise(per_axis, shared, frozenset(on), twin, lowpass)
 
 
-def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
+def preset(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     """
     Write this emulator's sensor YAML: the twin's N, B, K per axis, flicker band, LSB.
 
     The values come from :func:`twin_noise` (the emulator's own noise model
     fitted to the log); the IEEE Std 952 values are in the comments. Every
-    term the log does not measure is off.
+    term the log does not measure is off. The log's accelerometer, when it
+    has one, is the ``accelerometer:`` of the file (:func:`accel_twin_noise`);
+    accelerometer figures given without one are not written (a gyro model).
     """
     fields = twin_noise(calibration, inflate)
     twin = fields.twin
+    logged = accel is not None and accel.calibration is not None
     convention = (_CONTINUOUS + ' The emulator discretises exactly at the rate given to '
                   'simulate or the node: white sigma N / sqrt(dt), walk K sqrt(dt), flicker '
                   'as Gauss-Markov terms across bias_instability_band_s.')
     lines = ["gyro_emulator sensor YAML: a whole file (simulate --config FILE, the node's "
-             'sensor_config); a gyro model, so no accelerometer figures.']
-    lines += noise_lines(calibration, export_noise(calibration, inflate), 'preset', convention)
+             'sensor_config); ' + ('the gyro and the accelerometer of the log.' if logged else
+                                   'a gyro model, so no accelerometer figures.')]
+    lines += noise_lines(calibration, export_noise(calibration, inflate), 'preset', convention,
+                         accel)
     lines += [f"Twin: the emulator's noise model (white + flicker over correlation times "
               f'{twin.band_s[0]:.3g} .. {twin.band_s[1]:.4g} s + rate random walk) fitted to '
               'the same Allan curves'
@@ -590,15 +480,24 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None):
                  'squares (bias correlation times end there)' if twin.saving > 0 else '')
               + '. Its N excludes the quantisation noise of the LSB, which the quantiser adds.',
               'Only the fitted terms are on: the measured N carries the whole white noise '
-              '(mechanical_noise off), no output filter (the band-limited taus were left out '
-              'of the fit), no temperature terms.',
+              '(mechanical_noise off), no temperature terms; '
+              + ('output filter (the band-limited taus the fit left out): '
+                 + fields.output_filter.describe() + '.' if fields.output_filter is not None
+                 else 'no output filter (the PSD shows no low-pass below Nyquist).'),
               'turn_on_bias_deg_s is the mean of this run (it includes the projection of '
               "Earth's rate); its run-to-run spread is not measured.",
               f"Simulate it at the log's rate: --rate-hz {calibration.rate_hz:g}."]
     if len(twin.per_axis) < 3:
         lines.append(f'Axes {", ".join(n for n in AXES if n not in twin.per_axis)} copy '
-                     f'axis {next(iter(twin.per_axis))} (not in the calibration).')
-    return config_yaml(twin_config(fields), preset_layout(fields), as_comments(lines))
+                     f"axis {next(iter(twin.per_axis))}'s noise (not in the calibration); "
+                     "their turn-on bias is 0: a bias is the axis's own, not measured.")
+    config, layout = twin_config(fields), preset_layout(fields)
+    if logged:
+        accel_fields = accel_twin_noise(accel, inflate)
+        lines += accel_twin_lines(accel, accel_fields)
+        config = replace(config, accelerometer=accel_config(accel_fields))
+        layout += (accel_layout(accel_fields),)
+    return config_yaml(config, layout, as_comments(lines))
 
 
 #: The measured keys of ``--format preset``, in order: 6-digit figures in datasheet units.
@@ -607,11 +506,17 @@ _PRESET_FIGURES = ('electronics_arw_deg_sqrt_h', 'bias_instability_deg_h',
                    'rate_random_walk_deg_h_sqrt_h', 'turn_on_bias_deg_s')
 
 
+#: The output filter's keys, written when the PSD shows a low-pass (:mod:`.lowpass`).
+_FILTER_FIGURES = ('output_filter_hz', 'output_filter_order')
+
+
 def preset_layout(fields):
     """Return the keys ``--format preset`` writes (:class:`.sensor.config.YamlKey`)."""
     lsb = (YamlKey('lsb_deg_s', '.6g', scalar=True),) if 'lsb_deg_s' in fields.shared else ()
+    lowpass = tuple(YamlKey(name, '.6g', scalar=True) for name in _FILTER_FIGURES
+                    if name in fields.shared)
     return ((YamlKey('device'), YamlKey('terms'))
-            + tuple(YamlKey(name, '.6g') for name in _PRESET_FIGURES) + lsb)
+            + tuple(YamlKey(name, '.6g') for name in _PRESET_FIGURES) + lsb + lowpass)
 
 
 def twin_config(fields):
@@ -620,35 +525,131 @@ def twin_config(fields):
 
     Every figure is the 6-digit value the file holds (the configuration reads
     back from its text exactly); axes the calibration lacks copy its first
-    axis; every term the log does not measure is off.
+    axis's noise (N, B, K) and get no turn-on bias (a bias is the axis's own:
+    not measured); every term the log does not measure is off.
     """
-    axes = [fields.per_axis.get(name) or next(iter(fields.per_axis.values())) for name in AXES]
+    first = next(iter(fields.per_axis.values()))
+    axes = [fields.per_axis.get(name) or dict(first, turn_on_bias_deg_s=0.0) for name in AXES]
     figures = {name: [as_written(a[name]) for a in axes] for name in _PRESET_FIGURES
                if name in axes[0]}
     figures['bias_instability_band_s'] = [as_written(t) for t in
                                           fields.shared['bias_instability_band_s']]
     figures['bias_instability_per_decade'] = as_written(
         fields.shared['bias_instability_per_decade'])
-    if 'lsb_deg_s' in fields.shared:
-        figures['lsb_deg_s'] = as_written(fields.shared['lsb_deg_s'])
+    for name in ('lsb_deg_s',) + _FILTER_FIGURES:
+        if name in fields.shared:
+            figures[name] = as_written(fields.shared[name])
     terms = {name: name in fields.terms_on for name in ErrorTerms.names()}
     return config_from_mapping({'device': 'paper', 'terms': terms, **figures})
+
+
+#: The accelerometer's measured keys of ``--format preset``, in order (SI, 6-digit figures).
+_ACCEL_FIGURES = ('electronics_noise_m_s2_sqrt_hz', 'bias_instability_m_s2',
+                  'bias_instability_band_s', 'bias_instability_per_decade',
+                  'random_walk_m_s3_sqrt_hz', 'turn_on_bias_m_s2')
+
+
+def accel_twin_noise(accel, inflate=1.0):
+    """
+    Return the accelerometer's twin (:class:`TwinNoise`, SI AccelConfig field names).
+
+    ``accel`` is an :class:`AccelFigures` with the log's calibration. As
+    :func:`twin_noise` for the gyro: the emulator's model fitted to the
+    accelerometer's Allan curves (its own flicker band), times ``inflate``;
+    the turn-on bias is the mean less gravity
+    (:meth:`~gyro_emulator.analysis.calibrate.noise.NoiseCalibration.turn_on_bias`).
+    Figures the user gave replace the fitted N and K on every axis. Its
+    output low-pass, when its PSD shows one, is identified as the gyro's
+    (:func:`~gyro_emulator.analysis.calibrate.lowpass.identify_output_filter`).
+    """
+    cal = accel.calibration
+    twin = emulator_fit(cal, flicker_band(cal))
+    per_axis = {}
+    for item in cal.axes:
+        n, b, k = (value * inflate for value in twin.per_axis[item.axis])
+        if accel.given:                 # as given, not inflated
+            n, k = accel.noise_density_m_s2_sqrt_hz, accel.random_walk_m_s3_sqrt_hz
+        per_axis[item.axis] = {'electronics_noise_m_s2_sqrt_hz': n, 'bias_instability_m_s2': b,
+                               'random_walk_m_s3_sqrt_hz': k,
+                               'turn_on_bias_m_s2': cal.turn_on_bias(item)}
+    on = {'electronics_noise', 'bias_instability', 'random_walk', 'turn_on_bias'}
+    shared = {'bias_instability_band_s': tuple(twin.band_s),
+              'bias_instability_per_decade': PER_DECADE}
+    if cal.lsb > 0.0:
+        on.add('quantization')
+        shared['lsb_m_s2'] = cal.lsb
+    lowpass = identify_output_filter(cal)
+    if lowpass is not None:
+        on.add('output_filter')
+        shared['output_filter_hz'] = lowpass.cutoff_hz
+        shared['output_filter_order'] = lowpass.order
+    return TwinNoise(per_axis, shared, frozenset(on), twin, lowpass)
+
+
+def accel_config(fields):
+    """Return the AccelConfig of an accelerometer twin: the 6-digit figures the file holds."""
+    axes = [fields.per_axis.get(name) or next(iter(fields.per_axis.values())) for name in AXES]
+    mapping = {'terms': {name: name in fields.terms_on for name in AccelTerms.names()}}
+    for name in _ACCEL_FIGURES:
+        if name in fields.shared:
+            value = fields.shared[name]
+            mapping[name] = ([as_written(v) for v in value] if isinstance(value, tuple)
+                             else as_written(value))
+        else:
+            mapping[name] = [as_written(a[name]) for a in axes]
+    for name in ('lsb_m_s2',) + _FILTER_FIGURES:
+        if name in fields.shared:
+            mapping[name] = as_written(fields.shared[name])
+    return accel_from_mapping(mapping, 'the accelerometer twin')
+
+
+def accel_layout(fields):
+    """Return the ``accelerometer:`` key of ``--format preset`` (its switches and figures)."""
+    scalars = tuple(YamlKey(name, '.6g', scalar=True) for name in ('lsb_m_s2',) + _FILTER_FIGURES
+                    if name in fields.shared)
+    return YamlKey('accelerometer', parts=(YamlKey('terms'),) + tuple(
+        YamlKey(name, '.6g') for name in _ACCEL_FIGURES) + scalars)
+
+
+def accel_twin_lines(accel, fields):
+    """Provenance of the accelerometer twin: its fit, the gravity taken off, the override."""
+    cal, twin = accel.calibration, fields.twin
+    g = np.asarray(cal.gravity_m_s2)
+    lines = [f"Accelerometer twin: the emulator's model (white + flicker over "
+             f'{twin.band_s[0]:.3g} .. {twin.band_s[1]:.4g} s + random walk) fitted to its '
+             'Allan curves; mechanical_noise off (the measured N_a is the whole white noise), '
+             'no temperature, scale-factor or misalignment terms; '
+             + (f'output filter: {fields.output_filter.describe()}.'
+                if fields.output_filter is not None else 'no output filter (the PSD shows no '
+                                                         'low-pass below Nyquist).'),
+             'turn_on_bias_m_s2 is the mean less gravity. The log is taken as static with '
+             'the attitude along its mean: gravity is g = 9.80665 m/s^2 along the mean '
+             f'direction ({", ".join(f"{v:.5g}" for v in g)} m/s^2), so the bias along gravity '
+             'is the magnitude of the mean minus g and a bias across gravity, which one '
+             'attitude cannot tell from a tilt, is taken as none. The twin simulates its '
+             'own attitude (level unless set: gravity on +z).']
+    if accel.given:
+        lines.append('Accelerometer N_a and K_a: the figures given by the user on every axis, '
+                     "in place of the twin's.")
+    return lines
 
 
 WRITERS = {'kalibr': kalibr, 'openvins': openvins, 'vins': vins, 'orbslam3': orbslam3,
            'orbslam3-settings': orbslam3_settings, 'gazebo': gazebo, 'preset': preset}
 
 
-def write_noise(calibration, fmt, inflate=1.0, rate_hz=None, accel=None):
+def write_noise(calibration, fmt, inflate=1.0, rate_hz=None, accel=None, topic=None):
     """
     Return the text of format ``fmt`` (one of :data:`FORMATS`).
 
-    ``accel`` (:class:`AccelFigures`, or None) gives the accelerometer
-    figures; without them each format leaves them so that its consumer
-    stops on them by name, and ``vins`` is refused (its consumer would not).
+    ``accel`` (:class:`AccelFigures`, or None: :func:`.accel_figures.accel_figures`)
+    gives the accelerometer figures; without them each format leaves them so
+    that its consumer stops on them by name, and ``vins`` is refused (its
+    consumer would not). ``topic`` is the IMU topic Kalibr and OpenVINS read
+    (default: the bag's, none for a CSV log).
     """
     if fmt not in WRITERS:
         raise ValueError(f'format = {fmt!r} is not allowed: choose {", ".join(FORMATS)}')
     if rate_hz is not None and not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
         raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
-    return WRITERS[fmt](calibration, inflate, rate_hz, accel)
+    return WRITERS[fmt](calibration, inflate, rate_hz, accel, topic)

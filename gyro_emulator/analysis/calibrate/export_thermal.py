@@ -20,11 +20,35 @@ Thermal exports: PX4 TC_G0_* and ArduPilot INS_TCAL1_* parameters, this emulator
   polynomial at T_ref), ``bias_temp_coeff_deg_s_k`` and
   ``bias_temp_coeff2_deg_s_k2`` about T_ref (the device's
   ``calibration_temp_c``); the emulator's bias model is at most quadratic.
+
+The accelerometer, when the log has one (its own
+:class:`~gyro_emulator.analysis.calibrate.thermal.ThermalFit`, ``accel``):
+
+* ``px4``: ``TC_A_ENABLE``, ``TC_A0_TMIN/TMAX/TREF`` and
+  ``TC_A0_X{0..3}_{0,1,2}`` in m/s^2/K^k, the offset PX4 subtracts as for
+  the gyro, less each axis's median (as process_sensor_caldata.py fits
+  the accelerometer: the constant part, gravity and the offset at the
+  median, is left to the accelerometer calibration, ``CAL_ACC*``);
+  ``TC_A0_ID`` from ``px4_accel_id`` (:data:`PX4_NO_ACCEL_ID` without it);
+* ``ardupilot``: ``INS_TCAL1_ACC{1,2,3}_{X,Y,Z}``, as the gyro's
+  (AP_InertialSensor_tempcal.cpp ``correct_accel``: the same polynomial
+  about 35 C without its constant, times 1e6, m/s^2/K^k), within the
+  file's one TMIN..TMAX;
+* ``preset``: the ``accelerometer:`` bias tempco ``bias_temp_coeff_m_s2_k``
+  about the device's ``calibration_temp_c`` (the model is linear: a
+  higher-order fit is refitted at order 1), its turn-on bias (the fit at
+  T_ref less gravity along the mean direction), white noise and LSB.
+
+Without one the file says the accelerometer part was not written, and why.
 """
 
+from dataclasses import replace
+
 from gyro_emulator import units
-from gyro_emulator.analysis.calibrate.provenance import as_comments, thermal_lines
+from gyro_emulator.analysis.calibrate.provenance import (accel_thermal_lines, as_comments,
+                                                         thermal_lines)
 from gyro_emulator.analysis.calibrate.thermal import polyfit_stats
+from gyro_emulator.sensor.accel import accel_from_mapping, AccelTerms
 from gyro_emulator.sensor.config import config_from_mapping, config_yaml, ErrorTerms, YamlKey
 from gyro_emulator.units import AXES
 from gyro_emulator.yaml_text import as_written, Figure
@@ -34,6 +58,12 @@ FORMATS = ('px4', 'ardupilot', 'preset')
 #: The warning of a PX4 file written without the gyro's device id.
 PX4_NO_ID = ('TC_G0_ID is not in the PX4 file (no --px4-gyro-id): the thermal correction stays '
              "off until TC_G0_ID is set to the gyro's device id (param show CAL_GYRO0_ID)")
+#: The warning of a PX4 file with the accelerometer but without its device id.
+PX4_NO_ACCEL_ID = ('TC_A0_ID is not in the PX4 file (no --px4-accel-id): the accelerometer '
+                   "correction stays off until TC_A0_ID is set to the accelerometer's device id "
+                   '(param show CAL_ACC0_ID)')
+#: Why a file has no accelerometer part, when the log has no accelerometer.
+NO_ACCEL = 'not measured by this gyro log'
 #: Largest PX4 INT32 parameter value.
 _INT32_MAX = 2 ** 31 - 1
 #: ArduPilot's fixed reference temperature (AP_InertialSensor_tempcal.cpp TEMP_REFERENCE), C.
@@ -70,17 +100,54 @@ def px4_params(fit):
     return params
 
 
-def _check_gyro_id(gyro_id):
+def _check_gyro_id(gyro_id, name='px4_gyro_id', shown='CAL_GYRO0_ID'):
     if gyro_id is not None and not (isinstance(gyro_id, (int, np.integer))
                                     and 0 < gyro_id <= _INT32_MAX):
-        raise ValueError(f'px4_gyro_id = {gyro_id!r} is out of range: allowed 1 .. {_INT32_MAX} '
-                         '(the device id PX4 shows as CAL_GYRO0_ID)')
+        raise ValueError(f'{name} = {gyro_id!r} is out of range: allowed 1 .. {_INT32_MAX} '
+                         f'(the device id PX4 shows as {shown})')
 
 
-def px4(fit, gyro_id=None):
-    """Write the PX4 parameter file (module docstring); ``gyro_id`` becomes TC_G0_ID."""
+def px4_accel_params(fit):
+    """
+    Return the accelerometer's PX4 values: TC_A0_TMIN/TMAX/TREF and TC_A0_X{k}_{axis}.
+
+    X0 is the fit at TREF less the axis's median group mean (module docstring).
+    """
+    params = {'TC_A0_TMIN': fit.temp_min_c, 'TC_A0_TMAX': fit.temp_max_c,
+              'TC_A0_TREF': fit.temp_ref_c}
+    for i, axis in enumerate(AXES):
+        coeffs = _padded(fit.coefficients[axis])
+        coeffs[0] -= fit.median[axis]
+        for k in range(4):
+            params[f'TC_A0_X{k}_{i}'] = float(coeffs[k])
+    return params
+
+
+def _px4_accel(accel, accel_id, why):
+    """Return (comment lines, parameter rows) of the accelerometer part of a PX4 file."""
+    if accel is None:
+        return [f'TC_A* (accelerometer): {why or NO_ACCEL}; this file leaves them unchanged.'], []
+    _require_three(accel, 'px4')
+    _check_gyro_id(accel_id, 'px4_accel_id', 'CAL_ACC0_ID')
+    lines = accel_thermal_lines(accel, "TC_A0_*, m/s^2/K^k, less each axis's median group mean "
+                                       'as PX4 process_sensor_caldata.py fits it')
+    lines.append(f'TC_A0_ID = {accel_id}: the device id given (--px4-accel-id).' if accel_id
+                 else 'Not written: TC_A0_ID (give --px4-accel-id, or set it after loading this '
+                      'file). Until it is set PX4 applies no accelerometer correction.')
+    rows = [('TC_A_ENABLE', 1, 6)] + ([('TC_A0_ID', accel_id, 6)] if accel_id else [])
+    return lines, rows + [(n, v, 9) for n, v in sorted(px4_accel_params(accel).items())]
+
+
+def px4(fit, gyro_id=None, accel=None, accel_id=None, accel_why=None):
+    """
+    Write the PX4 parameter file (module docstring); ``gyro_id`` becomes TC_G0_ID.
+
+    ``accel`` is the accelerometer's fit (``accel_id`` its TC_A0_ID), or
+    None and ``accel_why`` the reason it is not written.
+    """
     _require_three(fit, 'px4')
     _check_gyro_id(gyro_id)
+    accel_lines, accel_rows = _px4_accel(accel, accel_id, accel_why)
     convention = ('PX4 subtracts X0 + X1 d + X2 d^2 + X3 d^3, d = T - TC_G0_TREF with T held '
                   'within [TC_G0_TMIN, TC_G0_TMAX]; X_k in rad/s/K^k, temperatures in deg C '
                   '(TREF = middle of the range, as PX4 process_sensor_caldata.py sets it).')
@@ -93,12 +160,11 @@ def px4(fit, gyro_id=None):
                            '--px4-gyro-id, or set it after loading this file). Until it is set '
                            'PX4 applies no thermal correction: it corrects only the gyro whose '
                            'device id is TC_G0_ID.'),
-                          'TC_A* (accelerometer): not measured by this gyro log; this file '
-                          'leaves them unchanged.',
+                          *accel_lines,
                           '',
                           'Vehicle-Id Component-Id Name Value Type'])
     rows = [('TC_G_ENABLE', 1, 6)] + ([('TC_G0_ID', gyro_id, 6)] if gyro_id else [])
-    rows += [(name, value, 9) for name, value in sorted(px4_params(fit).items())]
+    rows += [(name, value, 9) for name, value in sorted(px4_params(fit).items())] + accel_rows
     return text + ''.join(f'1\t1\t{name}\t{_num(value) if kind == 9 else int(value)}\t{kind}\n'
                           for name, value, kind in rows)
 
@@ -128,16 +194,21 @@ def rebase(coeffs, old_ref_c, new_ref_c):
     return _padded(shifted.coef[:4]) if len(shifted.coef) <= 4 else shifted.coef
 
 
-def ardupilot(fit):
-    """Write the ArduPilot parameter file (module docstring)."""
+def ardupilot(fit, accel=None, accel_why=None):
+    """Write the ArduPilot parameter file (module docstring); ``accel`` as for :func:`px4`."""
     _require_three(fit, 'ardupilot')
     convention = ('ArduPilot subtracts p(T - 35) - p(T_cal - 35), p(d) = (GYR1 d + GYR2 d^2 '
                   '+ GYR3 d^3) 1e-6 rad/s, T held within [TMIN, TMAX]; the constant term is '
                   'not stored (the ordinary gyro calibration at T_cal takes it): GYRk are the '
                   f'fitted rad/s/K^k, re-expanded about {ARDUPILOT_TREF_C:g} C, times 1e6.')
-    lines = thermal_lines(fit, 'ardupilot', convention) + [
-        'INS_TCAL1_ACC* (accelerometer): not measured by this gyro log; left unset '
-        '(0 = no correction).',
+    if accel is None:
+        acc_lines = [f'INS_TCAL1_ACC* (accelerometer): {accel_why or NO_ACCEL}; left unset '
+                     '(0 = no correction).']
+    else:
+        _require_three(accel, 'ardupilot')
+        acc_lines = accel_thermal_lines(accel, 'INS_TCAL1_ACC*, the same convention in '
+                                               'm/s^2/K^k, within the one TMIN..TMAX')
+    lines = thermal_lines(fit, 'ardupilot', convention) + acc_lines + [
         'ArduPilot learns on board only over 10 K or more; these offline values have no such '
         'limit but hold only within TMIN..TMAX.']
     rows = [('INS_TCAL1_ENABLE', '1'), ('INS_TCAL1_TMIN', f'{fit.temp_min_c:.2f}'),
@@ -147,6 +218,10 @@ def ardupilot(fit):
         for axis in AXES:
             rows.append((f'INS_TCAL1_GYR{k}_{axis.upper()}',
                          _num(shifted[axis][k] * ARDUPILOT_SCALE)))
+    if accel is not None:
+        acc = {a: rebase(accel.coefficients[a], accel.temp_ref_c, ARDUPILOT_TREF_C) for a in AXES}
+        rows += [(f'INS_TCAL1_ACC{k}_{a.upper()}', _num(acc[a][k] * ARDUPILOT_SCALE))
+                 for k in (1, 2, 3) for a in AXES]
     return as_comments(lines) + ''.join(f'{name} {value}\n' for name, value in rows)
 
 
@@ -160,12 +235,14 @@ def _preset_axis_values(fit, axis):
     return coeffs[0], coeffs[1], coeffs[2]
 
 
-def preset(fit):
+def preset(fit, accel=None, accel_why=None):
     """
     Write this emulator's sensor YAML (module docstring), N and the LSB as the fit carries them.
 
     ``fit`` needs its white noise and LSB
-    (:func:`gyro_emulator.analysis.calibrate.thermal.with_white_noise`).
+    (:func:`gyro_emulator.analysis.calibrate.thermal.with_white_noise`), as
+    does ``accel``, the accelerometer's fit (or None, ``accel_why`` saying
+    why).
     """
     if fit.arw_rad_s_sqrt_hz is None or fit.lsb_rad_s is None:
         raise ValueError('--format preset needs the white noise and LSB of the log: '
@@ -188,7 +265,64 @@ def preset(fit):
         lines.append(f'Samples lie on a grid of {lsb:.6g} rad/s (the LSB, or the precision the '
                      'log was written with): quantization on.')
     config, device = preset_config(fit, values)
-    return config_yaml(config, _preset_layout(device, lsb), as_comments(lines))
+    layout = _preset_layout(device, lsb)
+    if accel is None:
+        lines.append(f'Accelerometer: {accel_why or NO_ACCEL}; its terms are not written.')
+    else:
+        key, accel_config, accel_lines = _preset_accel(fit, accel)
+        config, layout = replace(config, accelerometer=accel_config), layout + (key,)
+        lines += accel_lines
+    return config_yaml(config, layout, as_comments(lines))
+
+
+#: The accelerometer's keys of ``--format preset`` (SI, 6-digit figures).
+_ACCEL_FIGURES = ('electronics_noise_m_s2_sqrt_hz', 'turn_on_bias_m_s2', 'bias_temp_coeff_m_s2_k')
+
+
+def _preset_accel(fit, accel):
+    """
+    Return (its YAML key, AccelConfig, comment lines) of the accelerometer of ``--format preset``.
+
+    The bias is linear in (T - T_cal) with T_cal the gyro fit's T_ref (the
+    device's ``calibration_temp_c``): the accelerometer's fit re-expanded
+    there, refitted at order 1 when higher. The turn-on bias is its value at
+    T_cal less gravity along the direction of the medians (as ``calibrate
+    noise`` takes it); N and the LSB from the same samples.
+    """
+    if accel.arw_rad_s_sqrt_hz is None or accel.lsb_rad_s is None:
+        raise ValueError("--format preset needs the accelerometer's white noise and LSB: fit "
+                         'with thermal.with_white_noise first')
+    lines = accel_thermal_lines(accel, 'accelerometer: bias_temp_coeff_m_s2_k about the '
+                                       "device's calibration_temp_c, turn_on_bias_m_s2, "
+                                       'electronics_noise_m_s2_sqrt_hz')
+    median = np.array([accel.median[a] for a in AXES])
+    gravity = median * (units.STANDARD_GRAVITY_M_S2 / np.linalg.norm(median))
+    rows = {}
+    for i, axis in enumerate(AXES):
+        if accel.order > 1:
+            g = accel.groups[axis]
+            coeffs = polyfit_stats(g.temp_c - fit.temp_ref_c, g.rate_rad_s, 1)[0]
+        else:
+            coeffs = rebase(accel.coefficients[axis], accel.temp_ref_c, fit.temp_ref_c)
+        rows[axis] = (accel.arw_rad_s_sqrt_hz[axis], coeffs[0] - gravity[i], coeffs[1])
+    if accel.order > 1:
+        lines.append("The emulator's accelerometer bias is linear in temperature: the fit is "
+                     'refitted at order 1 here.')
+    lines.append('turn_on_bias_m_s2 is the fit at calibration_temp_c less gravity, g = 9.80665 '
+                 'm/s^2 along the direction of the medians (' + ', '.join(
+                     f'{v:.5g}' for v in gravity) + ' m/s^2): a bias across gravity cannot be '
+                 'told from a tilt at one attitude and is taken as none.')
+    on = {'electronics_noise', 'turn_on_bias', 'bias_temperature'}
+    mapping = {name: [as_written(rows[a][k]) for a in AXES]
+               for k, name in enumerate(_ACCEL_FIGURES)}
+    parts = (YamlKey('terms'),) + tuple(YamlKey(name, '.6g') for name in _ACCEL_FIGURES)
+    if accel.lsb_rad_s > 0.0:
+        on.add('quantization')
+        mapping['lsb_m_s2'] = as_written(accel.lsb_rad_s)
+        parts += (YamlKey('lsb_m_s2', '.6g', scalar=True),)
+    mapping['terms'] = {name: name in on for name in AccelTerms.names()}
+    return (YamlKey('accelerometer', parts=parts),
+            accel_from_mapping(mapping, 'the accelerometer preset'), lines)
 
 
 #: The bias and noise keys of ``--format preset``: 6-digit figures in datasheet units.
@@ -232,18 +366,21 @@ def preset_config(fit, values):
     return config, device
 
 
-def write_thermal(fit, fmt, px4_gyro_id=None):
+def write_thermal(fit, fmt, px4_gyro_id=None, accel=None, px4_accel_id=None, accel_why=None):
     """
     Return the text of format ``fmt`` (one of :data:`FORMATS`); ``preset`` needs N, LSB.
 
-    ``px4_gyro_id`` (px4 only) is the gyro's device id, written as TC_G0_ID.
+    ``px4_gyro_id`` (px4 only) is the gyro's device id, written as TC_G0_ID;
+    ``accel`` the accelerometer's fit (or None, ``accel_why`` saying why),
+    ``px4_accel_id`` its device id (TC_A0_ID).
     """
-    if px4_gyro_id is not None and fmt != 'px4':
-        raise ValueError(f'--px4-gyro-id is for --format px4, not {fmt}')
+    for given, option in ((px4_gyro_id, '--px4-gyro-id'), (px4_accel_id, '--px4-accel-id')):
+        if given is not None and fmt != 'px4':
+            raise ValueError(f'{option} is for --format px4, not {fmt}')
     if fmt == 'px4':
-        return px4(fit, px4_gyro_id)
+        return px4(fit, px4_gyro_id, accel, px4_accel_id, accel_why)
     if fmt == 'ardupilot':
-        return ardupilot(fit)
+        return ardupilot(fit, accel, accel_why)
     if fmt == 'preset':
-        return preset(fit)
+        return preset(fit, accel, accel_why)
     raise ValueError(f'format = {fmt!r} is not allowed: choose {", ".join(FORMATS)}')

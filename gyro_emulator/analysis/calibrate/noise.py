@@ -17,13 +17,24 @@ units: N in rad/s/sqrt(Hz), K in rad/s^2/sqrt(Hz) = rad/s/sqrt(s)):
   is the failure to avoid;
 * with several axes, each number is the largest over the axes;
 * ``inflate`` multiplies N, B and K (and is written into every file).
+
+The accelerometer's axes go through the same identification
+(``calibrate_noise(..., sense=ACCEL)``, :mod:`gyro_emulator.analysis.sense`):
+its samples in m/s^2, so N is in m/s^2/sqrt(Hz), B in m/s^2 and K in
+m/s^3/sqrt(Hz). On a static log gravity is a constant: the Allan deviation
+does not see it and the screening's local high-pass takes it out with the
+bias. The magnitude of the mean says whether the columns are in m/s^2
+(:func:`gravity_at_rest`).
 """
 
 from dataclasses import dataclass, replace
 
+from gyro_emulator import units
 from gyro_emulator.analysis import allan, outliers
 from gyro_emulator.analysis.allan import analyse as allan_record
+from gyro_emulator.analysis.sense import ACCEL, GYRO
 from gyro_emulator.recording.record import grid_step
+from gyro_emulator.units import AXES
 import numpy as np
 
 #: Most distinct values a log may have for its grid to be looked for (grid_step).
@@ -33,8 +44,10 @@ GRID_MAX_UNIQUE = 200_000
 @dataclass(frozen=True)
 class AxisNoise:
     """
-    The identification of one axis: its Allan deviation, fit, mean (rad/s) and segments.
+    The identification of one axis: its Allan deviation, fit, mean and segments.
 
+    ``mean_rad_s`` is the mean of the kept samples in the channel's unit
+    (rad/s for the gyro, m/s^2 for the accelerometer: :attr:`mean`);
     ``set_aside`` is the JSON form of the spikes and motion left out
     (:func:`gyro_emulator.analysis.allan.analyse.set_aside_summary`).
     """
@@ -46,6 +59,11 @@ class AxisNoise:
     mean_rad_s: float
     segments: tuple = ()
     set_aside: dict = None
+
+    @property
+    def mean(self):
+        """Return the mean of the kept samples, in the channel's SI unit."""
+        return self.mean_rad_s
 
 
 @dataclass(frozen=True)
@@ -64,13 +82,25 @@ class NoiseCalibration:
     axes : tuple of AxisNoise
         One per calibrated axis.
     lsb_rad_s : float
-        The grid the samples lie on (0: none found), rad/s.
+        The grid the samples lie on (0: none found), in the channel's unit
+        (rad/s; m/s^2 for the accelerometer).
     recovery : tuple of str
         What a damaged bag lost.
     skipped : tuple of str
         Axes left out, and why (a stuck, saturated or dead output).
     timing : tuple of str
         What the stamps say about the record (samples missing between them).
+    sense : gyro_emulator.analysis.sense.Sense
+        What the axes sense (:data:`~gyro_emulator.analysis.sense.GYRO` or
+        :data:`~gyro_emulator.analysis.sense.ACCEL`).
+    gravity_m_s2 : tuple or None
+        The accelerometer's: the gravity it reads at rest, (x, y, z) m/s^2
+        (:func:`gravity_at_rest`); None for the gyro.
+    notes : tuple of str
+        What the user must know about the channel (an accelerometer whose
+        magnitude at rest is not near g; a scale applied).
+    scale : float
+        The factor the logged samples were multiplied by first.
 
     """
 
@@ -82,6 +112,10 @@ class NoiseCalibration:
     recovery: tuple = ()
     skipped: tuple = ()
     timing: tuple = ()
+    sense: object = GYRO
+    gravity_m_s2: tuple = None
+    notes: tuple = ()
+    scale: float = 1.0
 
     def axis(self, name):
         """Return the :class:`AxisNoise` of axis ``name``."""
@@ -91,6 +125,25 @@ class NoiseCalibration:
         raise ValueError(f'{self.source}: axis {name!r} was not calibrated')
 
     @property
+    def lsb(self):
+        """Return the grid the samples lie on (0: none), in the channel's SI unit."""
+        return self.lsb_rad_s
+
+    def turn_on_bias(self, item):
+        """
+        Return the turn-on bias of :class:`AxisNoise` ``item``: its mean, less gravity on it.
+
+        The gyro's is its mean (Earth's rate included). The accelerometer's
+        is its mean minus the gravity :func:`gravity_at_rest` puts on the
+        axis: with one attitude the bias along gravity is the magnitude's
+        departure from g, and a bias across gravity cannot be told from a
+        tilt (it is taken as none).
+        """
+        if self.gravity_m_s2 is None:
+            return item.mean
+        return item.mean - self.gravity_m_s2[AXES.index(item.axis)]
+
+    @property
     def tau_range_s(self):
         """(shortest, longest) tau used by any axis, s."""
         lows = [a.fit.tau_range_s[0] for a in self.axes]
@@ -98,7 +151,7 @@ class NoiseCalibration:
         return min(lows), max(highs)
 
 
-def quantisation(rate, grid):
+def quantisation(rate, grid, unit='rad/s'):
     """
     Return an axis's LSB (or 0) and a warning when its grid is coarser than its noise (or None).
 
@@ -112,15 +165,15 @@ def quantisation(rate, grid):
     the signal, so N describes the quantised output, not the sensor behind
     it (an LSB of 4 sigma read N 25 % high in a review). ``grid`` is the
     (step, distinct values) :func:`~gyro_emulator.recording.record.grid_step`
-    found for ``rate``.
+    found for ``rate``; ``unit`` that of the samples, for the warning.
     """
     step, distinct = grid
     with np.errstate(over='ignore', invalid='ignore'):  # a 1e308 sample: an infinite spread
         spread = float(np.std(rate))
     if step <= 0.5 * spread:
         return (step if distinct >= 8 else 0.0), None
-    return 0.0, (f'the samples lie on a grid of {step:.4g} rad/s, coarser than half their '
-                 f'spread ({spread:.4g} rad/s): the noise terms describe the quantised '
+    return 0.0, (f'the samples lie on a grid of {step:.4g} {unit}, coarser than half their '
+                 f'spread ({spread:.4g} {unit}): the noise terms describe the quantised '
                  'output, not the sensor behind it (N can read well above the sensor)')
 
 
@@ -129,15 +182,80 @@ def detect_lsb(rate, max_unique=GRID_MAX_UNIQUE):
     return quantisation(rate, grid_step(rate, max_unique))[0]
 
 
+#: A static accelerometer reads |f| = g within this share, else a note: a consumer
+#: part's sensitivity and offset errors are a few % (the MPU-6050 log reads 9 % low).
+GRAVITY_TOLERANCE = 0.15
+#: Magnitudes at rest (in the log's unit) that say the columns are in g, not m/s^2.
+IN_G = (0.5, 2.0)
+
+
+def gravity_at_rest(values, path, scale=1.0):
+    """
+    Return the gravity a static accelerometer reads, (x, y, z) m/s^2, and notes.
+
+    ``values`` is the (n, 3) specific force of the log (m/s^2, after
+    ``scale``). At rest it is gravity plus the bias: the attitude is taken
+    as the direction of the mean (the median of each column, so that spikes
+    do not move it) and gravity as standard, g = 9.80665 m/s^2, along it
+    (local gravity differs by up to 0.3 %). A magnitude about 1 says the
+    columns are in g: refused, naming ``--accel-scale``; one further than
+    :data:`GRAVITY_TOLERANCE` from g gets a note (not static, or another
+    unit or a scale error).
+    """
+    means = np.median(np.asarray(values, dtype=float), axis=0)
+    size = float(np.linalg.norm(means))
+    g = units.STANDARD_GRAVITY_M_S2
+    low, high = IN_G
+    if not np.isfinite(size) or size <= 0.0:
+        raise ValueError(f'{path}: the accelerometer columns read {size!r} at rest: no gravity '
+                         'to take the attitude from')
+    if low <= size <= high:
+        raise ValueError(f'{path}: the accelerometer reads {size:.4g} at rest, about 1: its '
+                         f'columns look like g, not m/s^2 (give --accel-scale {g:g}'
+                         + ('' if scale == 1.0 else f' instead of {scale:g}') + ')')
+    notes = []
+    if abs(size / g - 1.0) > GRAVITY_TOLERANCE:
+        notes.append(f'the accelerometer reads {size:.4g} m/s^2 at rest, '
+                     f'{100 * (size / g - 1):+.0f} % from g = {g:g}: is the log static, and in '
+                     'm/s^2 (--accel-scale)? The turn-on bias takes the difference as a bias '
+                     'along gravity')
+    if scale != 1.0:
+        notes.append(f'the logged accelerometer was multiplied by {scale:g} first (--accel-scale)')
+    return tuple(float(v) for v in means * (g / size)), tuple(notes)
+
+
+def _channel(record, sense, axes, gap_factor, scale):
+    """Return (path, {axis: (samples, column)}, Timing) of the channel ``sense`` of a record."""
+    if sense is GYRO:
+        path = record.require_gyro().path
+        names = tuple(record.gyro) if axes is None else tuple(axes)
+        columns = {name: record.gyro_axis(name) for name in names}
+        get_timing = record.timing
+    else:
+        path = record.path
+        if record.accel is None:
+            raise ValueError(f'{path}: no accelerometer (accel_{{x,y,z}}_m_s2 columns or an '
+                             "Imu's linear_acceleration)")
+        names = AXES if axes is None else tuple(axes)
+        columns = {name: record.accel_axis(name) for name in names}
+        get_timing = record.accel_timing
+    if scale != 1.0:
+        columns = {name: (values * scale, column) for name, (values, column) in columns.items()}
+    try:
+        return path, columns, get_timing(gap_factor)
+    except ValueError as exc:
+        raise ValueError(f'{path}: {exc}') from None
+
+
 def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
-                    outlier_threshold=outliers.THRESHOLD, output=None):
+                    outlier_threshold=outliers.THRESHOLD, output=None, sense=GYRO, scale=1.0):
     """
     Identify the noise terms of each axis of a static log.
 
     Parameters
     ----------
     record : gyro_emulator.recording.record.Record
-        The log (its gyro axes).
+        The log (its gyro axes, or its accelerometer's).
     axes : sequence of str, optional
         Axes to calibrate (default: all the log has).
     gap_factor, max_tau_fraction : float
@@ -153,54 +271,61 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
         The quantised output the calibrated values were derived from (a
         residual is not on the output's grid): the LSB is that of
         ``output``, not of the axes.
+    sense : gyro_emulator.analysis.sense.Sense
+        The channel: :data:`~gyro_emulator.analysis.sense.GYRO` (default) or
+        :data:`~gyro_emulator.analysis.sense.ACCEL` (the record's
+        accelerometer, m/s^2; its gravity read by :func:`gravity_at_rest`).
+    scale : float
+        Multiply the logged samples by this first (``--accel-scale``: a log
+        in g takes 9.80665).
 
     Returns
     -------
     NoiseCalibration
 
     """
-    path = record.require_gyro().path
-    axes = tuple(record.gyro) if axes is None else tuple(axes)
+    if not (np.isfinite(scale) and 1e-6 <= scale <= 1e6):
+        raise ValueError(f'scale = {scale!r} is out of range: allowed [1e-06, 1e+06]')
+    path, columns, timing = _channel(record, sense, axes, gap_factor, scale)
+    gravity, notes = None, ()
+    if sense is ACCEL:
+        gravity, notes = gravity_at_rest(record.accel.values * scale, path, scale)
     # What the record itself tells (values, timing, grids) first, then the analysis.
-    columns = {name: record.gyro_axis(name) for name in axes}
-    try:
-        timing = record.timing(gap_factor)
-    except ValueError as exc:
-        raise ValueError(f'{path}: {exc}') from None
     grids = {name: grid_step(rate, GRID_MAX_UNIQUE) for name, (rate, _) in columns.items()}
     output_grid = None if output is None else grid_step(output, GRID_MAX_UNIQUE)
     found, rate_hz, steps = [], None, []
     skipped = []
-    for name in axes:
-        rate, column = columns[name]
+    for name, (rate, column) in columns.items():
+        what = f'axis {name}' if sense is GYRO else f'{sense.name} axis {name}'
         try:
             rate_hz, segments, screened, handled = allan.screened_segments(
-                timing, rate, outlier_threshold, f'axis {name}')
+                timing, rate, outlier_threshold, what, sense)
         except outliers.HeldOutput as exc:
-            if len(axes) == 1:
+            if len(columns) == 1:
                 raise ValueError(f'{path}: {exc}') from None
             skipped.append(f'{exc}: left out')
             continue
         except ValueError as exc:
             raise ValueError(f'{path}: {exc}') from None
         result, fit = allan.identify(segments, rate_hz, max_tau_fraction)
-        axis_lsb, coarse = quantisation(rate, grids[name])
+        axis_lsb, coarse = quantisation(rate, grids[name], sense.unit)
         if coarse:
             fit = replace(fit, warnings=fit.warnings + (coarse,))
         found.append(AxisNoise(name, column, result, fit,
                                float(np.mean(rate[screened.keep])), tuple(segments),
-                               allan_record.set_aside_summary(screened, handled)))
+                               allan_record.set_aside_summary(screened, handled, sense)))
         steps.append(axis_lsb)
     if not found:
         raise ValueError(f'{path}: no axis to calibrate: ' + '; '.join(skipped))
     lsb = float(np.median(steps)) if all(s > 0.0 for s in steps) else 0.0
     if output is not None:
-        lsb = quantisation(output, output_grid)[0]
+        lsb = quantisation(output, output_grid, sense.unit)[0]
     return NoiseCalibration(source=str(path), rate_hz=float(rate_hz),
-                            duration_s=float(record.time_s[-1] - record.time_s[0]),
+                            duration_s=float(timing.time_s[-1] - timing.time_s[0]),
                             axes=tuple(found), lsb_rad_s=lsb, recovery=record.recovery,
                             skipped=tuple(skipped),
-                            timing=allan_record.missing_note(timing))
+                            timing=allan_record.missing_note(timing), sense=sense,
+                            gravity_m_s2=gravity, notes=notes, scale=float(scale))
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,13 @@ The rule (what data can support which polynomial)
 When temperature and time move together (|correlation| > 0.9 over the
 groups) a drift in time cannot be told from a temperature effect, and the
 fit says so.
+
+The accelerometer's offset against temperature is the same fit on its axes
+(:func:`accel_thermal_log`, a :class:`ThermalLog` of ``sense`` ACCEL, m/s^2):
+at rest each axis reads its share of gravity plus its bias, and gravity, a
+constant, goes into the constant term. At one attitude a sensitivity that
+changes with temperature moves that share of gravity too, and reads as an
+offset change: the coefficients hold for the attitude of the log.
 """
 
 from dataclasses import dataclass, field, replace
@@ -34,8 +41,9 @@ from dataclasses import dataclass, field, replace
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import analyse as allan_record
 from gyro_emulator.analysis.calibrate.noise import detect_lsb
+from gyro_emulator.analysis.sense import ACCEL, GYRO
 from gyro_emulator.recording import csvio
-from gyro_emulator.recording.record import DEFAULT_TOPICS
+from gyro_emulator.recording.record import CSV_COLUMNS, DEFAULT_TOPICS
 from gyro_emulator.units import AXES
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
@@ -59,12 +67,13 @@ TEMP_SCALE_FLOOR_K = 0.2
 @dataclass(frozen=True)
 class ThermalLog:
     """
-    Static gyro samples with their die temperature: per axis (time_s, temp_c, rate_rad_s).
+    Static samples with their die temperature: per axis (time_s, temp_c, rate_rad_s).
 
-    Built from loaded records by :func:`thermal_log`; it reads no file.
-    ``temp_columns[axis]`` names where its temperature came from;
-    ``records[axis]`` is the record the axis came from, whose timing
-    (:meth:`axis_timing`) every step reads.
+    Built from loaded records by :func:`thermal_log` (the gyro) or
+    :func:`accel_thermal_log` (the accelerometer: ``sense`` ACCEL, the
+    samples in m/s^2); it reads no file. ``temp_columns[axis]`` names where
+    its temperature came from; ``records[axis]`` is the record the axis came
+    from, whose timing (:meth:`axis_timing`) every step reads.
     """
 
     sources: tuple
@@ -72,9 +81,12 @@ class ThermalLog:
     columns: dict
     temp_columns: dict = field(default_factory=dict)
     records: dict = field(default_factory=dict)
+    sense: object = GYRO
 
     def axis_timing(self, axis):
         """Return the :class:`gyro_emulator.recording.timing.Timing` of ``axis``'s record."""
+        if self.sense is ACCEL:
+            return self.records[axis].accel_timing()
         return self.records[axis].timing()
 
 
@@ -83,8 +95,8 @@ REQUIRED_COLUMNS = ('time_s', 'temp_c')
 
 
 def bag_topics(topic=None, temperature_topic=None):
-    """Return the bag topic of each role a thermal log reads: the gyro and the die temperature."""
-    return {'gyro': topic, 'die_temp': temperature_topic}
+    """Return the bag topic of each role a thermal log reads: the Imu and the die temperature."""
+    return {'gyro': topic, 'imu_accel': topic, 'die_temp': temperature_topic}
 
 
 def _bag_axes(rec):
@@ -135,6 +147,32 @@ def thermal_log(recs):
             temps[axis] = f'{path}: {rec.temp.source}'
             records[axis] = rec
     return ThermalLog(paths, axes, columns, temps, records)
+
+
+def accel_thermal_log(recs):
+    """
+    Return the accelerometer's :class:`ThermalLog` (``sense`` ACCEL) of loaded records.
+
+    One 3-axis CSV with ``accel_{x,y,z}_m_s2`` columns, or a bag whose Imu
+    carries ``linear_acceleration``; ValueError saying why not otherwise
+    (the reason a thermal export gives for leaving the accelerometer out).
+    """
+    if len(recs) != 1:
+        raise ValueError('the accelerometer needs one 3-axis log (one-axis files carry no '
+                         'accelerometer)')
+    rec = recs[0]
+    if rec.accel is None:
+        raise ValueError(f'{rec.path} has no accelerometer ({", ".join(CSV_COLUMNS["accel"])} '
+                         "columns, or an Imu's linear_acceleration)")
+    temp = rec.temp
+    if temp is None or len(temp.time_s) < 2:
+        raise ValueError(f'{rec.path}: no temperature for the accelerometer')
+    times = rec.accel.time_s
+    temp_c = np.interp(times, temp.time_s, temp.values)
+    axes = {a: (times, temp_c, rec.accel_axis(a)[0]) for a in AXES}
+    return ThermalLog((rec.path,), axes, {a: f'{rec.path}:{rec.accel_axis(a)[1]}' for a in AXES},
+                      dict.fromkeys(AXES, f'{rec.path}: {temp.source}'),
+                      dict.fromkeys(AXES, rec), ACCEL)
 
 
 @dataclass(frozen=True)
@@ -279,7 +317,11 @@ class ThermalFit:
     adds them (what the ``preset`` export needs beside the polynomial).
     ``data_temp_c`` is the (lowest, highest) temperature of the samples kept
     and ``data_rate_rad_s[axis]`` the same of their rates: the range
-    :func:`check_export` holds a file to.
+    :func:`check_export` holds a file to. ``sense`` is what the samples are
+    (:mod:`gyro_emulator.analysis.sense`): for the accelerometer every value
+    above is in m/s^2 units, ``gyro_scale`` is ``--accel-scale`` and
+    ``median`` holds each axis's median group mean (the level PX4's own
+    tool takes off the accelerometer's offset polynomial).
     """
 
     sources: tuple
@@ -305,6 +347,8 @@ class ThermalFit:
     lsb_rad_s: float = None
     data_temp_c: tuple = None
     data_rate_rad_s: dict = None
+    sense: object = GYRO
+    median: dict = None
 
     @property
     def groups_temp_c(self):
@@ -371,12 +415,13 @@ def _screen(log, gyro_scale, threshold):
     for axis, (t, temp, rate) in log.axes.items():
         rate_hz = log.axis_timing(axis).rate_hz
         try:
-            outliers.check_not_held(rate, rate_hz, f'axis {axis}')
+            outliers.check_not_held(rate, rate_hz, _axis_name(log.sense, axis))
         except outliers.HeldOutput as exc:
             notes.append(f'{exc}: left out')
             continue
         screened[axis] = outliers.screen_at_rest(t, rate * gyro_scale, 1.0 / rate_hz, threshold,
-                                                 log.columns.get(axis, f'axis {axis}'))
+                                                 log.columns.get(axis, f'axis {axis}'),
+                                                 log.sense.limits, log.sense.unit)
         temps[axis] = screen_temperature(t, temp, 1.0 / rate_hz, threshold,
                                          log.temp_columns.get(axis, 'temp_c'))
     if not screened:
@@ -386,9 +431,14 @@ def _screen(log, gyro_scale, threshold):
     return kept, screened, temps, notes
 
 
+def _axis_name(sense, axis):
+    return f'axis {axis}' if sense is GYRO else f'{sense.name} axis {axis}'
+
+
 def _screen_notes(log, screened, temps):
     """Return notes on what was set aside: per axis its gyro, per temperature column its own."""
-    notes = [f'axis {a}: {v.describe()}' for a, v in screened.items() if v.count or v.note]
+    notes = [f'{_axis_name(log.sense, a)}: {v.describe()}' for a, v in screened.items()
+             if v.count or v.note]
     said = set()
     for axis, v in temps.items():
         column = log.temp_columns.get(axis, 'temp_c')
@@ -422,7 +472,8 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
     window_s : float
         Group length of a log without gaps, s.
     gyro_scale : float
-        Factor applied to the logged rates first (a known scale error).
+        Factor applied to the logged rates first (a known scale error; the
+        accelerometer's: ``--accel-scale``, 9.80665 for a log in g).
     outlier_threshold : float
         Spikes and motion beyond this many robust standard deviations of
         their neighbours are left out of the group means (``math.inf``: keep
@@ -438,7 +489,8 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
     if not (np.isfinite(window_s) and 1.0 <= window_s <= 86400.0):
         raise ValueError(f'window_s = {window_s!r} is out of range: allowed [1, 86400] s')
     if not (np.isfinite(gyro_scale) and 0.01 <= gyro_scale <= 100.0):
-        raise ValueError(f'gyro_scale = {gyro_scale!r} is out of range: allowed [0.01, 100]')
+        raise ValueError(f'{log.sense.scale_option[2:].replace("-", "_")} = {gyro_scale!r} is '
+                         'out of range: allowed [0.01, 100]')
     log, screened, temp_screened, skipped = _screen(log, gyro_scale, outlier_threshold)
     keep = {a: screened[a].keep & temp_screened[a].keep for a in screened}
     groups = {a: group_means(log.axis_timing(a), temp, rate * gyro_scale, window_s, keep=keep[a])
@@ -465,7 +517,7 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
         rms[axis] = float(np.sqrt(np.mean(resid ** 2)))
         noise[axis] = float(np.sqrt(np.mean(g.sem_rad_s ** 2)))
     corr = float(np.corrcoef(first.temp_c, first.time_s)[0, 1]) if span > 0 else 0.0
-    notes = _notes(coefs, errs, rms, noise, corr, chosen, significant, gyro_scale)
+    notes = _notes(coefs, errs, rms, noise, corr, chosen, significant, gyro_scale, log.sense)
     notes += _screen_notes(log, screened, temp_screened)
     notes += skipped
     data_temp, data_rate = _kept_ranges(log, keep, gyro_scale)
@@ -475,10 +527,11 @@ def fit_thermal(log, order=MAX_ORDER, window_s=60.0, gyro_scale=1.0,
                       group_noise=noise, span_k=span, distinct_temps=distinct,
                       correlation=corr, grouping=first.how, gyro_scale=float(gyro_scale),
                       notes=tuple(notes), set_aside=screened, data_temp_c=data_temp,
-                      data_rate_rad_s=data_rate)
+                      data_rate_rad_s=data_rate, sense=log.sense,
+                      median={a: float(np.median(g.rate_rad_s)) for a, g in groups.items()})
 
 
-def _notes(coefs, errs, rms, noise, corr, order, significant, gyro_scale):
+def _notes(coefs, errs, rms, noise, corr, order, significant, gyro_scale, sense=GYRO):
     notes = []
     if abs(corr) > CONFOUNDED:
         notes.append(f'temperature and time are confounded (correlation {corr:+.3f} over the '
@@ -488,14 +541,17 @@ def _notes(coefs, errs, rms, noise, corr, order, significant, gyro_scale):
                      'temperature')
     for axis in coefs:
         if rms[axis] > 2.0 * noise[axis]:
-            notes.append(f'axis {axis}: the group means scatter about the fit by '
+            notes.append(f'{_axis_name(sense, axis)}: the group means scatter about the fit by '
                          f'{rms[axis] / noise[axis]:.1f}x their own noise: drift or structure '
                          'that temperature does not explain')
         if order == 1 and abs(coefs[axis][1]) <= SIGNIFICANCE * errs[axis][1]:
-            notes.append(f'axis {axis}: its slope is within {SIGNIFICANCE:g} standard errors '
-                         'of zero: no measurable temperature dependence over this span')
+            notes.append(f'{_axis_name(sense, axis)}: its slope is within {SIGNIFICANCE:g} '
+                         'standard errors of zero: no measurable temperature dependence over '
+                         'this span')
     if gyro_scale != 1.0:
-        notes.append(f'the logged rates were multiplied by {gyro_scale:g} first (--gyro-scale)')
+        what = 'rates' if sense is GYRO else f'{sense.name} samples'
+        notes.append(f'the logged {what} were multiplied by {gyro_scale:g} first '
+                     f'({sense.scale_option})')
     return notes
 
 
@@ -536,23 +592,26 @@ def check_export(fit, what='the thermal calibration'):
         bias = fit.bias(axis, temps)
         worst = int(np.argmax(np.maximum(r_low - margin - bias, bias - r_high - margin)))
         if not r_low - margin <= bias[worst] <= r_high + margin:
+            unit, kept = fit.sense.unit, 'rates' if fit.sense is GYRO else 'values'
             raise ValueError(
-                f'refusing to write {what}: axis {axis}: the fit predicts a bias of '
-                f'{bias[worst]:.6g} rad/s at {temps[worst]:.2f} C, outside the kept rates '
-                f'[{r_low:.6g}, {r_high:.6g}] rad/s widened by {EXPORT_RATE_MARGIN:g} x '
+                f'refusing to write {what}: {_axis_name(fit.sense, axis)}: the fit predicts a '
+                f'bias of {bias[worst]:.6g} {unit} at {temps[worst]:.2f} C, outside the kept '
+                f'{kept} [{r_low:.6g}, {r_high:.6g}] {unit} widened by {EXPORT_RATE_MARGIN:g} x '
                 'their range each side')
 
 
-def px4_offset(params, axis, temp_c):
+def px4_offset(params, axis, temp_c, prefix='TC_G0'):
     """
     Offset PX4 subtracts: X0 + X1 d + X2 d^2 + X3 d^3, d = clip(T, TMIN, TMAX) - TREF.
 
-    ``params`` maps PX4 names to values (``TC_G0_TREF``, ``TC_G0_X1_0``, ...).
+    ``params`` maps PX4 names to values (``TC_G0_TREF``, ``TC_G0_X1_0``, ...);
+    ``prefix`` ``TC_A0`` reads the accelerometer's.
     """
     i = AXES.index(axis)
-    t = np.clip(np.asarray(temp_c, dtype=float), params['TC_G0_TMIN'], params['TC_G0_TMAX'])
-    d = t - params['TC_G0_TREF']
-    return sum(params[f'TC_G0_X{k}_{i}'] * d ** k for k in range(4))
+    t = np.clip(np.asarray(temp_c, dtype=float), params[f'{prefix}_TMIN'],
+                params[f'{prefix}_TMAX'])
+    d = t - params[f'{prefix}_TREF']
+    return sum(params[f'{prefix}_X{k}_{i}'] * d ** k for k in range(4))
 
 
 @dataclass(frozen=True)
@@ -593,10 +652,10 @@ def compensation_check(fit, params, axis):
 
 
 def white_noise_of(log, axis, gyro_scale=1.0):
-    """(N of one axis from its samples, rad/s/sqrt(Hz); sample rate, Hz): IEEE Std 952 fit."""
+    """(N of one axis from its samples, its unit/sqrt(Hz); sample rate, Hz): IEEE Std 952 fit."""
     rate = log.axes[axis][2]
-    rate_hz, segments, _, _ = allan_record.screened_segments(log.axis_timing(axis),
-                                                             rate * gyro_scale)
+    rate_hz, segments, _, _ = allan_record.screened_segments(
+        log.axis_timing(axis), rate * gyro_scale, sense=log.sense)
     _, found = allan_record.identify(segments, rate_hz)
     return found.arw_rad_s_sqrt_hz, rate_hz
 

@@ -22,13 +22,14 @@ thermal preset along the log's temperature and compares the bias of each
 group of samples with the log's.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from gyro_emulator.analysis import allan
 from gyro_emulator.analysis.allan import fit as fitting
 from gyro_emulator.analysis.calibrate import thermal
 from gyro_emulator.emulation import profiles, simulate
 from gyro_emulator.sensor import noise as sensor_noise
+from gyro_emulator.units import AXES
 import numpy as np
 
 #: Gauss-Markov terms per decade of the twin's flicker model.
@@ -136,7 +137,8 @@ class NoiseCheck:
     deviation), ``ratio`` (twin / measured - 1), ``passed`` (|ratio| <= 10 %
     at every tau) and ``consistent`` (at every tau within 10 % or inside the
     log's own 95 % interval: where a 2 h log cannot pin its Allan deviation
-    to 10 %, a perfect twin cannot match it to 10 % either).
+    to 10 %, a perfect twin cannot match it to 10 % either). ``accel`` is
+    the same check of the accelerometer (None: not checked).
     """
 
     taus_s: np.ndarray
@@ -147,35 +149,11 @@ class NoiseCheck:
     ratio: dict
     passed: dict
     consistent: dict
+    accel: object = None
 
 
-def check_noise(calibration, config, seeds=8, progress=None):
-    """
-    Simulate ``config`` (preset name, YAML path or SensorConfig) and compare with the log.
-
-    Each seed is one ``simulate`` run of the log's length at its rate; the
-    twin's Allan deviation is the mean over the seeds (a single run scatters
-    by its own chi-squared interval, which the plot shows).
-    """
-    if not (isinstance(seeds, int) and 1 <= seeds <= 64):
-        raise ValueError(f'seeds = {seeds!r} is out of range: allowed 1 .. 64')
-    taus = octave_taus(calibration.rate_hz, calibration.duration_s)
-    if len(taus) < 2:
-        raise ValueError(f'{calibration.source}: {calibration.duration_s:.1f} s is too short '
-                         'for octave taus from 0.1 s to a tenth of the record')
-    index = {'x': 0, 'y': 1, 'z': 2}
-    measured = {a.axis: allan.overlapping_adev(list(a.segments), calibration.rate_hz, taus=taus)
-                for a in calibration.axes}
-    simulated = {a.axis: [] for a in calibration.axes}
-    duration = calibration.duration_s + 1.0 / calibration.rate_hz
-    for seed in range(1, seeds + 1):
-        _, _, batch = simulate.run_simulation(config, 'static', duration, calibration.rate_hz,
-                                              seed=seed)
-        for a in calibration.axes:
-            simulated[a.axis].append(allan.overlapping_adev(
-                batch.gyro_rad_s[:, index[a.axis]], calibration.rate_hz, taus=taus))
-        if progress is not None:
-            progress(seed, seeds)
+def _verdicts(taus, seeds, measured, simulated):
+    """Return the :class:`NoiseCheck` of measured and simulated Allan deviations per axis."""
     twin = {axis: np.mean([r.adev for r in runs], axis=0) for axis, runs in simulated.items()}
     ratio = {axis: twin[axis] / measured[axis].adev - 1.0 for axis in twin}
     passed = {axis: bool(np.all(np.abs(r) <= ADEV_TOLERANCE)) for axis, r in ratio.items()}
@@ -187,6 +165,41 @@ def check_noise(calibration, config, seeds=8, progress=None):
     return NoiseCheck(taus_s=taus, seeds=tuple(range(1, seeds + 1)), measured=measured,
                       simulated={k: tuple(v) for k, v in simulated.items()}, twin=twin,
                       ratio=ratio, passed=passed, consistent=consistent)
+
+
+def check_noise(calibration, config, seeds=8, progress=None, accel=None):
+    """
+    Simulate ``config`` (preset name, YAML path or SensorConfig) and compare with the log.
+
+    Each seed is one ``simulate`` run of the log's length at its rate; the
+    twin's Allan deviation is the mean over the seeds (a single run scatters
+    by its own chi-squared interval, which the plot shows). ``accel``, the
+    log's accelerometer calibration, is compared with the same runs'
+    accelerometer output at the same taus (:attr:`NoiseCheck.accel`).
+    """
+    if not (isinstance(seeds, int) and 1 <= seeds <= 64):
+        raise ValueError(f'seeds = {seeds!r} is out of range: allowed 1 .. 64')
+    taus = octave_taus(calibration.rate_hz, calibration.duration_s)
+    if len(taus) < 2:
+        raise ValueError(f'{calibration.source}: {calibration.duration_s:.1f} s is too short '
+                         'for octave taus from 0.1 s to a tenth of the record')
+    channels = [(calibration, 'gyro_rad_s')] + ([] if accel is None else [(accel, 'accel_m_s2')])
+    measured = [{a.axis: allan.overlapping_adev(list(a.segments), cal.rate_hz, taus=taus)
+                 for a in cal.axes} for cal, _ in channels]
+    simulated = [{a.axis: [] for a in cal.axes} for cal, _ in channels]
+    duration = calibration.duration_s + 1.0 / calibration.rate_hz
+    for seed in range(1, seeds + 1):
+        _, _, batch = simulate.run_simulation(config, 'static', duration, calibration.rate_hz,
+                                              seed=seed)
+        for (cal, output), runs in zip(channels, simulated):
+            for a in cal.axes:
+                runs[a.axis].append(allan.overlapping_adev(
+                    getattr(batch, output)[:, AXES.index(a.axis)], calibration.rate_hz,
+                    taus=taus))
+        if progress is not None:
+            progress(seed, seeds)
+    checks = [_verdicts(taus, seeds, m, s) for m, s in zip(measured, simulated)]
+    return replace(checks[0], accel=checks[1] if accel is not None else None)
 
 
 def log_profile(fit):

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import math
 import warnings
 
+from gyro_emulator import outputs
 from gyro_emulator.recording import topics
 from gyro_emulator.validation import check_range
 
@@ -76,15 +77,19 @@ def execute(request, console):
     """
     Run a :class:`Request`: load, diagnose, report, write (see the module docstring).
 
-    An existing ``write_config`` file without ``overwrite`` is refused before
-    the record is read. Returns the diagnosis.
+    Every output is checked before the record is read
+    (:func:`gyro_emulator.outputs.check`: not an input, not existing without
+    ``overwrite``, its folder writable). Returns the diagnosis.
     """
     # The analysis (scipy, numba: 0.9 s, 2.4 s cold) is imported here, not at
     # the top: `gyro-emulator --help` imports the command line's modules.
-    from gyro_emulator.analysis.diagnose import data, diagnose, export, report, to_json
+    from gyro_emulator.analysis.diagnose import data, diagnose, report, to_json
 
-    if request.write_config:
-        export.check_target(request.write_config, request.overwrite)
+    outputs.check([outputs.file('--json', request.json),
+                   outputs.inside('--report', request.report, ('report.md',) + tuple(
+                       f'residuals_{key}.png' for key, _, _ in report.PLOTS)),
+                   outputs.file('--write-config', request.write_config)],
+                  inputs=[request.source, request.config], overwrite=request.overwrite)
     record = data.load_measured(request.source, rate_topic=request.rate_topic,
                                 temp_topic=request.temp_topic, gyro_topic=request.gyro_topic,
                                 accel_topic=request.accel_topic, axis=request.axis,
@@ -126,6 +131,8 @@ def _write_config(request, diagnosis, record, console):
         with quiet_numerics():
             model = model.with_noise(record_noise.identify(
                 model.config, record, request.sense_axis, request.outlier_sigma))
+            model = model.with_accel_noise(record_noise.identify_accel(
+                record, request.outlier_sigma, request.gyro_topic))
     text = model.text()
     export.write_text(request.write_config, text, request.overwrite)
     for cause, why in model.warnings:

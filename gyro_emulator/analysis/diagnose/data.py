@@ -29,13 +29,17 @@ from dataclasses import dataclass
 from gyro_emulator.recording import csvio
 from gyro_emulator.recording.record import DEFAULT_TOPICS, load_record
 from gyro_emulator.units import AXES
-from gyro_emulator.validation import GYRO_LIMIT_RAD_S, MODEL_TEMP_RANGE_C
+from gyro_emulator.validation import check_record_values
 import numpy as np
 from scipy.signal import lfilter, lfilter_zi
 
 REQUIRED_COLUMNS = ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s')
 ACCEL_COLUMNS = ('accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')
 
+#: Most CSV rows diagnose holds: a longer record is read in blocks and averaged over
+#: time bins to at most this many (:mod:`gyro_emulator.recording.binning`), so that
+#: memory stays bounded (about 1.2 kB per row at the peak of the screening).
+MAX_ROWS = 1_000_000
 #: Largest number of bins fits run on (see the module docstring).
 DEFAULT_MAX_BINS = 12000
 #: Window of the centred temperature slope estimate, s.
@@ -124,20 +128,9 @@ class MeasuredData:
 
     def _check_limits(self):
         """Raise ValueError naming the first value beyond its physical limits, and the row."""
-        rate = (-GYRO_LIMIT_RAD_S, GYRO_LIMIT_RAD_S, 'rad/s', 'the widest MEMS full scale')
-        limits = {'rate_cmd_rad_s': rate, 'gyro_rad_s': rate,
-                  'temp_c': MODEL_TEMP_RANGE_C + ('C', 'the physics model range')}
-        for name, (low, high, unit, why) in limits.items():
-            values = getattr(self, name)
-            if values is None:
-                continue
-            outside = np.flatnonzero((values < low) | (values > high))
-            if len(outside):
-                i = int(outside[0])
-                raise ValueError(
-                    f'MeasuredData.{name} = {float(values[i])!r} at sample {i} (data row '
-                    f'{i + 1}) is beyond [{low:g}, {high:g}] {unit} ({why}; '
-                    f'{len(outside)} of {len(values)} samples beyond)')
+        for name, kind in (('rate_cmd_rad_s', 'rate'), ('gyro_rad_s', 'rate'), ('temp_c', 'temp')):
+            if getattr(self, name) is not None:     # the one rule of every command
+                check_record_values('MeasuredData', name, getattr(self, name), kind)
 
     @property
     def rows(self):
@@ -212,7 +205,7 @@ def load_measured(path, rate_topic=None, temp_topic=None, gyro_topic=None, accel
     """
     _check_axis(axis)
     record = load_record(path, bag_topics(rate_topic, temp_topic, gyro_topic, accel_topic),
-                         only=COLUMNS)
+                         only=COLUMNS, max_rows=MAX_ROWS)
     return measured(record, axis, static)
 
 
@@ -272,7 +265,8 @@ def _from_columns(record, axis=None, static=False):
         temp_c=None if record.temp is None else record.temp.values,
         gyro_rad_s=record.gyro[by_column[gyro]],
         accel_m_s2=None if record.accel is None else record.accel.values,
-        source=str(path) + (f' ({gyro})' if gyro != 'gyro_rad_s' else ''))
+        source=str(path) + (f' ({gyro})' if gyro != 'gyro_rad_s' else ''),
+        recovery=record.recovery)
 
 
 def _from_bag(record, axis):

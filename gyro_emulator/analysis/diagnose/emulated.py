@@ -1,48 +1,54 @@
 """
-A sensor configuration as diagnose's baseline: the emulator's own deterministic output.
+A sensor configuration as diagnose's baseline: what the emulator really outputs.
 
 ``diagnose --config NAME|FILE`` replaces the paper's ``gyro = b0 + s0 R(T)
-Omega`` by the output of :class:`gyro_emulator.sensor.model.GyroModel` (the
-code path the node runs) with every noise term off, for the record's
-temperature and acceleration::
+Omega`` by the output of the emulator itself, computed through the path
+``simulate --config NAME|FILE --profile RECORD`` runs (the one chunk loop
+:func:`gyro_emulator.emulation.run_profile.run_over_profile` over the record
+on the model's grid, :func:`gyro_emulator.emulation.simulate.iter_simulation`,
+with :class:`gyro_emulator.sensor.model.GyroModel`, the model the node runs)
+with every noise term off, for the record's applied rate, temperature and
+acceleration::
 
-    gyro = b0 + s0 g(t) Omega + o(t)
+    gyro = b0 + s0 r(t) + o(t),   r(t) = y(t) - o(t)
 
-* o(t): the model's output at zero rate (bias tempco, g-sensitivity, the
-  extended bias terms);
-* g(t): its gain, (y(c) - o)/c for a constant rate c = :data:`PROBE_RAD_S`
-  on the diagnosed axis (physics ratio, scale-factor error, the extended
-  scale-factor terms).
+* y(t): the emulator's output for the record's inputs (rate on the
+  diagnosed axis; temperature, or the calibration temperature without one;
+  specific force, or level without one, as ``simulate`` reads a record):
+  sense dynamics, output filter, nonlinearity and saturation included, each
+  sample at its own time;
+* o(t): its output for the same inputs at zero rate (bias tempco,
+  g-sensitivity, the extended bias terms);
+* r(t): so the rate part of the output: the physics ratio, scale-factor
+  error and extended scale-factor terms times the rate, through the rate
+  dynamics.
 
 The user's calibration of b0 and s0 stays as it is (:mod:`.baseline`). The
 pipeline is not changed: the record is transformed instead. The measured
-output loses o(t) and the applied rate becomes Omega g(t)/R(T), R the
-baseline's ratio of the configuration's device, so that the baseline's
-``s0 R(T) Omega`` is ``s0 g(t) Omega`` and every cause's columns are
-relative to the emulator's output. The model runs on a uniform grid at the
-record's median sample interval from the record's first sample
-(``extended.start_time_s`` = its record time) and is interpolated to the
-record's times.
+output loses o(t) and the applied rate becomes r(t)/R(T), R the baseline's
+ratio of the configuration's device, so that the baseline's
+``s0 R(T) Omega`` is ``s0 r(t)`` and every cause's columns are relative to
+the emulator's output. The record's times are the sample instants, as
+``simulate --profile`` writes them; ``extended.start_time_s`` is the
+record's first time.
 """
 
 from dataclasses import replace
 
+from gyro_emulator.emulation.profiles import LEVEL_ACCEL_M_S2
+from gyro_emulator.emulation.recorded_profile import RecordedProfile
+from gyro_emulator.emulation.simulate import iter_simulation
 from gyro_emulator.sensor.config import ErrorTerms, load_sensor_config
-from gyro_emulator.sensor.model import GyroModel
 from gyro_emulator.units import AXES
 import numpy as np
 
 #: Noise terms switched off for the deterministic output.
 NOISE_TERMS = ('mechanical_noise', 'electronics_noise', 'bias_instability',
                'rate_random_walk', 'turn_on_bias', 'quantization', 'timestamp_jitter')
-#: Constant rate of the gain probe, rad/s.
-PROBE_RAD_S = 0.1
-#: Terms the baseline cannot carry (it has no rate dynamics and no time shift): the reason.
+#: Terms the baseline cannot carry (the record's times are its sample instants): the reason.
 UNSUPPORTED = {
-    'latency_s': 'a delay of the output',
+    'latency_s': 'a delay of the output stamps behind the sample instants',
     'clock_drift_ppm': 'a drift of the sample clock',
-    'output_filter_hz': 'an output filter (rate dynamics)',
-    'nonlinearity_s_rad': 'a gain that depends on the rate',
 }
 
 
@@ -56,44 +62,65 @@ def check_config(config, path):
 
 
 def deterministic(config, start_time_s):
-    """Return ``config`` with every noise term off and the record's start time."""
-    on = {n: n not in NOISE_TERMS for n in ErrorTerms.names()}
+    """Return ``config`` with every noise term off (other switches kept) from ``start_time_s``."""
+    on = {n: getattr(config.terms, n) and n not in NOISE_TERMS for n in ErrorTerms.names()}
     return replace(config, terms=ErrorTerms(**on),
                    extended=replace(config.extended, start_time_s=float(start_time_s)))
 
 
-def offset_and_gain(config, data, axis):
+def record_profile(config, data, axis, with_rate=True):
     """
-    Return o(t) and g(t) on the record's times (module docstring).
+    Return the record's inputs as ``simulate --profile RECORD`` reads them (a RecordedProfile).
+
+    The applied rate about ``axis`` (zero with ``with_rate`` False), the
+    temperature (without one: the axis's calibration temperature) and the
+    specific force (without one: level, z up), on the record's times.
+    """
+    t = np.asarray(data.time_s, dtype=float)
+    i = AXES.index(axis)
+    rate = np.zeros((len(t), 3))
+    if with_rate:
+        rate[:, i] = data.rate_cmd_rad_s
+    temp = np.asarray(data.temp_c, dtype=float) if data.has_temp else np.full(
+        len(t), config.device[i].calibration_temp_c)
+    accel = np.asarray(data.accel_m_s2, dtype=float) if data.has_accel else np.tile(
+        LEVEL_ACCEL_M_S2, (len(t), 1))
+    return RecordedProfile(data.source or 'record', t, rate, temp, accel)
+
+
+def emulated_output(config, data, axis, with_rate=True):
+    """
+    Return the emulator's deterministic output on the record's samples, rad/s (axis ``axis``).
+
+    What ``simulate --config ... --profile RECORD`` writes for the record
+    with every noise term off (:func:`deterministic`), one value per record
+    sample, in order.
+    """
+    t = np.asarray(data.time_s, dtype=float)
+    profile = record_profile(config, data, axis, with_rate)
+    i = AXES.index(axis)
+    chunks = iter_simulation(deterministic(config, t[0]), profile, profile.duration_s,
+                             profile.rate_hz)
+    return np.concatenate([c.batch.gyro_rad_s[c.published, i] for c in chunks])
+
+
+def offset_and_rate(config, data, axis):
+    """
+    Return o(t) and r(t) on the record's samples (module docstring).
 
     Parameters
     ----------
     config : gyro_emulator.sensor.config.SensorConfig
         The starting configuration.
     data : gyro_emulator.analysis.diagnose.data.MeasuredData
-        The record: its times (s), temperature (C) and acceleration (m/s^2).
+        The record: its times (s), applied rate (rad/s), temperature (C) and
+        acceleration (m/s^2).
     axis : str
         The diagnosed axis, 'x', 'y' or 'z'.
 
     """
-    t = np.asarray(data.time_s, dtype=float)
-    dt = float(np.median(np.diff(t)))
-    grid = t[0] + dt * np.arange(int(np.floor((t[-1] - t[0]) / dt + 1e-9)) + 2)
-    temp = np.interp(grid, t, data.temp_c) if data.has_temp else np.full(
-        len(grid), config.device[AXES.index(axis)].calibration_temp_c)
-    accel = None if not data.has_accel else np.column_stack(
-        [np.interp(grid, t, data.accel_m_s2[:, k]) for k in range(3)])
-    cfg = deterministic(config, t[0])
-    i = AXES.index(axis)
-    out = []
-    for c in (0.0, PROBE_RAD_S):
-        rate = np.zeros((len(grid), 3))
-        rate[:, i] = c
-        model = GyroModel(cfg, 1.0 / dt, np.random.default_rng(0))
-        out.append(model.run(rate, temp, accel).gyro_rad_s[:, i])
-    offset = np.interp(t, grid, out[0])
-    gain = np.interp(t, grid, (out[1] - out[0]) / PROBE_RAD_S)
-    return offset, gain
+    offset = emulated_output(config, data, axis, with_rate=False)
+    return offset, emulated_output(config, data, axis) - offset
 
 
 def load(config_name):
@@ -109,7 +136,6 @@ def transform(data, config, axis, phys_ratio):
 
     ``phys_ratio`` is the baseline's R(T) (``DevicePhysics.ratio``).
     """
-    offset, gain = offset_and_gain(config, data, axis)
+    offset, rate = offset_and_rate(config, data, axis)
     ratio = phys_ratio(data.temp_c) if data.has_temp else 1.0
-    return replace(data, gyro_rad_s=data.gyro_rad_s - offset,
-                   rate_cmd_rad_s=data.rate_cmd_rad_s * gain / ratio)
+    return replace(data, gyro_rad_s=data.gyro_rad_s - offset, rate_cmd_rad_s=rate / ratio)

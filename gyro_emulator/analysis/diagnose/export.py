@@ -39,8 +39,9 @@ back.
 from dataclasses import dataclass, replace
 import os
 
-from gyro_emulator import atomic
+from gyro_emulator import atomic, outputs
 from gyro_emulator.resources import read_yaml
+from gyro_emulator.sensor.accel import YAML_ALIASES as ACCEL_ALIASES
 from gyro_emulator.sensor.config import (config_from_mapping, config_yaml, PRESET_NAMES,
                                          preset_path, SensorConfig, YAML_ALIASES, YamlKey)
 from gyro_emulator.sensor.extensions import TERM_TYPES
@@ -93,7 +94,8 @@ class ExtendedModel:
     ``config`` is the :class:`~gyro_emulator.sensor.config.SensorConfig`,
     ``layout`` its keys in order (:class:`~gyro_emulator.sensor.config.YamlKey`),
     ``header`` the provenance comment block, ``axis`` the diagnosed axis and
-    ``commented`` the causes written commented out: (cause id, values, reason).
+    ``commented`` the causes written commented out: (cause id, values, reason);
+    ``noise`` whether the record's noise terms were added (:meth:`with_noise`).
     """
 
     config: SensorConfig
@@ -101,6 +103,7 @@ class ExtendedModel:
     header: str
     axis: str
     commented: tuple
+    noise: bool = False
 
     @property
     def warnings(self):
@@ -110,7 +113,8 @@ class ExtendedModel:
     def text(self):
         """Return the sensor YAML (:func:`gyro_emulator.sensor.config.config_yaml`)."""
         footer = ''.join(f'  # {c}: {v}   # not active: {why}\n' for c, v, why in self.commented)
-        return config_yaml(self.config, self.layout, self.header, _comments(self.axis), footer)
+        return config_yaml(self.config, self.layout, self.header,
+                           _comments(self.axis, self.config, self.noise), footer)
 
     def with_noise(self, noise):
         """
@@ -122,6 +126,9 @@ class ExtendedModel:
         the terms the record measures are switched on and mechanical_noise
         off (the measured N carries the whole white noise), as ``calibrate
         noise --format preset`` does. An axis whose record shows no LSB gets 0.
+        The output low-pass the record's PSD shows (cut-off and order) is
+        written with its switch on; without one the starting configuration's
+        filter stays as it is.
         """
         i = AXES.index(self.axis)
         layout = {key.name: key for key in self.layout}
@@ -134,9 +141,11 @@ class ExtendedModel:
             old[i] = convert(value)
             changes[target] = tuple(old)
             _rewrite(layout, target)
-        for key in ('bias_instability_band_s', 'bias_instability_per_decade'):
-            changes[key] = noise.fields.shared[key]
-            layout[key] = YamlKey(key)
+        for key in ('bias_instability_band_s', 'bias_instability_per_decade',
+                    'output_filter_hz', 'output_filter_order'):
+            if key in noise.fields.shared:      # the filter: when the record shows one
+                changes[key] = noise.fields.shared[key]
+                layout[key] = YamlKey(key)
         names = _switch_names(layout) + [t for t in sorted(noise.fields.terms_on)
                                          if t not in _switch_names(layout)]
         switches = dict.fromkeys(noise.fields.terms_on, True)
@@ -146,7 +155,55 @@ class ExtendedModel:
         config = _checked(replace, self.config, terms=replace(self.config.terms, **switches),
                           **changes)
         header = self.header + ''.join(f'# {line}\n' for line in noise.comment_lines())
+        return replace(self, config=config, layout=tuple(layout.values()), header=header,
+                       noise=True)
+
+    def with_accel_noise(self, accel):
+        """
+        Return this model with the record's accelerometer noise (``record_noise.identify_accel``).
+
+        ``accel`` None (the record has no accelerometer) changes nothing. The
+        accelerometer's N, B, K, turn-on bias, flicker band and LSB replace the
+        starting configuration's, with the same switches as ``calibrate noise
+        --format preset`` (mechanical_noise off); its other settings (range,
+        temperature terms) stay. Not identified, the header says why.
+        """
+        if accel is None:
+            return self
+        header = self.header + ''.join(f'# {line}\n' for line in accel.comment_lines())
+        if accel.fields is None:
+            return replace(self, header=header)
+        start = self.config.accelerometer
+        changes = {name: tuple(v[name] for v in _per_axis(accel.fields.per_axis))
+                   for name in next(iter(accel.fields.per_axis.values()))}
+        changes.update(accel.fields.shared)
+        changes['terms'] = replace(start.terms, mechanical_noise=False, **dict.fromkeys(
+            accel.fields.terms_on, True))
+        accelerometer = _checked(replace, start, **changes)
+        config = _checked(replace, self.config, accelerometer=accelerometer)
+        layout = {key.name: key for key in self.layout}
+        layout['accelerometer'] = _accel_key(layout.get('accelerometer'), changes)
         return replace(self, config=config, layout=tuple(layout.values()), header=header)
+
+
+def _per_axis(per_axis):
+    """Return the three axes' fields of a calibration: an axis it lacks copies the first."""
+    return [per_axis.get(a) or next(iter(per_axis.values())) for a in AXES]
+
+
+def _accel_key(start, changes):
+    """
+    Return the ``accelerometer`` key: the starting one's settings, then ``changes`` (SI names).
+
+    A starting setting ``changes`` replaces, directly or through a datasheet
+    alias, is dropped; the switches are written whole.
+    """
+    given = {} if start is None or start.given is None else dict(start.given)
+    replaced = set(changes)
+    parts = [YamlKey(k, given=v) for k, v in given.items() if k != 'terms' and
+             (ACCEL_ALIASES[k][0] if k in ACCEL_ALIASES else k) not in replaced]
+    return YamlKey('accelerometer', parts=(YamlKey('terms'), *parts,
+                                           *(YamlKey(n) for n in changes if n != 'terms')))
 
 
 def _checked(make, *args, **kwargs):
@@ -324,13 +381,29 @@ def extended_model(diagnosis, config, axis='z', config_name='paper', device=None
                          _header(diagnosis, config_name, axis, active), axis, tuple(commented))
 
 
-def _comments(axis):
-    others = ', '.join(a for a in AXES if a != axis)
-    per_axis = f'diagnosed axis {axis}; {others} 0: not measured'
-    out = {name: per_axis for kinds in TERMS.values() for name, kind in kinds.items()
-           if kind == 'axis'}
-    out.update({'bias_temp_coeff_rad_s_k': per_axis, 'bias_temp_coeff2_rad_s_k2': per_axis,
-                'g_sensitivity_rad_s_m_s2': f'row {axis}: diagnosed axis',
+#: Per-axis fields ``with_noise`` writes for the diagnosed axis.
+NOISE_FIELDS = ('electronics_noise_rad_s_sqrt_hz', 'bias_instability_rad_s',
+                'rate_random_walk_rad_s_sqrt_s', 'turn_on_bias_rad_s', 'lsb_rad_s')
+
+
+def _per_axis_comment(config, name, axis):
+    """Say what the diagnosed axis's value is and, truly, where the other axes' come from."""
+    others = [a for a in AXES if a != axis]
+    values = [getattr(config, name)] if hasattr(config, name) else []
+    values += [getattr(t, name) for t in (getattr(config.extended, n) for n in TERM_TYPES)
+               if t is not None and hasattr(t, name)]
+    if all(v[AXES.index(a)] == 0.0 for v in values for a in others):
+        return f'diagnosed axis {axis}; {", ".join(others)} 0: not measured'
+    return (f"diagnosed axis {axis}; {', '.join(others)}: the starting configuration's, not "
+            'measured here')
+
+
+def _comments(axis, config, noise=False):
+    names = [name for kinds in TERMS.values() for name, kind in kinds.items() if kind == 'axis']
+    names += ['bias_temp_coeff_rad_s_k', 'bias_temp_coeff2_rad_s_k2']
+    names += list(NOISE_FIELDS) if noise else []
+    out = {name: _per_axis_comment(config, name, axis) for name in names}
+    out.update({'g_sensitivity_rad_s_m_s2': f'row {axis}: diagnosed axis',
                 'start_time_s': 'record time of the first sample, s',
                 'time_origin_s': "mid-record: the origin of diagnose's time polynomials, s",
                 'ref_temp_c': "diagnose's reference temperature, C",
@@ -378,8 +451,5 @@ def write_text(path, text, overwrite=False):
 
 
 def check_target(path, overwrite):
-    """Raise ValueError for an existing ``path`` unless ``overwrite``."""
-    if os.path.exists(path) and not overwrite:
-        raise ValueError(f'{path} exists: give --overwrite to replace it')
-    if os.path.isdir(path):
-        raise ValueError(f'{path} is a directory: give a file name')
+    """Raise ValueError for an existing ``path`` unless ``overwrite`` (one check: outputs)."""
+    outputs.check([outputs.file('--write-config', path)], overwrite=overwrite)

@@ -40,7 +40,7 @@ from gyro_emulator.physics import params as physics_params
 from gyro_emulator.resources import read_yaml
 from gyro_emulator.sensor.config import device_from_spec, field_ranges, load_sensor_config
 from gyro_emulator.sensor.extensions import ExtendedTerms, TERM_TYPES
-from gyro_emulator.validation import check_range, check_temperature_c
+from gyro_emulator.validation import check_range, check_temperature_c, quote
 
 #: Device parameter groups and the component of the Device each one names.
 DEVICE_GROUPS = ('geometry', 'material', 'gas', 'drive')
@@ -172,7 +172,7 @@ def _fail(where, message):
 
 def _mapping(where, value, allowed=None):
     if not isinstance(value, dict):
-        _fail(where, f'{value!r} is not allowed: expected a mapping')
+        _fail(where, f'{quote(value)} is not allowed: expected a mapping')
     if allowed is not None:
         unknown = sorted(set(map(str, value)) - set(allowed))
         if unknown:
@@ -184,7 +184,7 @@ def _mapping(where, value, allowed=None):
 def _number(where, value):
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
             value):
-        _fail(where, f'{value!r} is not a finite number')
+        _fail(where, f'{quote(value)} is not a finite number')
     return float(value)
 
 
@@ -199,14 +199,14 @@ def amount(where, value):
 
     """
     if isinstance(value, str) and not value.strip().endswith('%'):
-        _fail(where, f'{value!r} is not a number or a percentage such as "2%"')
+        _fail(where, f'{quote(value)} is not a number or a percentage such as "2%"')
     if isinstance(value, str):
         try:
             number = float(value.strip()[:-1])
         except ValueError:
-            _fail(where, f'{value!r} is not a number or a percentage such as "2%"')
+            _fail(where, f'{quote(value)} is not a number or a percentage such as "2%"')
         if not math.isfinite(number):
-            _fail(where, f'{value!r} is not finite')
+            _fail(where, f'{quote(value)} is not finite')
         return number / 100.0, True
     return _number(where, value), False
 
@@ -243,7 +243,7 @@ def _extended(raw):
         for param, (kind, *_rest) in term.RANGES.items():
             value = getattr(term, param)
             if kind == 'axis' and len(set(value)) != 1:
-                _fail(f'extended.{name}.{param}', f'{list(value)!r} is not allowed: a fleet '
+                _fail(f'extended.{name}.{param}', f'{quote(list(value))} is not allowed: a fleet '
                                                   'part has one read-out axis: give one number')
     return ext
 
@@ -283,19 +283,19 @@ def _parameter(where, name, parameters, device):
                      'pressures, material constants and electronics terms')
     if name.startswith(EXTENDED):
         _extended_unknown(where, name, parameters)
-    _fail(where, f'unknown parameter {name!r}; allowed: {", ".join(sorted(parameters))}')
+    _fail(where, f'unknown parameter {quote(name)}; allowed: {", ".join(sorted(parameters))}')
 
 
 def _extended_unknown(where, name, parameters):
     """Fail on an unknown ``extended.<term>.<param>``: name the term or its parameters."""
     term, _, param = name[len(EXTENDED):].partition('.')
     if term not in TERM_TYPES:
-        _fail(where, f'unknown extended term {term!r}; allowed: {", ".join(TERM_TYPES)}')
+        _fail(where, f'unknown extended term {quote(term)}; allowed: {", ".join(TERM_TYPES)}')
     allowed = [k for k in parameters if k.startswith(f'{EXTENDED}{term}.')]
     if not allowed:
         _fail(where, f"extended.{term} is not on in the fleet's extended: mapping: give "
                      'the term and its nominal values there')
-    _fail(where, f'unknown parameter {param!r} of extended.{term}; allowed: '
+    _fail(where, f'unknown parameter {quote(param)} of extended.{term}; allowed: '
                  f'{", ".join(k.rsplit(".", 1)[1] for k in allowed)}')
 
 
@@ -304,11 +304,11 @@ def _distribution(where, value, allowed_extra=()):
     _mapping(where, value, ('normal', 'uniform') + tuple(allowed_extra))
     kinds = [k for k in ('normal', 'uniform') if k in value]
     if len(kinds) != 1:
-        _fail(where, f'{value!r} is not allowed: give exactly one of normal (sigma) or '
+        _fail(where, f'{quote(value)} is not allowed: give exactly one of normal (sigma) or '
                      'uniform (half width)')
     scale, relative = amount(f'{where}.{kinds[0]}', value[kinds[0]])
     if scale < 0.0:
-        _fail(f'{where}.{kinds[0]}', f'{value[kinds[0]]!r} is out of range: allowed >= 0')
+        _fail(f'{where}.{kinds[0]}', f'{quote(value[kinds[0]])} is out of range: allowed >= 0')
     return kinds[0], scale, relative
 
 
@@ -359,7 +359,7 @@ def _specs(raw, exact, key='specs'):
             _fail(where, 'is a check of the first-order model, not a part spec: put it '
                          'under model_checks (reported apart, not in the yield)')
         if metric not in allowed:
-            _fail(key, f'unknown metric {metric!r}; allowed: {", ".join(allowed)}')
+            _fail(key, f'unknown metric {quote(metric)}; allowed: {", ".join(allowed)}')
         if metric in EXACT_METRICS and not exact:
             _fail(where, 'needs the exact 2-DOF evaluation: set exact: true')
         bounds = _mapping(where, value, ('min', 'max', 'abs_max'))
@@ -370,13 +370,13 @@ def _specs(raw, exact, key='specs'):
                 _fail(where, 'abs_max cannot be combined with min or max')
             high = _number(f'{where}.abs_max', bounds['abs_max'])
             if high < 0.0:
-                _fail(f'{where}.abs_max', f'{high!r} is out of range: allowed >= 0')
+                _fail(f'{where}.abs_max', f'{quote(high)} is out of range: allowed >= 0')
             out.append(Spec(str(metric), 0.0, high, True))
             continue
         low = _number(f'{where}.min', bounds['min']) if 'min' in bounds else -math.inf
         high = _number(f'{where}.max', bounds['max']) if 'max' in bounds else math.inf
         if low > high:
-            _fail(where, f'min {low!r} is above max {high!r}')
+            _fail(where, f'min {quote(low)} is above max {quote(high)}')
         out.append(Spec(str(metric), low, high, False))
     return tuple(out)
 
@@ -385,11 +385,11 @@ def _temperatures(raw, calibration_temp_c):
     if raw is None:
         raw = [-40.0, -20.0, 0.0, 25.0, 45.0, 65.0, 85.0]
     if not isinstance(raw, list) or not raw:
-        _fail('temperatures_c', f'{raw!r} is not allowed: expected a list of temperatures, C')
+        _fail('temperatures_c', f'{quote(raw)} is not allowed: expected a list of temperatures, C')
     temps = tuple(_number(f'temperatures_c[{i}]', t) for i, t in enumerate(raw))
     check_temperature_c(temps, 'fleet', 'temperatures_c')
     if len(set(temps)) != len(temps) or len(temps) < 2:
-        _fail('temperatures_c', f'{list(temps)!r} is not allowed: give at least two '
+        _fail('temperatures_c', f'{quote(list(temps))} is not allowed: give at least two '
                                 'different temperatures')
     check_temperature_c(calibration_temp_c, 'fleet', 'calibration_temp_c')
     return tuple(sorted(temps))
@@ -402,7 +402,7 @@ def _sensor_runs(raw):
     raw = _mapping(where, raw, ('devices', 'duration_s', 'rate_hz', 'config'))
     devices = raw.get('devices', 8)
     if isinstance(devices, bool) or not isinstance(devices, int):
-        _fail(f'{where}.devices', f'{devices!r} is not a whole number')
+        _fail(f'{where}.devices', f'{quote(devices)} is not a whole number')
     check_range(where, 'devices', devices, 1, 1024, '', low_open=False)
     duration = check_range(where, 'duration_s', _number(f'{where}.duration_s',
                                                         raw.get('duration_s', 600.0)),
@@ -449,13 +449,13 @@ def config_from_mapping(mapping, source=''):
                     param.low_open)
     exact = raw.get('exact', False)
     if not isinstance(exact, bool):
-        _fail('exact', f'{exact!r} is not allowed: choose true or false')
+        _fail('exact', f'{quote(exact)} is not allowed: choose true or false')
     invalid = raw.get('invalid', 'reject')
     if invalid not in ('reject', 'clip'):
-        _fail('invalid', f'{invalid!r} is not allowed: choose reject or clip')
+        _fail('invalid', f'{quote(invalid)} is not allowed: choose reject or clip')
     attribution = raw.get('attribution_devices', 65536)
     if isinstance(attribution, bool) or not isinstance(attribution, int):
-        _fail('attribution_devices', f'{attribution!r} is not a whole number')
+        _fail('attribution_devices', f'{quote(attribution)} is not a whole number')
     check_range('fleet', 'attribution_devices', attribution, 0, 1 << 16, '', low_open=False)
     fraction = check_range('fleet', 'sense_limit_fraction', _number(
         'sense_limit_fraction', raw.get('sense_limit_fraction', 0.1)), 0.0, 1.0, '')
@@ -473,5 +473,5 @@ def config_from_mapping(mapping, source=''):
 def load_fleet_config(path):
     """Read and validate a fleet YAML file (see :func:`config_from_mapping`)."""
     if not os.path.isfile(str(path)):
-        raise ValueError(f'fleet YAML {str(path)!r} is not a readable file')
+        raise ValueError(f'fleet YAML {quote(str(path))} is not a readable file')
     return config_from_mapping(read_yaml(path), source=str(path))

@@ -63,9 +63,12 @@ class FleetIncomplete(RuntimeError):
     """A fleet that could not finish; its finished tasks are kept for ``--resume``."""
 
 
+#: What a fleet writes in its output directory.
+OUTPUTS = ('devices', 'summary.json', 'plots', state.STATE_DIR)
+
+
 def _earlier(out_dir):
-    return [os.path.join(out_dir, name) for name in ('devices', 'summary.json', 'plots',
-                                                     state.STATE_DIR)
+    return [os.path.join(out_dir, name) for name in OUTPUTS
             if os.path.exists(os.path.join(out_dir, name))]
 
 

@@ -19,9 +19,11 @@ break a cross-field rule are rejected.
 """
 
 from dataclasses import dataclass, replace
+from types import SimpleNamespace
 
 from gyro_emulator import validation
 from gyro_emulator.analysis.fleet.config import DEVICE_GROUPS, MISMATCH
+from gyro_emulator.physics import params
 import numpy as np
 
 #: Devices per block: the unit of seeding (part of the seeded-output contract).
@@ -138,11 +140,21 @@ def checked(config, values, n):
 
 
 def _cross_field(config, values, n):
-    """Parts breaking a rule between fields: holes larger than the plate, beams <= 0."""
+    """
+    Return the parts that break a rule between fields.
+
+    Holes larger than the plate, beams <= 0, a Young's modulus that falls
+    below its floor at a model temperature.
+    """
     g = config.device.geometry
     side = _param_or(values, 'geometry.plate_side_m', g.plate_side_m)
     hole = _param_or(values, 'geometry.hole_side_m', g.hole_side_m)
     bad = np.asarray(g.hole_count * hole ** 2 >= side ** 2)
+    m = config.device.material
+    drawn = {name: _param_or(values, 'material.' + name, getattr(m, name)) for name in (
+        'youngs_modulus_pa', 'youngs_ref_temp_c', 'youngs_temp_coeff_pa_k')}
+    bad = bad | (params.lowest_youngs_modulus_pa(SimpleNamespace(
+        youngs_modulus_law=m.youngs_modulus_law, **drawn)) < params.MIN_YOUNGS_MODULUS_PA)
     delta = _param_or(values, MISMATCH, config.parameters[MISMATCH].nominal)
     for width in ('beam1_width_m', 'beam2_width_m'):
         bad = bad | (_param_or(values, 'geometry.' + width, getattr(g, width)) + delta <= 0.0)

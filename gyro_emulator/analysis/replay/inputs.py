@@ -10,7 +10,14 @@ the error model from a bag:
   commands at their stamps). When the rate commands are themselves a regular
   stream at the sample rate, their stamps are the sample times.
 - ``imu`` source: the ``angular_velocity`` of a real robot's sensor_msgs/Imu
-  is taken as the true rate, one emulated sample per recorded message.
+  (or a simulator's) is taken as the true rate, one emulated sample per
+  recorded message, and its ``linear_acceleration`` (unless marked absent,
+  REP 145) as the true specific force.
+
+The model is an :class:`~gyro_emulator.sensor.imu.ImuModel`: the gyro and
+the accelerometer both see that specific force; a bag without one leaves it
+to the motion (gravity turning with the replayed rate from a level start,
+:mod:`gyro_emulator.emulation.profiles`).
 
 The emulated output is compared with the measured one (the bag's
 ``imu/data_raw``, or the real IMU itself): residual statistics per axis and
@@ -25,7 +32,7 @@ from gyro_emulator.emulation.profiles import SampledProfile
 from gyro_emulator.emulation.run_profile import OwnSamples, run_over_profile
 from gyro_emulator.recording import record
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
-from gyro_emulator.sensor.model import GyroModel, SensorBatch
+from gyro_emulator.sensor.imu import ImuBatch, ImuModel
 from gyro_emulator.units import AXES, NS_PER_S
 from gyro_emulator.validation import check_choice, check_range
 import numpy as np
@@ -52,7 +59,7 @@ class ReplayInputs:
     temp_c : numpy.ndarray, shape (N,)
         Ambient temperature at each sample, deg C.
     accel_m_s2 : numpy.ndarray, shape (N, 3), or None
-        Specific force at each sample, m/s^2.
+        Specific force at each sample, m/s^2 (None: left to the motion).
     rate_hz : float
         Model sample rate, Hz.
     measured_stamp_ns : numpy.ndarray of int64 or None
@@ -81,11 +88,9 @@ class ReplayInputs:
     notes: list = field(default_factory=list)
 
     def profile(self):
-        """Return the inputs as a sampled profile on the stamps (no specific force: zero)."""
-        accel = np.zeros((len(self.stamp_ns), 3)) if self.accel_m_s2 is None \
-            else self.accel_m_s2
+        """Return the inputs as a sampled profile on the stamps (specific force as given)."""
         return SampledProfile(f'replay:{self.source}', self.stamp_ns / NS_PER_S,
-                              self.rate_rad_s, self.temp_c, accel)
+                              self.rate_rad_s, self.temp_c, self.accel_m_s2)
 
 
 def hold(source_stamp_ns, source_values, query_ns, tolerance_ns, before=None):
@@ -280,7 +285,7 @@ def emulate(inputs, config, seed):
 
     The inputs are a sampled profile run at its own samples by the one
     chunk loop (:func:`gyro_emulator.emulation.run_profile.run_over_profile`);
-    without a specific-force topic the model gets none.
+    without a specific-force topic the specific force comes from the motion.
 
     Parameters
     ----------
@@ -293,15 +298,14 @@ def emulate(inputs, config, seed):
 
     Returns
     -------
-    model : GyroModel
+    model : gyro_emulator.sensor.imu.ImuModel
         The model after the run.
-    batch : gyro_emulator.sensor.model.SensorBatch
-        One output per input sample.
+    batch : gyro_emulator.sensor.imu.ImuBatch
+        One output per input sample (gyro and accelerometer).
 
     """
     if not isinstance(config, SensorConfig):
         config = load_sensor_config(config)
-    model = GyroModel(config, inputs.rate_hz, np.random.default_rng(int(seed)))
-    chunks = run_over_profile(model, OwnSamples(inputs.profile()),
-                              specific_force=inputs.accel_m_s2 is not None)
-    return model, SensorBatch.concatenate([chunk.batch for chunk in chunks])
+    model = ImuModel(config, inputs.rate_hz, np.random.default_rng(int(seed)))
+    chunks = run_over_profile(model, OwnSamples(inputs.profile()))
+    return model, ImuBatch.concatenate([chunk.batch for chunk in chunks])

@@ -13,13 +13,19 @@ import os
 
 from gyro_emulator.analysis.replay.inputs import emulate, load_inputs
 from gyro_emulator.analysis.replay.report import compare, report_text, write_report
-from gyro_emulator.emulation.emulator_bag import white_noise_sigma, write_output_bag
+from gyro_emulator.emulation.emulator_bag import noise_sigmas, write_output_bag
+from gyro_emulator.emulation.simulate import staged_output
 from gyro_emulator.recording import record
 from gyro_emulator.recording.files import inside_bag
 from gyro_emulator.sensor.config import load_sensor_config, PRESET_NAMES
+from gyro_emulator.sensor.streams import seed_from_name
 
 #: Sensor configuration when neither the caller nor the bag names one.
 DEFAULT_CONFIG = 'paper'
+#: The node's ``seed`` that means "from the node's fully qualified name".
+SEED_FROM_NAME = -1
+#: What ``DIR`` holds after a replay (``emulated`` is the bag).
+OUTPUTS = ('emulated', 'report.md', 'report.json', 'rates.png', 'residual.png', 'allan.png')
 
 
 @dataclass(frozen=True)
@@ -57,13 +63,28 @@ def bag_config(reader):
 
 
 def _bag_seed(reader):
-    """Return the seed a bag's ``custom_data`` gives (0 without one)."""
+    """
+    Return the seed a bag's ``custom_data`` gives (0 without one).
+
+    A node recording stores its ``seed`` parameter: -1 means the node drew its
+    seed from its fully qualified name (``streams.seed_from_name``), which is
+    taken from ``custom_data`` ``node`` when the bag holds it; without it the
+    seed cannot be known and the error says how to give it.
+    """
     value = reader.custom_data.get('seed', '0')
     try:
-        return int(value)
+        seed = int(value)
     except ValueError:
         raise ValueError(f"the bag's custom_data seed {value[:40]!r} is not an integer "
                          '(choose one with --seed)') from None
+    if seed == SEED_FROM_NAME and reader.custom_data.get('node'):
+        return seed_from_name(reader.custom_data['node'])
+    if seed < 0:
+        raise ValueError(f"the bag's custom_data seed = {seed}: the node drew its seed from "
+                         'its name, which this bag does not record; give --seed N with the '
+                         "seed the node logged at start ('seed N (from the node name)'), or "
+                         'any N >= 0 for fresh noise')
+    return seed
 
 
 def _ignore(note):
@@ -115,6 +136,8 @@ def replay_bag(bag_path, out_dir, config=None, seed=None, plots=True, overwrite=
     bag_dir = os.path.join(out_dir, 'emulated')
     if os.path.isdir(bag_dir) and os.listdir(bag_dir) and not overwrite:
         raise FileExistsError(f'{bag_dir} exists and is not empty (pass --overwrite)')
+    if seed is not None and seed < 0:
+        raise ValueError(f'replay.seed = {seed} is out of range: allowed >= 0')
     config_name = config or bag_config(reader)
     seed = seed if seed is not None else _bag_seed(reader)
     sensor_config = load_sensor_config(config_name)
@@ -126,11 +149,13 @@ def replay_bag(bag_path, out_dir, config=None, seed=None, plots=True, overwrite=
     comparison = compare(inputs, batch)
     header = [f'bag: {os.path.abspath(bag_path)}', f'sensor config: {config_name}',
               f'seed: {seed}'] + [f'recovered: {note}' for note in reader.problems]
-    sigma = white_noise_sigma(sensor_config, inputs.rate_hz)
-    write_output_bag(bag_dir, inputs, batch, comparison, sigma, custom_data={
-        'generator': 'gyro-emulator replay', 'source_bag': os.path.abspath(bag_path),
-        'sensor_config': str(config_name), 'seed': str(seed),
-        'rate_hz': repr(inputs.rate_hz), 'source': inputs.source})
+    sigma, accel_sigma = noise_sigmas(sensor_config, inputs.rate_hz)
+    with staged_output(bag_dir, overwrite) as partial:     # complete or absent
+        write_output_bag(partial, inputs, batch, comparison, sigma, custom_data={
+            'generator': 'gyro-emulator replay', 'source_bag': os.path.abspath(bag_path),
+            'sensor_config': str(config_name), 'seed': str(seed),
+            'rate_hz': repr(inputs.rate_hz), 'source': inputs.source},
+            accel_sigma_m_s2=accel_sigma, name=os.path.abspath(bag_dir))
     paths = write_report(out_dir, comparison, inputs, header, plots=plots)
     return ReplayRun(bag_dir=bag_dir, samples=len(inputs.stamp_ns),
                      report=report_text(comparison, inputs, header), paths=paths)

@@ -9,6 +9,7 @@ node receives and the samples it publishes; its records are in
 simulator message), :mod:`.commands` (input checks and stamped command
 streams), :mod:`.block_stepper` (the model at block cost),
 :mod:`.fault_state` (the injected fault on the clock), :mod:`.record_clock`
-(the extended terms' record time), :mod:`.parameters` (the parameter table
-and checks) and :mod:`.book` (the diagnostics counters).
+(the extended terms' record time), :mod:`.bias_calibration` (the start-up
+bias calibration), :mod:`.parameters` (the parameter table and checks) and
+:mod:`.book` (the diagnostics counters).
 """

@@ -5,16 +5,19 @@ The driver's counters and the diagnostics status they give (no ROS imports).
 inputs and model errors; :meth:`DiagnosticsBook.report` turns the counts
 since the previous report and the node's current situation into one status:
 
-* ERROR: the model raised on a sample in the period (nothing published),
-  an injected fault that invalidates the output is acting (stuck, dropout,
-  saturate), or the self-recording (``record_dir``) stopped on a write error
-  (a full disk); the node keeps publishing.
+* ERROR: the model raised on a sample in the period, or gave a non-finite
+  one (nothing published for either), an injected fault that invalidates
+  the output is acting (stuck, dropout, saturate), or the self-recording
+  (``record_dir``) stopped on a write error (a full disk); the node keeps
+  publishing.
 * WARN: an injected fault that degrades the output is acting (bias_step,
   drift, spike, noise_burst), stale rate command, inputs rejected or temperatures clamped in the
   period, samples dropped by the overrun policy in the period, saturation in
   the period, or (wall clock only) an achieved rate below 90 % of ``rate_hz``.
 * OK otherwise.
 
+Events (:meth:`DiagnosticsBook.event`: a clock jump, the end of the start-up
+bias calibration) are said once, in the next report, at their own level.
 Counters in the key/values are cumulative since start; the message names
 what happened in the last period.
 """
@@ -49,12 +52,16 @@ class DiagnosticsBook:
         self.saturated = [0, 0, 0]
         self.model_errors = 0
         self.last_model_error = ''
+        self.nonfinite = 0
+        self.last_nonfinite = ''
         self.dropped = 0
+        self.clock_jumps = 0
+        self._events = []
         self._mark = self._snapshot()
 
     def _snapshot(self):
         return (dict(self.rejected), dict(self.clamped), self.samples,
-                list(self.saturated), self.model_errors, self.dropped)
+                list(self.saturated), self.model_errors, self.dropped, self.nonfinite)
 
     def drop(self, count):
         """Count samples the overrun policy dropped (due, never published)."""
@@ -80,6 +87,20 @@ class DiagnosticsBook:
         self.model_errors += 1
         self.last_model_error = text
 
+    def non_finite(self, text):
+        """Count one sample withheld because the model gave a NaN or an infinity."""
+        self.nonfinite += 1
+        self.last_nonfinite = text
+
+    def clock_jump(self, text):
+        """Count one jump of the clock (the samples' time line) and say it once."""
+        self.clock_jumps += 1
+        self.event(WARN, text)
+
+    def event(self, level, text):
+        """Say ``text`` once, in the next report, at ``level`` (OK, WARN or ERROR) at least."""
+        self._events.append((level, text))
+
     def report(self, elapsed_s, rate_hz, situation, check_rate=True):
         """
         Close the period and return a :class:`Report`.
@@ -98,14 +119,22 @@ class DiagnosticsBook:
             Warn on a low achieved rate (False under use_sim_time).
 
         """
-        rejected0, clamped0, samples0, saturated0, errors0, dropped0 = self._mark
+        rejected0, clamped0, samples0, saturated0, errors0, dropped0, nonfinite0 = self._mark
         self._mark = self._snapshot()
+        events, self._events = self._events, []
         achieved = (self.samples - samples0) / elapsed_s if elapsed_s > 0 else 0.0
         level, notes = OK, []
         errors = self.model_errors - errors0
         if errors:
             level = ERROR
             notes.append(f'model refused {errors} sample(s): {self.last_model_error}')
+        nonfinite = self.nonfinite - nonfinite0
+        if nonfinite:
+            level = ERROR
+            notes.append(f'{nonfinite} non-finite sample(s) withheld: {self.last_nonfinite}')
+        for event_level, text in events:
+            level = max(level, event_level)
+            notes.append(text)
         if situation.get('recording_error'):
             level = ERROR
             notes.append(f'recording stopped: {situation["recording_error"]}')
@@ -150,5 +179,7 @@ class DiagnosticsBook:
         values += [('clamped.' + r, n) for r, n in self.clamped.items()]
         values.append(('rejected_total', sum(self.rejected.values())))
         values.append(('model_errors', self.model_errors))
+        values.append(('nonfinite_samples', self.nonfinite))
+        values.append(('clock_jumps', self.clock_jumps))
         message = '; '.join(notes) if notes else 'OK'
         return Report(level, message, tuple(values))

@@ -22,7 +22,14 @@ decides, on integer-nanosecond times:
   never at or before the previous stamp;
 * a clock that jumps back, or ahead beyond the longest gap, restarts the
   filters and forgets the command stamps; the fault clock and the extended
-  terms' record time (:mod:`.record_clock`) follow the jump;
+  terms' record time (:mod:`.record_clock`) follow the jump, or the record
+  time is re-anchored when it cannot (a jump of 1e9 s); each jump is
+  counted and said once on ``/diagnostics``;
+* a sample the model gives with a NaN or an infinity anywhere in what
+  would be published is withheld: counted, logged (throttled) and an ERROR
+  on ``/diagnostics``;
+* the start-up bias calibration (``startup_bias_calibration``,
+  :mod:`.bias_calibration`);
 * the injected fault (:mod:`.fault_state`) and its changes;
 * the model, stepped at block cost (:mod:`.block_stepper`);
 * parameter changes as one transaction: :meth:`Driver.prepare` validates
@@ -32,11 +39,14 @@ decides, on integer-nanosecond times:
 """
 
 import logging
+import math
 import time
 
 from gyro_emulator.emulation.driver import parameters
+from gyro_emulator.emulation.driver.bias_calibration import (rest_spread_rad_s,
+                                                             StartupBiasCalibration)
 from gyro_emulator.emulation.driver.block_stepper import BlockStepper
-from gyro_emulator.emulation.driver.book import DiagnosticsBook
+from gyro_emulator.emulation.driver.book import DiagnosticsBook, OK, WARN
 from gyro_emulator.emulation.driver.commands import (check_acceleration, check_rate, Commands,
                                                      InputRejected, Throttle)
 from gyro_emulator.emulation.driver.fault_state import FaultState
@@ -46,19 +56,12 @@ from gyro_emulator.emulation.driver.record_clock import RecordClock
 from gyro_emulator.emulation.driver.records import (Applied, FaultReport, GyroChannel, Inputs,
                                                     Output, ParameterChange)
 from gyro_emulator.emulation.driver.sample_clock import SampleClock
-from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import faults
 from gyro_emulator.sensor import model as sensor_model
 from gyro_emulator.units import NS_PER_S
 import numpy as np
 
 ZERO3 = (0.0, 0.0, 0.0)
-
-
-def warm_up():
-    """Load the compiled sensor kernel (numba's cache): one sample of a default model."""
-    config = sensor_config.SensorConfig()
-    sensor_model.GyroModel(config, 100.0, np.random.default_rng(0)).step(ZERO3, 25.0)
 
 
 def _covariance(sigma_rad_s):
@@ -151,6 +154,8 @@ class Driver:
         self._stamps_clamped = 0
         self._last_sample = None
         self._record = RecordClock(values['record_start_clock_s'], self._log.error)
+        self._calibration = StartupBiasCalibration(
+            values['startup_bias_calibration'], self._rest_spread, self._calibrated)
         self._ambient_c = values['initial_temperature_c']
         self._stale = False
         self._sigma_version = None
@@ -351,15 +356,26 @@ class Driver:
         self._temp_every = max(1, int(round(sample_rate_hz
                                             / self.values['temperature_rate_hz'])))
 
-    def _restart(self, why, jump_ns=0, next_ns=None):
-        """Restart the filters after a discontinuity of the time line; say so."""
-        self._fault.shift(jump_ns)
+    def _restart(self, why, shift_ns, next_ns):
+        """
+        Restart the filters after a discontinuity of the time line; count it and say so.
+
+        ``shift_ns`` moves the fault's clock with the time line (a jump back,
+        negative: said in the line); ``next_ns`` is the clock of the next sample.
+        """
+        self._fault.shift(shift_ns)
         self._stepper.sync()
         self._stepper.model.restart_filters()
-        self._record.jumped(self._stepper.model, next_ns)    # the extended terms' time
+        line = f'{why}: command stamps forgotten, filters restarted'
+        if shift_ns:
+            line += f' ({-shift_ns / NS_PER_S:.9g} s back, to {next_ns / NS_PER_S:.9g} s)'
+        reanchored = self._record.jumped(self._stepper.model, next_ns)   # extended terms
+        if reanchored and self._config.extended.active():
+            line += f'; {reanchored}'
         self.streams.reset_clock()
         self._last_stamp_ns = None
-        self._log.warning(f'{why}: command stamps forgotten, filters restarted')
+        self._log.warning(line)
+        self.book.clock_jump(line)
 
     def tick(self, now_ns):
         """
@@ -409,7 +425,7 @@ class Driver:
         return outputs
 
     def _sample(self, inputs, sample_ns, shown_accel):
-        """Step the model once; return its :class:`Output` (None: the model refused)."""
+        """Step the model once; return its :class:`Output` (None: refused or withheld)."""
         self._ambient_c = inputs.ambient_temp_c
         try:
             s = self._stepper.step(inputs.rate_rad_s, inputs.ambient_temp_c, inputs.accel_m_s2)
@@ -417,6 +433,11 @@ class Driver:
             self.book.model_error(str(exc))
             if self._throttle('model_error') is not None:
                 self._log.error(f'model refused the sample: {exc}')
+            return None
+        # One sum: a NaN or an infinity anywhere in what would go out makes it non-finite.
+        if not math.isfinite(sum(s.gyro_rad_s.tolist()) + s.die_temp_c + s.output_delay_s
+                             + sum(s.bias_rad_s.tolist()) + sum(s.scale_factor.tolist())):
+            self._withhold(s)
             return None
         self._last_sample = s
         if self._stepper.sigma_version != self._sigma_version:
@@ -432,6 +453,8 @@ class Driver:
         rate, published, pinned = self._fault.apply(sample_ns, s.gyro_rad_s)
         if published:
             self._last_rate = rate
+            rate = self._calibration.take(rate, inputs.rate_rad_s,
+                                          self._stepper.model.dt_s)
         self._count += 1
         saturated = s.saturated if pinned is None else s.saturated | pinned
         show = self.values['pass_through_linear_acceleration'] or self.imu_mode
@@ -444,6 +467,31 @@ class Driver:
             self._fault_report(sample_ns) if self._fault.changed else None)
         self.book.sample(saturated)
         return out
+
+    def _withhold(self, s):
+        """Count, log (throttled) and report a sample with a NaN or an infinity."""
+        text = (f'the model gave a non-finite sample (rate {tuple(s.gyro_rad_s.tolist())}, '
+                f'die temperature {s.die_temp_c!r} C, bias {tuple(s.bias_rad_s.tolist())}, '
+                f'scale factor {tuple(s.scale_factor.tolist())}, output delay '
+                f'{s.output_delay_s!r} s): not published')
+        self.book.non_finite(text)
+        held = self._throttle('nonfinite')
+        if held is not None:
+            more = f' ({held} similar held back)' if held else ''
+            self._log.error(text + more)
+
+    def _rest_spread(self, duration_s):
+        """Return the spread per axis of the model in force at rest over ``duration_s``."""
+        return rest_spread_rad_s(self._effective_config(), self._stepper.sigma_rad_s,
+                                 duration_s)
+
+    def _calibrated(self, applied, line):
+        """Say the end of the start-up bias calibration (log and /diagnostics)."""
+        if applied:
+            self._log.info(line)
+        else:
+            self._log.warning(line)
+        self.book.event(OK if applied else WARN, line)
 
     # --- behind a simulator: one sample per imu/ideal message ----------------
 
@@ -549,6 +597,7 @@ class Driver:
             'model_calls': self._stepper.model_calls,
             'model_rewinds': self._stepper.rewinds,
             'stamps_clamped': self._stamps_clamped,
+            'record_time_reanchors': self._record.reanchors,
             'sensor_config': values['sensor_config'],
             'seed': self.seed,
         }
@@ -564,6 +613,7 @@ class Driver:
         if recording is not None:
             out['recording'], out['recording_error'] = recording
         out.update(self._fault.situation())
+        out.update(self._calibration.situation())
         return out
 
     def report(self, elapsed_s, situation, check_rate=True):
@@ -575,7 +625,8 @@ class Driver:
         """One line of totals for the shutdown log."""
         book = self.book
         line = (f'{book.samples} samples, {sum(book.rejected.values())} inputs rejected, '
-                f'{sum(book.clamped.values())} clamped, {book.model_errors} model errors')
+                f'{sum(book.clamped.values())} clamped, {book.model_errors} model errors, '
+                f'{book.nonfinite} non-finite withheld, {book.clock_jumps} clock jumps')
         clock = self._samples
         if clock is not None and clock.due_total:
             line += (f', {clock.caught_up} caught up, {clock.dropped} dropped '

@@ -161,6 +161,11 @@ NODE_PARAMS = (
     ParamSpec('record_start_clock_s', 'double', 'Node-clock time of record time '
               'extended.start_time_s of the sensor_config (the time line of its '
               'extended terms), s; negative: the first sample', True, -1.0, 1e12),
+    ParamSpec('startup_bias_calibration', 'double', 'Seconds at rest at the start over '
+              'which the gyro bias is estimated (the mean) and then removed from imu/data_raw, '
+              "as a driver's start-up calibration does; not applied if the commanded rate "
+              'is not zero or the spread says motion (/diagnostics says which); the truth '
+              'topics keep the true bias; 0 = off, s', True, 0.0, 3600.0),
     ParamSpec('record_dir', 'string', 'Record inputs, outputs and truth into an MCAP '
               'bag in this directory (gyro_emulator.ros.self_record); empty = off', True),
     ParamSpec('fault.type', 'string', 'Injected fault (sensor.faults): none, stuck, '
@@ -183,6 +188,8 @@ NODE_SPECS = {spec.name: spec for spec in NODE_PARAMS}
 SENSOR_DESCRIPTIONS = {
     'extended': 'Extended terms (sensor.extensions: the causes diagnose names); structural: '
                 'set in the sensor_config YAML under extended:, not a runtime parameter',
+    'accelerometer': 'The accelerometer (sensor.accel); structural: set in the sensor_config '
+                     'YAML under accelerometer:, not a runtime parameter',
     'device': 'Physics device of every axis: a physics preset name (paper, '
               'paper_sutherland, paper_sealed); empty = the sensor_config one',
     'mode_split_hz': 'Drive/sense frequency split of the sense dynamics (x, y, z), Hz',
@@ -278,9 +285,10 @@ def _check_triple(spec, value):
 
 def _config_fields():
     # ``extended`` (sensor.extensions) is structural: it comes from the
-    # sensor_config YAML only and is not a runtime parameter.
+    # sensor_config YAML only and is not a runtime parameter; so, for now, is
+    # the ``accelerometer`` (sensor.accel).
     return [f.name for f in fields(sensor_config.SensorConfig)
-            if f.name not in ('terms', 'extended')]
+            if f.name not in ('terms', 'extended', 'accelerometer')]
 
 
 def sensor_param_values(config):

@@ -1,0 +1,107 @@
+"""
+The node as a real process where its time line breaks or its part is calibrated.
+
+* ``/clock`` jumping +-1e9 s (a bag replayed with epoch stamps after a
+  simulator, then a simulator again): the node keeps publishing, counts the
+  jumps and says them on ``/diagnostics``.
+* ``startup_bias_calibration``: the turn-on bias leaves ``imu/data_raw``,
+  stays on the truth topic, and ``/diagnostics`` says the estimate.
+
+Every wait polls with a timeout; nothing sleeps for synchronisation.
+"""
+
+from conftest import ros_env
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Vector3Stamped
+import numpy as np
+import pytest
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import Imu
+from test_node import diag_values, NodeProcess, Probe, stamp_ns, vector
+
+NS = 1_000_000_000
+pytestmark = pytest.mark.ros
+
+
+def test_clock_jumps_of_plus_minus_1e9_s_keep_the_node_publishing(tmp_path):
+    """/clock: 10 s, then 1.7e9 s (epoch), back 1e9 s, ahead 1e9 s, back to 10 s."""
+    env = ros_env()
+    node = NodeProcess(env, str(tmp_path / 'node.log'), '-r', '__ns:=/jumps', '-p',
+                       'use_sim_time:=true', '-p', 'rate_hz:=10.0', '-p',
+                       'diagnostics_period_s:=0.2')
+    probe = Probe(env)
+    try:
+        clock = probe.publisher(Clock, '/clock', 10)
+        imu = probe.listen(Imu, '/jumps/imu/data_raw')
+        diags = probe.listen(DiagnosticArray, '/diagnostics', 50)
+        probe.spin_until(lambda: clock.get_subscription_count() > 0 and
+                         probe.node.count_publishers('/jumps/imu/data_raw') > 0, 60.0,
+                         'the node on the graph')
+
+        def outputs(t0_s, count):
+            """Step the clock by 0.1 s from t0_s; return the stamps of the outputs in that span."""
+            start_ns = int(round(t0_s * NS))
+            for k in range(count):
+                msg = Clock()
+                msg.clock.sec, msg.clock.nanosec = divmod(start_ns + k * NS // 10, NS)
+                seen = len(imu)
+                for _ in range(20):                 # until this tick's output (or 1 s)
+                    clock.publish(msg)
+                    probe.executor.spin_once(timeout_sec=0.05)
+                    if len(imu) > seen:
+                        break
+            end_ns = start_ns + count * NS // 10
+            return [stamp_ns(m.header) for m in imu if start_ns <= stamp_ns(m.header) < end_ns]
+
+        spans = [outputs(t0, 5) for t0 in (10.0, 1.7e9, 0.7e9, 1.7e9 + 10.0, 10.0 + 30.0)]
+        assert node.proc.poll() is None, node.log()
+        probe.spin_until(lambda: any(diag_values(d)[1].get('clock_jumps') == '4'
+                                     for d in diags), 10.0, 'diagnostics after four jumps')
+    finally:
+        probe.close()
+        code = node.stop()
+    log = node.log()
+    assert code == 0 and 'Traceback' not in log and 'Error' not in log, log
+    assert all(len(span) >= 3 for span in spans), [len(s) for s in spans]
+    said = ' '.join(diag_values(d)[0].message for d in diags)
+    assert 'the clock jumped ahead 16999999' in said and 'clock jumped back' in said
+    assert 'model errors' not in said and diag_values(diags[-1])[1]['model_errors'] == '0'
+    assert log.count('command stamps forgotten, filters restarted') == 4
+
+
+def test_startup_bias_calibration_removes_the_turn_on_bias_and_says_it(tmp_path):
+    """The consumer preset's turn-on bias (tenths of a rad/s) is gone after 1 s at rest."""
+    env = ros_env()
+    node = NodeProcess(env, str(tmp_path / 'node.log'), '-r', '__ns:=/cal', '-p',
+                       'sensor_config:=consumer', '-p', 'startup_bias_calibration:=1.0', '-p',
+                       'diagnostics_period_s:=0.2', '-p', 'rate_hz:=200.0')
+    probe = Probe(env)
+    try:
+        imu = probe.listen(Imu, '/cal/imu/data_raw')
+        bias = probe.listen(Vector3Stamped, '/cal/gyro_emulator/truth/bias')
+        diags = probe.listen(DiagnosticArray, '/diagnostics', 50)
+
+        def calibrated():
+            return [values for _, values in map(diag_values, diags)
+                    if values.get('bias_calibration') == 'applied']
+        probe.spin_until(lambda: calibrated() and len(imu) > 600, 60.0,
+                         'the calibration and 2 s of output after it')
+    finally:
+        probe.close()
+        code = node.stop()
+    log = node.log()
+    assert code == 0 and 'Traceback' not in log, log
+    assert 'startup bias calibration over 1 s (200 samples)' in log
+    values = calibrated()[-1]
+    estimate = np.array([float(values[f'bias_calibration.{a}_rad_s']) for a in 'xyz'])
+    assert values['bias_calibration.moved'] == ''
+    # Samples stamped after the window (its 200 samples from the first one on).
+    first_ns = min(stamp_ns(m.header) for m in imu)
+    after = [vector(m.angular_velocity) for m in imu
+             if stamp_ns(m.header) > first_ns + 1.1 * NS]
+    truth = np.array([vector(m.vector) for m in bias])
+    assert np.abs(truth.mean(axis=0)).max() > 0.01      # the part has its turn-on bias ...
+    assert np.abs(estimate).max() > 0.01                # ... the calibration found it ...
+    # ... and it is gone from the output: within 1e-3 rad/s, ten standard errors
+    # of the 200-sample window mean (1e-4 rad/s).
+    assert np.abs(np.mean(after, axis=0)).max() < 1e-3, np.mean(after, axis=0)
