@@ -100,6 +100,13 @@ def versions(log):
                            f'@{phase:.2f}', t, sign * (y[::-1] if reverse else y), phase)
 
 
+def spread(items, count):
+    """Return ``count`` of ``items`` evenly spread through the list (all: None)."""
+    if count is None or count >= len(items):
+        return items
+    return [items[int(i * len(items) / count)] for i in range(count)]
+
+
 def cycles_profile(time_s, phase):
     """Two chamber cycles 15 <-> 55 C starting ``phase`` into a cycle, the part at rest."""
     n = len(time_s)
@@ -136,6 +143,39 @@ def fifty(sizes, found):
     return sizes[0] if found and found[0] >= 0.5 else None
 
 
+def _shares(rows, sizes, key):
+    """Return the found share of ``key`` at each size."""
+    out = []
+    for size in sizes:
+        at = [r[key] for r in rows if r['size_deg_s_k'] == size]
+        out.append(sum(at) / len(at) if at else 0.0)
+    return out
+
+
+def ratio_interval(rows, sizes, draws=2000, seed=0):
+    """
+    Return the 95 % bootstrap interval of diagnose's 50 % point over the anchor's.
+
+    The versions are resampled with replacement (a version keeps all its
+    sizes); a draw where either 50 % point is not reached is counted as
+    unbounded above (diagnose's) or dropped (the anchor's).
+    """
+    rng = np.random.default_rng(seed)
+    labels = sorted({r['version'] for r in rows})
+    by = {v: [r for r in rows if r['version'] == v] for v in labels}
+    ratios = []
+    for _ in range(draws):
+        pick = rng.choice(len(labels), len(labels))
+        sample = [r for i in pick for r in by[labels[i]]]
+        d50 = fifty(sizes, _shares(sample, sizes, 'diagnose'))
+        a50 = fifty(sizes, _shares(sample, sizes, 'anchor_fw'))
+        if a50:
+            ratios.append(np.inf if d50 is None else d50 / a50)
+    if not ratios:
+        return None
+    return tuple(float(q) for q in np.percentile(ratios, [2.5, 97.5]))
+
+
 def table(log, rows):
     """Print the table of one log; return (diagnose's, the family-wise anchor's) 50 % points."""
     sizes = sorted({r['size_deg_s_k'] for r in rows})
@@ -152,8 +192,11 @@ def table(log, rows):
               f' {counts["anchor_fw"]:11d}/{len(at):<3d}')
     d50, a50 = fifty(sizes, share['diagnose']), fifty(sizes, share['anchor_fw'])
     ratio = 'n/a' if d50 is None or not a50 else f'{d50 / a50:.2f}'
+    ci = ratio_interval(rows, sizes)
+    ci_text = 'n/a' if ci is None else f'[{ci[0]:.2f}, {ci[1]:.2f}]'
     print(f'50 % points: diagnose {d50}, anchor alpha/m {a50}, anchor alpha '
-          f'{fifty(sizes, share["anchor"])}; diagnose / anchor alpha/m = {ratio}')
+          f'{fifty(sizes, share["anchor"])}; diagnose / anchor alpha/m = {ratio} '
+          f'(95 % bootstrap over the versions {ci_text})')
     return d50, a50
 
 
@@ -164,7 +207,9 @@ def main():
     ap.add_argument('--sizes', default=None,
                     help='bias tempcos, deg/s/K, comma-separated (default: per log)')
     ap.add_argument('--alpha', type=float, default=0.01)
-    ap.add_argument('--versions', type=int, default=None, help='at most N versions per log')
+    ap.add_argument('--versions', type=int, default=None,
+                    help='at most N versions per log, spread through the list (fewer draws: '
+                         'the bootstrap interval of the ratio says what that costs)')
     ap.add_argument('--out', default='out/study_anchor.jsonl')
     args = ap.parse_args()
     if not os.path.isfile(ADIS) or not os.path.isfile(MPU):
@@ -176,7 +221,7 @@ def main():
     with open(args.out, 'w', encoding='utf-8') as handle:
         for log in args.logs.split(','):
             sizes = [float(s) for s in (args.sizes or SIZES[log]).split(',')]
-            chosen = list(versions(log))[:args.versions]
+            chosen = spread(list(versions(log)), args.versions)
             rows = []
             for label, t, noise, phase in chosen:
                 for size in sizes:
