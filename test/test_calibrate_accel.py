@@ -171,17 +171,20 @@ def test_a_log_in_g_is_refused_naming_accel_scale_which_takes_it(tmp_path, capsy
     path = tmp_path / 'mpu_g.csv'
     csvio.write_csv(str(path), in_g)
     out = tmp_path / 'imu.yaml'
-    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'kalibr', '-o', str(out)],
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'kalibr',
+                      '-o', str(out), '--overwrite'],
                      capsys)
     lines = got.err.strip().splitlines()
     assert code == 2 and len(lines) == 1 and not out.exists()
     assert 'look like g, not m/s^2' in lines[0] and '--accel-scale 9.80665' in lines[0]
-    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'kalibr', '-o', str(out),
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'kalibr',
+                      '-o', str(out), '--overwrite',
                       '--accel-scale', '9.80665'], capsys)
     assert code == 0
     assert 'the logged accelerometer was multiplied by 9.80665 first (--accel-scale)' in got.err
     scaled = yaml.safe_load(out.read_text())
-    code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out)], capsys)
+    code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr',
+                    '-o', str(out), '--overwrite'], capsys)
     direct = yaml.safe_load(out.read_text())
     for key in ('accelerometer_noise_density', 'accelerometer_random_walk'):
         assert scaled[key] == pytest.approx(direct[key], rel=1e-3)
@@ -190,11 +193,13 @@ def test_a_log_in_g_is_refused_naming_accel_scale_which_takes_it(tmp_path, capsy
 @needs_mpu
 def test_magnitude_far_from_g_is_noted_and_the_user_figures_override(tmp_path, capsys):
     out = tmp_path / 'imu.yaml'
-    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out),
+    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr',
+                      '-o', str(out), '--overwrite',
                       '--accel-scale', '0.5'], capsys)
     assert code == 0 and 'from g = 9.80665: is the log static' in got.err
     assert 'from g = 9.80665: is the log static' in out.read_text()
-    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out),
+    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr',
+                      '-o', str(out), '--overwrite',
                       '--accel-noise-density', '2e-3', '--accel-random-walk', '3e-3'], capsys)
     text = out.read_text()
     doc = yaml.safe_load(text)
@@ -209,15 +214,19 @@ def test_magnitude_far_from_g_is_noted_and_the_user_figures_override(tmp_path, c
 @needs_mpu
 def test_rostopic_and_vins_from_the_log(tmp_path, capsys):
     out = tmp_path / 'imu.yaml'
-    code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out)], capsys)
+    code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr',
+                    '-o', str(out), '--overwrite'], capsys)
     assert yaml.safe_load(out.read_text())['rostopic'] == '/imu0'
-    code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'openvins', '-o', str(out),
+    code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'openvins',
+                    '-o', str(out), '--overwrite',
                     '--rostopic', '/mpu/imu'], capsys)
     assert code == 0 and 'rostopic: /mpu/imu' in out.read_text()
-    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr', '-o', str(out),
+    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr',
+                      '-o', str(out), '--overwrite',
                       '--rostopic', 'two words'], capsys)
     assert code == 2 and "--rostopic 'two words' is not a topic name" in got.err
-    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'vins', '-o', str(out)], capsys)
+    code, got = _cli(['calibrate', 'noise', MPU, '--format', 'vins',
+                      '-o', str(out), '--overwrite'], capsys)
     assert code == 0                               # no longer refused: the log has them
     doc = yaml.safe_load(out.read_text())
     n_a = float(got.out.split('exported accelerometer: N_a ')[1].split()[0])
@@ -233,11 +242,13 @@ def test_an_accelerometer_reading_zero_throughout_is_taken_as_absent(walk_record
                                 **{f'gyro_{a}_rad_s': gyro[a][:30_000] for a in 'xyz'},
                                 **{f'accel_{a}_m_s2': np.zeros(30_000) for a in 'xyz'}})
     out = tmp_path / 'imu.yaml'
-    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'kalibr', '-o', str(out)],
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'kalibr',
+                      '-o', str(out), '--overwrite'],
                      capsys)
     assert code == 0 and 'reads exactly 0 throughout' in got.err
     assert 'accelerometer_noise_density:' not in out.read_text().replace('# ', '#')
-    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'vins', '-o', str(out)],
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'vins',
+                      '-o', str(out), '--overwrite'],
                      capsys)
     assert code == 2 and '--format vins needs --accel-noise-density' in got.err
 
@@ -248,7 +259,8 @@ def test_a_bag_gives_its_imu_topic_and_linear_acceleration(tmp_path, capsys):
     simulate.write_record(bag, 'consumer', 'static', 120.0, RATE_HZ, seed=7,
                           start_time_ns=1_700_000_000_000_000_000)
     out = tmp_path / 'imu.yaml'
-    code, got = _cli(['calibrate', 'noise', bag, '--format', 'kalibr', '-o', str(out)], capsys)
+    code, got = _cli(['calibrate', 'noise', bag, '--format', 'kalibr',
+                      '-o', str(out), '--overwrite'], capsys)
     assert code == 0, got.err
     doc = yaml.safe_load(out.read_text())
     assert doc['rostopic'] == '/imu/data_raw'
@@ -368,7 +380,8 @@ def test_a_gyro_only_thermal_log_says_why_the_accelerometer_is_not_written(tmp_p
                         ('ardupilot', 'INS_TCAL1_ACC* (accelerometer): not measured by this '),
                         ('preset', 'Accelerometer: not measured by this gyro log')):
         out = tmp_path / f'lsm.{fmt}'
-        code, _ = _cli(['calibrate', 'thermal', *logs, '--format', fmt, '-o', str(out)], capsys)
+        code, _ = _cli(['calibrate', 'thermal', *logs, '--format', fmt,
+                        '-o', str(out), '--overwrite'], capsys)
         text = out.read_text()
         assert code == 0 and marker in text
         assert 'TC_A0' not in text and 'INS_TCAL1_ACC1' not in text

@@ -99,7 +99,7 @@ def main(argv=None, signals=False):
     (:class:`gyro_emulator.interrupts.Terminated`), and the status is 143 or
     129. ``gyro-emulator ros`` keeps the ROS programs' own handling.
     """
-    from gyro_emulator.interrupts import TERMINATING_SIGNALS, TerminateOnSignal, Terminated
+    from gyro_emulator.interrupts import TERMINATING_SIGNALS, TerminateOnSignal
 
     args = None
     guard = TerminateOnSignal(TERMINATING_SIGNALS if signals else (), defer=True)
@@ -113,16 +113,32 @@ def main(argv=None, signals=False):
         if guard.received is not None:         # raised where a library swallowed it
             raise guard.received
         return status
-    except (ValueError, OSError) as exc:
-        print(f'{_label(args)}: error: {one_line(exc)}', file=sys.stderr)
-        return 2
-    except Terminated as exc:
+    except BaseException as exc:                # noqa: B902 (a signal may surface as any)
+        return _failed(args, guard.received or exc)
+
+
+def _failed(args, exc):
+    """
+    Say in one line why a command stopped; return its exit status.
+
+    A signal wins over the exception it surfaced as (raised inside a
+    compiled module's import, it becomes an ImportError: "initialization
+    failed"). What is not a signal, a bad input or an OS error (``--help``'s
+    SystemExit, a bug) is raised again.
+    """
+    from gyro_emulator.interrupts import Terminated
+
+    if isinstance(exc, Terminated):
         print(f'{_label(args)}: stopped by {exc.name}; unfinished outputs removed',
               file=sys.stderr)
         return exc.status
-    except KeyboardInterrupt:
+    if isinstance(exc, KeyboardInterrupt):
         print(f'{_label(args)}: interrupted', file=sys.stderr)
         return 130
+    if not isinstance(exc, (ValueError, OSError)):
+        raise exc
+    print(f'{_label(args)}: error: {one_line(exc)}', file=sys.stderr)
+    return 2
 
 
 def _label(args):

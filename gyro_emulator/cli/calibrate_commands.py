@@ -50,6 +50,8 @@ def _noise_plots(args):
     if args.axis != 'all':
         return [args.plot]
     return [args.plot] + [_axis_path(args.plot, axis) for axis in units.AXES]
+
+
 #: Kalibr's and OpenVINS's IMU topic for a CSV log (their examples' name).
 CSV_TOPIC = '/imu0'
 

@@ -220,7 +220,10 @@ def resolve_bag(path, metadata_errors='raise'):
                     result.files.append(full)
         result.files.sort()
     if not result.files:
-        raise FileNotFoundError(f'no .mcap file in bag directory {path}')
+        logs = sorted(n for n in os.listdir(path) if n.endswith(('.csv', '.csv.gz')))
+        raise FileNotFoundError(f'no .mcap file in bag directory {path}' + (
+            f': it holds {", ".join(logs[:3])}{" ..." if len(logs) > 3 else ""}; give the '
+            'file itself' if logs else ''))
     for full, found in result.leftovers.items():
         result.notes.append(f'{os.path.basename(full)} is missing: read '
                             f'{os.path.basename(found)}, left by an interrupted repair '
