@@ -254,6 +254,19 @@ def test_reference_noise_reads_a_static_record():
                                                source='flat'))
 
 
+def test_a_reference_shorter_than_the_record_is_a_one_line_error():
+    # its slow noise is not measured at the record's scales (its fit gives zero there)
+    record, _ = make_truth('none', 1, profile='static', duration_s=900.0, sample_rate_hz=2.0)
+    rng = np.random.default_rng(6)
+    t = np.arange(0.0, 400.0, 0.5)
+    short = MeasuredData(t, np.zeros(len(t)), None, 1e-3 * rng.standard_normal(len(t)),
+                         source='short')
+    with pytest.raises(ValueError, match=r"reference 'short' lasts 400 s, shorter than the "
+                                         r'record \(900 s\)') as err:
+        diagnose(record, reference=short)
+    assert '\n' not in str(err.value)
+
+
 def test_effective_tests_of_a_grid():
     x = np.random.default_rng(0).standard_normal((500, 1))
     assert selection.effective_tests(np.repeat(x, 20, axis=1)) == pytest.approx(1.0)

@@ -119,6 +119,27 @@ def _testable(catalogue, have, data):
     return testable, not_tested
 
 
+#: A reference shorter than this share of the record does not measure its slow noise.
+MIN_REFERENCE_SHARE = 0.99
+
+
+def _reference(reference, axis, duration_s):
+    """
+    Return the noise of the reference record, checked to be long enough.
+
+    Its slow noise (flicker, walk) is held fixed in the null at the scales of
+    the diagnosed record: a shorter reference has not measured them there
+    (its fit gives zero for what it cannot see), so it is a one-line error.
+    """
+    ref = reference_noise(measured(reference, axis, True))
+    if ref.duration_s < MIN_REFERENCE_SHARE * duration_s:
+        raise ValueError(f'diagnose: reference {ref.source!r} lasts {ref.duration_s:.6g} s, '
+                         f'shorter than the record ({duration_s:.6g} s): allowed: a static '
+                         'record of the part at least as long as the diagnosed one, so that '
+                         'its slow noise is measured at the scales of the record')
+    return ref
+
+
 def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
              max_bins=DEFAULT_MAX_BINS, effects=None, alpha=selection.ALPHA,
              outlier_threshold=screening.THRESHOLD, max_causes=selection.MAX_CAUSES, seed=0,
@@ -189,7 +210,7 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     catalogue = generic.with_polynomial_order(catalogue, poly['order'])
     testable, not_tested = _testable(catalogue, have, data)
     superbins = SuperBins(prep.binned, cv.fold_of_bin, prep.dt_s)
-    ref = None if reference is None else reference_noise(measured(reference, axis, True))
+    ref = None if reference is None else _reference(reference, axis, prep.duration_s)
     selector = selection.Selector(cv, superbins, alpha, seed, ref)
     steps, final = selection.forward_selection(selector, null, testable, max_causes)
     chosen = [c for _, c in steps if c is not None]
