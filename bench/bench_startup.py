@@ -71,9 +71,10 @@ def copy_package(tmp):
 def install_venv(tmp, warm):
     """Install as ``./dev.sh setup`` does, into the prefix ``tmp/prefix``; return (exe, env)."""
     prefix = os.path.join(tmp, 'prefix')
+    # --ignore-installed: without it pip uninstalls the running venv's own copy first
     subprocess.run([sys.executable, '-m', 'pip', 'install', '-q', '--disable-pip-version-check',
-                    '--no-deps', '--no-build-isolation', '--prefix', prefix, copy_package(tmp)],
-                   check=True, cwd=tmp)
+                    '--no-deps', '--no-build-isolation', '--ignore-installed', '--prefix', prefix,
+                    copy_package(tmp)], check=True, cwd=tmp)
     env = _env(PYTHONPATH=os.path.join(prefix, 'lib', PY, 'site-packages'),
                AMENT_PREFIX_PATH=prefix + os.pathsep + sys.prefix)
     if warm:

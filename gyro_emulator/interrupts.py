@@ -14,6 +14,7 @@ SIGINT only sets a flag, and the caller stops cleanly at the end of the block.
 """
 
 import signal
+import sys
 
 #: Exit status of a program stopped by SIGINT (128 + 2, the shell's convention).
 INTERRUPTED_STATUS = 130
@@ -92,6 +93,21 @@ class TerminateOnSignal:
         self._previous = {}
         self._deferring = defer
         self.received = None
+        self._hook = None
+
+    def _unraisable(self, unraisable):
+        """
+        Keep quiet about the :class:`Terminated` a callback could not raise.
+
+        Raised inside a callback that cannot pass it on (a weakref callback
+        during garbage collection, a ctypes callback), Python would print
+        "Exception ignored in ..." and a traceback; :attr:`received` keeps
+        it, and the caller raises it when the work returns. Anything else
+        goes to the previous hook.
+        """
+        if unraisable.exc_value is not None and unraisable.exc_value is self.received:
+            return
+        self._hook(unraisable)
 
     def _on_signal(self, signum, frame):
         if self.received is not None:
@@ -106,15 +122,36 @@ class TerminateOnSignal:
         if self.received is not None:
             raise self.received
 
+    def close(self):
+        """
+        End the work: the signals stay blocked until the process exits.
+
+        A signal that came before is raised here (its handler runs at once,
+        in this thread); one that comes later waits, blocked, and ends with
+        the process, whose outputs are then complete. Without this, a
+        signal during the interpreter's exit either killed the process
+        (the default handler back) or ran this handler while Python was
+        finalizing (a crash, not one line).
+        """
+        if self.signals:
+            signal.pthread_sigmask(signal.SIG_BLOCK, self.signals)
+        if self.received is not None and not self._deferring:
+            raise self.received
+
     def restore(self):
-        """Give the signals back to their previous handlers."""
+        """Give the signals back to their previous handlers (and the unraisable hook)."""
         for sig, handler in self._previous.items():
             signal.signal(sig, handler)
         self._previous = {}
+        if self._hook is not None and sys.unraisablehook == self._unraisable:
+            sys.unraisablehook = self._hook
+        self._hook = None
 
     def __enter__(self):
         """Install the handlers."""
         self._previous = {sig: signal.signal(sig, self._on_signal) for sig in self.signals}
+        if self.signals:
+            self._hook, sys.unraisablehook = sys.unraisablehook, self._unraisable
         return self
 
     def __exit__(self, kind, error, traceback):

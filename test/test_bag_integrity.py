@@ -289,3 +289,45 @@ def test_a_repair_hitting_the_file_size_limit_leaves_no_temp_file(original, tmp_
     assert out.returncode != 0 and _one_line(out.stderr), out.stderr
     assert sorted(os.listdir(path)) == ['case_0.mcap', 'metadata.yaml']
     assert open(mcap_path, 'rb').read() == before
+
+
+def _chunk_stream(rng, count):
+    """Yield (chunk, messages): tiny chunks overlapping in time, some repeating earlier ones."""
+    from types import SimpleNamespace
+    from mcap.records import Message
+    made, seq = [], 0
+    for k in range(count):
+        size = 300 if k == count // 2 else int(rng.integers(1, 5))     # one large chunk
+        messages = []
+        for _ in range(size):
+            if made and rng.random() < 0.15:
+                messages.append(made[int(rng.integers(len(made)))])      # a repeat
+            else:
+                seq += 1
+                t = 1000 * k + int(rng.integers(0, 20_000))                # overlapping times
+                messages.append(Message(channel_id=1 + seq % 2, sequence=seq, log_time=t,
+                                        publish_time=t, data=bytes(rng.integers(0, 256, 8))))
+        made.extend(messages)
+        times = [m.log_time for m in messages]
+        data = b''.join(m.data for m in messages) + k.to_bytes(4, 'little')
+        yield SimpleNamespace(message_start_time=min(times), message_end_time=max(times),
+                              uncompressed_size=len(data), compression='', data=data), messages
+
+
+@pytest.mark.parametrize('seed', range(5))
+def test_the_small_chunk_screen_drops_exactly_what_the_full_comparison_drops(seed):
+    """Tiny chunks are screened by one set of keys: the same messages kept as without it."""
+    from gyro_emulator.recording.scan import Repeats
+    screened, full = Repeats(), Repeats()
+    full._small_keys = None                                       # the comparison alone
+    known, dropped = set(), 0
+    for chunk, messages in _chunk_stream(np.random.default_rng(seed), 400):
+        got, want = screened.drop(chunk, messages), full.drop(chunk, messages)
+        assert got == want
+        # a message equal to an earlier one is dropped, and no other
+        ids = [(m.channel_id, m.sequence, m.log_time, m.publish_time, m.data) for m in messages]
+        assert [(m.channel_id, m.sequence, m.log_time, m.publish_time, m.data)
+                for m in got[0]] == [i for i in ids if i not in known]
+        known.update(ids)
+        dropped += got[1]
+    assert dropped > 100 and screened._small_keys is None    # repeats met; a large chunk seen

@@ -185,6 +185,7 @@ def test_a_log_in_g_is_refused_naming_accel_scale_which_takes_it(tmp_path, capsy
     scaled = yaml.safe_load(out.read_text())
     code, _ = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr',
                     '-o', str(out), '--overwrite'], capsys)
+    assert code == 0
     direct = yaml.safe_load(out.read_text())
     for key in ('accelerometer_noise_density', 'accelerometer_random_walk'):
         assert scaled[key] == pytest.approx(direct[key], rel=1e-3)
@@ -201,6 +202,7 @@ def test_magnitude_far_from_g_is_noted_and_the_user_figures_override(tmp_path, c
     code, got = _cli(['calibrate', 'noise', MPU, '--format', 'kalibr',
                       '-o', str(out), '--overwrite',
                       '--accel-noise-density', '2e-3', '--accel-random-walk', '3e-3'], capsys)
+    assert code == 0
     text = out.read_text()
     doc = yaml.safe_load(text)
     assert doc['accelerometer_noise_density'] == 2e-3

@@ -252,7 +252,9 @@ def _signalled(args, cwd, signum, cpu_s):
     Run ``args``; send ``signum`` once the process has used ``cpu_s`` of CPU; wait.
 
     Returns the finished process, or None when it ended before it used that
-    much (the caller tries again with less).
+    much, or had finished its work when the signal came (it then waits,
+    blocked, and the run ends with the command's own status: the caller
+    tries again with less).
     """
     proc = subprocess.Popen([PY, '-m', 'gyro_emulator.cli', *args], cwd=cwd, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
@@ -267,6 +269,8 @@ def _signalled(args, cwd, signum, cpu_s):
             break
         time.sleep(0.01)
     out, err = proc.communicate(timeout=600)
+    if sent and proc.returncode in (0, 1) and 'stopped by' not in err:
+        sent = False                                # the work was done: the signal waited
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err) if sent else None
 
 

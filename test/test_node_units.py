@@ -417,6 +417,27 @@ def test_a_stopped_scenario_says_where_it_stopped():
     assert 'nan' not in table and table.count('no samples') == 2
 
 
+def test_the_scenario_player_checks_its_json_before_it_plays(tmp_path, capsys):
+    """--json is never the profile, a folder that is a file, or an existing file unasked."""
+    from gyro_emulator.ros import scenario as player
+    profile = tmp_path / 'profile.yaml'
+    profile.write_text('segments:\n  - {duration_s: 1, rate_deg_s: 0, temp_c: 25}\n')
+    before = profile.read_bytes()
+    link = tmp_path / 'link.yaml'
+    link.symlink_to(profile)
+    (tmp_path / 'a_file').write_text('x')
+    (tmp_path / 'old.json').write_text('{}')
+    for out, said in ((profile, 'is the input'), (link, 'is the input'),
+                      (tmp_path / 'a_file' / 'x.json', 'is a file, not a folder'),
+                      (tmp_path / 'old.json', 'exists: pass --overwrite')):
+        # refused before ROS starts: no node is running, nothing is played
+        assert player.main([str(profile), '--json', str(out), '--wait', '1']) == 2
+        out_text, err = capsys.readouterr()
+        assert out_text == '' and len(err.strip().splitlines()) == 1 and said in err, err
+    assert profile.read_bytes() == before
+    assert (tmp_path / 'old.json').read_text() == '{}'
+
+
 def test_the_main_job_says_the_imu_rate_over_the_stamps_not_over_the_wall_time():
     from gyro_emulator.cli import main_job
 

@@ -187,6 +187,8 @@ def test_node_record_dir_records_inputs_outputs_and_truth(tmp_path):
     samples = int(log.split('shutting down: ')[1].split(' samples')[0])
     reader = bag.BagReader(path)
     assert reader.custom_data['seed'] == '5'
+    # the node's name: with seed -1 replay derives the node's seed from it
+    assert reader.custom_data['node'] == '/gyro_emulator'
     for topic in ('/cmd/angular_velocity', '/cmd/temperature', '/cmd/linear_acceleration',
                   '/diagnostics', '/imu/temperature'):
         assert topic in reader.topics

@@ -143,3 +143,42 @@ def test_launch_refuses_undeclared_arguments_and_unsupported_actions(tmp_path):
                           text=True, timeout=600)
     assert proc.returncode != 0 and 'Traceback' not in proc.stderr
     assert 'launch.actions.IncludeLaunchDescription is not provided' in proc.stderr
+
+
+#: A 9-level alias bomb in flow style (9**8 scalars once expanded), for a command line.
+BOMB = '{' + ', '.join(['a0: &a0 [lol, lol, lol, lol, lol, lol, lol, lol, lol]'] + [
+    f'a{i}: &a{i} [' + ', '.join([f'*a{i - 1}'] * 9) + ']' for i in range(1, 9)]) + '}'
+
+
+def test_param_values_are_read_bounded_and_never_end_in_a_traceback():
+    """ros2 param set's reading of VALUE, behind the bounded loader; what rclpy cannot send."""
+    from gyro_emulator.cli.ros_graph import parameter_value
+    from rcl_interfaces.msg import ParameterType
+    assert parameter_value('3').integer_value == 3
+    assert parameter_value('2.5').double_value == 2.5
+    assert list(parameter_value('[1, 2]').integer_array_value) == [1, 2]
+    assert parameter_value('true').bool_value is True
+    assert parameter_value('stuck').string_value == 'stuck'
+    # rclpy's get_parameter_value puts a parsed mapping or date into string_value (TypeError)
+    # and lets a scanner error through: each is sent as the text given
+    for text in ('{a: 1}', '2024-01-01', 'a: b: c', '[1, x]'):
+        value = parameter_value(text)
+        assert value.type == ParameterType.PARAMETER_STRING and value.string_value == text
+    with pytest.raises(ValueError, match=r"VALUE = '9{20}': an integer beyond the int64"):
+        parameter_value('9' * 20)
+    with pytest.raises(ValueError, match='aliases expand to more than'):
+        parameter_value(BOMB)
+    # refused before it looks for the node: one short line, no node needed
+    proc = ros_cli(ros_env(), 'param', 'set', '/nobody', 'rate_hz', BOMB, check=False)
+    assert proc.returncode == 2 and 'Traceback' not in proc.stderr
+    assert proc.stderr.strip().splitlines() == [
+        'gyro-emulator ros: error: VALUE: YAML aliases expand to more than 1000000 nodes: '
+        'refused']
+
+
+def test_a_launch_argument_is_read_bounded():
+    proc = launch_print('gyro_emulator.launch.py', f'use_sim_time:={BOMB}')
+    assert proc.returncode == 2 and 'Traceback' not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and len(lines[0]) < 200, lines
+    assert 'parameter use_sim_time: YAML aliases expand to more than' in lines[0]

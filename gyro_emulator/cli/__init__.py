@@ -97,7 +97,9 @@ def main(argv=None, signals=False):
     With ``signals`` (the ``gyro-emulator`` entry point), SIGTERM and SIGHUP
     stop a command as Ctrl-C does: its unfinished outputs are removed
     (:class:`gyro_emulator.interrupts.Terminated`), and the status is 143 or
-    129. ``gyro-emulator ros`` keeps the ROS programs' own handling.
+    129; once the command's work is done they are blocked until the process
+    exits (the outputs are complete by then). ``gyro-emulator ros`` keeps the
+    ROS programs' own handling.
     """
     from gyro_emulator.interrupts import TERMINATING_SIGNALS, TerminateOnSignal
 
@@ -110,6 +112,7 @@ def main(argv=None, signals=False):
                 guard.restore()                 # the ROS programs' own handling
             guard.arm()                         # a signal while parsing stops here
             status = int(args.run(args) or 0)
+            guard.close()                       # done: a later signal waits for the exit
         if guard.received is not None:         # raised where a library swallowed it
             raise guard.received
         return status

@@ -14,6 +14,8 @@ import os
 import sys
 import time
 
+from gyro_emulator.resources import load_yaml_text
+from gyro_emulator.validation import quote
 from rcl_interfaces.msg import Parameter as ParameterMsg, ParameterType, ParameterValue
 import rclpy
 from rclpy.parameter import get_parameter_value, parameter_value_to_python
@@ -23,6 +25,9 @@ import yaml
 
 #: How often the graph is looked at while waiting for a topic, s.
 GRAPH_POLL_S = 0.1
+
+#: The range of a ROS integer parameter (int64).
+INT64_MIN, INT64_MAX = -2 ** 63, 2 ** 63 - 1
 
 
 class _Session:
@@ -46,8 +51,42 @@ class _Session:
         return future.result()
 
 
+def parameter_value(text):
+    """
+    Return the ParameterValue of ``text``, read as ``ros2 param set`` reads it.
+
+    rclpy's ``get_parameter_value`` behind the one bounded YAML loader
+    (``resources.load_yaml_text``): an alias bomb or a value nested too deep
+    is refused in one line before anything expands it. Text that is not YAML,
+    a mapping, or a scalar that is none of bool, int, float and string (a
+    date) is sent as the string given (rclpy would put the parsed object into
+    ``string_value`` and fail); an integer beyond int64 is refused.
+
+    Raises
+    ------
+    ValueError
+        One line quoting at most about 200 characters of ``text``.
+
+    """
+    try:
+        doc = load_yaml_text(text, 'VALUE')
+    except ValueError as exc:
+        if ': malformed YAML: ' not in str(exc):
+            raise
+        doc = text
+    items = doc if isinstance(doc, list) else [doc]
+    if any(isinstance(v, int) and not isinstance(v, bool) and not INT64_MIN <= v <= INT64_MAX
+           for v in items):
+        raise ValueError(f'VALUE = {quote(text)}: an integer beyond the int64 range of a ROS '
+                         f'parameter: allowed [{INT64_MIN}, {INT64_MAX}]')
+    if doc is text or not isinstance(doc, (bool, int, float, str, list, type(None))):
+        return ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=text)
+    return get_parameter_value(text)
+
+
 def param(action, node_name, name, value, timeout_s):
     """``param set NODE NAME VALUE`` or ``param get NODE NAME``; return the exit status."""
+    new = parameter_value(value) if action == 'set' else None
     with _Session() as session:
         client = AsyncParameterClient(session.node, node_name)
         if not client.wait_for_services(timeout_sec=timeout_s):
@@ -64,7 +103,6 @@ def param(action, node_name, name, value, timeout_s):
                 return 1
             print(f'{name}: {parameter_value_to_python(current)!r}')
             return 0
-        new = get_parameter_value(value)
         if (current.type == ParameterType.PARAMETER_DOUBLE
                 and new.type == ParameterType.PARAMETER_INTEGER):
             new = ParameterValue(type=ParameterType.PARAMETER_DOUBLE,

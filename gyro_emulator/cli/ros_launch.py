@@ -30,6 +30,7 @@ import types
 
 from ament_index_python.packages import (get_package_prefix, get_package_share_directory,
                                          PackageNotFoundError)
+from gyro_emulator.resources import load_yaml_text
 import yaml
 
 PACKAGE = 'gyro_emulator'
@@ -190,9 +191,10 @@ def _parameter_args(node, context, tmpdir, index):
         if isinstance(entry, dict):
             values = {}
             for key, value in entry.items():
-                if _has_substitution(value):  # launch_ros reads the result as YAML
-                    value = yaml.safe_load(perform(value, context))
-                values[perform(key, context)] = value
+                name = perform(key, context)
+                if _has_substitution(value):  # launch_ros reads the result as YAML (bounded)
+                    value = load_yaml_text(perform(value, context), f'parameter {name}')
+                values[name] = value
             path = os.path.join(tmpdir, f'node{index}_params{number}.yaml')
             with open(path, 'w', encoding='utf-8') as handle:
                 yaml.safe_dump({'/**': {'ros__parameters': values}}, handle)

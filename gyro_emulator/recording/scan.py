@@ -230,6 +230,10 @@ class Repeats:
     so a file of many tiny chunks costs a few comparisons per chunk, not one
     per earlier chunk. A chunk that starts before an earlier one (a chunk
     written twice, a writer restarted) is kept apart and compared with all.
+    While every chunk so far is small, one set of all their keys screens a
+    new chunk first: a message equal to an earlier one has its log time in
+    both chunks, so they overlap, and a chunk none of whose keys is in the
+    set has no repeat (the exact comparison runs only on a hit).
     """
 
     #: Up to this many keys, a chunk keeps them as a Python list and membership is a
@@ -242,6 +246,7 @@ class Repeats:
         # chunks in order of start time: starts, ends, running maximum of the ends, keys
         self._starts, self._ends, self._max_ends, self._keys = [], [], [], []
         self._late = []         # (start, end, keys) of chunks out of start order
+        self._small_keys = set()    # the keys of every chunk while all are small, else None
 
     def _overlapping(self, start, end):
         """Return the key arrays of the earlier chunks whose time range meets [start, end]."""
@@ -261,6 +266,17 @@ class Repeats:
         self._max_ends.append(max(end, self._max_ends[-1]) if self._max_ends else end)
         self._keys.append(keys)
 
+    def _screened(self, keys):
+        """Whether the small-chunk screen proves ``keys`` new (and takes them in)."""
+        if self._small_keys is None:
+            return False
+        if len(keys) > self.SMALL:
+            self._small_keys = None     # a large chunk: the exact comparison from now on
+            return False
+        new = self._small_keys.isdisjoint(keys)
+        self._small_keys.update(keys)
+        return new
+
     def drop(self, chunk, messages):
         """Return ``(kept messages, repeated count, whole chunk repeated)``."""
         key = (chunk.message_start_time, chunk.message_end_time, chunk.uncompressed_size,
@@ -271,6 +287,9 @@ class Repeats:
         keys = [hash((m.channel_id, m.sequence, m.log_time, m.publish_time, m.data))
                 for m in messages]
         start, end = chunk.message_start_time, chunk.message_end_time
+        if self._screened(keys):
+            self._add(start, end, keys)
+            return messages, 0, False
         earlier = self._overlapping(start, end)
         self._add(start, end, keys if len(keys) <= self.SMALL
                   else np.array(keys, dtype=np.int64))

@@ -29,13 +29,13 @@ it.
 """
 
 import argparse
-import json
 import os
 import signal
 import sys
 import threading
 import time
 
+from gyro_emulator import atomic, outputs
 from gyro_emulator.emulation.scenario import format_summary, interruption_note, \
     load_scenario, results_json, summarize, unmeasured
 from gyro_emulator.recording import topics
@@ -369,7 +369,10 @@ def build_parser():
                         help='profile YAML (default: the paper validation profile)')
     parser.add_argument('--summary', action='store_true',
                         help='collect imu/data_raw and print commanded vs measured')
-    parser.add_argument('--json', metavar='FILE', help='write the summary as JSON')
+    parser.add_argument('--json', metavar='FILE', help='write the summary as JSON (checked '
+                        'before the run: never the profile, an existing file only with '
+                        '--overwrite; written whole or not at all)')
+    parser.add_argument('--overwrite', action='store_true', help='replace an existing --json')
     parser.add_argument('--loop', action='store_true', help='repeat until Ctrl-C')
     parser.add_argument('--wait', type=float, default=120.0, metavar='S',
                         help='longest wait for the emulator node and its first sample '
@@ -404,6 +407,8 @@ def main(args=None):
     opts = build_parser().parse_args(remove_ros_args(['scenario'] + argv)[1:])
     signal.signal(signal.SIGTERM, _interrupt)
     try:
+        outputs.check([outputs.file('--json', opts.json)], inputs=[opts.profile],
+                      overwrite=opts.overwrite)
         profile = load_scenario(opts.profile)
         print(f'scenario {profile.name}: {len(profile.steps)} steps, '
               f'{profile.duration_s:g} s', flush=True)
@@ -428,8 +433,12 @@ def main(args=None):
         results = player.results()
         print(format_summary(results))
         if opts.json:
-            with open(opts.json, 'w', encoding='utf-8') as handle:
-                json.dump(results_json(profile, results, player.interrupted), handle, indent=1)
+            try:
+                atomic.write_json(opts.json, results_json(profile, results, player.interrupted),
+                                  indent=1)
+            except OSError as exc:
+                print(f'scenario: error: {exc}', file=sys.stderr)
+                return 2
         missing = unmeasured(results)
         if missing:
             print(f'scenario: error: {missing}', file=sys.stderr)

@@ -54,7 +54,9 @@ class SelfRecorder:
     ----------
     node : rclpy.node.Node
         The emulator node (its parameters ``rate_source``, ``sensor_config``,
-        ``seed`` and ``rate_hz`` are stored in the bag's custom_data).
+        ``seed``, ``rate_hz`` and ``frame_id`` are stored in the bag's
+        custom_data, and its fully qualified name as ``node``: with ``seed``
+        -1 the seed comes from that name, so ``replay`` finds it).
     record_dir : str
         Bag directory (see :func:`bag_path`).
     flush_interval_s : float
@@ -64,7 +66,8 @@ class SelfRecorder:
 
     def __init__(self, node, record_dir, flush_interval_s=bag.DEFAULT_FLUSH_INTERVAL_S):
         self.node = node
-        custom = {'generator': 'gyro_emulator node record_dir'}
+        custom = {'generator': 'gyro_emulator node record_dir',
+                  'node': node.get_fully_qualified_name()}
         for name in ('sensor_config', 'seed', 'rate_hz', 'rate_source', 'frame_id'):
             if node.has_parameter(name):
                 custom[name] = str(node.get_parameter(name).value)
