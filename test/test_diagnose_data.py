@@ -147,6 +147,21 @@ def test_set_aside_samples_leave_the_bins_exactly():
                                alone.samples.delayed_rate(0.005), atol=1e-12)
 
 
+def test_samples_set_aside_from_the_start_map_into_the_first_bin():
+    # the first raw bin holds only set-aside samples: they map to the first bin (there is
+    # none before), belong to no bin's sums, and the bin means of every sample stay exact
+    rec = _record(n=3000, dt=0.01)
+    keep = np.ones(rec.rows, bool)
+    keep[:5] = False
+    prep = Prepared(rec, max_bins=1500, keep=keep)
+    assert prep.sample_bin_all.min() == 0 and np.array_equal(prep.sample_bin_all[:5], [0] * 5)
+    means = np.bincount(prep.sample_bin, weights=rec.gyro_rad_s[keep]) / prep.binned.weight
+    np.testing.assert_allclose(prep.bin_mean(rec.gyro_rad_s), means, rtol=1e-12)
+    rate = np.sin(rec.time_s)
+    exact = np.bincount(prep.sample_bin, weights=rate[keep]) / prep.binned.weight
+    np.testing.assert_allclose(prep.bin_mean(rate), exact, rtol=1e-12)
+
+
 def test_thermal_lag_is_exact_on_a_ramp():
     n, dt, slope, tau = 20000, 0.05, 0.02, 60.0
     t = np.arange(n) * dt

@@ -22,6 +22,7 @@ import sys
 from gyro_emulator.analysis.diagnose import diagnose, to_json
 from gyro_emulator.analysis.diagnose.data import measured, write_measured_csv
 from gyro_emulator.emulation.truth import injection as inj
+from gyro_emulator.recording.record import Record
 import numpy as np
 import pytest
 
@@ -161,6 +162,11 @@ CASES = [
     ('adis', 'y', 'cycles+tilt', {'bias_tempco': DS['bias_tempco'] / 3,
                                   'g_sensitivity': DS['g_sensitivity'] / 3}, None),
 ]
+#: Effects the likelihood ratio supports in-sample that the held-out data do not
+#: confirm (issue 33): listed as such, never chosen. The g-sensitivity at 1/3
+#: beside cycles on ADIS16405 y (16 tilts of 10 min): LR p 3e-10, held-out gain
+#: -0.4 % per sample and -5 % in the group means.
+IN_SAMPLE_ONLY = {13: {'g_sensitivity'}}
 #: Cases that run longer than a few seconds (all but the delays at rate edges).
 SLOW = {i for i, case in enumerate(CASES) if case[3].keys() != {'delay'}}
 
@@ -190,9 +196,51 @@ def _marks(i):
 def test_an_effect_hidden_in_real_noise_is_found(index):
     log, axis, profile, effects, duration = CASES[index]
     doc = to_json(diagnose(_record(log, axis, profile, effects, 100 + index, duration)))
-    for effect in effects:
+    only = IN_SAMPLE_ONLY.get(index, set())
+    for effect in set(effects) - only:
         _assert_found(doc, effect)
+    for effect in only:
+        assert not NAMES[effect] & {e['effect'] for e in doc['selected']}
+        assert NAMES[effect] & {e['effect'] for e in doc['supported_in_sample']}, doc['residual']
     assert doc['set_aside']['fraction'] < 0.001
+    # what is named holds on held-out data and stands clear of zero (issue 33)
+    for entry in doc['selected']:
+        assert entry['gain_step'] > 0.0 or entry['gain_binned'] > 0.0
+    if doc['verdict'] == 'explained':
+        assert all(entry['interval_excludes_zero'] for entry in doc['selected'])
+
+
+@pytest.mark.slow
+def test_the_one_way_staircase_at_a_third_is_found_with_a_reference_record():
+    """
+    The strict xfail above, with the noise of a static record of the part held fixed.
+
+    The project holds one ADIS16405 log: the reference here is that log's y
+    axis at rest, the noise of the very record (the known-noise limit of
+    docs/diagnose.md). A disjoint half as the reference, the other half
+    through the soaks, is the second case; with nothing injected it finds
+    nothing.
+    """
+    index = next(i for i in KNOWN_MISSES)
+    log, axis, profile, effects, _ = CASES[index]
+    t, y, _ = _log(log, axis)
+    static = measured(Record.from_arrays(t, y, np.zeros(len(t)), None, None, path='ref'))
+    doc = to_json(diagnose(_record(log, axis, profile, effects, 100 + index),
+                           reference=static))
+    _assert_found(doc, 'bias_tempco')
+    assert doc['reference']['rrw_rad_s_sqrt_s'] > 0.0
+    entry = next(e for e in doc['selected'] if e['effect'] == 'bias_temperature')
+    assert entry['evidence']['route'] == 'reference_noise'
+    half = len(t) // 2
+    first = measured(Record.from_arrays(t[:half], y[:half], np.zeros(half), None, None,
+                                        path='first half'))
+    rng = np.random.default_rng(7)
+    second = t[half:] - t[half]
+    for size, found in ((effects['bias_tempco'], True), (0.0, False)):
+        record = inj.inject(y[half:], inj.profile(profile, second, rng),
+                            {'bias_tempco': size} if size else {})
+        doc = to_json(diagnose(record, reference=first))
+        assert bool(NAMES['bias_tempco'] & _named(doc)) is found, doc['residual']['message']
 
 
 @pytest.mark.parametrize('axis,scale,seed,duration', [
@@ -284,3 +332,24 @@ def test_the_cli_prints_no_warning_or_traceback(tmp_path, case):
                          capture_output=True, text=True, cwd=ROOT)
     assert 'Warning' not in run.stderr and 'Traceback' not in run.stderr, run.stderr
     assert run.returncode == 0 or len(run.stderr.strip().splitlines()) == 1, run.stderr
+
+
+def test_the_cli_takes_a_reference_record_and_says_so(tmp_path):
+    t, y, _ = _log('mpu', 'x')
+    half = len(t) // 2
+    ref_csv, rec_csv, out = tmp_path / 'ref.csv', tmp_path / 'rec.csv', tmp_path / 'd.json'
+    write_measured_csv(str(ref_csv), measured(Record.from_arrays(
+        t[:half], y[:half], np.zeros(half), None, None, path='ref')))
+    second = t[half:] - t[half]
+    rng = np.random.default_rng(3)
+    write_measured_csv(str(rec_csv), measured(inj.inject(
+        y[half:], inj.profile('rate_steps', second, rng), {'delay': DS['delay']})))
+    run = subprocess.run([sys.executable, '-W', 'default', '-m', 'gyro_emulator.cli', 'diagnose',
+                          str(rec_csv), '--reference', str(ref_csv), '--json', str(out)],
+                         capture_output=True, text=True, cwd=ROOT)
+    assert run.returncode == 0 and not run.stderr.strip(), run.stderr
+    assert 'noise held fixed from the reference' in run.stdout
+    import json
+    doc = json.loads(out.read_text())
+    assert doc['reference']['source'].endswith('ref.csv')
+    assert 'time_delay' in _named(doc)

@@ -1,9 +1,10 @@
 """
 The typed diagnosis (issue 31 item 1): frozen values, one JSON.
 
-``test/data/diagnosis_*.json`` are the documents ``diagnose`` wrote before
-the diagnosis was typed (the dict :mod:`.document` built then), for two
-seeded truth records: :func:`to_json` must give them back byte for byte.
+``test/data/diagnosis_*.json`` are the documents ``diagnose`` writes for two
+seeded truth records (first those of the untyped diagnosis; rewritten once
+when issue 33 gave every parameter an interval and added ``ruled_out`` and
+``supported_in_sample``): :func:`to_json` must give them back byte for byte.
 """
 
 from dataclasses import FrozenInstanceError
@@ -47,7 +48,10 @@ def test_the_typed_fields_are_what_the_json_says():
         'value']
     for name, p in cause.parameters.items():
         assert doc['selected'][0]['parameters'][name] == {
-            'value': p.value, 'sigma': p.sigma, 'unit': p.unit, 'meaning': p.meaning}
+            'value': p.value, 'sigma': p.sigma, 'unit': p.unit, 'meaning': p.meaning,
+            'interval': list(p.interval), 'method': p.method}
+        assert p.interval[0] < p.value < p.interval[1]       # never +- 0 (issue 33)
+    assert [b.effect for b in diagnosis.ruled_out] == [b['effect'] for b in doc['ruled_out']]
     assert diagnosis.residual.message == doc['residual']['message']
     assert diagnosis.record.rows == doc['input']['rows']
     assert diagnosis.baseline.recalibrated_rmse_rad_s == doc['recalibrated_baseline'][

@@ -13,6 +13,7 @@ The loop is scored on the emulator's real output (issue 33 item 7).
   shows no ``time_delay`` (nor any other cause).
 """
 
+from dataclasses import replace
 import functools
 import json
 import os
@@ -144,3 +145,38 @@ def test_the_emulators_own_bag_shows_no_time_delay(tmp_path, config, rate_hz):
     assert doc['selected'] == [], [e['effect'] for e in doc['selected']]
     delay = [f for f in doc['findings'] if f['effect'] == 'time_delay']
     assert delay and not delay[0].get('significant', False)
+
+
+def test_diagnose_config_runs_latency_and_clock_drift_as_simulate_does(tmp_path):
+    # a latency moves the node's stamps, a clock drift the model's grid: diagnose --config
+    # takes both, and its baseline is still what simulate --profile writes, value for value
+    record, _ = make_truth('none', seed=5, duration_s=200.0, sample_rate_hz=50.0)
+    csv = tmp_path / 'm.csv'
+    write_measured_csv(str(csv), record)
+    cfg = tmp_path / 'part.yaml'
+    cfg.write_text('device: paper\noutput_filter_hz: 12.0\nlatency_s: 0.02\n'
+                   'clock_drift_ppm: 800.0\n')
+    config = load_sensor_config(str(cfg))
+    assert config.latency_s == 0.02 and config.clock_drift_ppm == 800.0
+    data = load_measured(str(csv))
+    out = tmp_path / 'emu.csv'
+    proc = _cli('simulate', '--config', str(cfg), '--profile', str(csv), '--seed', '1',
+                '--out', str(out))
+    assert proc.returncode == 0, proc.stderr
+    emu = np.genfromtxt(out, delimiter=',', names=True)
+    assert np.array_equal(emu['time_s'], np.round(data.time_s, 9))
+    quiet = emulated.deterministic(config, data.time_s[0])
+    chunks = iter_simulation(quiet, recorded_profile(str(csv), axis='z'), 0.0, 0.0)
+    simulated = np.concatenate([c.batch.gyro_rad_s[c.published, 2] for c in chunks])
+    baseline = emulated.emulated_output(config, data, 'z')
+    np.testing.assert_array_equal(baseline, simulated)
+    # the drift's grid is not the nominal one: the filter ran on the part's own clock
+    nominal = emulated.emulated_output(replace(config, clock_drift_ppm=0.0), data, 'z')
+    assert len(baseline) == len(data.time_s) and np.all(np.isfinite(baseline))
+    assert not np.array_equal(baseline, nominal)
+    # the noisy output written by simulate sits on that baseline within its own noise
+    assert float(np.sqrt(np.mean((emu['gyro_z_rad_s'] - baseline) ** 2))) < 0.05
+    proc = _cli('diagnose', str(csv), '--axis', 'z', '--config', str(cfg), '--json',
+                str(tmp_path / 'd.json'))
+    assert proc.returncode == 0 and proc.stderr == '', proc.stderr
+    assert json.loads((tmp_path / 'd.json').read_text())['verdict']

@@ -75,6 +75,11 @@ def add_arguments(parser):
                         help='most causes to add (default: %(default)s)')
     parser.add_argument('--effects', default=None, metavar='LIST',
                         help='comma-separated candidate causes to test (default: all)')
+    parser.add_argument('--reference', default=None, metavar='STATIC_LOG',
+                        help='a second, static record of the same part (CSV or bag, the same '
+                             '--axis): its noise (white, flicker, random walk) is measured '
+                             'there and held fixed in the null, so that a slow effect cannot '
+                             'hide in the wander it inflates')
     bag = parser.add_argument_group('bag input (topic mapping)')
     bag.add_argument('--rate-topic', default=topics.RATE_CMD.name,
                      help='applied rate topic (default: %(default)s)')
@@ -120,7 +125,8 @@ def request(args):
         static=args.static, preset=args.preset, config=args.config, ref_temp_c=args.ref_temp,
         folds=args.folds, effects=effects, alpha=args.alpha, outlier_sigma=args.outlier_sigma,
         max_causes=args.max_causes, json=args.json, report=args.report,
-        write_config=args.write_config, noise=args.noise, overwrite=args.overwrite)
+        write_config=args.write_config, noise=args.noise, overwrite=args.overwrite,
+        reference=args.reference)
 
 
 def run(args):

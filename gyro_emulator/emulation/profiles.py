@@ -272,6 +272,10 @@ class SampledProfile:
         specific force of None (None: zero).
     initial_attitude_wxyz, gravity_m_s2
         As :class:`Profile`.
+    rate_knots : tuple, optional
+        (times s (K,), rates rad/s (K, 3)) of a rate linear between knots:
+        the rate at any time, exactly, between the samples too
+        (:meth:`rate_at`; a delayed rate needs it).
 
     """
 
@@ -284,6 +288,7 @@ class SampledProfile:
     linear_accel_m_s2: np.ndarray = None
     initial_attitude_wxyz: tuple = LEVEL_WXYZ
     gravity_m_s2: float = STANDARD_GRAVITY_M_S2
+    rate_knots: tuple = None
 
     def __post_init__(self):
         """Check the shapes: (N,) times and temperatures, (N, 3) rates and forces."""
@@ -332,6 +337,21 @@ class SampledProfile:
 
         return ProfileSamples(at(self.rate_rad_s), np.interp(t, self.time_s, self.temp_c),
                               at(self.accel_m_s2), at(self.linear_accel_m_s2))
+
+    def rate_at(self, time_s):
+        """
+        Return the rate at ``time_s``, rad/s (N, 3).
+
+        From the knots when the profile has them (zero before the first and
+        after the last: the table at rest), else from the samples as
+        :meth:`samples` gives it.
+        """
+        t = np.asarray(time_s, dtype=float)
+        if self.rate_knots is None:
+            return self.samples(t).rate_rad_s
+        kt, kr = self.rate_knots
+        return np.column_stack([np.interp(t, kt, kr[:, k], left=0.0, right=0.0)
+                                for k in range(3)])
 
     def own_samples(self, start, stop):
         """Return the profile's own samples ``start`` .. ``stop - 1``, as they are."""

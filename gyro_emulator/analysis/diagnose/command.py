@@ -28,7 +28,8 @@ class Request:
 
     The record (``source``: a CSV or a bag, its topics, ``axis``, ``static``), the baseline
     (``preset``, ``config``, ``ref_temp_c``), the selection (``folds``,
-    ``effects``, ``alpha``, ``outlier_sigma``, ``max_causes``) and the
+    ``effects``, ``alpha``, ``outlier_sigma``, ``max_causes``, ``reference``:
+    a static record of the same part whose noise is held fixed) and the
     outputs (``json``, ``report``, ``write_config`` with ``noise`` and
     ``overwrite``). Out-of-range values raise a one-line ValueError.
     """
@@ -53,6 +54,7 @@ class Request:
     write_config: str = None
     noise: bool = False
     overwrite: bool = False
+    reference: str = None
 
     def __post_init__(self):
         """Check the selection options and that ``noise`` has a file to go to."""
@@ -94,12 +96,14 @@ def execute(request, console):
                                 static=request.static)
     for note in record.recovery:
         console.err(f'gyro-emulator diagnose: warning: {note}')
+    reference = None if request.reference is None else data.load_measured(
+        request.reference, gyro_topic=request.gyro_topic, axis=request.axis, static=True)
     with quiet_numerics():
         diagnosis = diagnose(record, preset=request.preset, ref_temp_c=request.ref_temp_c,
                              folds=request.folds, effects=request.effects, alpha=request.alpha,
                              outlier_threshold=request.outlier_sigma,
                              max_causes=request.max_causes, config=request.config,
-                             axis=request.sense_axis)
+                             axis=request.sense_axis, reference=reference)
         for line in report.terminal_lines(diagnosis):
             console.out(line)
         if request.json:

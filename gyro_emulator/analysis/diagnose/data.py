@@ -404,10 +404,11 @@ class Prepared:
         self.starts, self.ends = starts[used], ends[used]
         self.bin_start_s = t[self.starts]
         counts = counts[used]
-        raw_to_bin = np.cumsum(used) - 1
+        # set-aside samples alone in their raw bin map to the bin before (the
+        # first bin when none is before: set aside from the record's start) for
+        # slow quantities, but belong to no bin's sums
+        raw_to_bin = np.maximum(np.cumsum(used) - 1, 0)
         raw_of_sample = np.repeat(np.arange(len(starts)), ends - starts)
-        # set-aside samples alone in their raw bin map to the bin before (for
-        # slow quantities) but belong to no bin's sums
         self.sample_bin_all = raw_to_bin[raw_of_sample]
         self._in_a_bin = used[raw_of_sample]
         self.sample_bin = self.sample_bin_all[keep]

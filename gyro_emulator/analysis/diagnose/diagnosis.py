@@ -28,12 +28,20 @@ def frozen_mapping(mapping):
 
 @dataclass(frozen=True)
 class Parameter:
-    """One fitted parameter: value, delete-a-block jackknife 1-sigma, unit, meaning."""
+    """
+    One fitted parameter: value, 1-sigma, unit, meaning, 95 % interval and how it was found.
+
+    ``interval`` is None (and ``sigma`` None) for a coefficient the record
+    cannot measure (:mod:`.intervals`); ``method`` says which estimate
+    (jackknife over the folds, or profile likelihood for a searched one).
+    """
 
     value: float
     sigma: float
     unit: str
     meaning: str
+    interval: tuple = None
+    method: str = None
 
 
 @dataclass(frozen=True)
@@ -51,13 +59,22 @@ class Evidence:
 
 @dataclass(frozen=True)
 class OwnTempco:
-    """A part's own relative SF slope at T_ref: c1 plus the physics' R'(T_ref) (1/K)."""
+    """
+    A part's own relative SF slope at T_ref: c1 plus the physics' R'(T_ref) (1/K).
+
+    ``interval`` is its 95 % interval; ``compensated`` the comparison of
+    that interval with a stated datasheet figure (``datasheet_per_k``,
+    named in ``datasheet``; :func:`.document.own_tempco`).
+    """
 
     value: float
     sigma: float
     physics_per_k: float
     meaning: str
     compensated: bool
+    interval: tuple = None
+    datasheet_per_k: float = None
+    datasheet: str = None
 
 
 @dataclass(frozen=True)
@@ -89,6 +106,8 @@ class Cause:
     mechanisms: tuple
     competitors: tuple
     part_sf_temp_coeff_per_k: OwnTempco = field(default=None, metadata=_OMIT_NONE)
+    #: Whether the cause's 95 % interval excludes zero (``explained`` needs it).
+    interval_excludes_zero: bool = None
 
 
 @dataclass(frozen=True)
@@ -108,6 +127,7 @@ class Finding:
     delta_bic: float
     n_params: int
     significant: bool
+    in_sample_only: str = None
 
 
 @dataclass(frozen=True)
@@ -123,6 +143,28 @@ class Candidate:
     p_state_space: float
     delta_bic: float
     significant: bool
+    in_sample_only: str = None
+
+
+@dataclass(frozen=True)
+class InSampleOnly:
+    """A cause the tests support in-sample that held-out data do not confirm: never chosen."""
+
+    effect: str
+    p_value: float
+    gain_step: float
+    gain_binned: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class Bound:
+    """What the data rule out: a 95 % upper bound on a cause tested and not found."""
+
+    effect: str
+    quantity: str
+    upper: float
+    unit: str
 
 
 @dataclass(frozen=True)
@@ -322,6 +364,13 @@ class Diagnosis:
     temperature_polynomial: TemperaturePolynomial
     config: str = None
     plots: ResidualPlots = None
+    #: Causes the tests support in-sample that held-out data do not confirm.
+    supported_in_sample: tuple = ()
+    #: 95 % upper bounds on the causes tested and not found (:mod:`.ruled_out`).
+    ruled_out: tuple = ()
+    #: The noise of a second record of the part, held fixed in the null
+    #: (``--reference``; :mod:`.reference`), or None.
+    reference: object = None
 
     @property
     def best(self):
@@ -367,8 +416,11 @@ def to_json(diagnosis):
     ``recalibrated_baseline``, ``set_aside``, ``best``, ``selected``,
     ``verdict``, ``residual``, ``confounded``, ``confounded_pair``,
     ``experiments``, ``findings`` (the first step's candidates, ranked),
-    ``steps``, ``not_tested``, ``method``, ``temperature_polynomial`` and,
-    for a baseline from a sensor configuration, ``config``. ``best`` is the
+    ``steps``, ``not_tested``, ``ruled_out`` (95 % upper bounds on the
+    causes tested and not found), ``supported_in_sample`` (causes the tests
+    support that held-out data do not confirm), ``method``,
+    ``temperature_polynomial`` and, for a baseline from a sensor
+    configuration, ``config``; with ``--reference``, ``reference``. ``best`` is the
     first chosen cause with its gain counted on every sample
     (``effect: 'none'`` when none is).
     """
@@ -382,8 +434,11 @@ def to_json(diagnosis):
            'residual': _plain(d.residual), 'confounded': _plain(d.confounded),
            'confounded_pair': _plain(d.confounded_pair), 'experiments': list(d.experiments),
            'findings': _plain(d.findings), 'steps': _plain(d.steps),
-           'not_tested': _plain(d.not_tested), 'method': _plain(d.method),
+           'not_tested': _plain(d.not_tested), 'ruled_out': _plain(d.ruled_out),
+           'supported_in_sample': _plain(d.supported_in_sample), 'method': _plain(d.method),
            'temperature_polynomial': _plain(d.temperature_polynomial)}
     if d.config is not None:
         doc['config'] = d.config
+    if d.reference is not None:
+        doc['reference'] = _plain(d.reference)
     return doc

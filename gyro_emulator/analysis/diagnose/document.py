@@ -21,12 +21,13 @@ RMSE's too. Against the paper's physics a chosen
 import math
 
 from gyro_emulator.analysis.diagnose import baseline as base
-from gyro_emulator.analysis.diagnose import models, noise_model, screening, selection
+from gyro_emulator.analysis.diagnose import (intervals, models, noise_model, ruled_out,
+                                             screening, selection)
 from gyro_emulator.analysis.diagnose import verdict as vd
 from gyro_emulator.analysis.diagnose.diagnosis import (
-    Baseline, Candidate, Cause, Confound, ConfoundedPair, Diagnosis, Evidence, Finding,
-    Follows, frozen_mapping, Method, NotTested, OwnTempco, Parameter, RecordSummary, Residual,
-    SetAside, Step, Suggestive, TemperaturePolynomial)
+    Baseline, Bound, Candidate, Cause, Confound, ConfoundedPair, Diagnosis, Evidence, Finding,
+    Follows, frozen_mapping, InSampleOnly, Method, NotTested, OwnTempco, Parameter,
+    RecordSummary, Residual, SetAside, Step, Suggestive, TemperaturePolynomial)
 import numpy as np
 
 
@@ -36,10 +37,22 @@ def _interval(cv, sse_fold, sse_base=None):
     return None if found is None else tuple(found)
 
 
-def _parameters(effect, evaluated):
-    """Return the cause's parameters with their jackknife sigmas (read-only mapping)."""
-    return frozen_mapping({name: Parameter(**p) for name, p in
-                           selection.jackknife_parameters(effect, evaluated).items()})
+def _parameters(cand, ctx, frame):
+    """Return a candidate's parameters with their sigmas and 95 % intervals (read-only mapping)."""
+    found = ruled_out.estimates_of(cand, ctx, frame)
+    out = {}
+    for p in cand.effect.params:
+        e = found[p.name]
+        method = e.method
+        edges = [side for side, is_open in (('low', e.open_low), ('high', e.open_high))
+                 if is_open]
+        if edges:
+            method += (f"; its {' and '.join(edges)} end at the edge of the searched range: "
+                       'the interval may reach beyond it')
+        out[p.name] = Parameter(value=e.value, sigma=e.sigma, unit=p.unit, meaning=p.meaning,
+                                interval=None if e.interval is None else tuple(e.interval),
+                                method=method)
+    return frozen_mapping(out), found
 
 
 def _evidence(cand):
@@ -47,13 +60,16 @@ def _evidence(cand):
     return Evidence(route=cand.route, p_fold_test=cand.p_fold,
                     p_state_space=cand.p_statespace, likelihood_ratio=cand.lr,
                     gain_predictive=cand.gain_predictive,
-                    gain='gain_predictive' if cand.route == 'state_space' else 'gain_step')
+                    gain='gain_step' if cand.route == 'fold_test' else 'gain_predictive')
 
 
-#: A part whose own SF tempco is below this share of the physics' reads as compensated.
-COMPENSATED_SHARE = 1.0 / 3.0
-#: Compensation is read only where the physics' slope is this many sigma of the fitted one.
-COMPENSATED_SIGMAS = 5.0
+#: The datasheet figure a part's own SF tempco is compared with, 1/K: the typical
+#: scale-factor temperature coefficient of a factory-compensated part.
+COMPENSATED_SF_TEMPCO_PER_K = 40e-6
+#: Where that figure comes from, as the JSON and the message name it.
+COMPENSATED_SOURCE = ('40 ppm/K, the typical SF tempco of a factory-compensated part (the '
+                      "ADIS16405 datasheet's figure, as the project's real-noise studies inject "
+                      'it)')
 
 
 def own_tempco(c1, phys):
@@ -62,49 +78,63 @@ def own_tempco(c1, phys):
 
     The cause's c1 (a :class:`.diagnosis.Parameter`) is relative to the
     baseline's R(T) (Eq 13-20): the part's own relative slope at T_ref is
-    c1 + R'(T_ref) (R(T_ref) = 1), its 1-sigma that of c1. Where the
-    physics predicts a slope many sigma from zero and the part's own slope
-    is below :data:`COMPENSATED_SHARE` of it, the part behaves as a
-    temperature-compensated one (real parts are trimmed in temperature at
-    the factory).
+    c1 + R'(T_ref) (R(T_ref) = 1), its sigma and 95 % interval those of c1
+    shifted. The part reads as temperature-compensated (real parts are
+    trimmed at the factory) when its interval excludes the physics' slope
+    and its lower end in magnitude is within the datasheet figure of a
+    compensated part (:data:`COMPENSATED_SF_TEMPCO_PER_K`): the data show it
+    far from the physics and do not rule out that it meets the figure. A part
+    whose whole interval lies beyond the figure (-148 +- 2 ppm/K, an
+    uncompensated datasheet figure; +50 +- 1) is not.
     """
     ref = phys.ref_temp_c
     physics = float(phys.ratio(ref + 0.5) - phys.ratio(ref - 0.5))   # over 1 K about T_ref
     own = c1.value + physics
-    # no sigma (None, 0 or NaN): compensation is not read
-    sigma = c1.sigma if c1.sigma and math.isfinite(c1.sigma) else math.inf
-    compensated = (abs(physics) > COMPENSATED_SIGMAS * sigma
-                   and abs(own) < COMPENSATED_SHARE * abs(physics))
+    interval = None if c1.interval is None else (c1.interval[0] + physics,
+                                                 c1.interval[1] + physics)
+    compensated = False
+    if interval is not None:
+        near = (0.0 if interval[0] <= 0.0 <= interval[1]
+                else min(abs(interval[0]), abs(interval[1])))
+        compensated = (not interval[0] <= physics <= interval[1]
+                       and near <= COMPENSATED_SF_TEMPCO_PER_K)
     return OwnTempco(value=own, sigma=c1.sigma, physics_per_k=physics,
                      meaning="the part's own relative SF slope at T_ref: c1 plus the physics' "
-                             "R'(T_ref)", compensated=compensated)
+                             "R'(T_ref)", compensated=compensated, interval=interval,
+                     datasheet_per_k=COMPENSATED_SF_TEMPCO_PER_K, datasheet=COMPENSATED_SOURCE)
 
 
 def _compensation_text(cause, phys):
-    """Return what the message says of a compensated part (empty when it is not one)."""
+    """Return what the message says of the part's own SF tempco (empty without one)."""
     own = cause.part_sf_temp_coeff_per_k
-    if own is None or not own.compensated:
+    if own is None or own.interval is None:
         return ''
-    sigma = own.sigma if own.sigma and math.isfinite(own.sigma) else math.inf
-    return (f" The part's own scale-factor tempco is {1e6 * own.value:+.3g} +- "
-            f'{1e6 * sigma:.2g} ppm/K at {phys.ref_temp_c:g} C, far below the '
-            f"{1e6 * own.physics_per_k:+.3g} ppm/K of the paper's physics: it behaves as a "
-            'temperature-compensated part (scale_factor_temperature is relative to '
-            'the physics).')
+    lo, hi = (1e6 * v for v in own.interval)
+    said = (f" The part's own scale-factor tempco is {1e6 * own.value:+.3g} ppm/K at "
+            f'{phys.ref_temp_c:g} C (95 % {lo:+.3g} to {hi:+.3g}), against '
+            f"{1e6 * own.physics_per_k:+.3g} ppm/K of the paper's physics and "
+            f'{1e6 * own.datasheet_per_k:.3g} ppm/K of a compensated part ({own.datasheet}): ')
+    if own.compensated:
+        return said + ('it behaves as a temperature-compensated part '
+                       '(scale_factor_temperature is relative to the physics).')
+    return said + 'it is not read as a compensated part.'
 
 
-def _cause(cand, rmse_base, cv, sse_base, twins, phys):
+def _cause(cand, current, rmse_base, cv, sse_base, twins, phys):
     """
     One chosen cause (:class:`Cause`); ``twins`` join what it cannot be told from.
 
-    Given ``phys`` (a baseline of the paper's physics), a
-    ``scale_factor_temperature`` cause carries the part's own SF tempco and,
-    on a compensated part, lists the factory trim first among its mechanisms.
+    ``current`` is the model it was added to. Given ``phys`` (a baseline of
+    the paper's physics), a ``scale_factor_temperature`` cause carries the
+    part's own SF tempco and, on a compensated part, lists the factory trim
+    first among its mechanisms.
     """
     eff, ev = cand.effect, cand.evaluated
     alike = list(cand.indistinguishable)
     alike += [t for t in twins if t not in alike]
-    params = _parameters(eff, ev)
+    params, found = _parameters(cand, cv.ctx, cv.prep.binned)
+    clear = intervals.interval_clear_of_zero(eff, found, cv.ctx, current.full.sse,
+                                             ev.full.sse, cand.n_eff)
     own = None
     mechanisms = list(eff.mechanisms)
     if phys is not None and eff.effect_id == 'scale_factor_temperature':
@@ -120,19 +150,21 @@ def _cause(cand, rmse_base, cv, sse_base, twins, phys):
                  rmse_interval_rad_s=_interval(cv, ev.sse_fold),
                  gain_interval=_interval(cv, ev.sse_fold, sse_base),
                  mechanisms=tuple(mechanisms), competitors=tuple(eff.competitors),
-                 part_sf_temp_coeff_per_k=own)
+                 part_sf_temp_coeff_per_k=own, interval_excludes_zero=bool(clear))
 
 
-def _finding(cand, rmse_base, rmse_null):
+def _finding(cand, rmse_base, rmse_null, cv):
     """One candidate of the first step (the ``findings`` table)."""
     ev = cand.evaluated
     return Finding(effect=cand.effect.effect_id, cause=cand.effect.cause,
-                   kind=cand.effect.kind, parameters=_parameters(cand.effect, ev),
+                   kind=cand.effect.kind,
+                   parameters=_parameters(cand, cv.ctx, cv.prep.binned)[0],
                    rmse_rad_s=ev.rmse, gain=1.0 - ev.rmse / rmse_base,
                    gain_over_recalibrated=1.0 - ev.rmse / rmse_null,
                    gain_binned=cand.gain_binned, p_value=cand.p_value,
                    evidence=_evidence(cand), delta_bic=cand.delta_bic,
-                   n_params=2 + cand.effect.n_params, significant=cand.significant)
+                   n_params=2 + cand.effect.n_params, significant=cand.significant,
+                   in_sample_only=cand.in_sample_only)
 
 
 def _record(data, cv):
@@ -163,7 +195,8 @@ def _steps(steps):
                           effect=c.effect.effect_id, rmse_rad_s=c.evaluated.rmse,
                           gain_step=c.gain_step, gain_binned=c.gain_binned, p_value=c.p_value,
                           route=c.route, p_state_space=c.p_statespace, delta_bic=c.delta_bic,
-                          significant=c.significant) for c in cands))
+                          significant=c.significant, in_sample_only=c.in_sample_only)
+                          for c in cands))
                  for cands, chosen in steps)
 
 
@@ -179,32 +212,52 @@ def _baseline(cv, rmse_base, sse_base, null, preset, config, axis):
                     model=model, recalibrated_rmse_rad_s=null.rmse)
 
 
-def _decide(selected, res, steps, confound, cv, null):
+def _decide(selected, res, steps, confound, cv, null, in_sample):
     """
     Return (verdict, suggestive candidate or None, confounded pair or None).
 
-    The residual's verdict (:func:`.verdict.verdict`); a candidate of the
-    step that added nothing with a large gain it could not establish makes
-    it ``partly_explained`` or ``unexplained``; a bias that follows
+    The residual's verdict (:func:`.verdict.verdict`); ``explained`` only
+    when every chosen cause's 95 % interval excludes zero (and it gained on
+    held-out data, which choosing it required), else ``partly_explained``;
+    a candidate of the step that added nothing with a large gain it could
+    not establish, or one the tests support only in-sample (``in_sample``),
+    makes it ``partly_explained`` or ``unexplained``; a bias that follows
     temperature or time far beyond noise where the record cannot say which
     makes it ``partly_explained``, never ``no_mismatch``.
     """
     result = vd.verdict(selected, res['consistent'])
+    if result == 'explained' and not all(
+            e.interval_excludes_zero and (e.gain_step > 0.0 or e.gain_binned > 0.0)
+            for e in selected):
+        result = 'partly_explained'
     hint = None
     if steps and steps[-1][1] is None:
         hint = vd.suggestive([(c.effect.effect_id, c.gain_step, c.p_value)
                               for c in steps[-1][0]], confound)
         if hint is not None:
             result = 'partly_explained' if selected else 'unexplained'
+    if in_sample and not selected:
+        result = 'unexplained'
     pair = vd.confounded_pair(cv.prep, _null_resid_bins(cv, null), confound, selected, res)
     if pair is not None:
         result = 'partly_explained'
     return result, hint, pair
 
 
-def _message(result, selected, res, coverage, pair, hint, steps, alpha, compensation):
-    """Return the verdict's message, whole: the residual, the pair, the hint, the trim."""
-    text = vd.message(result, selected, res, coverage, suggestive=hint is not None)
+def _message(result, selected, res, coverage, pair, hint, steps, alpha, extra):
+    """
+    Return the verdict's message, whole: the residual, the pair, the hint and ``extra``.
+
+    ``extra``: (what the data rule out, the causes supported in-sample only,
+    the part's own SF tempco), as text.
+    """
+    bounds, in_sample, compensation = extra
+    text = vd.message(result, selected, res, coverage,
+                      suggestive=hint is not None or bool(in_sample), ruled_out=bounds)
+    for e in selected:
+        if not e.interval_excludes_zero:
+            text += (f" {e.effect}'s 95 % interval includes zero: it gains on held-out data "
+                     'but its size is not established.')
     if pair is not None:
         text += (f" The record cannot separate the two: {pair['text']}. To tell "
                  f"them apart, {pair['experiment']}.")
@@ -217,7 +270,41 @@ def _message(result, selected, res, coverage, pair, hint, steps, alpha, compensa
             'not established. The wander measured from a residual that still holds such an '
             'effect is inflated by it, and with it the bar: a longer run, or more '
             'temperature cycles, would settle it.')
+    for e in in_sample:
+        text += (f' {e.effect} is supported in-sample (p = {e.p_value:.2g}), not confirmed on '
+                 f'held-out data: {e.reason}.')
     return text + compensation
+
+
+def _in_sample(steps):
+    """Return the last step's candidates supported only in-sample (:class:`InSampleOnly`)."""
+    if not steps:
+        return ()
+    cands, chosen = steps[-1]
+    return tuple(InSampleOnly(effect=c.effect.effect_id, p_value=c.p_value,
+                              gain_step=c.gain_step, gain_binned=c.gain_binned,
+                              reason=c.in_sample_only)
+                 for c in cands if c.in_sample_only and c is not chosen)
+
+
+def _ruled_out(steps, cv, data):
+    """
+    Return the 95 % upper bounds of the causes tested and not chosen (:class:`Bound`).
+
+    Each from its fit in the last step, beside the final model (:mod:`.ruled_out`).
+    """
+    if not steps:
+        return ()
+    chosen = {c.effect.effect_id for _, c in steps if c is not None}
+    info = {'max_rate_rad_s': float(np.max(np.abs(data.rate_cmd_rad_s)))}
+    out = []
+    for cand in steps[-1][0]:
+        if cand.effect.effect_id in chosen or cand.effect.effect_id not in ruled_out.BOUNDS:
+            continue
+        found = ruled_out.estimates_of(cand, cv.ctx, cv.prep.binned)
+        out += [Bound(effect=cand.effect.effect_id, quantity=q, upper=v, unit=u)
+                for q, v, u in ruled_out.bounds_of(cand.effect.effect_id, found, info)]
+    return tuple(out)
 
 
 def _residual(res, result, message, tested, hint):
@@ -240,7 +327,7 @@ def _residual(res, result, message, tested, hint):
 
 
 def build(*, data, cv, screen, rmse_base, sse_base, null, rms_all, steps, res, confound,
-          not_tested, poly, preset, config, axis, alpha, plots=None):
+          not_tested, poly, preset, config, axis, alpha, plots=None, reference=None):
     """
     Return the :class:`Diagnosis` (see the module docstring).
 
@@ -251,17 +338,27 @@ def build(*, data, cv, screen, rmse_base, sse_base, null, rms_all, steps, res, c
     against its floor ``res`` (:func:`.verdict.residual_floor` with ``r2``
     and ``strongest_correlate``), the ``confound``-ed regressors, the causes
     ``not_tested`` and the temperature polynomial ``poly``; how it ran:
-    ``preset``, ``config``, ``axis``, ``alpha``; ``plots`` for the report.
+    ``preset``, ``config``, ``axis``, ``alpha``, the ``reference`` noise
+    (:class:`.reference.ReferenceNoise` or None); ``plots`` for the report.
     """
     phys = cv.ctx.phys if config is None else None
-    chosen = [cand for _, cand in steps if cand is not None]
-    selected = tuple(_cause(cand, rmse_base, cv, sse_base, twins, phys)
-                     for cand, twins in zip(chosen, vd.confounded_twins(steps, confound)))
-    result, hint, pair = _decide(selected, res, steps, confound, cv, null)
+    chosen, models_before, current = [], [], null
+    for _, cand in steps:
+        if cand is not None:
+            chosen.append(cand)
+            models_before.append(current)
+            current = cand.evaluated
+    selected = tuple(_cause(cand, before, rmse_base, cv, sse_base, twins, phys)
+                     for cand, before, twins in zip(chosen, models_before,
+                                                    vd.confounded_twins(steps, confound)))
+    in_sample = _in_sample(steps)
+    bounds = _ruled_out(steps, cv, data)
+    result, hint, pair = _decide(selected, res, steps, confound, cv, null, in_sample)
     tested = [cand.effect.effect_id for cand in steps[0][0]] if steps else []
     coverage = vd.coverage_text(tested, len(tested) + len(not_tested))
     trim = ''.join(_compensation_text(e, phys) for e in selected)
-    message = _message(result, selected, res, coverage, pair, hint, steps, alpha, trim)
+    message = _message(result, selected, res, coverage, pair, hint, steps, alpha,
+                       (ruled_out.text(bounds), in_sample, trim))
     best_gain = None
     if chosen and rms_all['best'] is not None:
         best_gain = 1.0 - rms_all['best'] / rms_all['baseline']
@@ -275,11 +372,12 @@ def build(*, data, cv, screen, rmse_base, sse_base, null, rms_all, steps, res, c
         confounded=tuple(Confound(**x) for x in confound),
         confounded_pair=None if pair is None else ConfoundedPair(**pair),
         experiments=tuple(vd.experiments(selected, confound, remains, vd.follows(res))),
-        findings=tuple(_finding(cand, rmse_base, null.rmse) for cand in steps[0][0])
+        findings=tuple(_finding(cand, rmse_base, null.rmse, cv) for cand in steps[0][0])
         if steps else (),
         steps=_steps(steps), not_tested=tuple(NotTested(**x) for x in not_tested),
         method=_method(cv, alpha), temperature_polynomial=TemperaturePolynomial(**poly),
-        config=None if config is None else str(config), plots=plots)
+        config=None if config is None else str(config), plots=plots,
+        supported_in_sample=in_sample, ruled_out=bounds, reference=reference)
 
 
 def _null_resid_bins(cv, null):
@@ -300,8 +398,13 @@ def _method(cv, alpha):
              'fixed columns also the likelihood ratio of a local level (white '
              'noise plus a random walk capped by the Allan deviation at short '
              'averaging times) with and without the cause on the group means, '
-             'Bartlett-corrected by a parametric bootstrap; p = 2 min of the two; '
+             'Bartlett-corrected by a parametric bootstrap (with --reference: the '
+             "reference's noise held fixed, chi^2); p = min(p_LR / 0.9, p_fold / 0.1); "
+             'a cause is chosen only when it also gains on held-out data and its size '
+             'stands 2 sigma clear of zero; '
              'Bonferroni over the candidates of each step',
         information_criterion='BIC on the effective number of independent bins',
-        uncertainty='delete-a-block jackknife over the folds, 1 sigma',
+        uncertainty='1 sigma and 95 % intervals: coefficients by the delete-a-block '
+                    'jackknife over the folds (t), searched parameters (step times, delays, '
+                    'time constants, widths) by the profile likelihood',
         blocks='the paired test counts folds (sub_blocks = folds)')

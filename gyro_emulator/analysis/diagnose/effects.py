@@ -36,6 +36,10 @@ class Context:
     ref_temp_c: float
     time_span_s: tuple
     duration_s: float
+    #: Noise variance that weighs the ridge holding each cause to its physical
+    #: range (:meth:`Effect.column_scales`), (rad/s)^2 per sample: white
+    #: noise inflated for the bins' correlation (``pipeline.prior_noise_variance``).
+    noise_var_rad2_s2: float = 0.0
 
     @property
     def mid_time_s(self):
@@ -96,9 +100,13 @@ class Effect:
     'accel'), ``params`` (reported parameters: the non-linear ones first,
     one per grid, then the linear ones), ``grid`` (one array per non-linear
     parameter, empty when linear), ``competitors`` (generic causes a
-    physical one must beat) and ``mechanisms`` (what could produce a generic
-    one). A cause changes the scale-factor ratio (:meth:`sf_factor`), delays
-    the sensed rate (:meth:`delay_s`) or adds columns (:meth:`columns`).
+    physical one must beat), ``mechanisms`` (what could produce a generic
+    one) and ``scales`` (the physical range of each column's coefficient,
+    :meth:`column_scales`). A cause changes the scale-factor ratio
+    (:meth:`sf_factor`), delays the sensed rate (:meth:`delay_s`) or adds
+    columns (:meth:`columns`). ``has_zero`` is False for a law with no
+    parameter value that gives the model without it (the Sutherland law: no
+    constant S makes the viscosity constant).
     """
 
     effect_id = ''
@@ -109,6 +117,8 @@ class Effect:
     grid = ()
     competitors = ()
     mechanisms = ()
+    scales = ()
+    has_zero = True
 
     def grids(self, ctx):
         """Grids of the non-linear parameters for this record."""
@@ -130,6 +140,17 @@ class Effect:
         """Return the physical parameter values: the non-linear ones, then ``coef``."""
         values = list(phi) + list(coef[:len(self.params) - len(phi)])
         return {p.name: float(v) for p, v in zip(self.params, values)}
+
+    def column_scales(self):
+        """
+        Physical range of each column's coefficient (the ridge of :meth:`.models.Model.penalty`).
+
+        Several times the largest the mechanism reaches in a part (and in
+        the truth generator): the prior decides only what the training rows
+        leave undetermined.
+        """
+        scales = tuple(self.scales)[:self.n_columns]
+        return scales + (np.inf,) * (self.n_columns - len(scales))
 
     @property
     def n_params(self):
@@ -163,6 +184,7 @@ class ViscosityTemperature(Effect):
                     '(T_ref + S)/(T + S) (air: 110.4 K)'),)
     grid = (np.geomspace(20.0, 1000.0, 36),)
     competitors = ('scale_factor_temperature',)
+    has_zero = False
 
     def sf_factor(self, ctx, frame, phi):
         """R_S(T) / R(T) from the physics at Sutherland constant S."""
@@ -290,6 +312,10 @@ class TemperatureRateBias(Effect):
                     'bias per unit dT/dt'))
     # a gradient across a die or package settles within minutes
     grid = (np.geomspace(2.0, 300.0, 20),)
+    #: 0.3 rad/s per K/s is 0.3 deg/s per K/min (the truth generator's largest: 0.09)
+    scales = (0.3,)
+    #: The likelihood route tests it at its fitted tau, over its grid's effective tests.
+    state_space_search = True
     competitors = ('bias_temperature', 'bias_time', 'bias_hysteresis')
 
     def columns(self, ctx, frame, phi, basis):

@@ -31,6 +31,14 @@ ratio of the configuration's device, so that the baseline's
 the emulator's output. The record's times are the sample instants, as
 ``simulate --profile`` writes them; ``extended.start_time_s`` is the
 record's first time.
+
+A configuration's latency and clock drift are run as ``simulate --profile``
+runs them, so the baseline holds what they do to its output: a latency
+delays the stamps of the node's messages, not the samples ``simulate
+--profile`` writes at the record's times (it changes no value); a clock
+drift changes the model's grid, whose samples at the record's samples are
+published with the record's inputs and times (the part's filters run on
+its own clock between them).
 """
 
 from dataclasses import replace
@@ -45,20 +53,6 @@ import numpy as np
 #: Noise terms switched off for the deterministic output.
 NOISE_TERMS = ('mechanical_noise', 'electronics_noise', 'bias_instability',
                'rate_random_walk', 'turn_on_bias', 'quantization', 'timestamp_jitter')
-#: Terms the baseline cannot carry (the record's times are its sample instants): the reason.
-UNSUPPORTED = {
-    'latency_s': 'a delay of the output stamps behind the sample instants',
-    'clock_drift_ppm': 'a drift of the sample clock',
-}
-
-
-def check_config(config, path):
-    """Raise a one-line ValueError naming the first term diagnose's baseline cannot carry."""
-    for name, what in UNSUPPORTED.items():
-        if np.any(np.asarray(getattr(config, name), dtype=float) != 0.0):
-            raise ValueError(f'{path}: {name} = {getattr(config, name)!r} is {what}, which '
-                             "diagnose's baseline cannot carry: set it to 0 to diagnose "
-                             'against this configuration')
 
 
 def deterministic(config, start_time_s):
@@ -124,10 +118,8 @@ def offset_and_rate(config, data, axis):
 
 
 def load(config_name):
-    """Return the sensor configuration ``config_name`` (a preset or a file), checked."""
-    config = load_sensor_config(config_name)
-    check_config(config, config_name)
-    return config
+    """Return the sensor configuration ``config_name`` (a preset or a file)."""
+    return load_sensor_config(config_name)
 
 
 def transform(data, config, axis, phys_ratio):

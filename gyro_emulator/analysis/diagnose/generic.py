@@ -98,6 +98,8 @@ class BiasTemperature(TemperaturePolynomial):
                     'bias change per kelvin at T_ref'),
               Param('bias_temp_coeff2_rad_s_k2', 'rad/s/K^2',
                     'quadratic bias coefficient'))
+    #: 1 deg/s/K and 0.06 deg/s/K^2
+    scales = (0.02, 1e-3)
     mechanisms = ('thermal stress of the package and die',
                   'electronics offsets that follow temperature',
                   'on a one-way ramp: a thermal gradient (temperature_rate_bias) '
@@ -120,6 +122,8 @@ class ScaleFactorNonlinearity(Effect):
                     'a2 in Omega (1 + a2 Omega + a3 Omega^2)'),
               Param('nonlinearity_cubic_s2_rad2', 's^2/rad^2',
                     'a3 in Omega (1 + a2 Omega + a3 Omega^2)'))
+    #: 10 % at 1 rad/s (the coefficients are s0 a2, s0 a3)
+    scales = (0.1, 0.1)
     mechanisms = ('sense-mode (Duffing) and electrostatic nonlinearity',
                   'saturation of the electronics near full scale')
 
@@ -146,6 +150,8 @@ class GSensitivity(Effect):
     params = tuple(Param(f'g_sensitivity_{a}_rad_s_per_m_s2', 'rad/s per m/s^2',
                          f'bias per unit acceleration along {a}')
                    for a in AXES)
+    #: 1.1 deg/s/g (a consumer part: about 0.1)
+    scales = (2e-3, 2e-3, 2e-3)
     mechanisms = ('proof-mass offset under gravity and vibration',
                   'a mounting that flexes under load')
 
@@ -166,6 +172,8 @@ class ScaleFactorTemperature(TemperaturePolynomial):
                     'relative scale-factor change per kelvin at T_ref (1e-6 = 1 ppm/K)'),
               Param('sf_temp_coeff2_per_k2', '1/K^2',
                     'quadratic relative scale-factor coefficient'))
+    #: 1 %/K and 0.1 %/K^2
+    scales = (0.01, 1e-3)
     mechanisms = ('an electronics gain temperature coefficient',
                   'factory temperature compensation (the part does not follow the physics)',
                   'gas viscosity rising with temperature (viscosity_temperature)',
@@ -197,6 +205,8 @@ class ScaleFactorTime(Effect):
     params = (Param('sf_drift_per_h', '1/h',
                     'relative scale-factor change per hour at mid-record'),
               Param('sf_drift2_per_h2', '1/h^2', 'quadratic relative drift coefficient'))
+    #: 10 %/h and 10 %/h^2
+    scales = (0.1, 0.1)
     mechanisms = ('a cavity pressure drift (pressure_drift)',
                   'ageing of the electronics gain',
                   'a temperature change confounded with time')
@@ -224,6 +234,8 @@ class BiasTime(Effect):
               Param('warmup_rad_s', 'rad/s', 'warm-up bias A at the start of the record'),
               Param('bias_drift_rad_s_per_h', 'rad/s/h', 'linear bias drift per hour'))
     grid = (None,)
+    #: 5.7 deg/s of warm-up, 5.7 deg/s/h of drift
+    scales = (0.1, 0.1)
     mechanisms = ('warm-up after power-on', 'ageing',
                   'a temperature change confounded with time (bias_temperature)',
                   'bias wander slower than the record can show as noise')
@@ -267,6 +279,8 @@ class BiasHysteresis(Effect):
               Param('bias_hysteresis_rad_s', 'rad/s',
                     'half the bias difference between the cooling and heating branches'))
     grid = (np.geomspace(0.3, 10.0, 20),)
+    #: 1.1 deg/s (a part: about 0.1)
+    scales = (0.02,)
     refine = False
     mechanisms = ('stress relaxation of the package, die attach or adhesive (hysteresis)',
                   'a thermal gradient that settles slower than the soaks '
@@ -317,6 +331,8 @@ class BiasStep(_Step):
     needs = ()
     params = (Param('step_time_s', 's', 'time of the step (first sample after it)'),
               Param('bias_step_rad_s', 'rad/s', 'bias change at the step'))
+    #: 5.7 deg/s
+    scales = (0.1,)
     mechanisms = ('a mechanical shock', 'a remount or a disturbed fixture',
                   'a power cycle or restart of the part')
 
@@ -334,6 +350,8 @@ class ScaleFactorStep(_Step):
     needs = ('rate',)
     params = (Param('step_time_s', 's', 'time of the step (first sample after it)'),
               Param('sf_step', '', 'relative scale-factor change at the step'))
+    #: 20 %
+    scales = (0.2,)
     mechanisms = ('a mechanical shock or overload', 'a range or gain switch',
                   'a remount or restart of the part')
 

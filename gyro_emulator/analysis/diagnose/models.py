@@ -7,7 +7,12 @@ A :class:`Model` composes causes (:mod:`.effects`, :mod:`.generic`)::
     s = R(T) prod(sf_factor),  Omega_s = Omega(t - sum(delay))
 
 Parameters that enter linearly are solved by weighted least squares on the
-bin means (weights: samples per bin). The others, one set per cause, are
+bin means (weights: samples per bin), each cause's coefficients held to its
+physical range by a ridge (:meth:`Model.penalty`: a Gaussian prior of that
+width, so that a direction the training rows do not determine, such as a
+step column equal to the rate column when every training row is past the
+step, goes to zero instead of to a cancelling pair that blows up the
+held-out prediction). The others, one set per cause, are
 found by variable projection: a grid search, each point solving the linear
 part, then a bounded refinement (:func:`fit_model`); a step time by an
 exact search over every bin start (:func:`change_point`). When a cause is
@@ -23,6 +28,8 @@ from scipy.optimize import minimize, minimize_scalar
 
 #: Rows kept at each end of a change-point search (share of the rows, and at least 3).
 STEP_MARGIN = 0.02
+#: Least ridge of a cause's column on the unit-scaled normal equations (:func:`solve_normal`).
+MIN_RIDGE = 1e-6
 
 
 @dataclass
@@ -80,6 +87,21 @@ class Model:
             cols += eff.columns(ctx, frame, phi, basis)
         return cols
 
+    def penalty(self, ctx):
+        """
+        Ridge weights of the columns (:meth:`columns`): 0 for ``[1, s Omega_s]``.
+
+        A cause's column with prior width r (its physical range,
+        :meth:`.effects.Effect.column_scales`) gets sigma^2 / r^2, sigma^2
+        the per-sample noise variance (``ctx.noise_var_rad2_s2``): the
+        penalised weighted least squares is then the posterior mode under a
+        N(0, r^2) prior on the coefficient.
+        """
+        out = [0.0, 0.0]
+        for eff in self.effects:
+            out += [ctx.noise_var_rad2_s2 / r ** 2 for r in eff.column_scales()]
+        return np.asarray(out)
+
     def report(self, beta, phis):
         """Return each cause's physical parameters (a list of dicts, in order)."""
         out, i = [], 2
@@ -95,13 +117,19 @@ def base_ratio(ctx, frame):
     return cached(frame, 'base_ratio', lambda: ctx.phys.ratio(slow_temp(frame)))
 
 
-def solve_normal(x, w, y):
+def solve_normal(x, w, y, penalty=None):
     """
     Weighted least-squares coefficients of ``y`` (one column or several) on ``x``.
 
     The normal equations are scaled to a unit diagonal and solved with a
     1e-10 ridge, so an all-zero or duplicate column gets a zero (or shared)
-    coefficient instead of an error. Returns (beta, gram, rhs).
+    coefficient instead of an error. With ``penalty`` (one weight per
+    column, :meth:`Model.penalty`), a penalised column gets that ridge but at
+    least :data:`MIN_RIDGE` on the unit diagonal (a cause's column within
+    1e-6 of the span of the others is not determined by the data) and an
+    unpenalised one (the baseline's) only 1e-12, so that where the data
+    cannot tell a cause's column from the baseline's the baseline takes it
+    all. Returns (beta, gram, rhs): ``gram`` without the penalty.
     """
     xw = x * w[:, None]
     gram = xw.T @ x
@@ -109,7 +137,12 @@ def solve_normal(x, w, y):
     scale = np.sqrt(np.diag(gram))
     scale = np.where(scale > 0.0, scale, 1.0)
     g = gram / np.outer(scale, scale)
-    g[np.diag_indices_from(g)] += 1e-10
+    if penalty is None:
+        g[np.diag_indices_from(g)] += 1e-10
+    else:
+        pen = np.asarray(penalty, dtype=float)
+        g[np.diag_indices_from(g)] += np.where(pen > 0.0, np.maximum(pen / scale ** 2,
+                                                                     MIN_RIDGE), 1e-12)
     shaped = scale if np.ndim(y) == 1 else scale[:, None]
     try:
         sol = np.linalg.solve(g, rhs / shaped)
@@ -118,24 +151,29 @@ def solve_normal(x, w, y):
     return sol / shaped, gram, rhs
 
 
-def wls(cols, y, w):
-    """Weighted least squares of ``y`` on ``cols`` (:func:`solve_normal`); returns (beta, sse)."""
+def wls(cols, y, w, penalty=None):
+    """
+    Weighted least squares of ``y`` on ``cols`` (:func:`solve_normal`); returns (beta, sse).
+
+    The SSE is that of the data (the ridge ``penalty`` is not in it).
+    """
     x = np.column_stack(cols)
-    beta, gram, rhs = solve_normal(x, w, y)
+    beta, gram, rhs = solve_normal(x, w, y, penalty)
     sse = float(np.dot(w * y, y) - 2.0 * np.dot(beta, rhs) + beta @ gram @ beta)
     return beta, max(sse, 0.0)
 
 
-def step_search(x, g, w, y, margin=STEP_MARGIN):
+def step_gains(x, g, w, y, margin=STEP_MARGIN):
     """
-    Exact least-squares start of a step g H(t - t_k) added to the columns ``x``.
+    SSE reduction of a step g H(t - t_k) added to the columns ``x``, at every row k.
 
     Rows in time order; ``y`` one column or several (one search each).
     With r the residual of ``y`` on ``x`` and M the W-weighted residual
     maker of ``x``, the step at row k lowers the SSE by (h'W r)^2 / (h'W M h);
     suffix sums give h'W r, h'W h and x'W h for every k at once (O(n p^2)).
     Starts within ``margin`` (share of the rows, at least 3) of either end
-    are not tried. Returns the row index (one per column of ``y``).
+    are not tried. Returns (reductions (rows, columns of y), the rows tried
+    (bool), the SSE without the step per column of y).
     """
     scale = np.sqrt(np.sum(w[:, None] * x * x, axis=0))
     x = x / np.where(scale > 0.0, scale, 1.0)
@@ -157,7 +195,18 @@ def step_search(x, g, w, y, margin=STEP_MARGIN):
     ok[cut:m - cut] = True
     ok &= q > 1e-12 * max(float(c[0]), 1e-300)
     gain = np.where(ok[:, None], a ** 2 / np.where(ok, q, 1.0)[:, None], -1.0)
-    k = np.argmax(gain, axis=0) if np.any(ok) else np.full(y2.shape[1], m // 2)
+    return gain, ok, np.sum(w[:, None] * r * r, axis=0)
+
+
+def step_search(x, g, w, y, margin=STEP_MARGIN):
+    """
+    Exact least-squares start of a step g H(t - t_k) added to the columns ``x``.
+
+    The row of the largest SSE reduction (:func:`step_gains`), one per
+    column of ``y``; the middle row when no start can be tried.
+    """
+    gain, ok, _ = step_gains(x, g, w, y, margin)
+    k = np.argmax(gain, axis=0) if np.any(ok) else np.full(gain.shape[1], len(w) // 2)
     return k if np.ndim(y) == 2 else int(k[0])
 
 
@@ -188,10 +237,11 @@ def fit_model(model, ctx, frame, rows=None, fixed=None, start=None):
     w = frame.weight[rows]
     fixed = tuple(fixed or ())
     n = len(frame)
+    penalty = model.penalty(ctx)
 
     def solve(phis):
         cols = [np.broadcast_to(c, (n,))[rows] for c in model.columns(ctx, frame, phis)]
-        return wls(cols, y, w)
+        return wls(cols, y, w, penalty)
 
     if len(fixed) == len(model.effects):
         beta, sse = solve(fixed)
@@ -225,13 +275,30 @@ def change_point(partial, step, ctx, frame, rows, fixed):
     The columns of ``partial`` (the model without the step) and the step's
     multiplier (1 or s Omega) on the training rows go to :func:`step_search`.
     """
+    x, g = _step_inputs(partial, step, ctx, frame, rows, fixed)
+    k = step_search(x, g, frame.weight[rows], frame.gyro[rows])
+    return float(frame.bins.bin_start_s[np.flatnonzero(rows)[k]])
+
+
+def _step_inputs(partial, step, ctx, frame, rows, fixed):
+    """Return the columns of ``partial`` and the step's multiplier on ``rows``."""
     n = len(frame)
     basis = partial.basis(ctx, frame, fixed)
     x = np.column_stack([np.broadcast_to(c, (n,))[rows]
                          for c in partial.columns(ctx, frame, fixed)])
-    g = np.broadcast_to(step.multiplier(frame, basis), (n,))[rows]
-    k = step_search(x, g, frame.weight[rows], frame.gyro[rows])
-    return float(frame.bins.bin_start_s[np.flatnonzero(rows)[k]])
+    return x, np.broadcast_to(step.multiplier(frame, basis), (n,))[rows]
+
+
+def step_profile(partial, step, ctx, frame, fixed):
+    """
+    Return the SSE of a step at every bin start: (bin starts s, SSE; inf where not tried).
+
+    The profile of the step time (:func:`step_gains`), for its likelihood interval.
+    """
+    rows = np.ones(len(frame), bool)
+    x, g = _step_inputs(partial, step, ctx, frame, rows, fixed)
+    gain, ok, rss = step_gains(x, g, frame.weight, frame.gyro)
+    return frame.bins.bin_start_s, np.where(ok, rss[0] - gain[:, 0], np.inf)
 
 
 def _around(grid, value, steps=2):
@@ -263,7 +330,7 @@ def _search_1d(sse_of, g):
 
 
 def _search_2d(sse_of, g0, g1, max_evals=120):
-    """Grid search over ``g0 x g1``, then a Nelder-Mead refinement from the best point."""
+    """Grid search over ``g0 x g1``, then a Nelder-Mead refinement inside the grid's range."""
     sses = np.array([[sse_of((a, b)) for b in g1] for a in g0])
     i, j = np.unravel_index(int(np.argmin(sses)), sses.shape)
     best_phi, best_sse = (float(g0[i]), float(g1[j])), sses[i, j]
@@ -271,8 +338,13 @@ def _search_2d(sse_of, g0, g1, max_evals=120):
         max(np.diff(g0).min(), 0.5 * (g0[min(i + 1, len(g0) - 1)] - g0[max(i - 1, 0)])),
         max(np.diff(g1).min(), 0.5 * (g1[min(j + 1, len(g1) - 1)] - g1[max(j - 1, 0)]))])
     start = np.array(best_phi)
+    # the refinement stays inside the grid: the grid is the cause's physical range
+    lo = np.array([np.min(g0), np.min(g1)])
+    hi = np.array([np.max(g0), np.max(g1)])
+    step = np.where(start + step <= hi, step, -step)
     simplex = np.array([start, start + [step[0], 0], start + [0, step[1]]])
     res = minimize(lambda p: sse_of(tuple(p)), start, method='Nelder-Mead',
+                   bounds=list(zip(lo, hi)),
                    options={'initial_simplex': simplex, 'maxfev': max_evals,
                             'xatol': 1e-3, 'fatol': 1e-9 * best_sse})
     if res.fun < best_sse:

@@ -309,19 +309,20 @@ def draw_noise_records(noise, superbins, n_sim, rng):
     return out
 
 
-def _held_out(x_tr, w_tr, y_tr, x_ho):
+def _held_out(x_tr, w_tr, y_tr, x_ho, penalty=None):
     """
     Fit every column of ``y_tr`` (training rows) on ``x_tr``; predict the held-out rows.
 
-    :func:`gyro_emulator.analysis.diagnose.models.solve_normal`. Returns
+    :func:`gyro_emulator.analysis.diagnose.models.solve_normal`, with the
+    causes' ridge ``penalty`` (:meth:`.models.Model.penalty`). Returns
     (predictions, training SSE per column).
     """
-    beta, _, _ = models.solve_normal(x_tr, w_tr, y_tr)
+    beta, _, _ = models.solve_normal(x_tr, w_tr, y_tr, penalty)
     resid_tr = y_tr - x_tr @ beta
     return x_ho @ beta, np.sum(w_tr[:, None] * resid_tr ** 2, axis=0)
 
 
-def null_gain(current_cols, candidate, superbins, sims):
+def null_gain(current_cols, candidate, superbins, sims, penalty=None):
     """
     Held-out SSE reductions that noise alone gives a candidate, per fold and simulation.
 
@@ -341,6 +342,9 @@ def null_gain(current_cols, candidate, superbins, sims):
         The groups.
     sims : numpy.ndarray
         Simulated noise, (groups, n_sim).
+    penalty : tuple, optional
+        The ridge of the current model's columns and of the candidate's
+        added ones (:meth:`.models.Model.penalty`): (p,) and (q,) arrays.
 
     Returns
     -------
@@ -351,6 +355,8 @@ def null_gain(current_cols, candidate, superbins, sims):
 
     """
     w = superbins.weight
+    pen0, pen1 = (None, None) if penalty is None else penalty
+    pen = None if penalty is None else np.r_[pen0, pen1]
     out = []
     if isinstance(candidate, tuple):
         _, g, start = candidate
@@ -359,19 +365,20 @@ def null_gain(current_cols, candidate, superbins, sims):
     for k in np.unique(superbins.fold):
         ho = superbins.fold == k
         tr = ~ho
-        pred0, _ = _held_out(current_cols[tr], w[tr], sims[tr], current_cols[ho])
+        pred0, _ = _held_out(current_cols[tr], w[tr], sims[tr], current_cols[ho], pen0)
         sse0 = np.sum(w[ho, None] * (sims[ho] - pred0) ** 2, axis=0)
         if isinstance(candidate, tuple):
             pred1 = np.empty((int(ho.sum()), sims.shape[1]))
             for j in range(sims.shape[1]):
                 x = np.column_stack([current_cols, steps[:, j]])
-                pred1[:, j] = _held_out(x[tr], w[tr], sims[tr, j:j + 1], x[ho])[0][:, 0]
+                pred1[:, j] = _held_out(x[tr], w[tr], sims[tr, j:j + 1], x[ho],
+                                        pen)[0][:, 0]
         else:
             best = np.full(sims.shape[1], np.inf)
             pred1 = np.zeros((int(ho.sum()), sims.shape[1]))
             for cols in candidate:
                 x = np.column_stack([current_cols, cols])
-                pred, sse_tr = _held_out(x[tr], w[tr], sims[tr], x[ho])
+                pred, sse_tr = _held_out(x[tr], w[tr], sims[tr], x[ho], pen)
                 better = sse_tr < best
                 best = np.where(better, sse_tr, best)
                 pred1[:, better] = pred[:, better]
@@ -380,18 +387,19 @@ def null_gain(current_cols, candidate, superbins, sims):
     return np.asarray(out)
 
 
-def held_out_residuals(cols, superbins, sims):
+def held_out_residuals(cols, superbins, sims, penalty=None):
     """
     Held-out residuals of the simulations under a model: (groups, simulations).
 
     The simulations are fitted with the model's columns averaged over the
-    groups and predicted fold by fold, as the cross-validation does.
+    groups (and its ridge ``penalty``) and predicted fold by fold, as the
+    cross-validation does.
     """
     w = superbins.weight
     out = np.empty_like(sims)
     for k in np.unique(superbins.fold):
         ho = superbins.fold == k
-        pred, _ = _held_out(cols[~ho], w[~ho], sims[~ho], cols[ho])
+        pred, _ = _held_out(cols[~ho], w[~ho], sims[~ho], cols[ho], penalty)
         out[ho] = sims[ho] - pred
     return out
 

@@ -12,9 +12,11 @@
    :class:`.diagnosis.Diagnosis`, once.
 """
 
+from dataclasses import replace
 import math
 
 from gyro_emulator.analysis.diagnose import baseline as base
+from gyro_emulator.analysis.diagnose import cv as cvmod
 from gyro_emulator.analysis.diagnose import (document, emulated, generic, models, screening,
                                              selection)
 from gyro_emulator.analysis.diagnose import verdict as vd
@@ -23,6 +25,7 @@ from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, measured, Pre
 from gyro_emulator.analysis.diagnose.diagnosis import ResidualPlots
 from gyro_emulator.analysis.diagnose.effects import Context
 from gyro_emulator.analysis.diagnose.noise_model import SuperBins
+from gyro_emulator.analysis.diagnose.reference import reference_noise
 from gyro_emulator.physics.presets import physics_preset
 from gyro_emulator.units import AXES
 from gyro_emulator.validation import check_range
@@ -38,6 +41,24 @@ def _physics(data, device, ref_temp_c):
     return base.DevicePhysics(device, tref, float(temps.min()), float(temps.max()))
 
 
+def prior_noise_variance(prep, ctx):
+    """
+    Return the noise variance that weighs the causes' ridge, (rad/s)^2 per sample.
+
+    The recalibrated baseline's weighted residual on the bins, SSE / n_eff
+    (:func:`.cv.effective_bins`): the per-sample variance for white noise,
+    inflated by (1 + rho) / (1 - rho) for the bins' correlation. A column
+    the training rows barely show is then held by its physical range
+    against the wander that can fake it, not against white noise alone
+    (a dT/dt column at the start of a one-way ramp, unseen in the other
+    folds: 94 rad/s per K/s against white noise, 0 against the wander).
+    """
+    b = prep.binned
+    fit = models.fit_model(models.Model(()), ctx, b)
+    resid = b.gyro - models.predict(models.Model(()), ctx, b, fit)
+    return fit.sse / cvmod.effective_bins(resid, b.weight)
+
+
 def _setup(data, phys, folds, max_bins, outlier_threshold):
     """Screen, bin and cut the folds; return (cv, screening result)."""
     check_range('diagnose', 'folds', folds, 3, 50, '', low_open=False)
@@ -47,6 +68,7 @@ def _setup(data, phys, folds, max_bins, outlier_threshold):
     ctx = Context(phys=phys, ref_temp_c=tref,
                   time_span_s=(float(data.time_s[0]), float(data.time_s[-1])),
                   duration_s=prep.duration_s)
+    ctx = replace(ctx, noise_var_rad2_s2=prior_noise_variance(prep, ctx))
     return CrossValidation(prep, ctx, int(folds)), screen
 
 
@@ -97,10 +119,31 @@ def _testable(catalogue, have, data):
     return testable, not_tested
 
 
+#: A reference shorter than this share of the record does not measure its slow noise.
+MIN_REFERENCE_SHARE = 0.99
+
+
+def _reference(reference, axis, duration_s):
+    """
+    Return the noise of the reference record, checked to be long enough.
+
+    Its slow noise (flicker, walk) is held fixed in the null at the scales of
+    the diagnosed record: a shorter reference has not measured them there
+    (its fit gives zero for what it cannot see), so it is a one-line error.
+    """
+    ref = reference_noise(measured(reference, axis, True))
+    if ref.duration_s < MIN_REFERENCE_SHARE * duration_s:
+        raise ValueError(f'diagnose: reference {ref.source!r} lasts {ref.duration_s:.6g} s, '
+                         f'shorter than the record ({duration_s:.6g} s): allowed: a static '
+                         'record of the part at least as long as the diagnosed one, so that '
+                         'its slow noise is measured at the scales of the record')
+    return ref
+
+
 def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
              max_bins=DEFAULT_MAX_BINS, effects=None, alpha=selection.ALPHA,
              outlier_threshold=screening.THRESHOLD, max_causes=selection.MAX_CAUSES, seed=0,
-             config=None, axis='z'):
+             config=None, axis='z', reference=None):
     """
     Diagnose a measured record against the paper's physics.
 
@@ -133,6 +176,10 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
         output is the baseline (:mod:`.emulated`); ``preset`` is then unused.
     axis : str
         The configuration's axis the record measures ('x', 'y' or 'z').
+    reference : MeasuredData or Record, optional
+        A second, static record of the same part (the same axis): its noise
+        (white, flicker, walk) is held fixed in every null
+        (:mod:`.reference`).
 
     Returns
     -------
@@ -163,7 +210,8 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     catalogue = generic.with_polynomial_order(catalogue, poly['order'])
     testable, not_tested = _testable(catalogue, have, data)
     superbins = SuperBins(prep.binned, cv.fold_of_bin, prep.dt_s)
-    selector = selection.Selector(cv, superbins, alpha, seed)
+    ref = None if reference is None else _reference(reference, axis, prep.duration_s)
+    selector = selection.Selector(cv, superbins, alpha, seed, ref)
     steps, final = selection.forward_selection(selector, null, testable, max_causes)
     chosen = [c for _, c in steps if c is not None]
     res = vd.residual_floor(selector, final, have)
@@ -184,4 +232,4 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     return document.build(data=data, cv=cv, screen=screen, rmse_base=rmse_base,
                           sse_base=sse_base, null=null, rms_all=rms_all, steps=steps, res=res,
                           confound=confound, not_tested=not_tested, poly=poly, preset=preset,
-                          config=config, axis=axis, alpha=alpha, plots=plots)
+                          config=config, axis=axis, alpha=alpha, plots=plots, reference=ref)

@@ -14,6 +14,7 @@ each selection step.
 import os
 
 from gyro_emulator import atomic, plotting
+from gyro_emulator.analysis.diagnose import ruled_out
 import numpy as np
 
 PLOTS = (('temperature', 'temp_c', 'temperature reading (C)'),
@@ -39,18 +40,23 @@ def terminal_lines(diagnosis):
     d, sa = diagnosis, diagnosis.set_aside
     lines = [f'{d.record.rows} samples, {d.record.duration_s:.0f} s; baseline held-out RMSE '
              f'{d.baseline.rmse_rad_s:.4g} rad/s; set aside {sa.count} samples '
-             f'({100 * sa.fraction:.3f} %)', f'verdict: {d.verdict}']
+             f'({100 * sa.fraction:.3f} %)']
+    if d.reference is not None:
+        lines.append(f'noise held fixed from the reference {reference_text(d.reference)}')
+    lines.append(f'verdict: {d.verdict}')
     for i, e in enumerate(d.selected, 1):
         alike = (f"; cannot be told from {', '.join(e.indistinguishable_from)}"
                  if e.indistinguishable_from else '')
         lines.append(f'cause {i}: {e.effect} ({e.kind})  gain {100 * e.gain:.1f} %  '
                      f'p {e.p_value:.1e}{alike}')
-        lines += [f'  {name} = {p.value:.5g} +- {p.sigma:.2g} {p.unit}'
-                  for name, p in e.parameters.items()]
+        lines += [f'  {name} = {parameter_text(p)}' for name, p in e.parameters.items()]
         own = e.part_sf_temp_coeff_per_k
         if own is not None:
-            lines.append(f"  the part's own SF tempco = {own.value:.5g} +- {own.sigma:.2g} 1/K "
-                         f'(the physics: {own.physics_per_k:.5g} 1/K)')
+            lines.append(f"  the part's own SF tempco = {own.value:.5g} 1/K, 95 % "
+                         f'{_interval_text(own.interval)} (the physics: '
+                         f'{own.physics_per_k:.5g} 1/K; a compensated part: '
+                         f'{own.datasheet_per_k:.3g} 1/K): '
+                         + ('compensated' if own.compensated else 'not read as compensated'))
     if d.temperature_polynomial.note:
         lines.append(f'note: {d.temperature_polynomial.note}')
     if not d.selected:
@@ -58,10 +64,45 @@ def terminal_lines(diagnosis):
     lines.append(d.residual.message)
     lines += [f'confounded: {c.a} and {c.b} (r = {c.correlation:+.4f})' for c in d.confounded]
     lines += [f'experiment: {text}' for text in d.experiments]
+    lines += [f'supported in-sample, not confirmed on held-out data: {e.effect} '
+              f'(p {e.p_value:.1e}; {e.reason})' for e in d.supported_in_sample]
+    if d.ruled_out:
+        lines.append('ruled out (95 %): ' + ruled_out_text(d.ruled_out))
     lines += [f'  {f.effect:<26} gain {gain_text(f.gain):>9}  p {f.p_value:.1e}  '
-              f"dBIC {f.delta_bic:9.0f}  {'significant' if f.significant else ''}"
+              f'dBIC {f.delta_bic:9.0f}  {_finding_flag(f)}'
               for f in d.findings]
     return lines + [f'  {nt.effect:<26} not tested: {nt.reason}' for nt in d.not_tested]
+
+
+def reference_text(ref):
+    """Return the reference record's noise in one phrase."""
+    return (f'{ref.source} ({ref.duration_s:.0f} s): N {ref.arw_rad_s_sqrt_hz:.3g} '
+            f'rad/s/sqrt(Hz), B {ref.bias_instability_rad_s:.3g} rad/s, K '
+            f'{ref.rrw_rad_s_sqrt_s:.3g} rad/s/sqrt(s) (Allan deviation up to '
+            f'{ref.allan_tau_max_s:.3g} s)')
+
+
+def _finding_flag(f):
+    return 'significant' if f.significant else ('in-sample only' if f.in_sample_only else '')
+
+
+def ruled_out_text(bounds):
+    """Return the bounds as "bias tempco above 0.0006 deg/s/K; ..." (:func:`.ruled_out.text`)."""
+    return ruled_out.text(bounds)
+
+
+def _interval_text(interval):
+    return 'n/a' if interval is None else f'[{interval[0]:.5g}, {interval[1]:.5g}]'
+
+
+def parameter_text(p):
+    """Return a parameter as "value [low, high] unit (95 %, how)" or "value: not measured"."""
+    if p.interval is None:
+        return f'{p.value:.5g} {p.unit}: not measured' + (
+            f' ({p.method[len("not measured: "):]})' if p.method and
+            p.method.startswith('not measured: ') else '')
+    how = 'profile' if p.method and p.method.startswith('profile') else 'jackknife'
+    return f'{p.value:.5g} {_interval_text(p.interval)} {p.unit} (95 %, {how})'
 
 
 def _binned_curve(x, r, groups=25):
@@ -151,6 +192,10 @@ def markdown(doc, plots=()):
 
     """
     sections = (('Verdict', _verdict_lines(doc)),
+                ('What the data rule out', _ruled_out_lines(doc)),
+                ('Supported in-sample, not confirmed on held-out data', [
+                    f'- `{e.effect}`: p = {e.p_value:.2g}; {e.reason}.'
+                    for e in doc.supported_in_sample] + ([''] if doc.supported_in_sample else [])),
                 ('What cannot be told apart', _confound_lines(doc)),
                 ('Outliers set aside', _set_aside_lines(doc)),
                 ('Baseline', [_baseline_text(doc), '']),
@@ -183,6 +228,11 @@ def _evidence_text(entry):
     """Return which test and which gain the cause rests on."""
     ev = entry.evidence
     p_ss = ev.p_state_space
+    if ev.route == 'reference_noise':
+        return (f'The decision rests on the likelihood ratio of the cause with the noise of '
+                f'the reference record held fixed (LR {ev.likelihood_ratio:.1f}, p = '
+                f'{p_ss:.2g}; the fold test gave p = {ev.p_fold_test:.2g}) and on its gain in '
+                f'predicting the averaged residual ({100 * ev.gain_predictive:.1f} %).')
     if ev.route == 'state_space':
         return (f'The decision rests on the likelihood ratio of the noise and the cause '
                 f'estimated jointly (LR {ev.likelihood_ratio:.1f}, p = {p_ss:.2g}; the '
@@ -209,9 +259,10 @@ def _cause_lines(entry):
     if entry.kind == 'generic' and entry.mechanisms:
         lines += ['', 'Mechanisms that could produce it: '
                   + '; '.join(entry.mechanisms) + '.']
-    lines += ['', '| parameter | value | 1 sigma | unit | meaning |', '|---|---|---|---|---|']
-    lines += [f'| {name} | {_fmt(p.value)} | {_fmt(p.sigma)} | {p.unit} '
-              f'| {p.meaning} |' for name, p in entry.parameters.items()]
+    lines += ['', '| parameter | value | 1 sigma | 95 % interval | unit | how | meaning |',
+              '|---|---|---|---|---|---|---|']
+    lines += [f'| {name} | {_fmt(p.value)} | {_fmt(p.sigma)} | {_interval_text(p.interval)} '
+              f'| {p.unit} | {p.method} | {p.meaning} |' for name, p in entry.parameters.items()]
     return lines + ['']
 
 
@@ -224,6 +275,10 @@ def _verdict_lines(doc):
     for entry in doc.selected:
         lines += _cause_lines(entry)
     noise = res.noise
+    if doc.reference is not None:
+        lines += [f'The noise of the nulls is held fixed from the reference record '
+                  f'{reference_text(doc.reference)}; the per-sample spread is the '
+                  "record's own.", '']
     lines += [f'Noise of the final residual: {noise.white_sigma_rad_s:.3g} rad/s per sample; '
               f'N = {noise.arw_rad_s_sqrt_hz:.3g} rad/s/sqrt(Hz), B = '
               f'{noise.bias_instability_rad_s:.3g} rad/s, K = '
@@ -241,6 +296,17 @@ def allan_text(noise):
     return ('no Allan deviation: no stretch of the record holds enough bins for three '
             'averaging times, so B and K are not measured (0) and N is the short-term '
             'spread: the floor holds the fast noise only')
+
+
+def _ruled_out_lines(doc):
+    """Return the 95 % upper bounds of the causes tested and not found, as a table."""
+    if not doc.ruled_out:
+        return []
+    return (['Every cause the record could test and that was not chosen, with the largest '
+             'size its 95 % interval allows (beside the final model):', '',
+             '| cause | quantity | 95 % upper bound | unit |', '|---|---|---|---|']
+            + [f'| {b.effect} | {b.quantity} | {b.upper:.3g} | {b.unit} |'
+               for b in doc.ruled_out] + [''])
 
 
 def _confound_lines(doc):
@@ -289,7 +355,8 @@ def calibration_samples_text(doc):
     return f'{cal.samples} samples within {cal.window_c:.2f} C of {cal.ref_temp_c:.1f} C'
 
 
-_TEST_TEXT = {'fold_test': 'fold', 'state_space': 'likelihood'}
+_TEST_TEXT = {'fold_test': 'fold', 'state_space': 'likelihood',
+              'reference_noise': 'likelihood, reference noise'}
 
 
 def _steps_lines(doc):

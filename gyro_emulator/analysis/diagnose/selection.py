@@ -5,7 +5,7 @@ Starting from the recalibrated baseline, each step (:func:`step`) adds
 every remaining cause the record can show to the current model, fits the
 joint model per fold (the causes already chosen keep their non-linear
 parameters; :mod:`.models`) and scores it on held-out data (:mod:`.cv`). A
-candidate is *significant* when, against the current model:
+candidate is *supported* when, against the current model:
 
 - its held-out RMSE gain is at least ``MIN_GAIN`` (0.5 %; ``MIN_GAIN_RATE``,
   0.1 %, for a cause that acts on the applied rate: :func:`gain_floor`);
@@ -15,7 +15,17 @@ candidate is *significant* when, against the current model:
   (Bonferroni: the chance that a record with no effect gets any cause is
   at most ``alpha``);
 - its BIC on the effective number of independent bins is lower by more
-  than 10 (:func:`.cv.effective_bic`).
+  than 10 (:func:`.cv.effective_bic`);
+
+or the likelihood route establishes it (:meth:`Selector.score`). It is
+*significant*, and may be chosen, only when moreover it predicts the
+held-out data better than the current model, per sample or in the group
+means at the verdict's averaging time (a held-out gain > 0: the
+likelihood route's evidence is in-sample), and its size stands more than
+``SIZE_Z`` (2) sigma clear of zero (:func:`.intervals.clear_of_zero`). A
+supported candidate that fails either is *supported in-sample, not
+confirmed on held-out data* (``in_sample_only`` says why): listed, never
+chosen.
 
 Among the significant candidates the lowest held-out RMSE leads. Those the
 fold test cannot tell from the cause chosen (p >= ``ALPHA_TIE`` that it is
@@ -35,9 +45,11 @@ over the per-fold fits.
 
 from dataclasses import dataclass, field, replace
 import math
+import zlib
 
 from gyro_emulator.analysis.diagnose import cv as cvmod
-from gyro_emulator.analysis.diagnose import models, noise_model, statespace
+from gyro_emulator.analysis.diagnose import intervals, models, noise_model, statespace
+from gyro_emulator.analysis.diagnose import reference as reference_mod
 from gyro_emulator.analysis.diagnose.effects import Effect
 import numpy as np
 
@@ -54,12 +66,20 @@ ALPHA = 0.01
 ALPHA_TIE = 0.05
 DELTA_BIC_MAX = -10.0
 MAX_CAUSES = 4
+#: A cause whose size is within this many sigma of zero is not chosen.
+SIZE_Z = 2.0
+#: The share of alpha the likelihood route gets where a cause has both routes
+#: (weighted Bonferroni: p = min(p_LR / W_LR, p_fold / (1 - W_LR))).
+W_LR = 0.9
 MIN_TEMP_SPAN_C = 1.0
 MIN_ACCEL_STD_M_S2 = 0.05
 MIN_RATE_RMS_RAD_S = 1e-3
-#: Columns of a searched cause that do not depend on its searched parameter:
-#: the state-space route tests these (the linear drift of bias_time).
-PHI_FREE_COLUMNS = {'bias_time': (1,)}
+#: The columns of a cause the likelihood route tests, where not all: those of a
+#: searched cause that do not depend on its searched parameter (the linear
+#: drift of bias_time), and the leading term of a temperature polynomial (the
+#: tempco dT of bias_temperature: one degree of freedom where a tempco has one;
+#: the fold test still scores the whole polynomial).
+LR_COLUMNS = {'bias_time': (1,), 'bias_temperature': (0,)}
 
 
 @dataclass
@@ -81,6 +101,10 @@ class Candidate:
     gain_binned: float = 0.0
     gain_predictive: float = None
     route: str = 'fold_test'
+    #: Why a candidate the tests support was not chosen (None: it was not
+    #: supported, or it is significant): no held-out gain, or a size within
+    #: SIZE_Z sigma of zero.
+    in_sample_only: str = None
 
 
 def excitation(prep, data):
@@ -122,22 +146,35 @@ class Selector:
         Family-wise false-alarm level of each step.
     seed : int
         Seed of the null simulations.
+    reference : gyro_emulator.analysis.diagnose.reference.ReferenceNoise, optional
+        The noise of a second record of the part, held fixed in every null
+        (``--reference``): the simulations and the floor draw it, and the
+        likelihood route tests with it known (:class:`.reference.KnownNoise`).
 
     """
 
-    def __init__(self, cv, superbins, alpha=ALPHA, seed=0):
+    def __init__(self, cv, superbins, alpha=ALPHA, seed=0, reference=None):
         self.cv, self.superbins = cv, superbins
         self.alpha, self.seed = alpha, seed
+        self.reference = reference
         self.ctx = cv.ctx
         self._noise = {}
         self._ss = {}
+        self._known = None
         self._group_of_sample = superbins.group[cv.prep.sample_bin]
 
     def noise_of(self, evaluated):
-        """Return the noise of a fitted model's residual (:func:`.noise_model.fit_noise`)."""
+        """
+        Return the noise of a fitted model's residual (:func:`.noise_model.fit_noise`).
+
+        With a reference, its noise with the residual's own short-term spread.
+        """
         key = id(evaluated)
         if key not in self._noise:
-            self._noise[key] = (evaluated, self._fit_noise(evaluated))
+            fit = self._fit_noise(evaluated)
+            if self.reference is not None:
+                fit = self.reference.noise_model(fit.white_sigma_rad_s)
+            self._noise[key] = (evaluated, fit)
         return self._noise[key][1]
 
     def _fit_noise(self, evaluated):
@@ -167,25 +204,28 @@ class Selector:
         scale-factor column (viscosity, lag, pressure, mode split, delay):
         the change of that column at its full fit. Otherwise its columns,
         one set per value of its grid, thinned to at most 10 values (the
-        simulations search it too).
+        simulations search it too). Returned with the ridge of the added
+        columns (:meth:`.models.Model.penalty`).
         """
         b = self.cv.prep.binned
         phis = current.full.phis
         basis = current.model.basis(self.ctx, b, phis)
+        own = candidate_eval.model.penalty(self.ctx)[len(current.model.penalty(self.ctx)):]
         if getattr(effect, 'change_point', False):
             g = self.superbins.aggregate(effect.multiplier(b, basis))
-            return ('step', g, self.superbins.start_s)
+            return ('step', g, self.superbins.start_s), own
         grids = effect.grids(self.ctx)
         if len(grids) > 1 or effect.n_columns == 0 or 'rate' in effect.needs and grids:
             full = candidate_eval.model.columns(self.ctx, b, candidate_eval.full.phis)
             new = [full[1] - basis.sr] + full[2 + sum(e.n_columns for e in
                                                       current.model.effects):]
-            return [np.column_stack([self.superbins.aggregate(c) for c in new])]
+            return [np.column_stack([self.superbins.aggregate(c) for c in new])], \
+                np.r_[0.0, own]
         # every other grid value at most 10: the simulations search a coarser grid
         values = [()] if not grids else [(v,) for v in grids[0][::max(1, len(grids[0]) // 10)]]
         return [np.column_stack([self.superbins.aggregate(c) for c in
                                  effect.columns(self.ctx, b, phi, basis)])
-                for phi in values]
+                for phi in values], own
 
     def null_reduction(self, current, effect, candidate_eval):
         """
@@ -205,11 +245,13 @@ class Selector:
         up to at least half a fold; a bursty record's is not).
         """
         cols = self.group_columns(current.model, current.full.phis)
-        spec = self._candidate_spec(current, effect, candidate_eval)
+        spec, own = self._candidate_spec(current, effect, candidate_eval)
+        penalty = (current.model.penalty(self.ctx), own)
         alt = self.noise_of(candidate_eval)
         wide = alt.wider(self.noise_of(current))
-        sims = noise_model.null_gain(cols, spec, self.superbins, self.sims_of(alt))
-        sims_wide = noise_model.null_gain(cols, spec, self.superbins, self.sims_of(wide))
+        sims = noise_model.null_gain(cols, spec, self.superbins, self.sims_of(alt), penalty)
+        sims_wide = noise_model.null_gain(cols, spec, self.superbins, self.sims_of(wide),
+                                          penalty)
         reduction = np.mean(np.maximum(sims, 0.0), axis=1)
         drop = float(np.sum(current.sse_fold - candidate_eval.sse_fold))
         fold_s = self.cv.prep.duration_s / max(len(self.cv.used_folds), 1)
@@ -249,10 +291,11 @@ class Selector:
 
         None for a cause that changes the scale-factor column or the delay,
         a step, or a searched cause (except the search-free columns of
-        :data:`PHI_FREE_COLUMNS`): their likelihood ratio after a search is
-        not what the bootstrap calibrates.
+        :data:`LR_COLUMNS`): their likelihood ratio after a search is not what
+        the bootstrap calibrates. Only the columns :data:`LR_COLUMNS` names,
+        where it names them.
         """
-        pick = PHI_FREE_COLUMNS.get(effect.effect_id)
+        pick = LR_COLUMNS.get(effect.effect_id)
         plain = (type(effect).sf_factor is Effect.sf_factor and
                  type(effect).delay_s is Effect.delay_s and
                  not getattr(effect, 'change_point', False) and effect.n_columns > 0)
@@ -288,6 +331,36 @@ class Selector:
         col = effect.columns(self.ctx, b, (snapped,), basis)[0]
         return self.superbins.aggregate(col)[:, None], len(starts)
 
+    def _searched_columns(self, current, effect, candidate_eval):
+        """
+        Return (columns, effective tests) of a searched cause at its fitted value, on super-bins.
+
+        For a cause with one searched parameter and columns that add to the
+        output (``state_space_search``: a bias following dT/dt through a lag
+        tau): its columns at the value the least-squares search found
+        (``candidate_eval.full``), with the number of effectively independent
+        tests its grid holds, M_eff of Li & Ji (2005) from the eigenvalues of
+        the correlation matrix of the differenced columns over the grid
+        (1 when they all move together, the grid's size when none does): the
+        p of the test is multiplied by it, a Bonferroni bound over the search.
+        A fit in the top cell of the grid (a bias that outlasts every gradient
+        the cause describes: on a hysteresis record, tau = 300 s) is not
+        established this way; the fold test alone decides it.
+        """
+        if not getattr(effect, 'state_space_search', False):
+            return None
+        grid = np.asarray(effect.grids(self.ctx)[0], dtype=float)
+        if float(candidate_eval.full.phis[-1][0]) >= math.sqrt(grid[-2] * grid[-1]):
+            return None
+        b = self.cv.prep.binned
+        basis = current.model.basis(self.ctx, b, current.full.phis)
+        over = np.column_stack([
+            self.superbins.aggregate(effect.columns(self.ctx, b, (v,), basis)[0]) for v in grid])
+        fitted = tuple(candidate_eval.full.phis[-1])
+        cols = np.column_stack([self.superbins.aggregate(c) for c in
+                                effect.columns(self.ctx, b, fitted, basis)])
+        return cols, effective_tests(np.diff(over, axis=0))
+
     def state_space_test(self, current, effect, m, candidate_eval=None):
         """
         Likelihood ratio of ``effect``'s columns on the super-bin means (:mod:`.statespace`).
@@ -302,24 +375,43 @@ class Selector:
         """
         cols, positions = self._linear_columns(current, effect), 1
         if cols is None and candidate_eval is not None:
-            cols, positions = self._step_columns(current, effect, candidate_eval) or (None, 1)
+            cols, positions = (self._step_columns(current, effect, candidate_eval)
+                               or self._searched_columns(current, effect, candidate_eval)
+                               or (None, 1))
         st = None if cols is None else self._state_space_null(current)
         if st is None:
             return None
+        if self.reference is not None:
+            if self._known is None:
+                self._known = reference_mod.KnownNoise(self.reference, st['groups'],
+                                                       self.cv.prep.dt_s)
+            lr = self._known.lr_test(st['y'], st['x0'], cols)
+            return replace(lr, p_value=min(1.0, positions * lr.p_value))
 
         def boot():
             if st['boot'] is None:
                 st['boot'] = statespace.bootstrap_nulls(
-                    st['null'], st['x0'], st['groups'], np.random.default_rng(self.seed),
+                    st['null'], st['x0'], st['groups'], self._record_rng(st['y']),
                     st['cap'])
             return st['boot']
 
         lr = statespace.lr_test(st['y'], st['x0'], cols, st['groups'], None, st['cap'],
-                                decide_at=0.5 * self.alpha / max(m, 1) / positions,
+                                decide_at=W_LR * self.alpha / max(m, 1) / positions,
                                 null_sims=boot, null=st['null'])
         if positions == 1:
             return lr
         return replace(lr, p_value=min(1.0, positions * lr.p_value))
+
+    def _record_rng(self, values):
+        """
+        Return the bootstrap's generator: from the seed and the record's own group means.
+
+        Deterministic for a record, and not the same draws for every record:
+        a bootstrap's error then averages out over records instead of
+        shifting every p-value the same way.
+        """
+        data = np.ascontiguousarray(values, dtype=float).tobytes()
+        return np.random.default_rng([int(self.seed), zlib.crc32(data)])
 
     def binned_gain(self, ref_resid, new_resid):
         """
@@ -349,9 +441,13 @@ class Selector:
         lr = self.state_space_test(current, effect, m, ev)
         p, route = p_fold, 'fold_test'
         if lr is not None:
-            # either route may establish the cause: Bonferroni over the two
-            p = min(1.0, 2.0 * min(p_fold, lr.p_value))
-            route = 'state_space' if lr.p_value < p_fold else route
+            # either route may establish the cause: a weighted Bonferroni over the
+            # two, most of alpha to the likelihood ratio (the efficient test of a
+            # slow cause), a tenth to the fold test as a model-free backstop
+            p = min(1.0, lr.p_value / W_LR, p_fold / (1.0 - W_LR))
+            if lr.p_value / W_LR < p_fold / (1.0 - W_LR):
+                route = 'state_space' if self.reference is None else 'reference_noise'
+
         b = self.cv.prep.binned
         resid_bins = b.gyro - models.predict(model, self.ctx, b, ev.full)
         n_eff = cvmod.effective_bins(resid_bins, b.weight)
@@ -367,7 +463,7 @@ class Selector:
         # predicted one step ahead (the held-out gain of fixed-level folds is
         # swamped by any slow effect not yet in the model: -14 % for a
         # g-sensitivity at LR 100 beside an unmodelled ramp)
-        if route == 'state_space':
+        if route in ('state_space', 'reference_noise'):
             # ... but a cause that predicts the held-out folds significantly
             # worse than the model without it fits some other mismatch
             # (a polynomial in the rate taking up an SF step: -140 %)
@@ -375,8 +471,29 @@ class Selector:
             enough = cand.gain_predictive >= gain_floor(effect) and not worse
         else:
             enough = gain >= gain_floor(effect) and dbic < DELTA_BIC_MAX
-        cand.significant = bool(enough and p < self.alpha / max(m, 1))
+        supported = bool(enough and p < self.alpha / max(m, 1))
+        cand.significant = supported and self._confirmed(cand, current)
         return cand
+
+    def _confirmed(self, cand, current):
+        """
+        Tell whether a supported candidate holds on held-out data and stands clear of zero.
+
+        Sets ``cand.in_sample_only`` (why not) when it does not.
+        """
+        ev, effect = cand.evaluated, cand.effect
+        if cand.gain_step <= 0.0 and cand.gain_binned <= 0.0:
+            cand.in_sample_only = (
+                f'held-out gain {100 * cand.gain_step:.3g} % per sample and '
+                f'{100 * cand.gain_binned:.3g} % in the group means: it does not predict '
+                'the held-out data better')
+            return False
+        found = intervals.linear_estimates(effect, ev, self.ctx, self.cv.prep.binned)
+        if not intervals.clear_of_zero(effect, found, self.ctx, current.full.sse, ev.full.sse,
+                                       cand.n_eff, SIZE_Z):
+            cand.in_sample_only = f'its estimate is within {SIZE_Z:g} sigma of zero'
+            return False
+        return True
 
     def step(self, current, effects):
         """
@@ -421,24 +538,26 @@ class Selector:
         return True
 
 
+def effective_tests(columns):
+    """
+    Effective number of independent tests among correlated columns (Li & Ji 2005).
+
+    M_eff = sum_i [1(lambda_i >= 1) + (lambda_i - floor(lambda_i))] over the
+    eigenvalues of the columns' correlation matrix; at least 1.
+    """
+    x = np.asarray(columns, dtype=float)
+    x = x - x.mean(axis=0)
+    norm = np.sqrt(np.sum(x * x, axis=0))
+    x = x[:, norm > 0.0] / norm[norm > 0.0]
+    if x.shape[1] <= 1:
+        return 1.0
+    lam = np.clip(np.linalg.eigvalsh(x.T @ x), 0.0, None)
+    return max(1.0, float(np.sum((lam >= 1.0) + (lam - np.floor(lam)))))
+
+
 def gain_floor(effect):
     """Return the held-out gain a cause must reach: MIN_GAIN, or MIN_GAIN_RATE on the rate."""
     return MIN_GAIN_RATE if 'rate' in effect.needs else MIN_GAIN
-
-
-def jackknife_parameters(effect, evaluated):
-    """Return the last cause's parameters with delete-a-block jackknife sigmas."""
-    values = evaluated.model.report(evaluated.full.beta, evaluated.full.phis)[-1]
-    per_fold = [evaluated.model.report(f.beta, f.phis)[-1] for f in evaluated.fits.values()]
-    kf = len(per_fold)
-    out = {}
-    for p in effect.params:
-        arr = np.asarray([d[p.name] for d in per_fold], dtype=float)
-        sigma = math.sqrt((kf - 1) / kf * float(np.sum((arr - arr.mean()) ** 2))) \
-            if kf > 1 else float('nan')
-        out[p.name] = {'value': float(values[p.name]), 'sigma': sigma, 'unit': p.unit,
-                       'meaning': p.meaning}
-    return out
 
 
 def forward_selection(selector, null, effects, max_causes=MAX_CAUSES):

@@ -159,7 +159,8 @@ def residual_floor(selector, final, have=None):
     cols = selector.group_columns(final.model, final.full.phis)
     prep = selector.cv.prep
     n_kept = len(selector.cv.y)
-    resid_sims = noise_model.held_out_residuals(cols, sb, selector.sims_of(noise))
+    resid_sims = noise_model.held_out_residuals(cols, sb, selector.sims_of(noise),
+                                                final.model.penalty(selector.ctx))
     floor, rms_sims, ms_sims = noise_model.held_out_floor(noise, resid_sims, sb, n_kept)
     group = sb.group[prep.sample_bin]
     means = np.bincount(group, weights=final.resid, minlength=len(sb)) / sb.weight
@@ -444,7 +445,7 @@ def _failed(res):
             out[0] if out else None)
 
 
-def message(result, selected, res, coverage=None, suggestive=False):
+def message(result, selected, res, coverage=None, suggestive=False, ruled_out=None):
     """
     One paragraph on the verdict, the residual and what remains.
 
@@ -453,7 +454,9 @@ def message(result, selected, res, coverage=None, suggestive=False):
     own noise-alone point. ``coverage`` (:func:`coverage_text`) says how
     few causes the record could test; with a ``suggestive`` candidate
     (:func:`suggestive`) no cause is established rather than none explains.
-    ``selected``: the chosen causes (:class:`.diagnosis.Cause`).
+    ``selected``: the chosen causes (:class:`.diagnosis.Cause`). ``ruled_out``:
+    what the data rule out (:func:`.ruled_out.text`); a ``no_mismatch``
+    states it rather than that the baseline explains what was tested.
     """
     names = ', '.join(e.effect for e in selected)
     level = (f"the held-out residual is {res['excess']:.3f}x its noise floor "
@@ -466,10 +469,14 @@ def message(result, selected, res, coverage=None, suggestive=False):
                   'the floor holds its fast noise only')
     structure = structure_text(res)
     if result == 'no_mismatch':
+        rules = (f' The data rule out (95 %), beyond the baseline: {ruled_out}.'
+                 if ruled_out else None)
         if coverage:
             return (f'{coverage}; nothing testable was found: none of them improves the '
-                    f'held-out fit significantly and {level}. The baseline explains what '
-                    'could be tested.')
+                    f'held-out fit significantly and {level}.'
+                    + (rules or ' The baseline explains what could be tested.'))
+        if rules:
+            return 'No cause improves the held-out fit significantly and ' + level + '.' + rules
         return ('No cause improves the held-out fit significantly and ' + level
                 + ': the baseline explains the data.')
     if result == 'explained':

@@ -10,14 +10,19 @@ part behind a real static log had been driven through a test profile::
 ``noise`` is a stretch of a real log at rest (its bias, wander, flicker,
 quantisation and glitches kept as measured), ``rate`` the applied rate of
 the profile, and each effect a function of the profile's inputs
-(:data:`EFFECTS`). Everything is a function of arrays; the result is a
+(:data:`EFFECTS`). The profile is a sampled profile of the one profile
+protocol (:class:`gyro_emulator.emulation.profiles.SampledProfile`: the
+rate about the sense axis z, the temperature, the specific force), with the
+rate's knots (``rate_knots``) when the table moves; a one-way ramp is the
+shared chamber-program idea
+(:func:`gyro_emulator.emulation.profiles.temperature_ramp`). Everything is a
+function of arrays; the result is a
 :class:`gyro_emulator.recording.record.Record` (:func:`inject`) that
 ``diagnose`` takes as it takes a CSV. Effects are exact: the delay of a
 piecewise-linear rate is the rate at ``t - delay`` from its knots.
 """
 
-from dataclasses import dataclass
-
+from gyro_emulator.emulation import profiles
 from gyro_emulator.recording.record import load_record, Record
 from gyro_emulator.units import deg_s_to_rad_s, STANDARD_GRAVITY_M_S2
 from gyro_emulator.validation import check_range
@@ -48,28 +53,23 @@ UNITS = {'bias_tempco': 'rad/s/K', 'sf_tempco': '1/K', 'g_sensitivity': 'rad/s p
          'delay': 's', 'sf_nonlinearity': 'of full scale', 'sf_step': '(relative)'}
 
 
-@dataclass(frozen=True)
-class Inputs:
+#: The axis the applied rate turns about and the record senses (the sampled
+#: profiles' convention, :func:`gyro_emulator.emulation.profiles.rate_about_z`).
+SENSE = 2
+
+
+def sensed_rate(prof, time_s=None):
     """
-    What a profile applies, per sample.
+    Return the applied rate about the sense axis, rad/s: at the samples, or at ``time_s``.
 
-    ``rate_knots`` (times s, rates rad/s) defines a piecewise-linear applied
-    rate exactly (for a delay); None when the rate is zero. ``accel_m_s2``
-    is (n, 3); the g-sensitivity acts along x.
+    At other times it comes from the rate's knots (zero before the first and
+    after the last), exactly; zero for a profile without motion.
     """
-
-    time_s: np.ndarray
-    rate_rad_s: np.ndarray
-    temp_c: np.ndarray
-    accel_m_s2: np.ndarray
-    rate_knots: tuple = None
-
-    def rate_at(self, time_s):
-        """Return the applied rate at ``time_s``, rad/s (0 outside the knots)."""
-        if self.rate_knots is None:
-            return np.zeros(len(time_s))
-        kt, kr = self.rate_knots
-        return np.interp(time_s, kt, kr, left=0.0, right=0.0)
+    if time_s is None:
+        return prof.rate_rad_s[:, SENSE]
+    if prof.rate_knots is None:
+        return np.zeros(len(time_s))
+    return prof.rate_at(time_s)[:, SENSE]
 
 
 def load_real(path, axis=None):
@@ -119,20 +119,27 @@ def first_order_lag(time_s, target, tau_s):
     return out
 
 
-def temperature_ramp(time_s, low_c=15.0, high_c=55.0):
-    """One-way linear ramp from ``low_c`` to ``high_c`` over the record, deg C."""
-    x = (time_s - time_s[0]) / max(time_s[-1] - time_s[0], 1e-12)
-    return low_c + (high_c - low_c) * x
+def one_way_ramp(time_s, low_c=15.0, high_c=55.0):
+    """
+    One-way linear ramp from ``low_c`` to ``high_c`` over the record, deg C.
+
+    The chamber-program idea :func:`gyro_emulator.emulation.profiles.temperature_ramp`
+    with two knots, the part at rest.
+    """
+    span = max(float(time_s[-1] - time_s[0]), 1e-12)
+    program = profiles.temperature_ramp([(0.0, low_c), (span, high_c)], rate_deg_s=0.0)
+    return program.samples(np.asarray(time_s, dtype=float) - time_s[0]).temp_c
 
 
-def temperature_cycles(time_s, cycles=2, low_c=15.0, high_c=55.0):
+def temperature_cycles(time_s, cycles=2, low_c=15.0, high_c=55.0, phase=0.0):
     """
     Chamber cycles: hold low, ramp up, hold high, ramp down; the die lags by 1/60 of the record.
 
-    Each cycle spends 30 % of its time at each end and 20 % on each ramp.
+    Each cycle spends 30 % of its time at each end and 20 % on each ramp;
+    ``phase`` (a share of a cycle) is where in the cycle the record starts.
     """
     span = max(time_s[-1] - time_s[0], 1e-12)
-    phase = ((time_s - time_s[0]) / span * cycles) % 1.0
+    phase = ((time_s - time_s[0]) / span * cycles + phase) % 1.0
     shape = np.interp(phase, [0, 0.15, 0.35, 0.65, 0.85, 1.0], [0, 0, 1, 1, 0, 0])
     return first_order_lag(time_s, low_c + (high_c - low_c) * shape, span / 60.0)
 
@@ -202,14 +209,16 @@ MOTIONS = ('tilt', 'rate_steps', 'rate_sine')
 
 def profile(name, time_s, rng, temp_c=None):
     """
-    Return the :class:`Inputs` of a profile on ``time_s``.
+    Return a profile on ``time_s``: a :class:`~gyro_emulator.emulation.profiles.SampledProfile`.
 
     ``name`` is ``static`` or parts joined by ``+``: at most one of
     :data:`TEMPERATURES` (``ramp``, ``cycles``, ``soaks``: 15..55 C;
     ``chamber``: the log's own temperature ``temp_c``; default 25 C) and
     any of :data:`MOTIONS` (``tilt``: gravity in steps; ``rate_steps``: a
     rate table to 240 deg/s; ``rate_sine``: a rate-table sine, not with
-    ``rate_steps``), e.g. ``'cycles+tilt'``.
+    ``rate_steps``), e.g. ``'cycles+tilt'``. The rate turns about z (the
+    sense axis, :data:`SENSE`); with motion on the table the profile carries
+    the rate's knots.
     """
     parts = [] if name == 'static' else name.split('+')
     unknown = [p for p in parts if p not in TEMPERATURES + MOTIONS]
@@ -220,7 +229,7 @@ def profile(name, time_s, rng, temp_c=None):
     temp = np.full(len(t), REF_TEMP_C)
     accel = np.tile([0.0, 0.0, STANDARD_GRAVITY_M_S2], (len(t), 1))
     if 'ramp' in parts:
-        temp = temperature_ramp(t)
+        temp = one_way_ramp(t)
     elif 'cycles' in parts:
         temp = temperature_cycles(t)
     elif 'soaks' in parts:
@@ -239,8 +248,10 @@ def profile(name, time_s, rng, temp_c=None):
     elif 'rate_sine' in parts:
         knots = rate_sine_knots(t, rng)
     else:
-        return Inputs(t, np.zeros(len(t)), temp, accel)
-    return Inputs(t, np.interp(t, *knots, left=0.0, right=0.0), temp, accel, knots)
+        return profiles.SampledProfile(name, t, np.zeros((len(t), 3)), temp, accel)
+    return profiles.SampledProfile(
+        name, t, profiles.rate_about_z(np.interp(t, *knots, left=0.0, right=0.0)), temp, accel,
+        rate_knots=(np.asarray(knots[0], dtype=float), profiles.rate_about_z(knots[1])))
 
 
 def block_means(time_s, values, factor):
@@ -255,27 +266,27 @@ def block_means(time_s, values, factor):
             np.asarray(values[:n], dtype=float).reshape(-1, factor).mean(axis=1))
 
 
-def effect_signal(inputs, effect, size, rate_rad_s=None):
+def effect_signal(prof, effect, size, rate_rad_s=None):
     """
     Output error of one effect, rad/s per sample (``size`` in the units of :data:`UNITS`).
 
     bias_tempco: size (T - 25); sf_tempco: size (T - 25) rate; g_sensitivity:
     size a_x; delay: rate(t - size) - rate(t); sf_nonlinearity: size FS
-    (rate/FS)^3; sf_step: size rate after mid-record. ``rate_rad_s`` is the
-    rate the part senses (default the applied one; a delayed one when a
-    delay acts too).
+    (rate/FS)^3; sf_step: size rate after mid-record. ``prof`` is the
+    profile (:func:`profile`); ``rate_rad_s`` the rate the part senses
+    (default the applied one; a delayed one when a delay acts too).
     """
-    rate = inputs.rate_rad_s if rate_rad_s is None else rate_rad_s
-    dtemp = inputs.temp_c - REF_TEMP_C
-    t = inputs.time_s
+    rate = sensed_rate(prof) if rate_rad_s is None else rate_rad_s
+    dtemp = prof.temp_c - REF_TEMP_C
+    t = prof.time_s
     if effect == 'bias_tempco':
         return size * dtemp
     if effect == 'sf_tempco':
         return size * dtemp * rate
     if effect == 'g_sensitivity':
-        return size * inputs.accel_m_s2[:, 0]
+        return size * prof.accel_m_s2[:, 0]
     if effect == 'delay':
-        return inputs.rate_at(t - size) - rate
+        return sensed_rate(prof, t - size) - rate
     if effect == 'sf_nonlinearity':
         return size * FULL_SCALE_RAD_S * (rate / FULL_SCALE_RAD_S) ** 3
     if effect == 'sf_step':
@@ -283,16 +294,16 @@ def effect_signal(inputs, effect, size, rate_rad_s=None):
     raise ValueError(f'effect {effect!r} is unknown: choose one of {", ".join(DATASHEET)}')
 
 
-def inject(noise_rad_s, inputs, effects=None, sf_error=0.0, path='injected'):
+def inject(noise_rad_s, prof, effects=None, sf_error=0.0, path='injected'):
     """
     Return the Record of real noise, the applied rate and the effects.
 
     Parameters
     ----------
     noise_rad_s : numpy.ndarray
-        A stretch of a real log at rest on ``inputs.time_s``, rad/s.
-    inputs : Inputs
-        The profile.
+        A stretch of a real log at rest on ``prof.time_s``, rad/s.
+    prof : gyro_emulator.emulation.profiles.SampledProfile
+        The profile (:func:`profile`).
     effects : dict, optional
         Effect name (:data:`DATASHEET`) -> size in its unit (:data:`UNITS`).
     sf_error : float
@@ -309,15 +320,16 @@ def inject(noise_rad_s, inputs, effects=None, sf_error=0.0, path='injected'):
     check_range('inject', 'sf_error', sf_error, -0.1, 0.1, '', low_open=False,
                 high_open=False)
     noise = np.asarray(noise_rad_s, dtype=float)
-    if noise.shape != inputs.time_s.shape:
+    if noise.shape != prof.time_s.shape:
         raise ValueError(f'inject: noise has {noise.shape} samples, the profile '
-                         f'{inputs.time_s.shape}')
+                         f'{prof.time_s.shape}')
     effects = dict(effects or {})
-    sensed = inputs.rate_rad_s
+    applied = sensed_rate(prof)
+    sensed = applied
     if 'delay' in effects:
-        sensed = inputs.rate_at(inputs.time_s - float(effects.pop('delay')))
+        sensed = sensed_rate(prof, prof.time_s - float(effects.pop('delay')))
     gyro = noise + sensed * (1.0 + sf_error)
     for name, size in effects.items():
-        gyro = gyro + effect_signal(inputs, name, float(size), sensed)
-    return Record.from_arrays(inputs.time_s, gyro, inputs.rate_rad_s, inputs.temp_c,
-                              inputs.accel_m_s2, path=path)
+        gyro = gyro + effect_signal(prof, name, float(size), sensed)
+    return Record.from_arrays(prof.time_s, gyro, applied, prof.temp_c, prof.accel_m_s2,
+                              path=path)

@@ -1,0 +1,275 @@
+"""
+An interval for every fitted number, and whether a cause's size stands clear of zero.
+
+Every parameter a cause reports gets a 95 % interval and a 1-sigma:
+
+- a parameter that enters linearly (a coefficient: a tempco, a step size,
+  a g-sensitivity): the delete-a-block jackknife over the folds (Efron &
+  Stein 1981), sigma^2 = (K-1)/K sum_k (theta_(k) - mean)^2, and the
+  interval theta +- t_{K-1} sigma; a coefficient whose column the record
+  does not vary (a g-sensitivity along an axis gravity never tilts into)
+  is not measured, and says so (no interval; its sigma 0 says only that);
+- a parameter found by search (a step time, a delay, a time constant, a
+  hysteresis width, a Sutherland constant, a mode split): where the
+  per-fold fits cannot spread (a step time is an event of the whole
+  record; a grid-only width lands on the same grid point) the jackknife
+  degenerates to 0, so the interval is the profile likelihood's (Venzon &
+  Moolgavkar 1988): every value whose best fit of the other parameters
+  has an SSE within chi^2_1(0.95) SSE_min / n_eff of the minimum, n_eff
+  the effective number of independent bins of the fit's residual
+  (:func:`.cv.effective_bins`: white noise needs no inflation, wander
+  widens it). A step time's profile is evaluated at every bin start, and
+  its likelihood ratio is not chi^2_1: with the jump known it is twice the
+  larger maximum of two Brownian motions with drift, P(LR > 2x) = 1 -
+  (1 - e^-x)^2 (Hinkley 1970, the continuous limit), so its threshold is
+  :data:`STEP_LR` (7.35 at 95 %); its interval runs from the start of the
+  bin before the first admissible start to the last one (a step inside a
+  bin moves its mean partly); a
+  continuous parameter's ends are found by bisection between the grid
+  points, a grid-only or two-dimensional one's are the first grid points
+  outside. Its sigma is the interval's half width / 1.96. An end at the
+  edge of the searched range is marked (``open``).
+
+:func:`size_clear_of_zero` is the selection's rule that a cause's estimate
+is not within ``z`` sigma of zero: a cause with coefficients needs one of
+them beyond z jackknife sigma; a cause that only changes the scale factor
+or the delay (a delay, a lag, a pressure drift, a mode split) needs its
+profile's SSE at the no-effect value (the model without it) to exceed the
+minimum by z^2 SSE_min / n_eff; the Sutherland law has no no-effect value.
+"""
+
+from dataclasses import dataclass
+import math
+
+from gyro_emulator.analysis.diagnose import models
+import numpy as np
+from scipy import optimize
+from scipy.special import stdtrit
+from scipy.stats import chi2
+
+#: Two-sided level of every parameter interval.
+LEVEL = 0.95
+#: Profile likelihood threshold in units of SSE_min / n_eff (chi^2_1 at LEVEL).
+PROFILE_CHI2 = float(chi2.ppf(LEVEL, 1))
+#: The same for a step time (module docstring): 2 (-ln(1 - sqrt(LEVEL))).
+STEP_LR = -2.0 * float(np.log(1.0 - np.sqrt(LEVEL)))
+#: Normal quantile that turns a profile interval's half width into a sigma.
+Z_LEVEL = 1.959963984540054
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """One parameter: value, 1-sigma, 95 % interval (None: not measured) and how."""
+
+    value: float
+    sigma: float
+    interval: tuple
+    method: str
+    open_low: bool = False
+    open_high: bool = False
+
+
+def jackknife(effect, evaluated):
+    """Return the last cause's parameters: {name: (value, jackknife sigma, per-fold values)}."""
+    values = evaluated.model.report(evaluated.full.beta, evaluated.full.phis)[-1]
+    per_fold = [evaluated.model.report(f.beta, f.phis)[-1] for f in evaluated.fits.values()]
+    kf = len(per_fold)
+    out = {}
+    for p in effect.params:
+        arr = np.asarray([d[p.name] for d in per_fold], dtype=float)
+        sigma = math.sqrt((kf - 1) / kf * float(np.sum((arr - arr.mean()) ** 2))) \
+            if kf > 1 else float('nan')
+        out[p.name] = (float(values[p.name]), sigma, kf)
+    return out
+
+
+def n_nonlinear(effect, ctx):
+    """Return how many of ``effect``'s parameters are found by search (they come first)."""
+    return len(effect.grids(ctx))
+
+
+def _cause_columns(evaluated, ctx, frame):
+    """Return the last cause's columns on ``frame`` at the full fit."""
+    model = evaluated.model
+    cols = model.columns(ctx, frame, evaluated.full.phis)
+    start = 2 + sum(e.n_columns for e in model.effects[:-1])
+    return cols[start:]
+
+
+def _measured(column, weight):
+    """Tell whether a column varies over the record (a coefficient the record can measure)."""
+    c = np.broadcast_to(np.asarray(column, float), weight.shape)
+    mean = float(np.sum(weight * c) / np.sum(weight))
+    spread = math.sqrt(float(np.sum(weight * (c - mean) ** 2) / np.sum(weight)))
+    return spread > 1e-12 * max(abs(mean), 1e-300) and spread > 0.0
+
+
+def linear_estimates(effect, evaluated, ctx, frame):
+    """Return {name: Estimate} of the cause's coefficients (jackknife, t_{K-1})."""
+    jack = jackknife(effect, evaluated)
+    skip = n_nonlinear(effect, ctx)
+    cols = _cause_columns(evaluated, ctx, frame)
+    out = {}
+    for i, p in enumerate(effect.params[skip:]):
+        value, sigma, kf = jack[p.name]
+        col = cols[i] if i < len(cols) else None
+        if col is None or not _measured(col, frame.weight) or not sigma > 0.0:
+            # sigma 0 and no interval: nothing was measured, not a zero-width interval
+            out[p.name] = Estimate(value, 0.0, None, 'not measured: the record does not '
+                                   'vary what this coefficient multiplies')
+            continue
+        half = float(stdtrit(kf - 1, 0.5 + LEVEL / 2.0)) * sigma
+        out[p.name] = Estimate(value, sigma, (value - half, value + half),
+                               f'jackknife over {kf} folds, t_{kf - 1}')
+    return out
+
+
+def _threshold(sse_min, n_eff, lr=PROFILE_CHI2):
+    return sse_min * (1.0 + lr / max(n_eff, 1.0))
+
+
+def _sse_at(model, ctx, frame, fixed):
+    return models.fit_model(model, ctx, frame, None, fixed).sse
+
+
+def _walk(points, sses, best, thr, sse_of, continuous):
+    """Return (low, high, open_low, open_high) of the admissible run around index ``best``."""
+    ends = []
+    for step in (-1, 1):
+        j = best
+        while 0 <= j + step < len(points) and sses[j + step] <= thr:
+            j += step
+        out = j + step
+        if not 0 <= out < len(points):
+            ends.append((points[j], True))
+        elif continuous:
+            ends.append((_crossing(sse_of, thr, points[j], points[out]), False))
+        else:
+            ends.append((points[out], False))
+    (lo, open_lo), (hi, open_hi) = ends
+    return lo, hi, open_lo, open_hi
+
+
+def _crossing(sse_of, thr, inside, outside):
+    """Return where the profile crosses ``thr`` between an admissible and an excluded point."""
+    a, b = sorted((inside, outside))
+    try:
+        return optimize.brentq(lambda v: sse_of(v) - thr, a, b, xtol=1e-4 * (b - a) + 1e-12)
+    except ValueError:                 # no sign change after all: the grid point bounds it
+        return outside
+
+
+def _profile_1d(evaluated, ctx, frame, n_eff):
+    """Profile interval of the last cause's one searched parameter (not a step)."""
+    model, full = evaluated.model, evaluated.full
+    eff = model.effects[-1]
+    fixed = tuple(full.phis[:-1])
+    best = float(full.phis[-1][0])
+    grid = np.asarray(eff.grids(ctx)[0], dtype=float)
+    points = np.unique(np.r_[grid, best])
+
+    def sse_of(v):
+        return _sse_at(model, ctx, frame, fixed + ((float(v),),))
+
+    sses = np.array([full.sse if v == best else sse_of(v) for v in points])
+    thr = _threshold(float(sses.min()), n_eff)
+    i = int(np.flatnonzero(points == best)[0])
+    lo, hi, olo, ohi = _walk(points, sses, i, thr, sse_of, getattr(eff, 'refine', True))
+    return [(min(lo, best), max(hi, best), olo, ohi)]
+
+
+def _profile_2d(evaluated, ctx, frame, n_eff):
+    """Profile intervals of the last cause's two searched parameters, on its grid."""
+    model, full = evaluated.model, evaluated.full
+    eff = model.effects[-1]
+    fixed = tuple(full.phis[:-1])
+    best = tuple(float(v) for v in full.phis[-1])
+    g0, g1 = (np.asarray(g, dtype=float) for g in eff.grids(ctx))
+    p0, p1 = np.unique(np.r_[g0, best[0]]), np.unique(np.r_[g1, best[1]])
+    sse = np.array([[_sse_at(model, ctx, frame, fixed + ((a, b),)) for b in p1] for a in p0])
+    thr = _threshold(min(float(sse.min()), full.sse), n_eff)
+    out = []
+    for axis, points, b in ((0, p0, best[0]), (1, p1, best[1])):
+        prof = sse.min(axis=1 - axis)
+        i = int(np.flatnonzero(points == b)[0])
+        prof[i] = min(prof[i], full.sse)
+        lo, hi, olo, ohi = _walk(points, prof, i, thr, None, False)
+        out.append((min(lo, b), max(hi, b), olo, ohi))
+    return out
+
+
+def _profile_step(evaluated, ctx, frame, n_eff):
+    """Profile interval of a step time over every bin start (module docstring)."""
+    model, full = evaluated.model, evaluated.full
+    starts, sse = models.step_profile(models.Model(model.effects[:-1]), model.effects[-1], ctx,
+                                      frame, tuple(full.phis[:-1]))
+    thr = _threshold(float(np.min(sse)), n_eff, STEP_LR)
+    ok = np.flatnonzero(sse <= thr)
+    best = float(full.phis[-1][0])
+    first, last = int(ok.min()), int(ok.max())
+    bin_s = float(frame.bins.bin_s)
+    lo = float(starts[first - 1]) if first > 0 else float(starts[first]) - bin_s
+    return [(min(lo, best - bin_s), max(float(starts[last]), best), first <= 0,
+             last >= len(starts) - 1)]
+
+
+def nonlinear_estimates(effect, evaluated, ctx, frame, n_eff):
+    """Return {name: Estimate} of the cause's searched parameters (profile likelihood)."""
+    k = n_nonlinear(effect, ctx)
+    if k == 0:
+        return {}
+    if getattr(effect, 'change_point', False):
+        ends = _profile_step(evaluated, ctx, frame, n_eff)
+    elif k == 1:
+        ends = _profile_1d(evaluated, ctx, frame, n_eff)
+    else:
+        ends = _profile_2d(evaluated, ctx, frame, n_eff)
+    fitted = [float(v) for v in evaluated.full.phis[-1]]
+    values = evaluated.model.report(evaluated.full.beta, evaluated.full.phis)[-1]
+    out = {}
+    for p, v_fit, (lo, hi, olo, ohi) in zip(effect.params[:k], fitted, ends):
+        value = float(values[p.name])
+        if value == -v_fit and v_fit != 0.0:       # a report that flips the sign (mode split)
+            lo, hi, olo, ohi = -hi, -lo, ohi, olo
+        out[p.name] = Estimate(value, (hi - lo) / (2.0 * Z_LEVEL), (lo, hi),
+                               'profile likelihood', olo, ohi)
+    return out
+
+
+def estimates(effect, evaluated, ctx, frame, n_eff):
+    """Return {name: Estimate} for every parameter of the last cause, in the cause's order."""
+    found = {**nonlinear_estimates(effect, evaluated, ctx, frame, n_eff),
+             **linear_estimates(effect, evaluated, ctx, frame)}
+    return {p.name: found[p.name] for p in effect.params}
+
+
+def _null_excluded(effect, ctx, current_sse, sse, n_eff, level):
+    """Tell whether a scale-factor or delay cause's no-effect value is outside its region."""
+    if not effect.has_zero:
+        return True
+    q = max(n_nonlinear(effect, ctx), 1)
+    return current_sse - sse > float(chi2.ppf(level, q)) * sse / max(n_eff, 1.0)
+
+
+def clear_of_zero(effect, found, ctx, current_sse, sse, n_eff, z):
+    """
+    Tell whether a cause's size is more than ``z`` sigma from zero (module docstring).
+
+    ``found``: the cause's :class:`Estimate` s; ``current_sse``, ``sse``: the
+    full-fit SSE without and with the cause. A cause without coefficients is
+    judged on its profile at the equivalent level (chi^2 with one degree of
+    freedom per searched parameter at the two-sided normal level of ``z``).
+    """
+    if effect.n_columns > 0:
+        return any(e.interval is not None and abs(e.value) > z * e.sigma
+                   for e in found.values() if e.method != 'profile likelihood')
+    level = float(chi2.cdf(z * z, 1))          # z = 2: 0.9545
+    return _null_excluded(effect, ctx, current_sse, sse, n_eff, level)
+
+
+def interval_clear_of_zero(effect, found, ctx, current_sse, sse, n_eff):
+    """Tell whether the cause's 95 % interval excludes zero (the verdict's ``explained`` rule)."""
+    if effect.n_columns > 0:
+        return any(e.interval is not None and (e.interval[0] > 0.0 or e.interval[1] < 0.0)
+                   for e in found.values() if e.method != 'profile likelihood')
+    return _null_excluded(effect, ctx, current_sse, sse, n_eff, LEVEL)
