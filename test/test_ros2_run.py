@@ -113,9 +113,11 @@ def test_ros2_run_node_publishes_imu_from_the_colcon_install(workspace, monkeypa
         # The installed scenario executable plays a short profile onto it.
         profile = tmp_path / 'short.yaml'
         profile.write_text(yaml.safe_dump({'name': 'short', 'segments': [
-            {'duration_s': 0.6, 'rate_deg_s': 0.0, 'temp_c': 25.0, 'settle_s': 0.3},
-            {'duration_s': 0.6, 'rate_deg_s': 90.0, 'temp_c': 25.0,
-             'settle_s': 0.3}]}))
+            # 2 s steps: a node stalled for a few hundred ms by a loaded machine
+            # still leaves samples in each step's measured second
+            {'duration_s': 2.0, 'rate_deg_s': 0.0, 'temp_c': 25.0, 'settle_s': 1.0},
+            {'duration_s': 2.0, 'rate_deg_s': 90.0, 'temp_c': 25.0,
+             'settle_s': 1.0}]}))
         scenario = subprocess.run([ros2_run_path('scenario'), str(profile), '--summary'],
                                   env=env, cwd=str(tmp_path), capture_output=True,
                                   text=True, timeout=60)
