@@ -3,7 +3,7 @@
 #
 #   ./dev.sh main   set everything up, then run the main job (the paper-validation demo)
 #   ./dev.sh test   set everything up, then run the full test suite (lint + unit + ROS integration;
-#                   two workers, GYRO_TEST_WORKERS=N to change; arguments go to pytest)
+#                   three workers, GYRO_TEST_WORKERS=N to change; arguments go to pytest)
 #   ./dev.sh setup  only set up .venv
 #   ./dev.sh shell  a bash shell with the venv and ROS environment active
 #
@@ -128,10 +128,12 @@ case "$cmd" in
     test)
         setup; activate
         # testpaths=test (setup.cfg) applies when no path is given. The whole
-        # suite runs on two pytest-xdist workers, a test file per worker
-        # (GYRO_TEST_WORKERS=0 runs it in one process); named tests run as given.
+        # suite runs on three pytest-xdist workers, a test file per worker: most
+        # of its time is spent waiting (ROS discovery, child processes), so a
+        # third worker on two cores halves the wall time (GYRO_TEST_WORKERS=0
+        # runs it in one process); named tests run as given.
         if [ $# -eq 0 ]; then
-            set -- -n "${GYRO_TEST_WORKERS:-2}" --dist loadfile
+            set -- -n "${GYRO_TEST_WORKERS:-3}" --dist loadfile
         fi
         exec "$VENV/bin/python" -m pytest "$@" ;;
     shell)

@@ -634,6 +634,9 @@ def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resum
         assert once['run']['tasks_resubmitted'] >= 1
         assert _without_run(once) == _without_run(whole)
         assert _rows(tmp_path / 'once').equals(_rows(tmp_path / 'whole'))
+        # the killed worker's nanny is still restarting it: a plugin change sent to it
+        # now fails in distributed ("Stream is closed"), so wait for both first
+        client.wait_for_workers(2, timeout=120)
         client.unregister_worker_plugin(_KillFleetTasks.name)
         client.register_plugin(_KillFleetTasks(str(tmp_path / 'always'), 10 ** 6))
         with pytest.raises(run.FleetIncomplete, match=r'the cluster lost the task of blocks '
