@@ -137,15 +137,25 @@ def read_csv(path, required=(), time_order='increasing', only=None):
                          f'({type(exc).__name__}: {exc})') from None
 
 
-def _read_columns(path, required, time_order, only):
-    """Read the columns (see :func:`read_csv`); decompression errors pass through."""
+def _wanted_columns(path, required, only):
+    """
+    Return (header names, lines before the data, the columns read, their indices).
+
+    A required column the header lacks is refused in one line that lists
+    what the file has; ``only`` None reads every column.
+    """
     names, skip = _header(path)
     missing = [c for c in required if c not in names]
     if missing:
         raise ValueError(f'{path}: missing required column(s) {", ".join(missing)}; the file '
                          f'has {", ".join(names)}')
     wanted = names if only is None else [n for n in names if n in only]
-    index = [names.index(n) for n in wanted]
+    return names, skip, wanted, [names.index(n) for n in wanted]
+
+
+def _read_columns(path, required, time_order, only):
+    """Read the columns (see :func:`read_csv`); decompression errors pass through."""
+    names, skip, wanted, index = _wanted_columns(path, required, only)
     try:
         with _open_text(path, 'r') as handle:
             data = np.loadtxt(handle, delimiter=',', skiprows=skip, comments='#',
@@ -179,13 +189,7 @@ def iter_csv_blocks(path, required=(), only=None, block_rows=BLOCK_ROWS):
     """
     path = os.fspath(path)
     try:
-        names, skip = _header(path)
-        missing = [c for c in required if c not in names]
-        if missing:
-            raise ValueError(f'{path}: missing required column(s) {", ".join(missing)}; the '
-                             f'file has {", ".join(names)}')
-        wanted = names if only is None else [n for n in names if n in only]
-        index = [names.index(n) for n in wanted]
+        names, skip, wanted, index = _wanted_columns(path, required, only)
         first = 0
         with _open_text(path, 'r') as handle:
             for _ in range(skip):
