@@ -444,11 +444,16 @@ def twin_noise(calibration, inflate=1.0):
     if calibration.lsb_rad_s > 0.0:
         on.add('quantization')
         shared['lsb_deg_s'] = units.rad_s_to_deg_s(calibration.lsb_rad_s)
+    return _twin_noise(calibration, per_axis, shared, on, twin)
+
+
+def _twin_noise(calibration, per_axis, shared, on, twin):
+    """Return the TwinNoise of either channel, with the output low-pass its PSD shows, if any."""
     lowpass = identify_output_filter(calibration)
     if lowpass is not None:
-        on.add('output_filter')
-        shared['output_filter_hz'] = lowpass.cutoff_hz
-        shared['output_filter_order'] = lowpass.order
+        on = on | {'output_filter'}
+        shared = dict(shared, output_filter_hz=lowpass.cutoff_hz,
+                      output_filter_order=lowpass.order)
     return TwinNoise(per_axis, shared, frozenset(on), twin, lowpass)
 
 
@@ -578,12 +583,7 @@ def accel_twin_noise(accel, inflate=1.0):
     if cal.lsb > 0.0:
         on.add('quantization')
         shared['lsb_m_s2'] = cal.lsb
-    lowpass = identify_output_filter(cal)
-    if lowpass is not None:
-        on.add('output_filter')
-        shared['output_filter_hz'] = lowpass.cutoff_hz
-        shared['output_filter_order'] = lowpass.order
-    return TwinNoise(per_axis, shared, frozenset(on), twin, lowpass)
+    return _twin_noise(cal, per_axis, shared, on, twin)
 
 
 def accel_config(fields):
