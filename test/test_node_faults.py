@@ -6,7 +6,10 @@ schedule of every type; the node applies each through its ``fault.*``
 parameters. Each fault's window is taken from ``~/truth/fault`` (the
 sample instants where it became active and ended) and its signature is
 checked in ``imu/data_raw`` (the paper preset: no latency, so the Imu stamp is
-the sample instant; white noise 1.1e-3 rad/s per sample at 200 Hz).
+the sample instant; white noise 1.1e-3 rad/s per sample at 200 Hz). The
+node publishes with ``qos_reliability:=reliable`` and the probe listens
+reliably with a deep queue: a one-sample signature (the spike) must not be
+lost to best-effort delivery on a loaded machine.
 """
 
 import os
@@ -21,7 +24,7 @@ import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
 from test_node import NodeProcess, Probe, stamp_ns
 import yaml
@@ -31,6 +34,8 @@ pytestmark = pytest.mark.ros
 SIGMA = 1.13e-3
 RANGE = 5.235987755982989
 LATCHED = QoSProfile(depth=50, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Reliable, deep: every sample the node publishes reaches the probe.
+EVERY = QoSProfile(depth=2000, reliability=ReliabilityPolicy.RELIABLE)
 #: (type, axis, magnitude) in schedule order, 0.4 s each, 0.35 s apart.
 SCHEDULE = [('stuck', 'x', 0.0), ('bias_step', 'z', 0.05), ('drift', 'y', 0.2),
             ('spike', 'x', 1.0), ('dropout', 'all', 0.0), ('saturate', 'z', 1.0),
@@ -62,10 +67,11 @@ def played(tmp_path_factory):
                     'start_s': 0.6 + 0.75 * k, 'duration_s': 0.4}
                    for k, (kind, axis, magnitude) in enumerate(SCHEDULE)]}))
     env = ros_env()
-    node = NodeProcess(env, str(tmp / 'node.log'), '-p', 'diagnostics_period_s:=0.1')
+    node = NodeProcess(env, str(tmp / 'node.log'), '-p', 'diagnostics_period_s:=0.1',
+                       '-p', 'qos_reliability:=reliable')
     probe = Probe(env)
-    got = {'imu': probe.listen(Imu, 'imu/data_raw'),
-           'truth': probe.listen(Vector3Stamped, 'gyro_emulator/truth/rate'),
+    got = {'imu': probe.listen(Imu, 'imu/data_raw', EVERY),
+           'truth': probe.listen(Vector3Stamped, 'gyro_emulator/truth/rate', EVERY),
            'fault': probe.listen(DiagnosticArray, 'gyro_emulator/truth/fault', LATCHED),
            'diag': probe.listen(DiagnosticArray, '/diagnostics', 100)}
     probe.spin_until(lambda: len(got['imu']) > 20 and got['fault'], 30.0, 'the node')
