@@ -33,7 +33,8 @@ class Parameter:
 
     ``interval`` is None (and ``sigma`` None) for a coefficient the record
     cannot measure (:mod:`.intervals`); ``method`` says which estimate
-    (jackknife over the folds, or profile likelihood for a searched one).
+    (jackknife over the folds, the sandwich under the record's noise law,
+    or profile likelihood for a searched one).
     """
 
     value: float

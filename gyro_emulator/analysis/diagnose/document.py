@@ -133,7 +133,10 @@ def _cause(cand, current, rmse_base, cv, sse_base, twins, phys):
     alike = list(cand.indistinguishable)
     alike += [t for t in twins if t not in alike]
     params, found = _parameters(cand, cv.ctx, cv.prep.binned)
-    clear = intervals.interval_clear_of_zero(eff, found, cv.ctx, current.full.sse,
+    # the rule rests on the folds' jackknife, as the selection's size rule does
+    # (intervals.py): the stated interval may be wider
+    rule = {**found, **intervals.linear_estimates(eff, ev, cv.ctx, cv.prep.binned)}
+    clear = intervals.interval_clear_of_zero(eff, rule, cv.ctx, current.full.sse,
                                              ev.full.sse, cand.n_eff)
     own = None
     mechanisms = list(eff.mechanisms)
@@ -404,7 +407,9 @@ def _method(cv, alpha):
              'stands 2 sigma clear of zero; '
              'Bonferroni over the candidates of each step',
         information_criterion='BIC on the effective number of independent bins',
-        uncertainty='1 sigma and 95 % intervals: coefficients by the delete-a-block '
-                    'jackknife over the folds (t), searched parameters (step times, delays, '
-                    'time constants, widths) by the profile likelihood',
+        uncertainty='1 sigma and 95 % intervals: coefficients by the larger of the '
+                    'delete-a-block jackknife over the folds and the sandwich under the '
+                    "record's noise law (white noise and a random walk), t; a step's size "
+                    'over every admissible step time; searched parameters (step times, '
+                    'delays, time constants, widths) by the profile likelihood',
         blocks='the paired test counts folds (sub_blocks = folds)')

@@ -424,7 +424,8 @@ def _header(diagnosis, config_name, axis, active):
         f'Verdict: {diagnosis.verdict}; baseline held-out RMSE '
         f'{diagnosis.baseline.rmse_rad_s:.4g} rad/s.',
         'Parameters below: the value of the step that selected the cause, '
-        '+- 1 sigma (delete-a-block jackknife).']
+        '+- 1 sigma (the larger of the delete-a-block jackknife and the sandwich '
+        "under the record's noise law)."]
     for i, e in enumerate(diagnosis.selected, 1):
         lines.append(
             f'Cause {i}: {e.effect} ({e.kind}): gain over the baseline '

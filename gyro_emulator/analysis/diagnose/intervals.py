@@ -4,11 +4,23 @@ An interval for every fitted number, and whether a cause's size stands clear of 
 Every parameter a cause reports gets a 95 % interval and a 1-sigma:
 
 - a parameter that enters linearly (a coefficient: a tempco, a step size,
-  a g-sensitivity): the delete-a-block jackknife over the folds (Efron &
-  Stein 1981), sigma^2 = (K-1)/K sum_k (theta_(k) - mean)^2, and the
-  interval theta +- t_{K-1} sigma; a coefficient whose column the record
-  does not vary (a g-sensitivity along an axis gravity never tilts into)
-  is not measured, and says so (no interval; its sigma 0 says only that);
+  a g-sensitivity): the larger of two sigmas, and the interval theta +-
+  t_{K-1} sigma. One is the delete-a-block jackknife over the folds (Efron
+  & Stein 1981), sigma^2 = (K-1)/K sum_k (theta_(k) - mean)^2. The other
+  is the sandwich of the linear estimator under the record's noise law
+  (:func:`wander_sigmas`): white noise plus the random walk the
+  maximum-likelihood local level sees over the whole record
+  (:func:`wander_law`; a reference record's noise as it is). The
+  jackknife alone misses a wander slower than a fold: every fold is
+  biased alike (a drift beside a bias step, a walk beside a staircase of
+  soaks), and its spread does not show it. The t_{K-1} quantile of both
+  carries the uncertainty of a walk measured from one record. A step's
+  size is refitted at every admissible step time (the step time's profile
+  region) and its interval is the union (:func:`_step_size_union`): the
+  size at the best time alone is biased where a wander moves the time. A
+  coefficient whose column the record does not vary (a g-sensitivity
+  along an axis gravity never tilts into) is not measured, and says so
+  (no interval; its sigma 0 says only that);
 - a parameter found by search (a step time, a delay, a time constant, a
   hysteresis width, a Sutherland constant, a mode split): where the
   per-fold fits cannot spread (a step time is an event of the whole
@@ -30,18 +42,19 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
   outside. Its sigma is the interval's half width / 1.96. An end at the
   edge of the searched range is marked (``open``).
 
-:func:`size_clear_of_zero` is the selection's rule that a cause's estimate
+:func:`clear_of_zero` is the selection's rule that a cause's estimate
 is not within ``z`` sigma of zero: a cause with coefficients needs one of
-them beyond z jackknife sigma; a cause that only changes the scale factor
-or the delay (a delay, a lag, a pressure drift, a mode split) needs its
+them beyond z sigma (the larger of the two above, at the best time); a
+cause that only changes the scale factor or the delay (a delay, a lag, a
+pressure drift, a mode split) needs its
 profile's SSE at the no-effect value (the model without it) to exceed the
 minimum by z^2 SSE_min / n_eff; the Sutherland law has no no-effect value.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 
-from gyro_emulator.analysis.diagnose import models
+from gyro_emulator.analysis.diagnose import models, noise_model, statespace
 import numpy as np
 from scipy import optimize
 from scipy.special import stdtrit
@@ -55,6 +68,10 @@ PROFILE_CHI2 = float(chi2.ppf(LEVEL, 1))
 STEP_LR = -2.0 * float(np.log(1.0 - np.sqrt(LEVEL)))
 #: Normal quantile that turns a profile interval's half width into a sigma.
 Z_LEVEL = 1.959963984540054
+#: Step times at which :func:`_step_size_union` refits a step's size.
+STEP_TIMES = 24
+#: ``method`` of a coefficient interval from the record's noise law (:func:`wander_sigmas`).
+WANDER_METHOD = 'sandwich under the noise law of the record (white noise and a random walk)'
 
 
 @dataclass(frozen=True)
@@ -104,11 +121,111 @@ def _measured(column, weight):
     return spread > 1e-12 * max(abs(mean), 1e-300) and spread > 0.0
 
 
-def linear_estimates(effect, evaluated, ctx, frame):
-    """Return {name: Estimate} of the cause's coefficients (jackknife, t_{K-1})."""
+@dataclass(frozen=True)
+class Wander:
+    """
+    What a coefficient's sandwich needs: the noise and the super-bins it acts on.
+
+    ``noise`` (:class:`.noise_model.NoiseModel`) gives the white density;
+    with ``groups`` (:class:`.statespace.Groups` of the super-bins) and
+    ``y_groups`` (the output's group means) the walk is fitted for each
+    model the sandwich is taken of (:func:`wander_law`); without them (a
+    reference record's noise) ``noise`` is the law as it is.
+    """
+
+    noise: object
+    superbins: object
+    groups: object = None
+    y_groups: object = None
+    rw_cap: float = math.inf
+
+    def law(self, model, ctx, frame, phis):
+        """Return the noise law under ``model`` with the searched parameters ``phis``."""
+        if self.groups is None:
+            return self.noise
+        sb = self.superbins
+        x = np.column_stack([sb.aggregate(c) for c in model.columns(ctx, frame, phis)])
+        return wander_law(self.noise, self.y_groups, x, self.groups, self.rw_cap)
+
+
+def wander_law(noise, y_groups, x_groups, groups, rw_cap=math.inf):
+    """
+    Return the noise law of a model's intervals: white noise and the walk of the record.
+
+    ``noise`` is the residual's (:func:`.noise_model.fit_noise`); its white
+    density is kept. Its flicker and walk come from an Allan fit up to a
+    tenth of the record, which misses a wander slower than that (a warm-up
+    trend, the walk over the whole record: what biases a step or a tempco)
+    and, on white noise, often reports a spurious term. The walk is the
+    maximum-likelihood local level's instead (:func:`.statespace.fit_level`)
+    of the group means ``y_groups`` on the model's columns ``x_groups``: it
+    measures the wander over the whole record, jointly with the model, and
+    is 0 where the record shows none. ``rw_cap`` (rad^2/s^3) is the walk
+    the residual's short and middle averaging times allow
+    (:func:`.noise_model.random_walk_cap`): a misfit of the rate within
+    the groups is not a walk.
+    """
+    try:
+        walk = statespace.fit_level(y_groups, x_groups, groups, rw_cap).rw_var_rad2_s3
+    except ValueError:
+        return noise
+    return replace(noise, bias_instability_rad_s=0.0, rrw_rad_s_sqrt_s=math.sqrt(max(walk, 0.0)))
+
+
+def wander_sigmas(evaluated, ctx, frame, wander):
+    """
+    Return the 1-sigma of the last cause's reported coefficients under the record's noise law.
+
+    The full fit is beta = M^-1 X' W ybar (:func:`.models.coefficient_map`),
+    ybar the bin means, W their sample counts. Under white noise of
+    density N plus the wander of ``wander.noise`` (flicker and random walk,
+    :func:`.noise_model.wander_covariance`, evaluated at the super-bins,
+    within which it barely moves), Cov(beta) = M^-1 (N^2/dt X' W X + H' C H)
+    M^-1, H the rows of W X summed over each super-bin: the sandwich of a
+    linear estimator (Newey & West 1987; here with the covariance taken
+    from the fitted noise model, not from the residuals' own lags, which a
+    few blocks of a slow walk cannot give).
+    """
+    model, full = evaluated.model, evaluated.full
+    n = len(frame)
+    cols = model.columns(ctx, frame, full.phis)
+    x = np.column_stack([np.broadcast_to(c, (n,)) for c in cols])
+    w = frame.weight
+    start = 2 + sum(e.n_columns for e in model.effects[:-1])
+    rows = models.coefficient_map(x, w, model.penalty(ctx))[start:]
+    xw = x * w[:, None]
+    noise, sb = wander.law(model, ctx, frame, full.phis), wander.superbins
+    white = noise.arw_rad_s_sqrt_hz ** 2 / sb.dt_s
+    grouped = np.stack([np.bincount(sb.group, weights=xw[:, j], minlength=len(sb))
+                        for j in range(x.shape[1])])
+    h = rows @ grouped
+    a = rows @ (xw.T @ x)
+    var = white * np.einsum('ij,ij->i', a, rows) + np.einsum(
+        'ij,ij->i', h @ noise_model.wander_covariance(noise, sb), h)
+    return np.sqrt(np.maximum(var, 0.0)) * _report_factors(model.effects[-1], full)
+
+
+def _report_factors(effect, full):
+    """Return d(reported value)/d(coefficient) of the last cause's columns (1/s0 or 1)."""
+    k = effect.n_columns
+    names = [p.name for p in effect.params[len(effect.params) - k:]]
+    phi, s0 = full.phis[-1], float(full.beta[1])
+    return np.array([abs(effect.report(np.eye(k)[i], phi, s0)[names[i]]) for i in range(k)])
+
+
+def linear_estimates(effect, evaluated, ctx, frame, wander=None):
+    """
+    Return {name: Estimate} of the cause's coefficients (module docstring).
+
+    The jackknife over the folds and, given ``wander`` (a :class:`Wander`),
+    the sandwich under the record's noise law (:func:`wander_sigmas`): the
+    larger sigma is the one stated, its name the ``method``, the interval
+    +- t_{K-1} sigma.
+    """
     jack = jackknife(effect, evaluated)
     skip = n_nonlinear(effect, ctx)
     cols = _cause_columns(evaluated, ctx, frame)
+    noise_sig = None if wander is None else wander_sigmas(evaluated, ctx, frame, wander)
     out = {}
     for i, p in enumerate(effect.params[skip:]):
         value, sigma, kf = jack[p.name]
@@ -118,9 +235,11 @@ def linear_estimates(effect, evaluated, ctx, frame):
             out[p.name] = Estimate(value, 0.0, None, 'not measured: the record does not '
                                    'vary what this coefficient multiplies')
             continue
+        method = f'jackknife over {kf} folds, t_{kf - 1}'
+        if noise_sig is not None and noise_sig[i] > sigma:
+            sigma, method = float(noise_sig[i]), WANDER_METHOD + f', t_{kf - 1}'
         half = float(stdtrit(kf - 1, 0.5 + LEVEL / 2.0)) * sigma
-        out[p.name] = Estimate(value, sigma, (value - half, value + half),
-                               f'jackknife over {kf} folds, t_{kf - 1}')
+        out[p.name] = Estimate(value, sigma, (value - half, value + half), method)
     return out
 
 
@@ -236,10 +355,46 @@ def nonlinear_estimates(effect, evaluated, ctx, frame, n_eff):
     return out
 
 
-def estimates(effect, evaluated, ctx, frame, n_eff):
+def _step_size_union(effect, evaluated, ctx, frame, n_eff, wander, size):
+    """
+    Return a step's size interval over every admissible step time (module docstring).
+
+    The size ``size`` (an :class:`Estimate`) is that at the best time; at
+    each of up to :data:`STEP_TIMES` times inside the step time's profile
+    region (:func:`_profile_step`'s threshold) the size is refitted and its
+    sigma taken as the larger of the best time's and the sandwich's there
+    (:func:`wander_sigmas`); the interval is the union of theirs.
+    """
+    model, full = evaluated.model, evaluated.full
+    fixed = tuple(full.phis[:-1])
+    starts, sse = models.step_profile(models.Model(model.effects[:-1]), effect, ctx, frame,
+                                      fixed)
+    ok = np.flatnonzero(sse <= _threshold(float(np.min(sse)), n_eff, STEP_LR))
+    if size.interval is None or len(ok) == 0:
+        return size
+    q = (size.interval[1] - size.interval[0]) / (2.0 * size.sigma)
+    lo, hi = size.interval
+    name = effect.params[-1].name
+    for k in np.unique(ok[np.linspace(0, len(ok) - 1, min(len(ok), STEP_TIMES)).astype(int)]):
+        fit = models.fit_model(model, ctx, frame, None, fixed + ((float(starts[k]),),))
+        at = replace(evaluated, full=fit)
+        value = float(model.report(fit.beta, fit.phis)[-1][name])
+        sigma = max(size.sigma, float(wander_sigmas(at, ctx, frame, wander)[0]))
+        lo, hi = min(lo, value - q * sigma), max(hi, value + q * sigma)
+    if (lo, hi) == tuple(size.interval):
+        return size
+    return Estimate(size.value, (hi - lo) / (2.0 * q), (lo, hi),
+                    size.method + '; the union over the admissible step times')
+
+
+def estimates(effect, evaluated, ctx, frame, n_eff, wander=None):
     """Return {name: Estimate} for every parameter of the last cause, in the cause's order."""
     found = {**nonlinear_estimates(effect, evaluated, ctx, frame, n_eff),
-             **linear_estimates(effect, evaluated, ctx, frame)}
+             **linear_estimates(effect, evaluated, ctx, frame, wander)}
+    if wander is not None and getattr(effect, 'change_point', False):
+        name = effect.params[-1].name
+        found[name] = _step_size_union(effect, evaluated, ctx, frame, n_eff, wander,
+                                       found[name])
     return {p.name: found[p.name] for p in effect.params}
 
 

@@ -117,6 +117,33 @@ def base_ratio(ctx, frame):
     return cached(frame, 'base_ratio', lambda: ctx.phys.ratio(slow_temp(frame)))
 
 
+def _regularised(gram, penalty):
+    """Return the normal matrix scaled to a unit diagonal with its ridge, and the scale."""
+    scale = np.sqrt(np.diag(gram))
+    scale = np.where(scale > 0.0, scale, 1.0)
+    g = gram / np.outer(scale, scale)
+    if penalty is None:
+        g[np.diag_indices_from(g)] += 1e-10
+    else:
+        pen = np.asarray(penalty, dtype=float)
+        g[np.diag_indices_from(g)] += np.where(pen > 0.0, np.maximum(pen / scale ** 2,
+                                                                     MIN_RIDGE), 1e-12)
+    return g, scale
+
+
+def coefficient_map(x, w, penalty=None):
+    """
+    Return the matrix that maps the weighted data ``x' W y`` to :func:`solve_normal`'s beta.
+
+    beta = M^-1 x' W y with M the regularised normal matrix: the coefficients
+    are linear in the data, so their covariance under any noise law is
+    M^-1 x' W Cov(y) W x M^-1 (:mod:`.intervals`). (p, p).
+    """
+    gram = (x * w[:, None]).T @ x
+    g, scale = _regularised(gram, penalty)
+    return np.linalg.pinv(g) / np.outer(scale, scale)
+
+
 def solve_normal(x, w, y, penalty=None):
     """
     Weighted least-squares coefficients of ``y`` (one column or several) on ``x``.
@@ -134,15 +161,7 @@ def solve_normal(x, w, y, penalty=None):
     xw = x * w[:, None]
     gram = xw.T @ x
     rhs = xw.T @ y
-    scale = np.sqrt(np.diag(gram))
-    scale = np.where(scale > 0.0, scale, 1.0)
-    g = gram / np.outer(scale, scale)
-    if penalty is None:
-        g[np.diag_indices_from(g)] += 1e-10
-    else:
-        pen = np.asarray(penalty, dtype=float)
-        g[np.diag_indices_from(g)] += np.where(pen > 0.0, np.maximum(pen / scale ** 2,
-                                                                     MIN_RIDGE), 1e-12)
+    g, scale = _regularised(gram, penalty)
     shaped = scale if np.ndim(y) == 1 else scale[:, None]
     try:
         sol = np.linalg.solve(g, rhs / shaped)

@@ -273,6 +273,40 @@ class SuperBins:
         return np.bincount(self.group, weights=values * self._bin_weight) / self.weight
 
 
+def _flicker_terms(noise, time_s):
+    """
+    Return (correlation times s, variances rad^2/s^2) of the flicker's Gauss-Markov sum.
+
+    One term per decade from the median gap of ``time_s`` to ten times its
+    span (:func:`gyro_emulator.sensor.noise.flicker_corr_times_s`), scaled
+    to the bias instability B.
+    """
+    t = np.asarray(time_s, dtype=float)
+    span = max(float(t[-1] - t[0]), 1e-9)
+    shortest = max(float(np.median(np.diff(t))) if len(t) > 1 else span, 1e-6)
+    taus = sensor_noise.flicker_corr_times_s((shortest, 10.0 * span))
+    return taus, sensor_noise.flicker_unit_variance(taus) * noise.bias_instability_rad_s ** 2
+
+
+def wander_covariance(noise, superbins):
+    """
+    Covariance of the correlated wander at the super-bin times, rad^2/s^2: (groups, groups).
+
+    The law :func:`draw_noise_records` draws, without its white part: a
+    random walk from the first group, K^2 (min(t_i, t_j) - t_0), plus the
+    flicker's stationary Gauss-Markov terms, sum_k q_k exp(-|t_i - t_j| /
+    T_k) (:func:`_flicker_terms`).
+    """
+    t = superbins.time_s
+    rel = t - t[0]
+    cov = noise.rrw_rad_s_sqrt_s ** 2 * np.minimum.outer(rel, rel)
+    if noise.bias_instability_rad_s > 0.0:
+        lag = np.abs(np.subtract.outer(t, t))
+        for tau, q in zip(*_flicker_terms(noise, t)):
+            cov += q * np.exp(-lag / tau)
+    return cov
+
+
 def draw_noise_records(noise, superbins, n_sim, rng):
     """
     Noise records at the super-bin times: white averaged per group, flicker, random walk.
@@ -293,11 +327,7 @@ def draw_noise_records(noise, superbins, n_sim, rng):
         out += np.cumsum(rng.standard_normal((n, n_sim)) * np.sqrt(gaps)[:, None],
                          axis=0) * noise.rrw_rad_s_sqrt_s
     if noise.bias_instability_rad_s > 0.0:
-        span = max(float(t[-1] - t[0]), 1e-9)
-        shortest = max(float(np.median(gaps[1:])) if n > 1 else span, 1e-6)
-        taus = sensor_noise.flicker_corr_times_s((shortest, 10.0 * span))
-        var = sensor_noise.flicker_unit_variance(taus) * noise.bias_instability_rad_s ** 2
-        for tau, q in zip(taus, var):
+        for tau, q in zip(*_flicker_terms(noise, t)):
             phi = np.exp(-gaps / tau)
             kick = np.sqrt(q * (1.0 - phi ** 2))
             z = rng.standard_normal((n, n_sim))

@@ -6,7 +6,7 @@ temperature, applied rate and time (each when the record varies it),
 before (the user-calibrated baseline) and after (the chosen causes, fitted
 on the whole record), with the stretches set aside as outliers marked on
 the time axis. The page gives the verdict, the chosen causes with their
-parameters, jackknife uncertainty and held-out gains, what could not be
+parameters, their 95 % intervals and held-out gains, what could not be
 told apart, the residual against its noise floor, and every candidate of
 each selection step.
 """
@@ -101,7 +101,8 @@ def parameter_text(p):
         return f'{p.value:.5g} {p.unit}: not measured' + (
             f' ({p.method[len("not measured: "):]})' if p.method and
             p.method.startswith('not measured: ') else '')
-    how = 'profile' if p.method and p.method.startswith('profile') else 'jackknife'
+    how = next((word for word in ('profile', 'sandwich') if p.method and
+                p.method.startswith(word)), 'jackknife')
     return f'{p.value:.5g} {_interval_text(p.interval)} {p.unit} (95 %, {how})'
 
 

@@ -120,4 +120,5 @@ def text(bounds):
 
 def estimates_of(cand, ctx, frame):
     """Return the :class:`.intervals.Estimate` s of a scored candidate (its last cause)."""
-    return intervals.estimates(cand.effect, cand.evaluated, ctx, frame, cand.n_eff)
+    return intervals.estimates(cand.effect, cand.evaluated, ctx, frame, cand.n_eff,
+                               None if cand.wander is None else cand.wander())

@@ -44,6 +44,7 @@ over the per-fold fits.
 """
 
 from dataclasses import dataclass, field, replace
+import functools
 import math
 import zlib
 
@@ -105,6 +106,9 @@ class Candidate:
     #: supported, or it is significant): no held-out gain, or a size within
     #: SIZE_Z sigma of zero.
     in_sample_only: str = None
+    #: Returns what its intervals need (:class:`.intervals.Wander`), made on
+    #: demand: only the causes reported need it.
+    wander: object = None
 
 
 def excitation(prep, data):
@@ -184,6 +188,24 @@ class Selector:
         resid_bins = b.gyro - models.predict(evaluated.model, self.ctx, b, evaluated.full)
         return noise_model.fit_noise(resid, s.time_s, prep.dt_s, prep.duration_s,
                                      resid_bins, b.time_s, prep.bin_s)
+
+    def wander_of(self, evaluated):
+        """
+        Return what the intervals of a fitted model need (:class:`.intervals.Wander`).
+
+        The white density of its residual's noise (with a reference, the
+        reference's) and the walk fitted per model on the super-bins of this
+        record (:func:`.intervals.wander_law`).
+        """
+        noise, sb, prep = self.noise_of(evaluated), self.superbins, self.cv.prep
+        try:
+            groups = statespace.Groups(sb.weight, sb.weight * prep.dt_s, sb.time_s)
+        except ValueError:
+            return intervals.Wander(noise, sb)
+        s = prep.samples
+        resid = s.gyro - models.predict(evaluated.model, self.ctx, s, evaluated.full)
+        cap = noise_model.random_walk_cap(resid, s.time_s, prep.dt_s, prep.duration_s)
+        return intervals.Wander(noise, sb, groups, sb.aggregate(prep.binned.gyro), cap)
 
     def sims_of(self, noise):
         """Noise records at the super-bins (the same random numbers for every noise model)."""
@@ -457,7 +479,8 @@ class Selector:
                          p_statespace=None if lr is None else lr.p_value,
                          lr=None if lr is None else lr.lr,
                          gain_binned=self.binned_gain(current.resid, ev.resid), route=route,
-                         gain_predictive=None if lr is None else lr.gain_predictive)
+                         gain_predictive=None if lr is None else lr.gain_predictive,
+                         wander=functools.partial(self.wander_of, ev))
         # the fold test counts the gain per sample and needs the BIC; the
         # likelihood route counts it where the effect lives, in the group means
         # predicted one step ahead (the held-out gain of fixed-level folds is
