@@ -17,12 +17,26 @@ Blocks pay off only while the input holds: a block starts once the input
 has been unchanged for ``max_block`` ticks, and any change falls back to
 plain ``step`` until it holds again. A rate that changes every few ticks
 therefore costs what ``step`` costs, and a held rate a few microseconds.
+
+"Holds" includes a specific force that changes every sample in a known way
+(gravity turning with a held rate): given a ``course``
+(:class:`.attitude.AttitudeState`), the block runs on the forces the course
+forecasts for its samples, and each tick checks that its force is the
+forecast one, bit for bit; any other force is a change.
+
+The copy taken before a block is kept across the blocks that follow while
+the input holds (at most :data:`CHECKPOINT_SPAN` samples): a rewind
+restores it and re-runs, in one call, every sample handed out since. A
+held input then pays one copy per span instead of one per block.
 """
 
+from gyro_emulator.emulation.driver.attitude import same_bits
 import numpy as np
 
 #: Most samples of one model call that runs dropped samples (:meth:`BlockStepper.skip`).
 SKIP_CHUNK = 10000
+#: Most samples handed out since the model copy a rewind starts from (then a new copy).
+CHECKPOINT_SPAN = 1000
 
 
 def _accel_sigma(model):
@@ -52,7 +66,11 @@ class BlockStepper:
         self._batch = None
         self._used = 0
         self._key = None
+        self._inputs = None
+        self._forces = None
         self._checkpoint = None
+        self._replay = []
+        self._replay_samples = 0
         self._last_key = None
         self._held = 0
         self.sigma_rad_s = np.asarray(model.white_noise_sigma_rad_s, dtype=float)
@@ -60,7 +78,7 @@ class BlockStepper:
         self.sigma_version = 0
         self._since_sigma = 0
 
-    def step(self, rate_rad_s, ambient_temp_c, accel_m_s2=None):
+    def step(self, rate_rad_s, ambient_temp_c, accel_m_s2=None, course=None):
         """
         Return the next sample for this tick's inputs (a ``SensorSample``).
 
@@ -72,65 +90,118 @@ class BlockStepper:
             Ambient temperature, deg C.
         accel_m_s2 : tuple of float or None
             Specific force (x, y, z), m/s^2; None = none.
+        course : object or None
+            Where the specific force goes while ``course.key`` holds:
+            ``course.forces(n)`` returns this tick's force and the next
+            ``n - 1`` as tuples (:meth:`.attitude.AttitudeState.forces`).
+            None: the force holds while it is equal.
 
         """
-        key = (tuple(rate_rad_s), float(ambient_temp_c),
-               None if accel_m_s2 is None else tuple(accel_m_s2))
+        force_key = None if accel_m_s2 is None else \
+            (tuple(accel_m_s2) if course is None else course.key)
+        key = (tuple(rate_rad_s), float(ambient_temp_c), force_key)
         batch = self._batch
         if batch is not None:
-            if key == self._key and self._used < len(batch):
-                index = self._used
-                self._used += 1
-                return batch.sample(index)
-            if self._used < len(batch):
+            used = self._used
+            if key == self._key and used < len(batch) and self._on_course(accel_m_s2, used):
+                self._used = used + 1
+                return batch.sample(used)
+            if used < len(batch):
                 self._rewind()
+                key_held = False            # a force off its course is a change
+            else:
+                self._chain()
+                key_held = key == self._last_key
             self._batch = None
-        self._held = self._held + 1 if key == self._last_key else 0
+        else:
+            key_held = key == self._last_key
+        self._held = self._held + 1 if key_held else 0
         self._last_key = key
         if self.block == 1:
-            self.model_calls += 1
-            sample = self.model.step(key[0], key[1], key[2])
-            self._since_sigma += 1
-            if self._since_sigma >= self.max_block:
-                self._refresh_sigma()
-            return sample
-        return self._start_block(key)
+            return self._step_one(key[0], key[1], accel_m_s2)
+        return self._start_block(key, accel_m_s2, course)
+
+    def _on_course(self, accel_m_s2, index):
+        """Tell whether this tick's force is the block's at ``index`` (always: no course)."""
+        forces = self._forces
+        if forces is None:
+            return True
+        want = forces[index]
+        return accel_m_s2 is want or same_bits(accel_m_s2, want)
+
+    def _step_one(self, rate, temp, accel):
+        """Step the model one sample (the copy before it is no start for a rewind any more)."""
+        self._drop_checkpoint()
+        self.model_calls += 1
+        sample = self.model.step(rate, temp, None if accel is None else tuple(accel))
+        self._since_sigma += 1
+        if self._since_sigma >= self.max_block:
+            self._refresh_sigma()
+        return sample
 
     @property
     def block(self):
         """Return how many samples the next model call computes (1 until the input holds)."""
         return self.max_block if self._held >= self.max_block else 1
 
-    def _start_block(self, key):
+    def _start_block(self, key, accel_m_s2, course):
         n = self.block
-        checkpoint = self.model.copy()
-        rates = np.tile(np.asarray(key[0], dtype=float), (n, 1))
-        temps = np.full(n, key[1])
-        accel = None if key[2] is None else np.tile(np.asarray(key[2], dtype=float), (n, 1))
+        forces = None
+        if accel_m_s2 is None:
+            accel = None
+        elif course is None:
+            accel = np.tile(np.asarray(key[2], dtype=float), (n, 1))
+        else:
+            forces = course.forces(n)
+            if len(forces) < 2:                       # no forecast: one sample
+                return self._step_one(key[0], key[1], accel_m_s2)
+            n = len(forces)
+            accel = np.array(forces, dtype=float)
+        inputs = (np.tile(np.asarray(key[0], dtype=float), (n, 1)), np.full(n, key[1]), accel)
+        if self._checkpoint is None or self._replay_samples >= CHECKPOINT_SPAN:
+            self._checkpoint = self.model.copy()
+            self._replay, self._replay_samples = [], 0
         self.model_calls += 1
         try:
-            batch = self.model.run(rates, temps, accel)
+            batch = self.model.run(*inputs)
         except ValueError:
-            self.model = checkpoint
+            self._restore()
             raise
-        self._checkpoint = checkpoint
         self._batch = batch
         self._key = key
+        self._inputs = inputs
+        self._forces = forces
         self._used = 1
         self._refresh_sigma()
         return batch.sample(0)
 
+    def _chain(self):
+        """Add the block just used up to what a rewind re-runs after the copy."""
+        self._replay.append(self._inputs)
+        self._replay_samples += len(self._inputs[0])
+        self._inputs = self._forces = None
+
+    def _restore(self):
+        """Put the model back to the copy, re-run the blocks used up since; no copy is left."""
+        self.model = self._checkpoint
+        replay = self._replay
+        self._drop_checkpoint()
+        if replay:
+            self.model_calls += 1
+            self.model.run(*_joined(replay))
+
+    def _drop_checkpoint(self):
+        self._checkpoint = None
+        self._replay, self._replay_samples = [], 0
+
     def _rewind(self):
         """Put the model back to just after the samples handed out so far."""
-        used, key = self._used, self._key
-        self.model = self._checkpoint
-        self._checkpoint = None
+        used = self._used
+        rates, temps, accel = self._inputs
+        self._replay.append((rates[:used], temps[:used], None if accel is None else accel[:used]))
+        self._inputs = self._forces = None
         self.rewinds += 1
-        n = used
-        accel = None if key[2] is None else np.tile(np.asarray(key[2], dtype=float), (n, 1))
-        self.model_calls += 1
-        self.model.run(np.tile(np.asarray(key[0], dtype=float), (n, 1)), np.full(n, key[1]),
-                       accel)
+        self._restore()
 
     def skip(self, count, rate_rad_s, ambient_temp_c, accel_m_s2=None):
         """
@@ -152,10 +223,18 @@ class BlockStepper:
         self._held = 0
 
     def sync(self):
-        """Drop the samples computed ahead so the model stands at the current tick."""
-        if self._batch is not None and self._used < len(self._batch):
+        """
+        Drop the samples computed ahead so the model stands at the current tick.
+
+        The model is then the caller's to change (restart its filters, set its
+        record time): the copy a rewind would start from is dropped too.
+        """
+        batch = self._batch
+        if batch is not None and self._used < len(batch):
             self._rewind()
         self._batch = None
+        self._inputs = self._forces = None
+        self._drop_checkpoint()
 
     def update_config(self, config):
         """Apply a new SensorConfig from the next tick on, keeping the model's states."""
@@ -176,3 +255,11 @@ class BlockStepper:
         self.accel_sigma_m_s2 = _accel_sigma(self.model)
         self.sigma_version += 1
         self._since_sigma = 0
+
+
+def _joined(segments):
+    """Return the (rates, temperatures, forces) of input segments as one record."""
+    rates = np.concatenate([r for r, _, _ in segments])
+    temps = np.concatenate([t for _, t, _ in segments])
+    accel = None if segments[0][2] is None else np.concatenate([a for _, _, a in segments])
+    return rates, temps, accel
