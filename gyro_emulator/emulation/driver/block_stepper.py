@@ -13,10 +13,14 @@ stepping would have left it. ``GyroModel`` guarantees that ``run`` and
 ``step`` give identical samples however a record is split into calls, so
 the output equals ``step`` per tick bit for bit, for any input sequence.
 
-Blocks pay off only while the input holds: a block starts once the input
-has been unchanged for ``max_block`` ticks, and any change falls back to
-plain ``step`` until it holds again. A rate that changes every few ticks
-therefore costs what ``step`` costs, and a held rate a few microseconds.
+Blocks pay off only while the input holds. A block starts once the input
+has been unchanged for ``max_block`` ticks, or, at a change, when the last
+:data:`HOLDS_KEPT` inputs each held for two ticks or more: then the block
+is as long as the shortest of them (at most ``max_block``), so an input
+that changes at a steady pace (a simulator's commands) uses its blocks up
+without rewinds. Otherwise the model steps one sample per tick. A rate
+that changes every tick therefore costs what ``step`` costs, and a held
+rate a few microseconds.
 
 "Holds" includes a specific force that changes every sample in a known way
 (gravity turning with a held rate): given a ``course``
@@ -30,6 +34,8 @@ restores it and re-runs, in one call, every sample handed out since. A
 held input then pays one copy per span instead of one per block.
 """
 
+from collections import deque
+
 from gyro_emulator.emulation.driver.attitude import same_bits
 import numpy as np
 
@@ -37,6 +43,8 @@ import numpy as np
 SKIP_CHUNK = 10000
 #: Most samples handed out since the model copy a rewind starts from (then a new copy).
 CHECKPOINT_SPAN = 1000
+#: How many of the last inputs' hold lengths set the block at a change.
+HOLDS_KEPT = 8
 
 
 def _accel_sigma(model):
@@ -73,6 +81,7 @@ class BlockStepper:
         self._replay_samples = 0
         self._last_key = None
         self._held = 0
+        self._holds = deque(maxlen=HOLDS_KEPT)
         self.sigma_rad_s = np.asarray(model.white_noise_sigma_rad_s, dtype=float)
         self.accel_sigma_m_s2 = _accel_sigma(model)
         self.sigma_version = 0
@@ -105,6 +114,7 @@ class BlockStepper:
             used = self._used
             if key == self._key and used < len(batch) and self._on_course(accel_m_s2, used):
                 self._used = used + 1
+                self._held += 1
                 return batch.sample(used)
             if used < len(batch):
                 self._rewind()
@@ -115,11 +125,17 @@ class BlockStepper:
             self._batch = None
         else:
             key_held = key == self._last_key
-        self._held = self._held + 1 if key_held else 0
+        if key_held:
+            self._held += 1
+        else:
+            if self._last_key is not None:
+                self._holds.append(self._held + 1)
+            self._held = 0
         self._last_key = key
-        if self.block == 1:
+        n = self.block
+        if n == 1 and self._checkpoint is None:
             return self._step_one(key[0], key[1], accel_m_s2)
-        return self._start_block(key, accel_m_s2, course)
+        return self._start_block(key, accel_m_s2, course, n)
 
     def _on_course(self, accel_m_s2, index):
         """Tell whether this tick's force is the block's at ``index`` (always: no course)."""
@@ -141,20 +157,23 @@ class BlockStepper:
 
     @property
     def block(self):
-        """Return how many samples the next model call computes (1 until the input holds)."""
-        return self.max_block if self._held >= self.max_block else 1
+        """Return how many samples the next model call computes (module docstring)."""
+        held, holds = self._held, self._holds
+        if held >= self.max_block:
+            return self.max_block
+        if held or len(holds) < HOLDS_KEPT:
+            return 1
+        return max(1, min(self.max_block, min(holds)))
 
-    def _start_block(self, key, accel_m_s2, course):
-        n = self.block
+    def _start_block(self, key, accel_m_s2, course, n):
+        """Run ``n`` samples of this tick's inputs (a chained copy's block when n is 1)."""
         forces = None
         if accel_m_s2 is None:
             accel = None
-        elif course is None:
-            accel = np.tile(np.asarray(key[2], dtype=float), (n, 1))
+        elif course is None or n == 1:
+            accel = np.tile(np.asarray(accel_m_s2, dtype=float), (n, 1))
         else:
             forces = course.forces(n)
-            if len(forces) < 2:                       # no forecast: one sample
-                return self._step_one(key[0], key[1], accel_m_s2)
             n = len(forces)
             accel = np.array(forces, dtype=float)
         inputs = (np.tile(np.asarray(key[0], dtype=float), (n, 1)), np.full(n, key[1]), accel)
