@@ -90,10 +90,10 @@ class ImuBatch(SensorBatch):
     accel_saturated: np.ndarray = None
 
     def sample(self, index):
-        """Return sample ``index`` as an :class:`ImuSample`."""
-        gyro = super().sample(index)
-        return ImuSample(**gyro.__dict__,
-                         **{n: getattr(self, n)[index] for n in ACCEL_FIELDS})
+        """Return sample ``index`` as an :class:`ImuSample` (built once: the node's hot path)."""
+        return ImuSample(*self.sample_values(index), self.accel_m_s2[index],
+                         self.true_specific_force_m_s2[index], self.accel_bias_m_s2[index],
+                         self.accel_scale_factor[index], self.accel_saturated[index])
 
 
 class ImuModel:

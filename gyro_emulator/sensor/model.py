@@ -142,11 +142,14 @@ class SensorBatch:
 
     def sample(self, index):
         """Return sample ``index`` as a :class:`SensorSample`."""
-        return SensorSample(
-            gyro_rad_s=self.gyro_rad_s[index], true_rate_rad_s=self.true_rate_rad_s[index],
-            die_temp_c=float(self.die_temp_c[index]), bias_rad_s=self.bias_rad_s[index],
-            scale_factor=self.scale_factor[index], saturated=self.saturated[index],
-            output_delay_s=float(self.output_delay_s[index]))
+        return SensorSample(*self.sample_values(index))
+
+    def sample_values(self, index):
+        """Return the :class:`SensorSample` fields of sample ``index``, in field order."""
+        return (self.gyro_rad_s[index], self.true_rate_rad_s[index],
+                float(self.die_temp_c[index]), self.bias_rad_s[index],
+                self.scale_factor[index], self.saturated[index],
+                float(self.output_delay_s[index]))
 
     @classmethod
     def concatenate(cls, batches):

@@ -15,10 +15,12 @@ the output equals ``step`` per tick bit for bit, for any input sequence.
 
 Blocks pay off only while the input holds. A block starts once the input
 has been unchanged for ``max_block`` ticks, or, at a change, when the last
-:data:`HOLDS_KEPT` inputs each held for two ticks or more: then the block
+:data:`HOLDS_KEPT` inputs each held for two ticks or more at a steady pace
+(the longest at most :data:`STEADY` times the shortest): then the block
 is as long as the shortest of them (at most ``max_block``), so an input
 that changes at a steady pace (a simulator's commands) uses its blocks up
-without rewinds. Otherwise the model steps one sample per tick. A rate
+without rewinds. Otherwise the model steps one sample per tick (a rewind
+and the copy after it cost more than the steps it saves). A rate
 that changes every tick therefore costs what ``step`` costs, and a held
 rate a few microseconds.
 
@@ -45,6 +47,8 @@ SKIP_CHUNK = 10000
 CHECKPOINT_SPAN = 1000
 #: How many of the last inputs' hold lengths set the block at a change.
 HOLDS_KEPT = 8
+#: Longest / shortest of those holds up to which the pace is steady (blocks at a change).
+STEADY = 1.25
 
 
 def _accel_sigma(model):
@@ -163,7 +167,10 @@ class BlockStepper:
             return self.max_block
         if held or len(holds) < HOLDS_KEPT:
             return 1
-        return max(1, min(self.max_block, min(holds)))
+        shortest = min(holds)
+        if shortest * STEADY < max(holds):
+            return 1                    # an unsteady pace: rewinds would cost more than steps
+        return max(1, min(self.max_block, shortest))
 
     def _start_block(self, key, accel_m_s2, course, n):
         """Run ``n`` samples of this tick's inputs (a chained copy's block when n is 1)."""
