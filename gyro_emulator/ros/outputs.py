@@ -17,10 +17,9 @@ fault in force has already acted on it, :mod:`gyro_emulator.sensor.faults`):
 * the truth of the same sample, stamped at the sample instant; ``~/truth/imu``
   carries the attitude (``orientation``, sensor frame to ENU world), the true
   rate and the true specific force. A truth topic that nobody subscribes
-  to is not built (``Publisher.get_subscription_count``, a volatile QoS:
-  nothing would be delivered nor kept for a later subscriber); one that
-  keeps messages for late joiners (``qos_overrides`` durability
-  ``transient_local``) is always published.
+  to is not built (``Publisher.get_subscription_count``): its QoS is
+  volatile, so nothing would be delivered nor kept for a later subscriber
+  (a durable one would always be published).
 * ``~/truth/fault`` (diagnostic_msgs/DiagnosticArray, latched) whenever the
   fault state changes; :func:`fault_message` gives its encoding.
 """
