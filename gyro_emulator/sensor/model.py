@@ -315,6 +315,20 @@ class GyroModel:
         """
         return self._gyro.white_sigma(self.config.initial_die_temp_c)
 
+    def white_noise_sigma_at(self, die_temp_c):
+        """Return :attr:`white_noise_sigma_rad_s` with the die at ``die_temp_c``, deg C."""
+        return self._gyro.white_sigma(self.config.initial_die_temp_c, die_temp_c)
+
+    def die_temp_after_c(self, die_temp_c, ambient_temp_c, count):
+        """
+        Return the die temperature ``count`` samples after one at ``die_temp_c``, deg C.
+
+        The thermal lag of :meth:`run` with the ambient held at
+        ``ambient_temp_c``, deg C; the model does not move. None: it would
+        leave the model range.
+        """
+        return self._gyro.die_temp_after_c(die_temp_c, ambient_temp_c, count)
+
     @property
     def sample_period_s(self):
         """

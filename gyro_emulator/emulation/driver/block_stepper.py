@@ -34,6 +34,12 @@ The copy taken before a block is kept across the blocks that follow while
 the input holds (at most :data:`CHECKPOINT_SPAN` samples): a rewind
 restores it and re-runs, in one call, every sample handed out since. A
 held input then pays one copy per span instead of one per block.
+
+The white-noise sigmas (the published covariances, at the die temperature)
+are refreshed where a stepper of fixed blocks (a block of ``max_block``
+once the input held that long, and every ``max_block`` single steps) would
+refresh them, at the die temperature it would have then: this stepper's
+own blocks change no output, covariances included.
 """
 
 from collections import deque
@@ -86,6 +92,8 @@ class BlockStepper:
         self._last_key = None
         self._held = 0
         self._holds = deque(maxlen=HOLDS_KEPT)
+        self._fixed_key = self._fixed_last = None
+        self._fixed_left = self._fixed_held = 0
         self.sigma_rad_s = np.asarray(model.white_noise_sigma_rad_s, dtype=float)
         self.accel_sigma_m_s2 = _accel_sigma(model)
         self.sigma_version = 0
@@ -110,9 +118,16 @@ class BlockStepper:
             None: the force holds while it is equal.
 
         """
-        force_key = None if accel_m_s2 is None else \
-            (tuple(accel_m_s2) if course is None else course.key)
-        key = (tuple(rate_rad_s), float(ambient_temp_c), force_key)
+        rate, temp = tuple(rate_rad_s), float(ambient_temp_c)
+        force = None if accel_m_s2 is None else tuple(accel_m_s2)
+        fixed = self._fixed_tick((rate, temp, force))
+        sample = self._next((rate, temp, force if course is None else course.key),
+                            accel_m_s2, course)
+        self._fixed_done(fixed, sample)
+        return sample
+
+    def _next(self, key, accel_m_s2, course):
+        """Return this tick's sample (the blocks of the module docstring)."""
         batch = self._batch
         if batch is not None:
             used = self._used
@@ -153,11 +168,7 @@ class BlockStepper:
         """Step the model one sample (the copy before it is no start for a rewind any more)."""
         self._drop_checkpoint()
         self.model_calls += 1
-        sample = self.model.step(rate, temp, None if accel is None else tuple(accel))
-        self._since_sigma += 1
-        if self._since_sigma >= self.max_block:
-            self._refresh_sigma()
-        return sample
+        return self.model.step(rate, temp, None if accel is None else tuple(accel))
 
     @property
     def block(self):
@@ -198,7 +209,6 @@ class BlockStepper:
         self._inputs = inputs
         self._forces = forces
         self._used = 1
-        self._refresh_sigma()
         return batch.sample(0)
 
     def _chain(self):
@@ -245,8 +255,8 @@ class BlockStepper:
             self.model_calls += 1
             self.model.run(np.tile(rate, (n, 1)), np.full(n, float(ambient_temp_c)), accel)
             left -= n
-        self._last_key = None
-        self._held = 0
+        self._last_key = self._fixed_last = None
+        self._held = self._fixed_held = 0
 
     def sync(self):
         """
@@ -261,6 +271,7 @@ class BlockStepper:
         self._batch = None
         self._inputs = self._forces = None
         self._drop_checkpoint()
+        self._fixed_left = 0
 
     def update_config(self, config):
         """Apply a new SensorConfig from the next tick on, keeping the model's states."""
@@ -272,13 +283,54 @@ class BlockStepper:
         """Run the model at a new rate from the next tick on (``GyroModel.set_sample_rate``)."""
         self.sync()
         self.model.set_sample_rate(sample_rate_hz)
-        self._last_key = None
-        self._held = 0
+        self._last_key = self._fixed_last = None
+        self._held = self._fixed_held = 0
         self._refresh_sigma()
 
-    def _refresh_sigma(self):
-        self.sigma_rad_s = np.asarray(self.model.white_noise_sigma_rad_s, dtype=float)
-        self.accel_sigma_m_s2 = _accel_sigma(self.model)
+    # --- the white-noise sigmas, on the schedule of fixed blocks -------------
+
+    def _fixed_tick(self, key):
+        """
+        Follow a stepper of fixed blocks on this tick's inputs; return what it does.
+
+        ``'served'`` (from its block), ``'step'`` (one sample) or ``'block'``
+        (a new block of ``max_block``). The sigmas (the published
+        covariances, at the die temperature) are refreshed where it refreshed
+        them, so they do not depend on this stepper's own blocks.
+        """
+        if self._fixed_left and key == self._fixed_key:
+            self._fixed_left -= 1
+            return 'served'
+        self._fixed_left = 0
+        self._fixed_held = self._fixed_held + 1 if key == self._fixed_last else 0
+        self._fixed_last = key
+        return 'step' if self._fixed_held < self.max_block else 'block'
+
+    def _fixed_done(self, fixed, sample):
+        """Refresh the sigmas as the stepper of fixed blocks did after this tick."""
+        if fixed == 'step':
+            self._since_sigma += 1
+            if self._since_sigma >= self.max_block:
+                self._refresh_sigma(sample.die_temp_c)
+        elif fixed == 'block':
+            # it refreshed after running its block: at the die temperature of its last sample
+            self._fixed_key, self._fixed_left = self._fixed_last, self.max_block - 1
+            die = self.model.die_temp_after_c(sample.die_temp_c, self._fixed_key[1],
+                                              self.max_block - 1)
+            if die is not None:
+                self._refresh_sigma(die)
+
+    def _refresh_sigma(self, die_temp_c=None):
+        """Take the sigmas at ``die_temp_c``, deg C (None: the model's current die)."""
+        model = self.model
+        if die_temp_c is None:
+            self.sigma_rad_s = np.asarray(model.white_noise_sigma_rad_s, dtype=float)
+            self.accel_sigma_m_s2 = _accel_sigma(model)
+        else:
+            self.sigma_rad_s = np.asarray(model.white_noise_sigma_at(die_temp_c), dtype=float)
+            accel_at = getattr(model, 'accel_white_noise_sigma_at', None)
+            self.accel_sigma_m_s2 = None if accel_at is None else np.asarray(
+                accel_at(die_temp_c), dtype=float)
         self.sigma_version += 1
         self._since_sigma = 0
 
