@@ -15,7 +15,9 @@ in these scenarios:
 * ``turn_x``: a held rate of 0.5 rad/s about x (gravity turns: the specific
   force changes every sample);
 * ``stream_x``: a new rate about x every 10 samples (a simulator's 100 Hz
-  commands on a 1 kHz part).
+  commands on a 1 kHz part);
+* ``flood_z``: ten new rates about z per sample (a 10 kHz command flood),
+  the driver taking them all (the node's inbox keeps the newest 100).
 
 It prints the CPU time per sample (best of ``--repeats``), the driver's
 model calls per sample, and in the same process a reference: the draw of
@@ -42,9 +44,11 @@ import numpy as np
 RATE_HZ = 1000.0
 PERIOD_NS = 1_000_000
 T0_NS = 10 ** 12
-#: Scenario: (rate command, samples between commands; 0: one command at the start).
-SCENARIOS = {'rest': (None, 0), 'turn_z': ((0.0, 0.0, 0.5), 0),
-             'turn_x': ((0.5, 0.0, 0.0), 0), 'stream_x': ((0.5, 0.0, 0.0), 10)}
+#: Scenario: (rate command, samples between commands, 0: one command at the start;
+#: commands per tick).
+SCENARIOS = {'rest': (None, 0, 1), 'turn_z': ((0.0, 0.0, 0.5), 0, 1),
+             'turn_x': ((0.5, 0.0, 0.0), 0, 1), 'stream_x': ((0.5, 0.0, 0.0), 10, 1),
+             'flood_z': ((0.0, 0.0, 0.5), 1, 10)}
 
 
 def node_values():
@@ -59,7 +63,7 @@ def node_values():
 
 def run(name, ticks, values, config):
     """Tick a fresh driver through scenario ``name``; return (CPU s, model calls) per sample."""
-    rate, every = SCENARIOS[name]
+    rate, every, burst = SCENARIOS[name]
     inbox = CommandInbox()
     driver = Driver(values, config, 7, commands=inbox)
     driver.start(T0_NS)
@@ -72,7 +76,9 @@ def run(name, ticks, values, config):
     for k in range(200, 200 + ticks):
         if every and k % every == 0:
             sign = 1.0 if (k // every) % 2 else -1.0
-            inbox.push('rate', T0_NS + k * PERIOD_NS, tuple(sign * r for r in rate))
+            for i in range(burst):              # a new rate each, stamped within the period
+                inbox.push('rate', T0_NS + k * PERIOD_NS - (burst - 1 - i) * PERIOD_NS // burst,
+                           tuple(sign * (1.0 + 0.01 * i) * r for r in rate))
         driver.tick(T0_NS + k * PERIOD_NS)
     cpu = time.process_time() - start
     return cpu / ticks, (driver.situation(0)['model_calls'] - calls) / ticks

@@ -152,7 +152,7 @@ class BlockStepper:
             self._held = 0
         self._last_key = key
         n = self.block
-        if n == 1 and self._checkpoint is None:
+        if n == 1 and (self._checkpoint is None or not self._steady_hold()):
             return self._step_one(key[0], key[1], accel_m_s2)
         return self._start_block(key, accel_m_s2, course, n)
 
@@ -173,15 +173,19 @@ class BlockStepper:
     @property
     def block(self):
         """Return how many samples the next model call computes (module docstring)."""
-        held, holds = self._held, self._holds
+        held = self._held
         if held >= self.max_block:
             return self.max_block
-        if held or len(holds) < HOLDS_KEPT:
-            return 1
+        return 1 if held else max(1, min(self.max_block, self._steady_hold()))
+
+    def _steady_hold(self):
+        """Return the shortest of the last holds if their pace is steady, else 0."""
+        holds = self._holds
+        if len(holds) < HOLDS_KEPT:
+            return 0
         shortest = min(holds)
-        if shortest * STEADY < max(holds):
-            return 1                    # an unsteady pace: rewinds would cost more than steps
-        return max(1, min(self.max_block, shortest))
+        # an unsteady pace: rewinds would cost more than steps
+        return shortest if shortest >= 2 and shortest * STEADY >= max(holds) else 0
 
     def _start_block(self, key, accel_m_s2, course, n):
         """Run ``n`` samples of this tick's inputs (a chained copy's block when n is 1)."""
