@@ -210,6 +210,10 @@ def test_the_node_fed_the_bag_senses_simulates_specific_force(tilt, tmp_path):
         # the noisy output: simulate's Imu mean within the attitude bound and 5 sigma
         spread = 5.0 * sigma * np.sqrt(1.0 / imu_rest.sum() + 1.0 / sim_rest.sum())
         gap = np.abs(measured[imu_rest].mean(axis=0) - batch.accel_m_s2[sim_rest].mean(axis=0))
+        worst = np.max(np.abs(force[node_rest] - expected))
+        print(f'rest {lo}-{hi} s: node truth - simulate {worst:.3g} m/s^2 (bound {bound:.3g}); '
+              f'| |f| - g | {np.max(np.abs(norm - STANDARD_GRAVITY_M_S2)):.2g}; output means '
+              f'{np.round(gap, 4)} (bound {np.round(bound + spread, 4)})')
         assert np.all(gap < bound + spread), (lo, hi, gap)
 
 
