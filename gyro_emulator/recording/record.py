@@ -159,7 +159,10 @@ def is_bag(path):
 
 
 #: CSV column of each role (gyro: one of the layouts of :func:`csvio.gyro_columns`).
+#: rate_axes: the applied rate about each axis, as ``simulate`` writes it (read when the
+#: file has no single ``rate_cmd_rad_s`` column).
 CSV_COLUMNS = MappingProxyType({'time': 'time_s', 'rate': 'rate_cmd_rad_s', 'temp': 'temp_c',
+                                'rate_axes': tuple(f'rate_{a}_rad_s' for a in AXES),
                                 'gyro': (csvio.GYRO_SINGLE,) + csvio.GYRO_AXES,
                                 'accel': ('accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')})
 #: Default bag topic of each role when the user names none (gyro: the only Imu topic;
@@ -457,6 +460,21 @@ def load_record(path, topics=None, required=('time_s',), only=None,
     return record if note is None else replace(record, recovery=(str(note),))
 
 
+def _rate_channel(t, columns):
+    """
+    Return a CSV's applied rate as a :class:`Channel`, or None.
+
+    Its ``rate_cmd_rad_s`` column (the sense axis), else its
+    ``rate_{x,y,z}_rad_s`` columns as a vector (as ``simulate`` writes).
+    """
+    if CSV_COLUMNS['rate'] in columns:
+        return Channel(t, columns[CSV_COLUMNS['rate']], CSV_COLUMNS['rate'])
+    axes = CSV_COLUMNS['rate_axes']
+    if all(c in columns for c in axes):
+        return Channel(t, np.column_stack([columns[c] for c in axes]), ', '.join(axes))
+    return None
+
+
 def _from_columns(path, columns):
     """Return the :class:`Record` of CSV ``columns`` (the roles of :data:`CSV_COLUMNS`)."""
     t = columns['time_s']
@@ -470,8 +488,7 @@ def _from_columns(path, columns):
         return None if values is None else Channel(t, values, source)
 
     return Record(
-        t, {a: columns[c] for a, c in found.items()}, found,
-        rate=channel(columns.get(CSV_COLUMNS['rate']), CSV_COLUMNS['rate']),
+        t, {a: columns[c] for a, c in found.items()}, found, rate=_rate_channel(t, columns),
         temp=channel(columns.get(CSV_COLUMNS['temp']), CSV_COLUMNS['temp']),
         accel=channel(np.column_stack([columns[c] for c in accel]), ', '.join(accel))
         if all(c in columns for c in accel) else None,
