@@ -125,7 +125,7 @@ def test_an_older_bag_is_read_as_the_specific_force_with_a_note(tilt, tmp_path):
     _, _, (time_s, samples, batch) = tilt
     old = _old_bag(tilt, str(tmp_path / 'old'))
     assert not topics.accel_commands_applied(bag.BagReader(old).custom_data)
-    note = record.old_accel_note('/cmd/linear_acceleration')
+    note = topics.old_accel_note('/cmd/linear_acceleration')
     assert '\n' not in note and 'specific force' in note and 'applied' in note
     rec = record.load_record(old, {'gyro': None, 'accel': None})
     assert rec.linear_accel is None and note in rec.recovery

@@ -266,16 +266,12 @@ class Record:
         Axis -> the column or topic field it came from.
     rate, temp, accel : Channel or None
         Applied (true) rate, rad/s; temperature, deg C; specific force
-        (gravity included: a CSV's accelerometer columns, an Imu's
-        ``linear_acceleration``, the acceleration commands of a bag written
-        when they held it), m/s^2, each on its own times (a CSV's share
-        ``time_s``).
+        (gravity included: a CSV's accelerometer, an Imu's, an older bag's
+        commands), m/s^2, each on its own times (a CSV's share ``time_s``).
     linear_accel : Channel or None
         Applied linear acceleration, body frame, gravity excluded, m/s^2: a
-        bag's acceleration commands (``cmd/linear_acceleration``) where its
-        ``custom_data`` says so (:func:`~gyro_emulator.recording.topics.accel_commands_applied`);
-        the specific force then follows from the attitude
-        (:class:`gyro_emulator.emulation.run_profile.MotionForce`).
+        bag's ``cmd/linear_acceleration`` where its ``custom_data`` says so
+        (:func:`~gyro_emulator.recording.topics.accel_commands_applied`).
     path : str
         Where it was read from (a synthetic record: a name).
     recovery : tuple of str
@@ -429,12 +425,11 @@ def load_record(path, topics=None, required=('time_s',), only=None,
         :attr:`Record.temp`; 'imu_accel' (a named sensor_msgs/Imu; None:
         the gyro's, when 'gyro' comes first) fills :attr:`Record.accel` with
         its ``linear_acceleration`` unless the Imu marks it absent (REP 145:
-        covariance element 0 = -1). 'accel' from a Vector3Stamped (the
-        acceleration commands) fills :attr:`Record.linear_accel` when the
-        bag's ``custom_data`` marks them applied
-        (:func:`~gyro_emulator.recording.topics.accel_commands_applied`), else
-        :attr:`Record.accel`, said in :attr:`Record.recovery`
-        (:func:`old_accel_note`). Default: the gyro only.
+        covariance element 0 = -1). 'accel' from a Vector3Stamped (commands)
+        fills :attr:`Record.linear_accel` when the bag marks them applied,
+        else :attr:`Record.accel`, said in :attr:`Record.recovery`
+        (:func:`~gyro_emulator.recording.topics.old_accel_note`). Default:
+        the gyro only.
     required, only, time_order
         CSV: see :func:`gyro_emulator.recording.csvio.read_csv`.
     use_log_time : bool
@@ -648,14 +643,6 @@ def _imu_accel_absent(stream):
     return not np.all(stream.field('linear_acceleration_covariance[0]') != -1.0)
 
 
-def old_accel_note(topic):
-    """Return the note of acceleration commands read as the specific force (an older bag)."""
-    meaning = ', '.join(f'{k}: {v}' for k, v in table.ACCEL_CMD_MEANING.items())
-    return (f'{topic} read as the specific force (gravity included): the bag has no '
-            f'custom_data {meaning}, so it was written when that topic held the specific '
-            'force; the node takes the applied acceleration (gravity excluded)')
-
-
 def _load_bag(reader, path, roles, use_log_time=False):
     """Read the roles of a bag (see :func:`load_record`) onto the gyro's clock."""
     streams, read, notes = {}, {}, []
@@ -679,7 +666,7 @@ def _load_bag(reader, path, roles, use_log_time=False):
             if table.accel_commands_applied(reader.custom_data):
                 role = 'linear_accel'
             else:
-                notes.append(old_accel_note(topic))
+                notes.append(table.old_accel_note(topic))
         read[role] = (stream, *_role_values(stream, _BAG_ROLES[key]))
     first = read['gyro'] if 'gyro' in read else next(iter(read.values()), None)
     t0 = first[0].times_ns[0] if first is not None else 0

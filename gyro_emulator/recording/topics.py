@@ -92,6 +92,14 @@ def accel_commands_applied(custom_data):
     return all((custom_data or {}).get(k) == v for k, v in ACCEL_CMD_MEANING.items())
 
 
+def old_accel_note(topic):
+    """Return the note of acceleration commands read as the specific force (an older bag)."""
+    meaning = ', '.join(f'{k}: {v}' for k, v in ACCEL_CMD_MEANING.items())
+    return (f'{topic} read as the specific force (gravity included): the bag has no '
+            f'custom_data {meaning}, so it was written when that topic held the specific '
+            'force; the node takes the applied acceleration (gravity excluded)')
+
+
 #: The ideal IMU of a simulator (``input_source: imu``), e.g. through ros_gz_bridge.
 IMU_IDEAL_IN = Topic('imu/ideal', IMU, 'sensor_data', 'in',
                      'ideal IMU from a simulator: angular velocity rad/s, specific force m/s^2')

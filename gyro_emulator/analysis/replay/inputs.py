@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 from gyro_emulator.emulation.emulator_bag import DEFAULT_FRAME_ID
 from gyro_emulator.emulation.profiles import SampledProfile
 from gyro_emulator.emulation.run_profile import MotionForce, OwnSamples, run_over_profile
-from gyro_emulator.recording import record
+from gyro_emulator.recording import record, topics as table
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.imu import ImuBatch, ImuModel
 from gyro_emulator.units import AXES, NS_PER_S
@@ -263,7 +263,7 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
         if rec.accel is not None:
             accel = hold(rec.accel.stamp_ns, rec.accel.values, stamp, half_ns,
                          before=np.zeros(3))
-            note = record.old_accel_note(rec.topics['accel'])
+            note = table.old_accel_note(rec.topics['accel'])
             if note in rec.recovery:        # acceleration commands of an older bag
                 notes.append(note)
         if rec.linear_accel is not None:
