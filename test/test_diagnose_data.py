@@ -186,12 +186,15 @@ def _write_bag(path, rec, with_accel=True):
     vec = np.zeros((rec.rows, 3))
     vec[:, 2] = rec.rate_cmd_rad_s
     temp = np.column_stack([rec.temp_c, np.zeros(rec.rows)])
-    with bag.BagWriter(str(path)) as writer:
+    # the applied acceleration (gravity excluded), as the bag's custom_data says: the
+    # rate is about z, so the attitude keeps gravity on z and adds it back exactly
+    applied = rec.accel_m_s2 - [0.0, 0.0, 9.80665] if with_accel else None
+    with bag.BagWriter(str(path), custom_data=dict(topics.ACCEL_CMD_MEANING)) as writer:
         batches = []
         for topic, vals in (
                 (topics.RATE_CMD, vec), (topics.TEMPERATURE_CMD, temp),
                 (topics.IMU_OUT, values)) + (
-                ((topics.ACCEL_CMD, rec.accel_m_s2),) if with_accel else ()):
+                ((topics.ACCEL_CMD, applied),) if with_accel else ()):
             writer.add_topic(topic.bag_name, topic.type_name)
             batches.append((topic.bag_name, cdr.encode(topic.type_name, stamps, vals), stamps))
         writer.write_batches(batches)

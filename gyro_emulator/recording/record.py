@@ -265,13 +265,19 @@ class Record:
     gyro_sources : dict
         Axis -> the column or topic field it came from.
     rate, temp, accel : Channel or None
-        Applied (true) rate, rad/s; temperature, deg C; specific force,
-        m/s^2, each on its own times (a CSV's share ``time_s``).
+        Applied (true) rate, rad/s; temperature, deg C; specific force
+        (gravity included: a CSV's accelerometer, an Imu's, an older bag's
+        commands), m/s^2, each on its own times (a CSV's share ``time_s``).
+    linear_accel : Channel or None
+        Applied linear acceleration, body frame, gravity excluded, m/s^2: a
+        bag's ``cmd/linear_acceleration`` where its ``custom_data`` says so
+        (:func:`~gyro_emulator.recording.topics.accel_commands_applied`).
     path : str
         Where it was read from (a synthetic record: a name).
     recovery : tuple of str
-        What a damaged bag lost, or what reading a long CSV averaged away
-        (``max_rows`` of :func:`load_record`), one note each; () if neither.
+        What a damaged bag lost, what reading a long CSV averaged away
+        (``max_rows`` of :func:`load_record`), or that a bag's acceleration
+        commands were read as the specific force, one note each; () if none.
     gyro_stamp_ns : numpy.ndarray of int64 or None
         A bag's gyro message times, ns; None for CSV.
     names : tuple of str
@@ -303,6 +309,7 @@ class Record:
     topics: dict = field(default_factory=dict)
     frames: dict = field(default_factory=dict)
     metadata: dict = field(default_factory=dict)
+    linear_accel: Channel = None
     _timings: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
@@ -418,7 +425,11 @@ def load_record(path, topics=None, required=('time_s',), only=None,
         :attr:`Record.temp`; 'imu_accel' (a named sensor_msgs/Imu; None:
         the gyro's, when 'gyro' comes first) fills :attr:`Record.accel` with
         its ``linear_acceleration`` unless the Imu marks it absent (REP 145:
-        covariance element 0 = -1). Default: the gyro only.
+        covariance element 0 = -1). 'accel' from a Vector3Stamped (commands)
+        fills :attr:`Record.linear_accel` when the bag marks them applied,
+        else :attr:`Record.accel`, said in :attr:`Record.recovery`
+        (:func:`~gyro_emulator.recording.topics.old_accel_note`). Default:
+        the gyro only.
     required, only, time_order
         CSV: see :func:`gyro_emulator.recording.csvio.read_csv`.
     use_log_time : bool
@@ -650,7 +661,13 @@ def _load_bag(reader, path, roles, use_log_time=False):
             raise ValueError(f'bag {path}: topic {topic} is empty')
         if key == 'imu_accel' and _imu_accel_absent(stream):
             continue
-        read[_BAG_ROLES[key]] = (stream, *_role_values(stream, _BAG_ROLES[key]))
+        role = _BAG_ROLES[key]
+        if key == 'accel' and stream.type_name != table.IMU:    # acceleration commands
+            if table.accel_commands_applied(reader.custom_data):
+                role = 'linear_accel'
+            else:
+                notes.append(table.old_accel_note(topic))
+        read[role] = (stream, *_role_values(stream, _BAG_ROLES[key]))
     first = read['gyro'] if 'gyro' in read else next(iter(read.values()), None)
     t0 = first[0].times_ns[0] if first is not None else 0
     gyro_stamp_ns, time_s, gyro, sources = np.zeros(0, dtype=np.int64), np.zeros(0), {}, {}

@@ -27,6 +27,7 @@ the temperature by < 0.02 K on a 3 K/min ramp. Samples set aside (outliers,
 
 from dataclasses import dataclass
 
+from gyro_emulator.emulation.recorded_profile import commanded_specific_force
 from gyro_emulator.recording import csvio
 from gyro_emulator.recording.record import DEFAULT_TOPICS, load_record
 from gyro_emulator.units import AXES
@@ -167,7 +168,10 @@ def bag_topics(rate_topic=None, temp_topic=None, gyro_topic=None, accel_topic=No
     Return the bag topic of each role diagnose reads (defaults :data:`DEFAULT_BAG_TOPICS`).
 
     The acceleration is read from ``cmd/linear_acceleration`` when the bag
-    has it and ``accel_topic`` is None; ``'none'`` ignores it.
+    has it and ``accel_topic`` is None; ``'none'`` ignores it. It is the
+    applied acceleration (gravity excluded) where the bag says so: the
+    specific force then comes from the attitude integrated from the rate
+    (:func:`~gyro_emulator.emulation.recorded_profile.commanded_specific_force`).
     """
     return {'gyro': gyro_topic or DEFAULT_BAG_TOPICS['gyro'],
             'rate': rate_topic or DEFAULT_BAG_TOPICS['rate'],
@@ -299,6 +303,10 @@ def _from_bag(record, axis):
         inside &= (t >= ts[0]) & (t <= ts[-1])
         series[role] = np.column_stack(
             [np.interp(t, ts, values[:, k]) for k in range(values.shape[1])])
+    if record.linear_accel is not None:     # applied: gravity turned in from the attitude
+        ts = record.linear_accel.time_s
+        inside &= (t >= ts[0]) & (t <= ts[-1])
+        series['accel'] = commanded_specific_force(record, t)
     if inside.sum() < 20:
         raise ValueError(f'bag {path}: fewer than 20 output samples lie '
                          'within the span of the input topics')
