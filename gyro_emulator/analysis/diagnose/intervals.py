@@ -10,7 +10,7 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
   is the sandwich of the linear estimator under the record's noise law
   (:func:`wander_sigmas`): white noise plus the random walk the
   maximum-likelihood local level sees over the whole record
-  (:func:`wander_law`; a reference record's noise as it is). The
+  (:func:`wander_law`). The
   jackknife alone misses a wander slower than a fold: every fold is
   biased alike (a drift beside a bias step, a walk beside a staircase of
   soaks), and its spread does not show it. The t_{K-1} quantile of both
@@ -44,7 +44,9 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
 
 :func:`clear_of_zero` is the selection's rule that a cause's estimate
 is not within ``z`` sigma of zero: a cause with coefficients needs one of
-them beyond z sigma (the larger of the two above, at the best time); a
+them beyond z sigma of the estimates it is given (the selection and the
+verdict give the jackknife's, :func:`linear_estimates` without a
+:class:`Wander`, so that detection keeps its calibration); a
 cause that only changes the scale factor or the delay (a delay, a lag, a
 pressure drift, a mode split) needs its
 profile's SSE at the no-effect value (the model without it) to exceed the
@@ -129,8 +131,9 @@ class Wander:
     ``noise`` (:class:`.noise_model.NoiseModel`) gives the white density;
     with ``groups`` (:class:`.statespace.Groups` of the super-bins) and
     ``y_groups`` (the output's group means) the walk is fitted for each
-    model the sandwich is taken of (:func:`wander_law`); without them (a
-    reference record's noise) ``noise`` is the law as it is.
+    model the sandwich is taken of (:func:`wander_law`, at most ``rw_cap``);
+    without them (a record of fewer than 8 groups) ``noise`` is the law as
+    it is.
     """
 
     noise: object
