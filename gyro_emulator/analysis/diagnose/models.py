@@ -259,6 +259,7 @@ def fit_model(model, ctx, frame, rows=None, fixed=None, start=None):
     fixed = tuple(fixed or ())
     n = len(frame)
     search = searched(model)
+    law = searched(model, every=True)
 
     def solve(phis, form=model, noise=None):
         cols = [np.broadcast_to(c, (n,))[rows] for c in form.columns(ctx, frame, phis)]
@@ -269,10 +270,10 @@ def fit_model(model, ctx, frame, rows=None, fixed=None, start=None):
 
     def law_noise(phis):
         """Return the noise variance a share of a law is held against (:func:`law_noise_var`)."""
-        if search is model:
+        if law is model:
             return None
-        cols = [np.broadcast_to(c, (n,))[rows] for c in search.columns(ctx, frame, phis)]
-        return law_noise_var(ctx, np.column_stack(cols), y, w, search.penalty(ctx))
+        cols = [np.broadcast_to(c, (n,))[rows] for c in law.columns(ctx, frame, phis)]
+        return law_noise_var(ctx, np.column_stack(cols), y, w, law.penalty(ctx))
 
     if len(fixed) == len(model.effects):
         beta, sse = solve(fixed, model, law_noise(fixed))
@@ -320,18 +321,20 @@ def law_noise_var(ctx, x, y, w, penalty):
     return min(ctx.noise_var_rad2_s2, own)
 
 
-def searched(model):
+def searched(model, every=False):
     """
-    Return ``model`` with its last cause in the form whose SSE chooses its non-linear parameters.
+    Return ``model`` with causes in the form whose SSE chooses their non-linear parameters.
 
     The model itself, but for a share of a law (:meth:`.effects.Effect.search_form`):
-    the law's constant is chosen with the law at share 1.
+    the law's constant is chosen with the law at share 1. The last cause
+    (the one searched), or with ``every`` each cause (the law's own
+    residual, :func:`law_noise_var`).
     """
-    if not model.effects:
-        return model
-    last = model.effects[-1]
-    form = last.search_form()
-    return model if form is last else Model(model.effects[:-1] + (form,))
+    last = len(model.effects) - 1
+    forms = tuple(e.search_form() if every or i == last else e
+                  for i, e in enumerate(model.effects))
+    same = all(f is e for f, e in zip(forms, model.effects))
+    return model if same else Model(forms)
 
 
 def change_point(partial, step, ctx, frame, rows, fixed):
