@@ -430,9 +430,11 @@ def test_replay_drives_the_accelerometer_from_the_bag(tmp_path):
     path = str(tmp_path / 'sim')
     simulate.write_record(path, 'consumer', 'steps', 10.0, 100.0, seed=2, start_time_ns=0)
     _, samples, batch = simulate.run_simulation('consumer', 'steps', 10.0, 100.0, seed=2)
-    # command source: the bag's commanded specific force
+    # command source: the bag's applied acceleration, gravity turned in from the attitude
     commands = load_inputs(path, source='command')
-    np.testing.assert_array_equal(commands.accel_m_s2, samples.accel_m_s2)
+    assert commands.accel_m_s2 is None
+    np.testing.assert_array_equal(commands.linear_accel_m_s2, samples.linear_accel_m_s2)
+    np.testing.assert_array_equal(commands.completed().accel_m_s2, samples.accel_m_s2)
     _, replayed = emulate(commands, 'consumer', 2)
     np.testing.assert_array_equal(replayed.accel_m_s2, batch.accel_m_s2)
     # imu source (a simulator's Imu): its linear_acceleration is the specific force

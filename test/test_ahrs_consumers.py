@@ -11,6 +11,7 @@ rate over many seeds), so the one seeded node run is not a lucky seed.
 
 import math
 
+from ahrs.common.orientation import acc2q
 import attitude_reference as ref
 from conftest import ros_env
 from geometry_msgs.msg import Vector3Stamped
@@ -140,8 +141,9 @@ def node_args(ns, rate_hz, sensor_config, seed):
     deep = []
     for topic in ('imu/data_raw', 'gyro_emulator/truth/imu', 'gyro_emulator/truth/bias'):
         deep += ['-p', f'qos_overrides./{ns}/{topic}.publisher.depth:=20000']
+    sensor = [] if sensor_config is None else ['-p', f'sensor_config:={sensor_config}']
     return ['-r', f'__ns:=/{ns}', '-p', 'use_sim_time:=true', '-p', f'rate_hz:={rate_hz}',
-            '-p', f'sensor_config:={sensor_config}', '-p', f'seed:={seed}',
+            *sensor, '-p', f'seed:={seed}',
             '-p', 'command_timeout_s:=0.0', '-p', 'qos_reliability:=reliable', *deep]
 
 
@@ -197,9 +199,13 @@ def test_madgwick_and_mahony_follow_the_node_over_a_tilt_and_turn(tmp_path):
     tilt = ref.tilt_sigma_deg(config)[0]
     heading = ref.heading_sigma_deg(config, len(rates) / ref.RATE_HZ)
     figures = {}
+    # Never a zero accelerometer vector (imu_tools' start-up check would call it free fall).
+    assert np.all(np.abs(np.linalg.norm(accel, axis=1) - G) < 0.05 * G)
     for name, estimate in ref.run_filters(gyro, accel).items():
-        # Both initialise from the first message: a finite unit attitude, level within noise.
+        # Both initialise from the first message: a finite unit attitude, level within noise,
+        # and exactly the one ahrs makes of message 1's accelerometer (acc2q).
         assert np.all(np.isfinite(estimate)) and abs(np.linalg.norm(estimate[0]) - 1) < 1e-9
+        np.testing.assert_array_equal(estimate[0], acc2q(accel[0]))
         error = ref.errors_deg(estimate, q_true)
         assert np.all(np.abs(error[0, :2]) <= 5 * tilt), (name, error[0])
         rms = np.sqrt(np.mean(error[:, :2] ** 2, axis=0))
@@ -219,11 +225,17 @@ def test_covariances_match_a_static_run_and_gravity_turns_from_z_to_y(tmp_path):
     rest, turn, after = 8000, 200, 400
     rates = np.zeros((rest + turn + after, 3))
     rates[rest:rest + turn, 0] = 0.5 * math.pi
-    run = run_nodes(tmp_path, [('paper', 'paper', 3), ('consumer', 'consumer', 4)], rates,
+    # 'paper': a default node (no sensor_config: the paper preset)
+    run = run_nodes(tmp_path, [('paper', None, 3), ('consumer', 'consumer', 4)], rates,
                     rate_hz)
     for ns in ('paper', 'consumer'):
         _, gyro, accel = arrays(run.imu[ns])
         assert len(gyro) >= len(rates) - 1    # a clock drift (1000 ppm: consumer): +- a few
+        # From the node's first message (its sample at T0, recorded: matched before the
+        # clock started) the accelerometer is present and never a zero vector.
+        assert stamp_ns(run.truth[ns][0].header) <= T0_NS + int(NS / rate_hz), ns
+        assert all(m.linear_acceleration_covariance[0] > 0.0 for m in run.imu[ns]), ns
+        assert np.all(np.linalg.norm(accel, axis=1) > 0.5 * G), ns
         model = ImuModel(load_sensor_config(ns), rate_hz, np.random.default_rng(0))
         for field, values, sigma in (('angular_velocity_covariance', gyro,
                                       model.white_noise_sigma_rad_s),

@@ -434,3 +434,29 @@ def test_config_from_mapping_reads_the_preset_accelerometer(mpu):
     assert got == pytest.approx(fields.per_axis['z']['electronics_noise_m_s2_sqrt_hz'],
                                 rel=1e-5)
     assert '# Accelerometer written: N_a' in text and 'inflation factor 2' in text
+
+
+@needs_mpu
+def test_accelerometer_axes_the_log_lacks_get_no_turn_on_bias(mpu):
+    """As the gyro's twin: a missing axis copies the noise, not the measured bias; said."""
+    cal, _ = mpu
+    record = load_record(MPU)
+    only_z = noise.calibrate_noise(record, axes=('z',), sense=ACCEL)
+    fields = export_noise.accel_twin_noise(accel_figures(only_z))
+    assert set(fields.per_axis) == {'z'}
+    measured = fields.per_axis['z']
+    assert measured['turn_on_bias_m_s2'] != 0.0      # the z axis's own bias is measured
+    acc = export_noise.accel_config(fields)
+    assert acc.turn_on_bias_m_s2[:2] == (0.0, 0.0)
+    assert acc.turn_on_bias_m_s2[2] == pytest.approx(measured['turn_on_bias_m_s2'], rel=1e-5)
+    for key in ('electronics_noise_m_s2_sqrt_hz', 'bias_instability_m_s2',
+                'random_walk_m_s3_sqrt_hz'):
+        values = getattr(acc, key)
+        assert values[0] == values[1] == values[2] == pytest.approx(measured[key], rel=1e-5)
+    lines = export_noise.accel_twin_lines(accel_figures(only_z), fields)
+    assert "Accelerometer axes x, y copy axis z's noise (not in the log); their turn-on bias " \
+        'is 0' in lines[-1]
+    text = export_noise.write_noise(cal, 'preset', accel=accel_figures(only_z))
+    assert "# Accelerometer axes x, y copy axis z's noise" in text
+    written = config_from_mapping(yaml.safe_load(text)).accelerometer
+    assert written.turn_on_bias_m_s2[:2] == (0.0, 0.0)

@@ -186,12 +186,15 @@ def _write_bag(path, rec, with_accel=True):
     vec = np.zeros((rec.rows, 3))
     vec[:, 2] = rec.rate_cmd_rad_s
     temp = np.column_stack([rec.temp_c, np.zeros(rec.rows)])
-    with bag.BagWriter(str(path)) as writer:
+    # the applied acceleration (gravity excluded), as the bag's custom_data says: the
+    # rate is about z, so the attitude keeps gravity on z and adds it back exactly
+    applied = rec.accel_m_s2 - [0.0, 0.0, 9.80665] if with_accel else None
+    with bag.BagWriter(str(path), custom_data=dict(topics.ACCEL_CMD_MEANING)) as writer:
         batches = []
         for topic, vals in (
                 (topics.RATE_CMD, vec), (topics.TEMPERATURE_CMD, temp),
                 (topics.IMU_OUT, values)) + (
-                ((topics.ACCEL_CMD, rec.accel_m_s2),) if with_accel else ()):
+                ((topics.ACCEL_CMD, applied),) if with_accel else ()):
             writer.add_topic(topic.bag_name, topic.type_name)
             batches.append((topic.bag_name, cdr.encode(topic.type_name, stamps, vals), stamps))
         writer.write_batches(batches)
@@ -286,3 +289,19 @@ def test_a_stuck_output_is_refused_in_one_line(tmp_path):
                header='time_s,rate_cmd_rad_s,temp_c,gyro_rad_s', comments='')
     with pytest.raises(ValueError, match=r'gyro_rad_s = 0\.001 in all 6000 samples: a stuck'):
         diagnose(load_measured(str(path)))
+
+
+def test_simulate_csv_is_read_on_the_gyro_axis(tmp_path):
+    # simulate writes rate_{x,y,z}_rad_s beside gyro_{x,y,z}_rad_s: each axis's
+    # applied rate pairs with that axis's output (a rate about z only here)
+    from gyro_emulator.emulation.simulate import write_record
+    path = str(tmp_path / 'sim.csv')
+    write_record(path, 'paper', 'steps', 40.0, 25.0, seed=3)
+    z = load_measured(path, axis='z')
+    x = load_measured(path, axis='x')
+    assert np.ptp(z.rate_cmd_rad_s) > 1.0 and np.all(x.rate_cmd_rad_s == 0.0)
+    # the output follows the applied rate it is paired with (scale factor near 1)
+    slope = np.polyfit(z.rate_cmd_rad_s, z.gyro_rad_s, 1)[0]
+    assert slope == pytest.approx(1.0, abs=0.05)
+    with pytest.raises(ValueError, match='choose an axis'):
+        load_measured(path)

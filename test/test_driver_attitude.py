@@ -187,3 +187,57 @@ def test_the_one_sample_forms_are_the_batch_forms_bit_for_bit():
         assert kinematics.specific_force_one(tuple(got), accel, 3.7) == \
             tuple(kinematics.specific_force(got, accel, 3.7).tolist())
         q = got
+
+
+def _fields(out):
+    """Every number of each output that depends on the model and the attitude, as bytes."""
+    return [np.array([*o.gyro.rate_rad_s, *o.gyro.true_rate_rad_s, *o.gyro.bias_rad_s,
+                      *o.gyro.scale_factor, *o.accel.accel_m_s2,
+                      *o.accel.true_specific_force_m_s2, *o.attitude_wxyz, o.die_temp_c,
+                      o.stamp_ns, o.sample_ns]).tobytes() for o in out]
+
+
+def _tilt_and_turn(driver, inbox):
+    """Tick turns about x, y and z held 60-300 samples, a changing acceleration, late ticks."""
+    pushes = [(0, 'rate', (0.5 * math.pi, 0.0, 0.0)), (70, 'rate', (0.0, -0.3, 0.0)),
+              (180, 'linear_acceleration', (0.5, 0.0, -0.2)), (400, 'rate', (0.2, 0.1, 0.9)),
+              (700, 'rate', (0.0, 0.0, 0.0)), (760, 'rate', (-0.8, 0.0, 0.0)),
+              (900, 'linear_acceleration', (0.0, 0.0, 0.0)), (1000, 'temperature', 31.0)]
+    for k, name, value in pushes:
+        inbox.push(name, T0_NS + k * PERIOD_NS, value)
+    out = []
+    for k in range(1400):
+        if k % 97 in (1, 2):                 # a late timer: the next tick takes a burst
+            continue
+        out += driver.tick(T0_NS + k * PERIOD_NS + (PERIOD_NS // 3 if k % 131 == 0 else 0))
+    return out
+
+
+def test_blocks_on_the_forecast_attitude_equal_a_step_per_sample_bit_for_bit():
+    # block_samples 1: the model steps every sample and the attitude is integrated per
+    # sample; 50: gravity turning with a held rate runs the model in blocks
+    outputs, calls = {}, {}
+    for block in (1, 50):
+        driver, inbox, _ = make(command_timeout_s=0.0, block_samples=block)
+        outputs[block] = _fields(_tilt_and_turn(driver, inbox))
+        calls[block] = driver.situation(0)['model_calls'], driver.situation(0)['model_rewinds']
+    assert len(outputs[1]) == len(outputs[50]) > 1300
+    assert outputs[50] == outputs[1]
+    assert calls[1][0] == len(outputs[1])
+    assert calls[50][0] < 0.3 * len(outputs[50]) and calls[50][1] > 0
+
+
+def test_the_forecast_attitude_is_the_per_sample_integral_bit_for_bit():
+    state = AttitudeState(kinematics.LEVEL_WXYZ, G, lambda ns, n: [ns + k * 1000 for k in
+                                                                   range(1, n + 1)])
+    alone = AttitudeState(kinematics.LEVEL_WXYZ, G)
+    rate, accel = (0.4, -0.1, 0.3), (0.1, 0.0, 0.0)
+    for k in range(200):
+        if k == 130:
+            rate = (0.0, 0.2, 0.0)           # off the forecast: it is dropped
+        got = state.advance(k * 1000, rate), state.specific_force(accel)
+        want = alone.advance(k * 1000, rate), alone.specific_force(accel)
+        assert np.array([*got[0], *got[1]]).tobytes() == \
+            np.array([*want[0], *want[1]]).tobytes(), k
+        if k % 40 == 10:
+            assert state.forces(50)[0] == got[1]

@@ -107,3 +107,15 @@ def test_rotation_about_z_keeps_gravity_exactly_on_z():
     attitudes = kinematics.AttitudeTrack().at(np.arange(2000) * 0.01, rate)
     force = kinematics.specific_force(attitudes)
     assert np.array_equal(force, np.tile([0.0, 0.0, G], (2000, 1)))
+
+
+def test_a_held_rate_in_one_call_equals_a_step_per_sample_bit_for_bit():
+    q = kinematics.check_attitude(kinematics.from_roll_pitch_yaw(0.3, -0.2, 1.1))
+    rate = (0.7, -0.4, 0.25)
+    dt_s = np.array([0.005, 0.004999999, 0.005000001, 0.0, 0.01] * 20)
+    path = kinematics.steps_held(q, rate, dt_s)
+    one = q
+    for k, dt in enumerate(dt_s):
+        one = kinematics.step(one, rate, float(dt))
+        assert path[k].tobytes() == one.tobytes(), k
+    assert kinematics.steps_held(q, rate, np.empty(0)).shape == (0, 4)

@@ -196,6 +196,25 @@ def test_block_stepper_equals_per_sample_step_bit_for_bit(max_block):
         assert stepper.rewinds > 0
 
 
+def test_inputs_at_a_steady_pace_run_in_blocks_of_their_hold_bit_for_bit():
+    # a simulator's commands: a new rate every 9-11 ticks; the blocks start at each change
+    config = rich_config()
+    ref = sensor_model.GyroModel(config, 200.0, np.random.default_rng(5))
+    stepper = BlockStepper(sensor_model.GyroModel(config, 200.0, np.random.default_rng(5)), 50)
+    rng = np.random.default_rng(2)
+    count = 0
+    for _ in range(120):
+        rate = tuple(rng.normal(size=3))
+        for _ in range(int(rng.integers(9, 12))):
+            want, got = ref.step(rate, 25.0), stepper.step(rate, 25.0)
+            assert got.gyro_rad_s.tobytes() == want.gyro_rad_s.tobytes(), count
+            assert got.bias_rad_s.tobytes() == want.bias_rad_s.tobytes(), count
+            count += 1
+    assert stepper.model_calls < 0.35 * count       # one block per rate, a few singles
+    # a rewind only when a hold is shorter than each of the last HOLDS_KEPT (8): p ~ 1.3 %
+    assert stepper.rewinds < 0.05 * 120
+
+
 def test_block_stepper_adapts_its_block_to_how_often_inputs_change():
     model = sensor_model.GyroModel(rich_config(), 200.0, np.random.default_rng(0))
     stepper = BlockStepper(model, 32)

@@ -5,8 +5,9 @@ Diagnose a measured record against the paper's physics.
   gyro-emulator diagnose static_log.csv.gz --static --axis x
   gyro-emulator diagnose BAG_DIR --gyro-topic imu/data_raw --axis z ...
 
-FILE is a CSV with columns time_s, rate_cmd_rad_s, temp_c (optional),
-gyro_rad_s (or gyro_x/y/z_rad_s with --axis) and optionally accel_x_m_s2,
+FILE is a CSV with columns time_s, rate_cmd_rad_s (or simulate's
+rate_x/y/z_rad_s), temp_c (optional), gyro_rad_s (or gyro_x/y/z_rad_s with
+--axis) and optionally accel_x_m_s2,
 accel_y_m_s2, accel_z_m_s2; --static reads a log of a part at rest that has
 no rate column. A rosbag2 MCAP bag (directory or .mcap file) has its topics
 mapped with the --*-topic options. Outliers are set aside, then causes are

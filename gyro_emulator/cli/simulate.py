@@ -104,6 +104,8 @@ def run(args):
         profile = recorded_profile.recorded_profile(
             args.profile, args.axis, args.static, args.temp_c,
             topics=recorded_profile.default_topics(args.topic))
+        for note in profile.notes:
+            print(f'simulate: note: {note}', file=sys.stderr)
     elif args.static:
         raise ValueError('simulate: --static is for a measured --profile without an applied '
                          "rate; the built-in profile 'static' is zero rate")

@@ -9,7 +9,7 @@ topic                                     type                              cont
 ========================================  ================================  ==============
 ``/cmd/angular_velocity``                 geometry_msgs/Vector3Stamped      true rate, rad/s
 ``/cmd/temperature``                      sensor_msgs/Temperature           ambient, deg C
-``/cmd/linear_acceleration``              geometry_msgs/Vector3Stamped      specific force
+``/cmd/linear_acceleration``              geometry_msgs/Vector3Stamped      applied accel.
 ``/imu/data_raw``                         sensor_msgs/Imu                   gyro, accel output
 ``/imu/temperature``                      sensor_msgs/Temperature           die temperature
 ``/gyro_emulator/truth/{rate,bias,...}``  geometry_msgs/Vector3Stamped      model truth
@@ -19,6 +19,17 @@ topic                                     type                              cont
 (sample n at ``start_ns + round(t_n 1e9)``, t_n = n ``GyroModel.sample_period_s``;
 the Imu stamp adds the
 model's output delay, as the node does).
+
+``cmd/linear_acceleration`` is the applied linear acceleration in the body
+frame, gravity excluded, m/s^2, as the node takes it: the node (and every
+offline reader) adds gravity from the attitude it integrates from
+``cmd/angular_velocity``. A profile that gives its specific force f itself
+is written as the applied acceleration that gives f at the attitude
+integrated from its rate (:meth:`~gyro_emulator.emulation.run_profile.MotionForce.complete`).
+Every bag written here carries ``custom_data``
+:data:`~gyro_emulator.recording.topics.ACCEL_CMD_MEANING`
+(``cmd_linear_acceleration: applied``), which tells it from a bag written
+when that topic held the specific force.
 
 Every ``imu/data_raw`` message carries the gyro's ``angular_velocity`` and,
 from an :class:`~gyro_emulator.sensor.imu.ImuModel`, the accelerometer's
@@ -143,7 +154,7 @@ class EmulatorBagWriter:
         for topic in extra:
             writer.add_topic(topic, VECTOR3_STAMPED)
 
-    def write(self, stamp_ns, rate_rad_s, temp_c, accel_m_s2, batch, published=None):
+    def write(self, stamp_ns, rate_rad_s, temp_c, linear_accel_m_s2, batch, published=None):
         """
         Write one block of samples.
 
@@ -155,8 +166,9 @@ class EmulatorBagWriter:
             True (commanded) rate, rad/s.
         temp_c : numpy.ndarray, shape (N,)
             Ambient temperature, deg C.
-        accel_m_s2 : numpy.ndarray, shape (N, 3), or None
-            Specific force, m/s^2 (None: not commanded).
+        linear_accel_m_s2 : numpy.ndarray, shape (N, 3), or None
+            Applied linear acceleration, body frame, gravity excluded, m/s^2
+            (``cmd/linear_acceleration``; None: not written).
         batch : gyro_emulator.sensor.model.SensorBatch
             The model output of these samples (an ImuBatch: with the
             accelerometer's, written as the Imu ``linear_acceleration``).
@@ -176,9 +188,9 @@ class EmulatorBagWriter:
                 (RATE_TOPIC, cdr.encode(VECTOR3_STAMPED, stamp_ns, rate_rad_s, frame), stamp_ns),
                 (TEMPERATURE_COMMAND_TOPIC, cdr.encode(TEMPERATURE, stamp_ns, temp, frame),
                  stamp_ns)]
-            if accel_m_s2 is not None:
+            if linear_accel_m_s2 is not None:
                 batches.append((ACCEL_TOPIC, cdr.encode(VECTOR3_STAMPED, stamp_ns,
-                                                        accel_m_s2, frame), stamp_ns))
+                                                        linear_accel_m_s2, frame), stamp_ns))
         keep = slice(None) if published is None else np.asarray(published, dtype=bool)
         measured = getattr(batch, 'accel_m_s2', None)
         imu = _imu_values(batch.gyro_rad_s[keep], self.sigma_rad_s,
@@ -229,6 +241,11 @@ def simulation_custom_data(config_name, profile, duration_s, rate_hz, seed, temp
             'temp_c': repr(float(temp_c))}
 
 
+def _marked(custom_data):
+    """Return ``custom_data`` with :data:`topics.ACCEL_CMD_MEANING` (module docstring)."""
+    return {**(custom_data or {}), **topics.ACCEL_CMD_MEANING}
+
+
 def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
                          rate_hz=None, custom_data=None, start_ns=0,
                          frame_id=DEFAULT_FRAME_ID, compression='zstd', name=None):
@@ -273,13 +290,13 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
     if config is not None and rate_hz is not None:
         sigma, accel_sigma = noise_sigmas(config, rate_hz)
     done = 0
-    with bag.BagWriter(path, compression=compression, custom_data=custom_data,
+    with bag.BagWriter(path, compression=compression, custom_data=_marked(custom_data),
                        flush_interval_s=60.0, name=name) as writer:
         out = EmulatorBagWriter(writer, frame_id, sigma, accel_sigma_m_s2=accel_sigma)
         for chunk in chunks:
             stamp_ns = start_ns + np.round(chunk.time_s * NS_PER_S).astype(np.int64)
             out.write(stamp_ns, chunk.profile.rate_rad_s, chunk.profile.temp_c,
-                      chunk.profile.accel_m_s2, chunk.batch, chunk.published)
+                      chunk.profile.linear_accel_m_s2, chunk.batch, chunk.published)
             done += len(chunk.time_s)
             if progress is not None:
                 progress(done, total)
@@ -313,13 +330,13 @@ def write_output_bag(path, inputs, batch, comparison, sigma_rad_s, custom_data=N
         the MCAP file).
 
     """
-    with bag.BagWriter(path, custom_data=custom_data, flush_interval_s=60.0,
+    with bag.BagWriter(path, custom_data=_marked(custom_data), flush_interval_s=60.0,
                        name=name) as writer:
         out = EmulatorBagWriter(writer, inputs.frame_id, sigma_rad_s,
                                 extra=(MEASURED_TOPIC, RESIDUAL_TOPIC)
                                 if comparison.matched else (), accel_sigma_m_s2=accel_sigma_m_s2)
-        out.write(inputs.stamp_ns, inputs.rate_rad_s, inputs.temp_c, inputs.accel_m_s2,
-                  batch)
+        out.write(inputs.stamp_ns, inputs.rate_rad_s, inputs.temp_c,
+                  inputs.completed().linear_accel_m_s2, batch)
         if comparison.matched:
             out.write_vectors(MEASURED_TOPIC, comparison.stamp_ns, comparison.measured_rad_s)
             out.write_vectors(RESIDUAL_TOPIC, comparison.stamp_ns,

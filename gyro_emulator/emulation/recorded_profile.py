@@ -13,10 +13,13 @@ the record's times (the model's temperature range):
   rate), as ``diagnose --static`` does;
 * the temperature, interpolated from its own times to the record's
   (without one: ``temp_c``, constant);
-* the specific force likewise; without one, it is left to the motion:
-  gravity turning with the applied rate from a level start
-  (:mod:`~gyro_emulator.emulation.profiles`; a part at rest reads level,
-  z up).
+* the specific force likewise (a CSV's accelerometer columns; the
+  acceleration commands of a bag written when they held it, with a note);
+  without one, it is left to the motion: gravity turning with the applied
+  rate from a level start (:mod:`~gyro_emulator.emulation.profiles`; a part
+  at rest reads level, z up), plus a bag's applied linear acceleration
+  (``cmd/linear_acceleration``, body frame, gravity excluded), as the node
+  does.
 
 The output is written at the record's sample times. The model runs on a
 uniform grid at the record's median sample interval from its first sample
@@ -32,6 +35,8 @@ from dataclasses import dataclass
 import os
 
 from gyro_emulator.emulation.profiles import SampledProfile
+from gyro_emulator.emulation.run_profile import MotionForce
+from gyro_emulator.recording import topics as table
 from gyro_emulator.recording.record import is_bag, load_record
 from gyro_emulator.units import AXES
 from gyro_emulator.validation import check_record_values, MODEL_TEMP_RANGE_C
@@ -62,8 +67,16 @@ class RecordedProfile(SampledProfile):
         specific force of None is left to the motion.
     temp_c : numpy.ndarray
         Temperature, deg C, shape (N,).
+    linear_accel_m_s2 : numpy.ndarray or None
+        A bag's applied linear acceleration (body frame, gravity excluded),
+        shape (N, 3), with a specific force left to the motion.
+    notes : tuple of str
+        How the record was read (a bag's acceleration commands taken as the
+        specific force: :func:`~gyro_emulator.recording.topics.old_accel_note`).
 
     """
+
+    notes: tuple = ()
 
     def grid_index(self, period_s):
         """Return the model grid sample of each record sample: nearest, strictly increasing."""
@@ -108,6 +121,8 @@ class ModelGrid:
         samples.temp_c[at] = record.temp_c[lo:hi]
         if record.accel_m_s2 is not None:
             samples.accel_m_s2[at] = record.accel_m_s2[lo:hi]
+        if record.linear_accel_m_s2 is not None:
+            samples.linear_accel_m_s2[at] = record.linear_accel_m_s2[lo:hi]
         time_s[at] = record.time_s[lo:hi]
         published = np.zeros(len(grid), bool)
         published[at] = True
@@ -193,8 +208,35 @@ def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
         raise ValueError(f'{path}: temp_c = {temp.min():.4g} .. {temp.max():.4g} C is out of '
                          f'range: allowed [{lo}, {hi}] C')
     accel = None if record.accel is None else _on_record_times(record.accel, t, 3)
+    linear = None if record.linear_accel is None else \
+        _on_record_times(record.linear_accel, t, 3)
     rate = _rate(record, t, axis, static)
-    for name, values in (('rate', rate), ('accel', accel)):
+    for name, values in (('rate', rate), ('accel', accel), ('linear_accel', linear)):
         if values is not None and not np.all(np.isfinite(values)):
             raise ValueError(f'{path}: the {name} channel has values that are not finite')
-    return RecordedProfile(str(path), t, rate, temp, accel)
+    older = table.old_accel_note(record.topics['accel']) if 'accel' in record.topics else None
+    return RecordedProfile(str(path), t, rate, temp, accel, linear_accel_m_s2=linear,
+                           notes=(older,) if older in record.recovery else ())
+
+
+def commanded_specific_force(record, time_s):
+    """
+    Return the specific force (N, 3), m/s^2, of a bag record's applied acceleration at ``time_s``.
+
+    The record's applied rate (a vector channel; zero without one) and its
+    applied linear acceleration (:attr:`Record.linear_accel
+    <gyro_emulator.recording.record.Record.linear_accel>`) are interpolated
+    to ``time_s`` (s on the record's clock, non-decreasing); the attitude is
+    integrated from a level start with the rate held from each time to the
+    next and f = a_body - R(q)^T (0, 0, -g), through the one route
+    (:class:`~gyro_emulator.emulation.run_profile.MotionForce`), as
+    ``simulate --profile`` and the node do.
+    """
+    t = np.asarray(time_s, dtype=float)
+    rate = np.zeros((len(t), 3))
+    if record.rate is not None and np.ndim(record.rate.values) == 2:
+        rate = _on_record_times(record.rate, t, 3)
+    linear = _on_record_times(record.linear_accel, t, 3)
+    profile = SampledProfile(f'{record.path}: commands', t, rate, np.zeros(len(t)), None,
+                             linear_accel_m_s2=linear)
+    return MotionForce(profile).complete(t, profile.own_samples(0, len(t)))[0].accel_m_s2

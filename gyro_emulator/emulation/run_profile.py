@@ -55,7 +55,9 @@ class ProfileChunk:
     or a record's grid has no sample for (None: all are published); the
     writers leave them out of the output. ``batch`` is a ``SensorBatch``
     (a GyroModel) or an ``ImuBatch`` (an ImuModel). ``attitude_wxyz`` (N, 4)
-    is the attitude where the specific force came from the motion, else None.
+    is the attitude integrated from the rate (None in a run without specific
+    force); ``profile`` then carries both the specific force and the applied
+    linear acceleration (:meth:`MotionForce.complete`).
     """
 
     time_s: np.ndarray
@@ -84,17 +86,26 @@ class MotionForce:
 
     def complete(self, time_s, samples):
         """
-        Return ``(samples, attitudes)``: the samples with their specific force, and the attitudes.
+        Return ``(samples, attitudes)``: the samples with both accelerations, and the attitudes.
 
-        Samples that give their specific force come back as they are (attitudes
-        None); the next samples of the record follow in the next call.
+        The attitude is integrated either way. Samples that leave their
+        specific force to the motion get it, f = a_body - R(q)^T (0, 0, -g)
+        (their applied ``linear_accel_m_s2`` zero where None); samples that
+        give it get the applied linear acceleration that gives it at that
+        attitude, a_body = f + R(q)^T (0, 0, -g) (what a bag's
+        ``cmd/linear_acceleration`` holds: the node adds gravity back). The
+        next samples of the record follow in the next call.
         """
-        if samples.accel_m_s2 is not None:
-            return samples, None
         attitudes = self.track.at(time_s, samples.rate_rad_s)
-        force = kinematics.specific_force(attitudes, samples.linear_accel_m_s2,
-                                          self.gravity_m_s2)
-        return replace(samples, accel_m_s2=force), attitudes
+        if samples.accel_m_s2 is not None:
+            gravity = kinematics.specific_force(attitudes, None, self.gravity_m_s2)
+            return replace(samples, linear_accel_m_s2=samples.accel_m_s2 - gravity + 0.0), \
+                attitudes
+        linear = samples.linear_accel_m_s2
+        if linear is None:
+            linear = np.zeros((len(time_s), 3))
+        force = kinematics.specific_force(attitudes, linear, self.gravity_m_s2)
+        return replace(samples, accel_m_s2=force, linear_accel_m_s2=linear), attitudes
 
 
 @dataclass(frozen=True)

@@ -103,7 +103,7 @@ class Scenario:
 
     @property
     def initial_attitude_wxyz(self):
-        """Attitude at time 0 (level): the steps give their specific force (level)."""
+        """Attitude at time 0 (level): the specific force follows the motion, as on the node."""
         return self.profile.initial_attitude_wxyz
 
     @property
@@ -152,7 +152,13 @@ def _step(where, raw, axis):
         raise ValueError(f'{where}.temp_c = None is not a finite number')
     if 'duration_s' in raw:
         _number(where, 'duration_s', raw['duration_s'], 0.0, 86400.0, True)
-    segment = schema.parse_segment(where, raw, axis)
+    for given in ('accel_m_s2', 'linear_accel_m_s2'):
+        if given in raw:
+            raise ValueError(f'{where}: {given} is not played: the player commands the rate '
+                             'and temp_c only, and the node turns gravity with the rate '
+                             '(publish cmd/linear_acceleration, the applied acceleration, '
+                             'yourself)')
+    segment = schema.parse_segment(where, raw, axis, default_accel_m_s2=None)
     return _constant_step(where, segment, f'{value:g} {RATE_LABELS[key]}')
 
 

@@ -157,6 +157,28 @@ def step(attitude_wxyz, rate_rad_s, dt_s):
                       np.array((dt_s,), dtype=float), out)
 
 
+def steps_held(attitude_wxyz, rate_rad_s, dt_s):
+    """
+    Return the attitudes (N, 4) after each of N steps of one rate held (the hot path).
+
+    :func:`step` applied N times in one call: row k is the attitude after
+    step k of ``dt_s[k]``, on the same compiled loop and so the same bits
+    as N calls of :func:`step`. ``attitude_wxyz`` a unit float array (4,),
+    the rate three finite numbers, ``dt_s`` (N,) finite and >= 0 (the caller
+    checked).
+    """
+    dt = np.ascontiguousarray(dt_s, dtype=float)
+    rate = np.empty((len(dt), 3))
+    rate[:] = rate_rad_s
+    out = np.empty((len(dt), 4))
+    if not len(dt):
+        return out
+    after = _propagate(attitude_wxyz, rate, dt, out)
+    out[:-1] = out[1:]
+    out[-1] = after
+    return out
+
+
 @numba.njit(cache=True, error_model='numpy')
 def _propagate(q, rate, dt, out):
     """

@@ -159,7 +159,10 @@ def is_bag(path):
 
 
 #: CSV column of each role (gyro: one of the layouts of :func:`csvio.gyro_columns`).
+#: rate_axes: the applied rate about each axis, as ``simulate`` writes it (read when the
+#: file has no single ``rate_cmd_rad_s`` column).
 CSV_COLUMNS = MappingProxyType({'time': 'time_s', 'rate': 'rate_cmd_rad_s', 'temp': 'temp_c',
+                                'rate_axes': tuple(f'rate_{a}_rad_s' for a in AXES),
                                 'gyro': (csvio.GYRO_SINGLE,) + csvio.GYRO_AXES,
                                 'accel': ('accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')})
 #: Default bag topic of each role when the user names none (gyro: the only Imu topic;
@@ -262,13 +265,19 @@ class Record:
     gyro_sources : dict
         Axis -> the column or topic field it came from.
     rate, temp, accel : Channel or None
-        Applied (true) rate, rad/s; temperature, deg C; specific force,
-        m/s^2, each on its own times (a CSV's share ``time_s``).
+        Applied (true) rate, rad/s; temperature, deg C; specific force
+        (gravity included: a CSV's accelerometer, an Imu's, an older bag's
+        commands), m/s^2, each on its own times (a CSV's share ``time_s``).
+    linear_accel : Channel or None
+        Applied linear acceleration, body frame, gravity excluded, m/s^2: a
+        bag's ``cmd/linear_acceleration`` where its ``custom_data`` says so
+        (:func:`~gyro_emulator.recording.topics.accel_commands_applied`).
     path : str
         Where it was read from (a synthetic record: a name).
     recovery : tuple of str
-        What a damaged bag lost, or what reading a long CSV averaged away
-        (``max_rows`` of :func:`load_record`), one note each; () if neither.
+        What a damaged bag lost, what reading a long CSV averaged away
+        (``max_rows`` of :func:`load_record`), or that a bag's acceleration
+        commands were read as the specific force, one note each; () if none.
     gyro_stamp_ns : numpy.ndarray of int64 or None
         A bag's gyro message times, ns; None for CSV.
     names : tuple of str
@@ -300,6 +309,7 @@ class Record:
     topics: dict = field(default_factory=dict)
     frames: dict = field(default_factory=dict)
     metadata: dict = field(default_factory=dict)
+    linear_accel: Channel = None
     _timings: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
@@ -415,7 +425,11 @@ def load_record(path, topics=None, required=('time_s',), only=None,
         :attr:`Record.temp`; 'imu_accel' (a named sensor_msgs/Imu; None:
         the gyro's, when 'gyro' comes first) fills :attr:`Record.accel` with
         its ``linear_acceleration`` unless the Imu marks it absent (REP 145:
-        covariance element 0 = -1). Default: the gyro only.
+        covariance element 0 = -1). 'accel' from a Vector3Stamped (commands)
+        fills :attr:`Record.linear_accel` when the bag marks them applied,
+        else :attr:`Record.accel`, said in :attr:`Record.recovery`
+        (:func:`~gyro_emulator.recording.topics.old_accel_note`). Default:
+        the gyro only.
     required, only, time_order
         CSV: see :func:`gyro_emulator.recording.csvio.read_csv`.
     use_log_time : bool
@@ -441,6 +455,21 @@ def load_record(path, topics=None, required=('time_s',), only=None,
     return record if note is None else replace(record, recovery=(str(note),))
 
 
+def _rate_channel(t, columns):
+    """
+    Return a CSV's applied rate as a :class:`Channel`, or None.
+
+    Its ``rate_cmd_rad_s`` column (the sense axis), else its
+    ``rate_{x,y,z}_rad_s`` columns as a vector (as ``simulate`` writes).
+    """
+    if CSV_COLUMNS['rate'] in columns:
+        return Channel(t, columns[CSV_COLUMNS['rate']], CSV_COLUMNS['rate'])
+    axes = CSV_COLUMNS['rate_axes']
+    if all(c in columns for c in axes):
+        return Channel(t, np.column_stack([columns[c] for c in axes]), ', '.join(axes))
+    return None
+
+
 def _from_columns(path, columns):
     """Return the :class:`Record` of CSV ``columns`` (the roles of :data:`CSV_COLUMNS`)."""
     t = columns['time_s']
@@ -454,8 +483,7 @@ def _from_columns(path, columns):
         return None if values is None else Channel(t, values, source)
 
     return Record(
-        t, {a: columns[c] for a, c in found.items()}, found,
-        rate=channel(columns.get(CSV_COLUMNS['rate']), CSV_COLUMNS['rate']),
+        t, {a: columns[c] for a, c in found.items()}, found, rate=_rate_channel(t, columns),
         temp=channel(columns.get(CSV_COLUMNS['temp']), CSV_COLUMNS['temp']),
         accel=channel(np.column_stack([columns[c] for c in accel]), ', '.join(accel))
         if all(c in columns for c in accel) else None,
@@ -633,7 +661,13 @@ def _load_bag(reader, path, roles, use_log_time=False):
             raise ValueError(f'bag {path}: topic {topic} is empty')
         if key == 'imu_accel' and _imu_accel_absent(stream):
             continue
-        read[_BAG_ROLES[key]] = (stream, *_role_values(stream, _BAG_ROLES[key]))
+        role = _BAG_ROLES[key]
+        if key == 'accel' and stream.type_name != table.IMU:    # acceleration commands
+            if table.accel_commands_applied(reader.custom_data):
+                role = 'linear_accel'
+            else:
+                notes.append(table.old_accel_note(topic))
+        read[role] = (stream, *_role_values(stream, _BAG_ROLES[key]))
     first = read['gyro'] if 'gyro' in read else next(iter(read.values()), None)
     t0 = first[0].times_ns[0] if first is not None else 0
     gyro_stamp_ns, time_s, gyro, sources = np.zeros(0, dtype=np.int64), np.zeros(0), {}, {}

@@ -79,6 +79,27 @@ RATE_CMD, ODOM_CMD, TEMPERATURE_CMD, ACCEL_CMD = (Topic(*row) for row in (
     ('cmd/linear_acceleration', VECTOR3_STAMPED, 'reliable', 'in',
      'applied linear acceleration, body frame, m/s^2 (gravity is added from the attitude)'),
 ))
+#: The rosbag2 ``custom_data`` entry every bag the emulator writes carries: its
+#: ``cmd/linear_acceleration`` is the applied linear acceleration (body frame,
+#: gravity excluded), as the node takes it. A bag without it was written when
+#: that topic held the specific force (gravity included):
+#: :func:`accel_commands_applied`.
+ACCEL_CMD_MEANING = MappingProxyType({'cmd_linear_acceleration': 'applied'})
+
+
+def accel_commands_applied(custom_data):
+    """Return whether a bag's ``custom_data`` marks its acceleration commands applied."""
+    return all((custom_data or {}).get(k) == v for k, v in ACCEL_CMD_MEANING.items())
+
+
+def old_accel_note(topic):
+    """Return the note of acceleration commands read as the specific force (an older bag)."""
+    meaning = ', '.join(f'{k}: {v}' for k, v in ACCEL_CMD_MEANING.items())
+    return (f'{topic} read as the specific force (gravity included): the bag has no '
+            f'custom_data {meaning}, so it was written when that topic held the specific '
+            'force; the node takes the applied acceleration (gravity excluded)')
+
+
 #: The ideal IMU of a simulator (``input_source: imu``), e.g. through ros_gz_bridge.
 IMU_IDEAL_IN = Topic('imu/ideal', IMU, 'sensor_data', 'in',
                      'ideal IMU from a simulator: angular velocity rad/s, specific force m/s^2')

@@ -16,7 +16,10 @@ fault in force has already acted on it, :mod:`gyro_emulator.sensor.faults`):
 * ``imu/temperature`` on the samples the driver marks (``temperature_rate_hz``).
 * the truth of the same sample, stamped at the sample instant; ``~/truth/imu``
   carries the attitude (``orientation``, sensor frame to ENU world), the true
-  rate and the true specific force.
+  rate and the true specific force. A truth topic that nobody subscribes
+  to is not built (``Publisher.get_subscription_count``): its QoS is
+  volatile, so nothing would be delivered nor kept for a later subscriber
+  (a durable one would always be published).
 * ``~/truth/fault`` (diagnostic_msgs/DiagnosticArray, latched) whenever the
   fault state changes; :func:`fault_message` gives its encoding.
 """
@@ -28,7 +31,7 @@ from gyro_emulator.recording import topics
 from gyro_emulator.ros import codec
 from gyro_emulator.ros.rawmsg import RawMessage
 from rclpy.event_handler import PublisherEventCallbacks
-from rclpy.qos import ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.time import Time
 
@@ -131,6 +134,8 @@ class OutputStage:
                                                     'value': ('vector', 'vector3')}))
         truth_imu = codec.topic_class(topics.TRUTH_IMU)()
         truth_imu.header.frame_id = frame_id
+        self._truth_kept = [pub.qos_profile.durability != DurabilityPolicy.VOLATILE
+                            for pub in (*self.truth_pubs, self.truth_imu_pub)]
         self.truth_imu = RawMessage(truth_imu, {
             'stamp': ('header.stamp', 'time'), 'rate': ('angular_velocity', 'vector3'),
             'force': ('linear_acceleration', 'vector3'),
@@ -195,11 +200,16 @@ class OutputStage:
     def _publish_truth(self, output):
         """Publish ``~/truth/{rate,bias,scale_factor,imu}`` of one sample, at its instant."""
         gyro = output.gyro
-        for pub, msg, vec in zip(self.truth_pubs, self.truth_msgs,
-                                 (gyro.true_rate_rad_s, gyro.bias_rad_s, gyro.scale_factor)):
-            msg.set_stamp_ns('stamp', output.sample_ns)
-            msg.put('value', *vec.tolist())
-            pub.publish(msg.payload())
+        kept = self._truth_kept
+        for pub, msg, vec, keep in zip(self.truth_pubs, self.truth_msgs,
+                                       (gyro.true_rate_rad_s, gyro.bias_rad_s,
+                                        gyro.scale_factor), kept):
+            if keep or pub.get_subscription_count():
+                msg.set_stamp_ns('stamp', output.sample_ns)
+                msg.put('value', *vec.tolist())
+                pub.publish(msg.payload())
+        if not (kept[-1] or self.truth_imu_pub.get_subscription_count()):
+            return
         w, x, y, z = output.attitude_wxyz
         msg = self.truth_imu
         msg.set_stamp_ns('stamp', output.sample_ns)

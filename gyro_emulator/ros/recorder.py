@@ -13,7 +13,10 @@ messages untouched (``raw=True`` subscriptions: no deserialisation).
 By default it records the emulator's inputs and outputs: ``cmd/angular_velocity``,
 ``cmd/temperature``, ``cmd/linear_acceleration``, ``imu/data_raw``,
 ``imu/temperature``, ``/diagnostics`` and every topic under the emulator
-node's ``~/truth`` namespace.
+node's ``~/truth`` namespace. Its ``custom_data`` says that
+``cmd/linear_acceleration`` is the applied acceleration, gravity excluded, as
+the node takes it (``cmd_linear_acceleration: applied``,
+:data:`gyro_emulator.recording.topics.ACCEL_CMD_MEANING`).
 
 Crash safety: chunks are flushed at least every ``--flush-interval`` seconds
 (a timer flushes even when messages stop), so SIGKILL loses at most that much;
@@ -274,7 +277,8 @@ def main(args=None):
         names, regexes = requested_topics(node, opts)
         writer = bag.BagWriter(opts.output or default_output(), compression=opts.compression,
                                flush_interval_s=opts.flush_interval, overwrite=opts.overwrite,
-                               custom_data={'recorder': 'gyro_emulator recorder'})
+                               custom_data={'recorder': 'gyro_emulator recorder',
+                                            **topics.ACCEL_CMD_MEANING})
         recorder = TopicRecorder(node, writer, names, regexes, opts.all,
                                  [node.resolve_topic_name(t) for t in opts.exclude])
         node.get_logger().info(f'recording to {writer.path}; waiting for '

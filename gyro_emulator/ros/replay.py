@@ -14,6 +14,13 @@ reliable delivery). With ``--clock`` the bag time at the current instant,
 
 Bags the recorder could not finish (SIGKILL) are read tolerantly: what was
 recovered is replayed and the loss is reported.
+
+``cmd/linear_acceleration`` is the applied acceleration (gravity excluded):
+the node adds gravity from its attitude. A bag written when that topic held
+the specific force (its ``custom_data`` lacks ``cmd_linear_acceleration:
+applied``) would have the node count gravity twice: replaying that topic is
+refused with one line that names the ``--topics`` to replay instead
+(:func:`check_accel_meaning`).
 """
 
 import argparse
@@ -21,7 +28,7 @@ import sys
 import threading
 import time
 
-from gyro_emulator.recording import bag
+from gyro_emulator.recording import bag, topics as table
 from gyro_emulator.ros import codec, program, spinning
 from gyro_emulator.units import NS_PER_S
 import rclpy
@@ -80,6 +87,31 @@ def _check(opts):
             raise ValueError(f'--remap {rule!r} is not FROM:=TO')
         remap[source] = target
     return remap
+
+
+def check_accel_meaning(reader, topics=None, remap=None):
+    """
+    Refuse to replay an older bag's acceleration commands (module docstring): ValueError.
+
+    ``topics`` are the topics to replay (None: all); a Vector3Stamped topic
+    named (or remapped to) ``*/cmd/linear_acceleration`` with messages, in a
+    bag whose ``custom_data`` does not mark it applied, is refused.
+    """
+    if table.accel_commands_applied(reader.custom_data):
+        return
+    chosen = sorted(reader.topics) if topics is None else list(topics)
+    key = table.ACCEL_CMD.name
+    for name in chosen:
+        info = reader.topics.get(name)
+        target = (remap or {}).get(name, name).lstrip('/')
+        if info is None or not info.message_count or info.type_name != table.VECTOR3_STAMPED \
+                or not (target == key or target.endswith('/' + key)):
+            continue
+        others = ' '.join(t for t in chosen if t != name) or '(none)'
+        raise ValueError(f'{name} of {reader.path} holds the specific force (gravity '
+                         'included: the bag has no custom_data cmd_linear_acceleration: '
+                         'applied); the node adds gravity itself and would count it twice: '
+                         f'replay without it, --topics {others}')
 
 
 class Player:
@@ -205,6 +237,7 @@ def main(args=None):
     with program.Run('replay') as run:
         remap = _check(opts)
         reader = bag.BagReader(opts.bag, tolerant=True)
+        check_accel_meaning(reader, opts.topics, remap)
         for note in reader.problems:
             print(f'replay: warning: incomplete bag, {note}', file=sys.stderr)
         # Signals only set a flag: the loop stops between messages and the final

@@ -67,7 +67,7 @@ class SelfRecorder:
     def __init__(self, node, record_dir, flush_interval_s=bag.DEFAULT_FLUSH_INTERVAL_S):
         self.node = node
         custom = {'generator': 'gyro_emulator node record_dir',
-                  'node': node.get_fully_qualified_name()}
+                  'node': node.get_fully_qualified_name(), **topics.ACCEL_CMD_MEANING}
         for name in ('sensor_config', 'seed', 'rate_hz', 'rate_source', 'frame_id'):
             if node.has_parameter(name):
                 custom[name] = str(node.get_parameter(name).value)

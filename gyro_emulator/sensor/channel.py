@@ -98,18 +98,35 @@ class SenseChannel:
         """Return the number of samples produced so far."""
         return int(self.kernel.ints[kernel.I_INDEX])
 
-    def white_sigma(self, initial_die_temp_c=None):
+    def die_temp_after_c(self, die_temp_c, ambient_temp_c, count):
+        """
+        Return the die temperature ``count`` samples after one at ``die_temp_c``, deg C.
+
+        The kernel's lag with the ambient held at ``ambient_temp_c``; the
+        channel's state does not move. None: it leaves the model range.
+        """
+        state = self.kernel._replace(ints=self.kernel.ints.copy(),
+                                     die_c=np.array([float(die_temp_c)]))
+        state.ints[kernel.I_DIE_READY] = 1
+        die = np.empty(int(count))
+        if kernel.die_temperatures(np.full(int(count), float(ambient_temp_c)),
+                                   self.plan.coefficients, state, die):
+            return None
+        return float(state.die_c[0])
+
+    def white_sigma(self, initial_die_temp_c=None, die_temp_c=None):
         """
         Per-sample sigma of the white noise at the output, (3,), in the channel's unit.
 
         N(T_die) sqrt(f_s) times the output filter's RMS noise gain, at the
-        current die temperature (before the first sample: ``initial_die_temp_c``
-        if given, else the calibration temperature).
+        die temperature ``die_temp_c`` (None: the current one; before the
+        first sample ``initial_die_temp_c`` if given, else the calibration
+        temperature).
         """
         plan = self.plan
         if not plan.white:
             return np.zeros(3)
-        die = self.die_temp_c
+        die = self.die_temp_c if die_temp_c is None else die_temp_c
         if die is not None:
             temps = np.full(3, die)
         elif initial_die_temp_c is not None:

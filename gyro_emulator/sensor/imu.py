@@ -90,10 +90,10 @@ class ImuBatch(SensorBatch):
     accel_saturated: np.ndarray = None
 
     def sample(self, index):
-        """Return sample ``index`` as an :class:`ImuSample`."""
-        gyro = super().sample(index)
-        return ImuSample(**gyro.__dict__,
-                         **{n: getattr(self, n)[index] for n in ACCEL_FIELDS})
+        """Return sample ``index`` as an :class:`ImuSample` (built once: the node's hot path)."""
+        return ImuSample(*self.sample_values(index), self.accel_m_s2[index],
+                         self.true_specific_force_m_s2[index], self.accel_bias_m_s2[index],
+                         self.accel_scale_factor[index], self.accel_saturated[index])
 
 
 class ImuModel:
@@ -185,9 +185,26 @@ class ImuModel:
         and the quantisation noise of the LSB (0 without quantisation). Use
         diag(sigma^2) as sensor_msgs/Imu ``linear_acceleration_covariance``.
         """
-        white = self._accel.white_sigma(self.config.initial_die_temp_c)
+        return self.accel_white_noise_sigma_at(None)
+
+    def accel_white_noise_sigma_at(self, die_temp_c):
+        """
+        Return :attr:`accel_white_noise_sigma_m_s2` with the die at ``die_temp_c``, deg C.
+
+        None: the current die temperature. The accelerometer's die is the
+        gyro's (no lag of its own).
+        """
+        white = self._accel.white_sigma(self.config.initial_die_temp_c, die_temp_c)
         lsb = self._accel.plan.axis[kernel.A_LSB]
         return np.sqrt(white ** 2 + lsb ** 2 / 12.0)
+
+    def white_noise_sigma_at(self, die_temp_c):
+        """Return the gyro's :attr:`white_noise_sigma_rad_s` with the die at ``die_temp_c``."""
+        return self._gyro.white_noise_sigma_at(die_temp_c)
+
+    def die_temp_after_c(self, die_temp_c, ambient_temp_c, count):
+        """Return the die temperature ``count`` samples on (:meth:`GyroModel.die_temp_after_c`)."""
+        return self._gyro.die_temp_after_c(die_temp_c, ambient_temp_c, count)
 
     def update_config(self, config):
         """

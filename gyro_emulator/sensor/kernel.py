@@ -103,6 +103,17 @@ def advance(rate, amb, accel, xbias, xgain, coef, state, normals, pos, out, star
     return 0
 
 
+def die_temperatures(amb, coef, state, die):
+    """
+    Write the die temperatures of ambients ``amb`` (N,) into ``die`` (N,), from ``state``.
+
+    The lag of :func:`advance` alone (the same compiled loop): ``state``'s
+    die temperature advances. Returns 0, or 1 + the index of the first die
+    temperature out of the model range.
+    """
+    return _die_temperatures(amb, coef, state, die)
+
+
 @numba.njit(cache=True, error_model='numpy')
 def _die_temperatures(amb, coef, state, die):
     """Exact first-order lag T[n] = phi T[n-1] + (1 - phi) T_target[n]; 0 or 1 + bad index."""

@@ -142,11 +142,14 @@ class SensorBatch:
 
     def sample(self, index):
         """Return sample ``index`` as a :class:`SensorSample`."""
-        return SensorSample(
-            gyro_rad_s=self.gyro_rad_s[index], true_rate_rad_s=self.true_rate_rad_s[index],
-            die_temp_c=float(self.die_temp_c[index]), bias_rad_s=self.bias_rad_s[index],
-            scale_factor=self.scale_factor[index], saturated=self.saturated[index],
-            output_delay_s=float(self.output_delay_s[index]))
+        return SensorSample(*self.sample_values(index))
+
+    def sample_values(self, index):
+        """Return the :class:`SensorSample` fields of sample ``index``, in field order."""
+        return (self.gyro_rad_s[index], self.true_rate_rad_s[index],
+                float(self.die_temp_c[index]), self.bias_rad_s[index],
+                self.scale_factor[index], self.saturated[index],
+                float(self.output_delay_s[index]))
 
     @classmethod
     def concatenate(cls, batches):
@@ -311,6 +314,20 @@ class GyroModel:
         sample). Use diag(sigma^2) as sensor_msgs/Imu angular_velocity_covariance.
         """
         return self._gyro.white_sigma(self.config.initial_die_temp_c)
+
+    def white_noise_sigma_at(self, die_temp_c):
+        """Return :attr:`white_noise_sigma_rad_s` with the die at ``die_temp_c``, deg C."""
+        return self._gyro.white_sigma(self.config.initial_die_temp_c, die_temp_c)
+
+    def die_temp_after_c(self, die_temp_c, ambient_temp_c, count):
+        """
+        Return the die temperature ``count`` samples after one at ``die_temp_c``, deg C.
+
+        The thermal lag of :meth:`run` with the ambient held at
+        ``ambient_temp_c``, deg C; the model does not move. None: it would
+        leave the model range.
+        """
+        return self._gyro.die_temp_after_c(die_temp_c, ambient_temp_c, count)
 
     @property
     def sample_period_s(self):

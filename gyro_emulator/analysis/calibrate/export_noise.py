@@ -587,8 +587,15 @@ def accel_twin_noise(accel, inflate=1.0):
 
 
 def accel_config(fields):
-    """Return the AccelConfig of an accelerometer twin: the 6-digit figures the file holds."""
-    axes = [fields.per_axis.get(name) or next(iter(fields.per_axis.values())) for name in AXES]
+    """
+    Return the AccelConfig of an accelerometer twin: the 6-digit figures the file holds.
+
+    As the gyro's (:func:`twin_config`): axes the calibration lacks copy its
+    first axis's noise (N, B, K) and get no turn-on bias (a bias is the
+    axis's own: not measured).
+    """
+    first = next(iter(fields.per_axis.values()))
+    axes = [fields.per_axis.get(name) or dict(first, turn_on_bias_m_s2=0.0) for name in AXES]
     mapping = {'terms': {name: name in fields.terms_on for name in AccelTerms.names()}}
     for name in _ACCEL_FIGURES:
         if name in fields.shared:
@@ -631,6 +638,10 @@ def accel_twin_lines(accel, fields):
     if accel.given:
         lines.append('Accelerometer N_a and K_a: the figures given by the user on every axis, '
                      "in place of the twin's.")
+    if len(fields.per_axis) < 3:
+        lines.append(f'Accelerometer axes {", ".join(n for n in AXES if n not in fields.per_axis)}'
+                     f" copy axis {next(iter(fields.per_axis))}'s noise (not in the log); their "
+                     "turn-on bias is 0: a bias is the axis's own, not measured.")
     return lines
 
 

@@ -2,8 +2,9 @@
 Measured data for ``diagnose``: the CSV contract and its decimated view.
 
 The CSV has a header row. Columns: ``time_s``; ``rate_cmd_rad_s`` (the
-applied true rate, e.g. from a rate table; a record of a part at rest may
-leave it out when the caller says so, ``static=True``); ``temp_c`` (the
+applied true rate, e.g. from a rate table; or ``rate_{x,y,z}_rad_s`` as
+``simulate`` writes, read on the gyro column's axis; a record of a part at
+rest may leave it out when the caller says so, ``static=True``); ``temp_c`` (the
 temperature reading; optional: without it the temperature causes are not
 testable); ``gyro_rad_s`` or, with ``axis``, ``gyro_<axis>_rad_s`` (the
 measured output). Optional: ``accel_x_m_s2``, ``accel_y_m_s2``,
@@ -26,6 +27,7 @@ the temperature by < 0.02 K on a 3 K/min ramp. Samples set aside (outliers,
 
 from dataclasses import dataclass
 
+from gyro_emulator.emulation.recorded_profile import commanded_specific_force
 from gyro_emulator.recording import csvio
 from gyro_emulator.recording.record import DEFAULT_TOPICS, load_record
 from gyro_emulator.units import AXES
@@ -150,7 +152,7 @@ class MeasuredData:
 
 #: The CSV columns diagnose reads (any others may hold anything).
 COLUMNS = REQUIRED_COLUMNS + ('gyro_rad_s',) + tuple(f'gyro_{a}_rad_s' for a in AXES) \
-    + ACCEL_COLUMNS
+    + tuple(f'rate_{a}_rad_s' for a in AXES) + ACCEL_COLUMNS
 #: Default topic mapping of a bag (the emulator's inputs and output).
 DEFAULT_BAG_TOPICS = {'rate': DEFAULT_TOPICS['rate'], 'temp': DEFAULT_TOPICS['temp'],
                       'gyro': DEFAULT_TOPICS['output'], 'accel': DEFAULT_TOPICS['accel']}
@@ -166,7 +168,10 @@ def bag_topics(rate_topic=None, temp_topic=None, gyro_topic=None, accel_topic=No
     Return the bag topic of each role diagnose reads (defaults :data:`DEFAULT_BAG_TOPICS`).
 
     The acceleration is read from ``cmd/linear_acceleration`` when the bag
-    has it and ``accel_topic`` is None; ``'none'`` ignores it.
+    has it and ``accel_topic`` is None; ``'none'`` ignores it. It is the
+    applied acceleration (gravity excluded) where the bag says so: the
+    specific force then comes from the attitude integrated from the rate
+    (:func:`~gyro_emulator.emulation.recorded_profile.commanded_specific_force`).
     """
     return {'gyro': gyro_topic or DEFAULT_BAG_TOPICS['gyro'],
             'rate': rate_topic or DEFAULT_BAG_TOPICS['rate'],
@@ -215,11 +220,13 @@ def measured(record, axis=None, static=False):
 
     A CSV's (or a synthetic record's) measured output is
     ``gyro_<axis>_rad_s`` when ``axis`` is given and the record has it, else
-    ``gyro_rad_s``; without ``rate_cmd_rad_s`` the applied rate is zero
-    when ``static``. A bag's gyro topic sets the sample times (a repeated
-    stamp is dropped); the applied rate about ``axis`` (default 'z'), the
-    temperature and the acceleration are interpolated linearly onto them,
-    and samples outside the span of any input topic are dropped.
+    ``gyro_rad_s``; the applied rate is ``rate_cmd_rad_s``, or the column
+    of the same axis among ``rate_{x,y,z}_rad_s`` (as ``simulate`` writes);
+    without either the applied rate is zero when ``static``. A bag's gyro
+    topic sets the sample times (a repeated stamp is dropped); the applied
+    rate about ``axis`` (default 'z'), the temperature and the acceleration
+    are interpolated linearly onto them, and samples outside the span of any
+    input topic are dropped.
     """
     if isinstance(record, MeasuredData):
         return record
@@ -245,12 +252,18 @@ def _gyro_column(record, axis):
                      + f'; the file has {", ".join(record.names)}')
 
 
+def _gyro_axis(column, axis):
+    """Return the axis a gyro column reads: its own (``gyro_y_rad_s``), else ``axis`` or 'z'."""
+    return column.split('_')[1] if column != 'gyro_rad_s' else axis or 'z'
+
+
 def _from_columns(record, axis=None, static=False):
     """Return the MeasuredData of a CSV or synthetic record (see :func:`measured`)."""
     path = record.path
     gyro = _gyro_column(record, axis)
     if record.rate is None and not static:
-        raise ValueError(f'{path}: missing required column rate_cmd_rad_s (the applied rate); '
+        raise ValueError(f'{path}: missing required column rate_cmd_rad_s (the applied rate; '
+                         'or rate_x_rad_s, rate_y_rad_s and rate_z_rad_s as simulate writes); '
                          'for a part at rest give --static')
     accel = [c for c in ACCEL_COLUMNS if c in record.names]
     if accel and len(accel) != 3:
@@ -261,7 +274,8 @@ def _from_columns(record, axis=None, static=False):
     by_column = {c: a for a, c in record.gyro_sources.items()}
     return MeasuredData(
         time_s=record.time_s,
-        rate_cmd_rad_s=np.zeros(n) if record.rate is None else record.rate.values,
+        rate_cmd_rad_s=np.zeros(n) if record.rate is None else record.rate.axis(
+            _gyro_axis(gyro, axis)),
         temp_c=None if record.temp is None else record.temp.values,
         gyro_rad_s=record.gyro[by_column[gyro]],
         accel_m_s2=None if record.accel is None else record.accel.values,
@@ -289,6 +303,10 @@ def _from_bag(record, axis):
         inside &= (t >= ts[0]) & (t <= ts[-1])
         series[role] = np.column_stack(
             [np.interp(t, ts, values[:, k]) for k in range(values.shape[1])])
+    if record.linear_accel is not None:     # applied: gravity turned in from the attitude
+        ts = record.linear_accel.time_s
+        inside &= (t >= ts[0]) & (t <= ts[-1])
+        series['accel'] = commanded_specific_force(record, t)
     if inside.sum() < 20:
         raise ValueError(f'bag {path}: fewer than 20 output samples lie '
                          'within the span of the input topics')

@@ -4,10 +4,17 @@ Offline replay: what drives the model, read from a bag, and the emulated output.
 Offline replay (:func:`load_inputs`, :func:`emulate`, :func:`compare`) drives
 the error model from a bag:
 
-- ``command`` source: the commanded rate, temperature and specific force of
-  our own bags. A command takes effect at the first sample at or after its
-  header stamp (within half a sample: zero-order hold, as the node applies
-  commands at their stamps). When the rate commands are themselves a regular
+- ``command`` source: the commanded rate, temperature and applied linear
+  acceleration of our own bags (``cmd/linear_acceleration``: body frame,
+  gravity excluded, as the node takes it; gravity is turned in from the
+  attitude integrated from the rate, as the node does, through
+  :class:`~gyro_emulator.emulation.run_profile.MotionForce`). A bag written
+  when that topic held the specific force (no ``custom_data``
+  ``cmd_linear_acceleration: applied``) has it read as the specific force,
+  with a note (:func:`gyro_emulator.recording.record.load_record`). A
+  command takes effect at the first sample at or after its header stamp
+  (within half a sample: zero-order hold, as the node applies commands at
+  their stamps). When the rate commands are themselves a regular
   stream at the sample rate, their stamps are the sample times.
 - ``imu`` source: the ``angular_velocity`` of a real robot's sensor_msgs/Imu
   (or a simulator's) is taken as the true rate, one emulated sample per
@@ -15,7 +22,7 @@ the error model from a bag:
   REP 145) as the true specific force.
 
 The model is an :class:`~gyro_emulator.sensor.imu.ImuModel`: the gyro and
-the accelerometer both see that specific force; a bag without one leaves it
+the accelerometer both see that specific force; a bag without either leaves it
 to the motion (gravity turning with the replayed rate from a level start,
 :mod:`gyro_emulator.emulation.profiles`).
 
@@ -29,8 +36,8 @@ from dataclasses import dataclass, field
 
 from gyro_emulator.emulation.emulator_bag import DEFAULT_FRAME_ID
 from gyro_emulator.emulation.profiles import SampledProfile
-from gyro_emulator.emulation.run_profile import OwnSamples, run_over_profile
-from gyro_emulator.recording import record
+from gyro_emulator.emulation.run_profile import MotionForce, OwnSamples, run_over_profile
+from gyro_emulator.recording import record, topics as table
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.imu import ImuBatch, ImuModel
 from gyro_emulator.units import AXES, NS_PER_S
@@ -60,6 +67,9 @@ class ReplayInputs:
         Ambient temperature at each sample, deg C.
     accel_m_s2 : numpy.ndarray, shape (N, 3), or None
         Specific force at each sample, m/s^2 (None: left to the motion).
+    linear_accel_m_s2 : numpy.ndarray, shape (N, 3), or None
+        Applied linear acceleration at each sample, body frame, gravity
+        excluded, m/s^2, with a specific force left to the motion (None: zero).
     rate_hz : float
         Model sample rate, Hz.
     measured_stamp_ns : numpy.ndarray of int64 or None
@@ -86,11 +96,30 @@ class ReplayInputs:
     topics: dict = field(default_factory=dict)
     frame_id: str = DEFAULT_FRAME_ID
     notes: list = field(default_factory=list)
+    linear_accel_m_s2: np.ndarray = None
 
     def profile(self):
-        """Return the inputs as a sampled profile on the stamps (specific force as given)."""
-        return SampledProfile(f'replay:{self.source}', self.stamp_ns / NS_PER_S,
-                              self.rate_rad_s, self.temp_c, self.accel_m_s2)
+        """
+        Return the inputs as a sampled profile on the stamps (specific force as given).
+
+        Its times are from the first stamp, s (nanosecond-exact where an
+        epoch time in seconds would round each step to 0.24 us).
+        """
+        start_ns = self.stamp_ns[0]
+        return SampledProfile(f'replay:{self.source}', (self.stamp_ns - start_ns) / NS_PER_S,
+                              self.rate_rad_s, self.temp_c, self.accel_m_s2,
+                              linear_accel_m_s2=self.linear_accel_m_s2)
+
+    def completed(self):
+        """
+        Return the profile's samples with the specific force and the applied acceleration.
+
+        What the chunk loop gives the model, whole
+        (:meth:`~gyro_emulator.emulation.run_profile.MotionForce.complete`).
+        """
+        profile = self.profile()
+        count = len(profile.time_s)
+        return MotionForce(profile).complete(profile.time_s, profile.own_samples(0, count))[0]
 
 
 def hold(source_stamp_ns, source_values, query_ns, tolerance_ns, before=None):
@@ -163,7 +192,8 @@ def load_inputs(bag, source='auto', rate_topic=None, temperature_topic=None,
     temperature_topic : str, optional
         sensor_msgs/Temperature with the ambient temperature.
     accel_topic : str, optional
-        Vector3Stamped with the specific force (command source).
+        Vector3Stamped with the applied linear acceleration (command source;
+        body frame, gravity excluded).
     measured_topic : str, optional
         sensor_msgs/Imu with the measured output to compare against.
     rate_hz : float, optional
@@ -210,6 +240,7 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
 
     """
     notes = list(notes)
+    linear = None
     temp_c = DEFAULT_TEMP_C if temp_c is None else temp_c
     rate_stamp, rate_values = rec.rate.stamp_ns, rec.rate.values
     if len(rate_stamp) < 2:
@@ -228,8 +259,16 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
             notes.append('specific force from the Imu linear_acceleration')
     else:
         stamp, rate = _command_grid(rate_stamp, rate_values, rate_hz, notes)
-        accel = None if rec.accel is None else hold(
-            rec.accel.stamp_ns, rec.accel.values, stamp, half_ns, before=np.zeros(3))
+        accel = None
+        if rec.accel is not None:
+            accel = hold(rec.accel.stamp_ns, rec.accel.values, stamp, half_ns,
+                         before=np.zeros(3))
+            note = table.old_accel_note(rec.topics['accel'])
+            if note in rec.recovery:        # acceleration commands of an older bag
+                notes.append(note)
+        if rec.linear_accel is not None:
+            linear = hold(rec.linear_accel.stamp_ns, rec.linear_accel.values, stamp, half_ns,
+                          before=np.zeros(3))
     if rec.temp is not None:
         temp = hold(rec.temp.stamp_ns, rec.temp.values, stamp, half_ns, before=temp_c)
     else:
@@ -239,6 +278,8 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
                         rate_rad_s=np.ascontiguousarray(rate, dtype=float),
                         temp_c=np.ascontiguousarray(temp, dtype=float),
                         accel_m_s2=None if accel is None else np.ascontiguousarray(accel),
+                        linear_accel_m_s2=None if linear is None
+                        else np.ascontiguousarray(linear, dtype=float),
                         rate_hz=rate_hz, measured_stamp_ns=measured_stamp,
                         measured_rad_s=measured, topics=_role_topics(rec, source),
                         frame_id=frame_id, notes=notes)
@@ -248,7 +289,7 @@ def _role_topics(rec, source):
     """Return the bag topic of each replay role: rate, measured, accel (command), temperature."""
     roles = {'rate': rec.topics.get('rate'), 'measured': rec.topics.get('gyro')}
     if source == 'command':
-        roles['accel'] = rec.topics.get('accel')
+        roles['accel'] = rec.topics.get('accel') or rec.topics.get('linear_accel')
     roles['temperature'] = rec.topics.get('temp')
     return roles
 

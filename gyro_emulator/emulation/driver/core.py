@@ -170,7 +170,7 @@ class Driver:
         self._covariance = None
         self._accel_covariance = None
         self._attitude = AttitudeState(initial_attitude(values['initial_attitude_rpy_rad']),
-                                       values['gravity_m_s2'])
+                                       values['gravity_m_s2'], self._upcoming)
         self._refresh_covariance()
         self._count = 0
         self._set_temperature_decimation(values['rate_hz'])
@@ -210,6 +210,11 @@ class Driver:
     def backlog_period_s(self):
         """Return the period at which the FIFO backlog is handed out, s."""
         return self._samples.period_ns / NS_PER_S
+
+    def _upcoming(self, sample_ns, count):
+        """Return the next ``count`` sample instants after ``sample_ns`` on the grid, ns."""
+        samples = self._samples
+        return [] if samples is None else samples.upcoming(sample_ns, count)
 
     # --- the parameter transaction -----------------------------------------
 
@@ -444,10 +449,12 @@ class Driver:
         self._ambient_c = inputs.ambient_temp_c
         attitude = self._attitude.advance(sample_ns, inputs.rate_rad_s)
         # Behind a simulator its acceleration is the specific force; else gravity turns in.
-        force = inputs.accel_m_s2 if self.imu_mode else \
-            self._attitude.specific_force(inputs.accel_m_s2)
+        if self.imu_mode:
+            force, course = inputs.accel_m_s2, None
+        else:
+            force, course = self._attitude.specific_force(inputs.accel_m_s2), self._attitude
         try:
-            s = self._stepper.step(inputs.rate_rad_s, inputs.ambient_temp_c, force)
+            s = self._stepper.step(inputs.rate_rad_s, inputs.ambient_temp_c, force, course)
         except ValueError as exc:
             self.book.model_error(str(exc))
             if self._throttle('model_error') is not None:

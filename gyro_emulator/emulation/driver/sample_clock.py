@@ -124,6 +124,23 @@ class SampleClock:
     def _time(self, k):
         return self._anchor + int(round(k * self.period_ns))
 
+    def upcoming(self, after_ns, count):
+        """
+        Return the next ``count`` grid instants after ``after_ns``, ns (a forecast).
+
+        They are the samples :meth:`due` hands out next while the grid stays
+        (no re-anchoring, no new period, nothing dropped); empty before the
+        first tick.
+        """
+        if self._anchor is None or count < 1:
+            return []
+        k = int(math.floor((after_ns - self._anchor) / self.period_ns))
+        while self._time(k) > after_ns:
+            k -= 1                                  # rounding of the float period
+        while self._time(k + 1) <= after_ns:
+            k += 1
+        return [self._time(k + i) for i in range(1, count + 1)]
+
     @property
     def last_ns(self):
         """Return the instant of the last sample handed out, ns (None before one)."""
