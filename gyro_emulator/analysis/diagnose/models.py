@@ -309,7 +309,7 @@ def law_noise_var(ctx, x, y, w, penalty):
     baseline's residual SSE / n_eff, which counts a large effect as noise:
     on a part whose gas follows Sutherland's law it is 4e8 times the white
     noise, and the ridge shrank the share of the law that fits the record
-    to 0.995 (a held-out RMSE 2.5 to 35 times that of the law itself). The
+    to 0.995 (a fold's held-out RMSE up to 5.8 times the law's). The
     law's own residual at share 1 (columns ``x``, :meth:`.effects.Effect.search_form`)
     gives its SSE / n_eff instead where that is lower: the share is held
     against the noise the law leaves, and by the record's where the law
