@@ -140,8 +140,19 @@ def test_a_cause_without_coefficients_is_judged_on_its_profile_at_no_effect():
     # SSE 100 -> 90 on 50 effective bins: 10 > 4 x 90 / 50 = 7.2 (2 sigma) but < 3.84 x 1.8
     assert intervals.clear_of_zero(delay, {}, ctx, 100.0, 90.0, 50.0, 2.0)
     assert intervals.clear_of_zero(delay, {}, ctx, 100.0, 95.0, 50.0, 2.0) is False
-    assert intervals.clear_of_zero(generic.effect('viscosity_temperature'), {}, ctx, 1.0, 1.0,
-                                   50.0, 2.0)
+
+
+def test_the_sutherland_law_is_judged_on_its_share():
+    # share 0 is the baseline's constant viscosity: the law is judged as any
+    # coefficient is, on its share's jackknife sigma, not waved through
+    visc = generic.effect('viscosity_temperature')
+    assert visc.n_columns == 1 and visc.params[1].name == 'sutherland_share'
+    near = _found(sutherland_share=(0.01, 0.008))
+    assert not intervals.clear_of_zero(visc, near, None, 1.0, 1.0, 50.0, 2.0)
+    assert not intervals.interval_clear_of_zero(visc, near, None, 1.0, 1.0, 50.0)
+    law = _found(sutherland_share=(1.0, 0.01))
+    assert intervals.clear_of_zero(visc, law, None, 1.0, 0.5, 50.0, 2.0)
+    assert intervals.interval_clear_of_zero(visc, law, None, 1.0, 0.5, 50.0)
 
 
 def test_bounds_are_in_datasheet_units():
@@ -154,8 +165,11 @@ def test_bounds_are_in_datasheet_units():
     sf = _found(sf_temp_coeff_per_k=(-5e-6, 10e-6), sf_temp_coeff2_per_k2=(0.0, 1e-7))
     assert ruled_out.bounds_of('scale_factor_temperature', sf, {})[0] == pytest.approx(
         ('SF tempco', 5 + 24.0, 'ppm/K'))
-    assert 'viscosity_temperature' not in ruled_out.BOUNDS     # the law has no zero
-    assert set(ruled_out.BOUNDS) == set(generic.CANDIDATE_IDS) - {'viscosity_temperature'}
+    # every cause has a zero, the Sutherland law at share 0 too: each gets a bound
+    assert set(ruled_out.BOUNDS) == set(generic.CANDIDATE_IDS)
+    share = _found(sutherland_share=(0.01, 0.02))
+    assert ruled_out.bounds_of('viscosity_temperature', share, {})[0] == pytest.approx(
+        ('share of the Sutherland law', 100 * (0.01 + 2.4 * 0.02), '%'))
 
 
 @pytest.mark.parametrize('seed', (1, 2))

@@ -188,22 +188,8 @@ def tail_bound(observed, null_totals):
     return min(1.0, upper / (observed - m) ** 2)
 
 
-def effective_bins(resid_bins, weight):
-    """
-    Effective number of independent bins: n (1 - rho) / (1 + rho), at least 2.
-
-    rho is the lag-1 autocorrelation of the bin residuals standardised by
-    their white-noise spread (residual x sqrt(samples in the bin)), clipped
-    to [0, 0.999].
-    """
-    z = np.asarray(resid_bins) * np.sqrt(np.asarray(weight))
-    z = z - np.mean(z)
-    den = float(np.dot(z, z))
-    n = len(z)
-    if n < 3 or den <= 0.0:
-        return float(max(n, 2))
-    rho = min(max(float(np.dot(z[1:], z[:-1])) / den, 0.0), 0.999)
-    return max(2.0, n * (1.0 - rho) / (1.0 + rho))
+#: Effective number of independent bins of a residual (:func:`.models.effective_bins`).
+effective_bins = models.effective_bins
 
 
 def effective_bic(sse_new, sse_ref, extra_params, n_eff):

@@ -104,9 +104,8 @@ class Effect:
     one) and ``scales`` (the physical range of each column's coefficient,
     :meth:`column_scales`). A cause changes the scale-factor ratio
     (:meth:`sf_factor`), delays the sensed rate (:meth:`delay_s`) or adds
-    columns (:meth:`columns`). ``has_zero`` is False for a law with no
-    parameter value that gives the model without it (the Sutherland law: no
-    constant S makes the viscosity constant).
+    columns (:meth:`columns`). Every cause has a parameter value that gives
+    the model without it (a zero coefficient, a zero delay or lag, ...).
     """
 
     effect_id = ''
@@ -118,11 +117,28 @@ class Effect:
     competitors = ()
     mechanisms = ()
     scales = ()
-    has_zero = True
 
     def grids(self, ctx):
         """Grids of the non-linear parameters for this record."""
         return self.grid
+
+    def search_form(self):
+        """
+        Return the cause whose fit chooses the non-linear parameters: itself.
+
+        A cause with a share of a law (:class:`ViscosityTemperature`) chooses
+        the law's constant with the law itself, then fits the share.
+        """
+        return self
+
+    def trained_grids(self, ctx, grids, first_s):
+        """
+        Return ``grids`` cut to what training rows from ``first_s`` (s) can resolve.
+
+        All of them, but for a cause whose shape starts with the record (a
+        warm-up, :class:`.generic.BiasTime`).
+        """
+        return grids
 
     def sf_factor(self, ctx, frame, phi):
         """Return the factor on R(T) on the bins, or None (no change)."""
@@ -170,8 +186,40 @@ class Recalibrated(Effect):
     cause = 'The paper model with its bias and scale factor refitted.'
 
 
+class SutherlandLaw(Effect):
+    """Sutherland viscosity inside the physics at share 1: the form that chooses S."""
+
+    effect_id = 'viscosity_temperature'
+    needs = ('rate', 'temp')
+    grid = (np.geomspace(20.0, 1000.0, 36),)
+
+    def sf_factor(self, ctx, frame, phi):
+        """R_S(T) / R(T) from the physics at Sutherland constant S."""
+        return 1.0 + sutherland_change(ctx, frame, phi[0])
+
+
+def sutherland_change(ctx, frame, sutherland_k):
+    """R_S(T) / R(T) - 1 on the bins: the Sutherland law's relative SF change at S."""
+    def compute():
+        temp = slow_temp(frame)
+        return ctx.phys.sutherland_ratio(temp, sutherland_k) / ctx.phys.ratio(temp) - 1.0
+
+    return cached(frame, ('sutherland', float(sutherland_k)), compute)
+
+
 class ViscosityTemperature(Effect):
-    """Sutherland viscosity inside the physics: fitted Sutherland constant."""
+    """
+    Sutherland viscosity inside the physics: a share a of its scale-factor change, S fitted.
+
+    SF = s0 [R(T) + a (R_S(T) - R(T))], R_S the physics' ratio with the gas
+    viscosity following Sutherland's law at constant S (Eq 9-11). a = 1 is
+    the law itself, a = 0 the baseline's constant viscosity: no Sutherland
+    constant gives a constant viscosity, so the share is what lets the law
+    represent "no change", and its prior (:attr:`scales`) holds it where
+    the training rows do not determine it. S is the law's constant: it is
+    chosen, and its profile interval drawn, with the law itself (share 1,
+    :class:`SutherlandLaw`); the share is then fitted at that S.
+    """
 
     effect_id = 'viscosity_temperature'
     cause = ("The gas viscosity rises with temperature (Sutherland's law), "
@@ -181,18 +229,27 @@ class ViscosityTemperature(Effect):
     needs = ('rate', 'temp')
     params = (Param('sutherland_constant_k', 'K',
                     'Sutherland constant S of mu = mu_ref (T/T_ref)^1.5 '
-                    '(T_ref + S)/(T + S) (air: 110.4 K)'),)
-    grid = (np.geomspace(20.0, 1000.0, 36),)
+                    '(T_ref + S)/(T + S) (air: 110.4 K)'),
+              Param('sutherland_share', '',
+                    'share a of the Sutherland scale-factor change, SF = s0 [R(T) + '
+                    'a (R_S(T) - R(T))] (1: the law; 0: constant viscosity)'))
+    grid = SutherlandLaw.grid
+    #: a share of 2: twice the law itself (the truth generator plants 1)
+    scales = (2.0,)
     competitors = ('scale_factor_temperature',)
-    has_zero = False
 
-    def sf_factor(self, ctx, frame, phi):
-        """R_S(T) / R(T) from the physics at Sutherland constant S."""
-        def compute():
-            temp = slow_temp(frame)
-            return ctx.phys.sutherland_ratio(temp, phi[0]) / ctx.phys.ratio(temp)
+    def search_form(self):
+        """Return the law at share 1 (:class:`SutherlandLaw`): it chooses S."""
+        return SutherlandLaw()
 
-        return cached(frame, ('sutherland', float(phi[0])), compute)
+    def columns(self, ctx, frame, phi, basis):
+        """[s Omega_s (R_S(T)/R(T) - 1)]: the law's change at share 1."""
+        return [basis.sr * frame.slow(sutherland_change(ctx, frame, phi[0]))]
+
+    def report(self, coef, phi, s0):
+        """S and a = c/s0."""
+        s0 = s0 if s0 != 0.0 else np.nan
+        return {'sutherland_constant_k': float(phi[0]), 'sutherland_share': float(coef[0] / s0)}
 
 
 class ThermalLag(Effect):
@@ -210,11 +267,19 @@ class ThermalLag(Effect):
     competitors = ('scale_factor_temperature',)
 
     def grids(self, ctx):
-        """Time constants from 5 s to the record's length."""
-        return (np.geomspace(5.0, max(50.0, min(2e4, ctx.duration_s)), 40),)
+        """
+        No lag, then time constants from 5 s to the record's length.
+
+        tau = 0 is the baseline (the structure at the reading), so that the
+        law can represent "no change" and is not forced to a 5 s lag.
+        """
+        return (np.r_[0.0, np.geomspace(5.0, max(50.0, min(2e4, ctx.duration_s)), 40)],)
 
     def sf_factor(self, ctx, frame, phi):
-        """R(T_lag) / R(T), T_lag the reading through a first-order lag tau."""
+        """R(T_lag) / R(T), T_lag the reading through a first-order lag tau (None at tau 0)."""
+        if phi[0] <= 0.0:
+            return None
+
         def compute():
             lagged = frame.bins.lagged_temp_on_bins(phi[0])
             return ctx.phys.ratio(lagged) / ctx.phys.ratio(slow_temp(frame))

@@ -50,7 +50,7 @@ verdict give the jackknife's, :func:`linear_estimates` without a
 cause that only changes the scale factor or the delay (a delay, a lag, a
 pressure drift, a mode split) needs its
 profile's SSE at the no-effect value (the model without it) to exceed the
-minimum by z^2 SSE_min / n_eff; the Sutherland law has no no-effect value.
+minimum by z^2 SSE_min / n_eff.
 """
 
 from dataclasses import dataclass, replace
@@ -290,10 +290,13 @@ def _profile_1d(evaluated, ctx, frame, n_eff):
     grid = np.asarray(eff.grids(ctx)[0], dtype=float)
     points = np.unique(np.r_[grid, best])
 
-    def sse_of(v):
-        return _sse_at(model, ctx, frame, fixed + ((float(v),),))
+    search = models.searched(model)
 
-    sses = np.array([full.sse if v == best else sse_of(v) for v in points])
+    def sse_of(v):
+        return _sse_at(search, ctx, frame, fixed + ((float(v),),))
+
+    sses = np.array([full.sse if v == best and search is model else sse_of(v)
+                     for v in points])
     thr = _threshold(float(sses.min()), n_eff)
     i = int(np.flatnonzero(points == best)[0])
     lo, hi, olo, ohi = _walk(points, sses, i, thr, sse_of, getattr(eff, 'refine', True))
@@ -403,8 +406,6 @@ def estimates(effect, evaluated, ctx, frame, n_eff, wander=None):
 
 def _null_excluded(effect, ctx, current_sse, sse, n_eff, level):
     """Tell whether a scale-factor or delay cause's no-effect value is outside its region."""
-    if not effect.has_zero:
-        return True
     q = max(n_nonlinear(effect, ctx), 1)
     return current_sse - sse > float(chi2.ppf(level, q)) * sse / max(n_eff, 1.0)
 

@@ -24,9 +24,7 @@ datasheet gives it:
 | ``pressure_drift`` | cavity pressure drift | %/h |
 | ``thermal_lag`` | lag time constant (its upper end) | s |
 | ``mode_split_drift`` | mode-split drift | Hz/K |
-
-``viscosity_temperature`` has no bound: no Sutherland constant gives the
-constant viscosity of the baseline (:attr:`.effects.Effect.has_zero`).
+| ``viscosity_temperature`` | share of the Sutherland law's SF change (at its best S) | % |
 """
 
 import math
@@ -93,6 +91,8 @@ BOUNDS = {
     'thermal_lag': [('thermal lag', 's', _lag)],
     'mode_split_drift': [('mode-split drift', 'Hz/K',
                           _scaled('mode_split_temp_coeff_hz_k', 1.0))],
+    'viscosity_temperature': [('share of the Sutherland law', '%',
+                               _scaled('sutherland_share', 100.0))],
 }
 
 __all__ = ['BOUNDS', 'bounds_of', 'estimates_of', 'text']

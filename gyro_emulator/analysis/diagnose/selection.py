@@ -223,8 +223,8 @@ class Selector:
         Return the candidate's added columns on the groups for :func:`.noise_model.null_gain`.
 
         A step: its multiplier and the group starts. A cause that changes the
-        scale-factor column (viscosity, lag, pressure, mode split, delay):
-        the change of that column at its full fit. Otherwise its columns,
+        scale-factor column (lag, pressure, mode split, delay): the change of
+        that column at its full fit. Otherwise its columns,
         one set per value of its grid, thinned to at most 10 values (the
         simulations search it too). Returned with the ridge of the added
         columns (:meth:`.models.Model.penalty`).
@@ -237,7 +237,7 @@ class Selector:
             g = self.superbins.aggregate(effect.multiplier(b, basis))
             return ('step', g, self.superbins.start_s), own
         grids = effect.grids(self.ctx)
-        if len(grids) > 1 or effect.n_columns == 0 or 'rate' in effect.needs and grids:
+        if len(grids) > 1 or effect.n_columns == 0:
             full = candidate_eval.model.columns(self.ctx, b, candidate_eval.full.phis)
             new = [full[1] - basis.sr] + full[2 + sum(e.n_columns for e in
                                                       current.model.effects):]
