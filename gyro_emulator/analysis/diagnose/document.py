@@ -133,10 +133,10 @@ def _cause(cand, current, rmse_base, cv, sse_base, twins, phys):
     alike = list(cand.indistinguishable)
     alike += [t for t in twins if t not in alike]
     params, found = _parameters(cand, cv.ctx, cv.prep.binned)
-    # the rule rests on the folds' jackknife, as the selection's size rule does
-    # (intervals.py): the stated interval may be wider
-    rule = {**found, **intervals.linear_estimates(eff, ev, cv.ctx, cv.prep.binned)}
-    clear = intervals.interval_clear_of_zero(eff, rule, cv.ctx, current.full.sse,
+    # the verdict's rule reads the interval the cause states (the wider of the
+    # folds' jackknife and the sandwich): explained never beside an interval
+    # that holds zero
+    clear = intervals.interval_clear_of_zero(eff, found, cv.ctx, current.full.sse,
                                              ev.full.sse, cand.n_eff)
     own = None
     mechanisms = list(eff.mechanisms)

@@ -44,9 +44,10 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
 
 :func:`clear_of_zero` is the selection's rule that a cause's estimate
 is not within ``z`` sigma of zero: a cause with coefficients needs one of
-them beyond z sigma of the estimates it is given (the selection and the
-verdict give the jackknife's, :func:`linear_estimates` without a
-:class:`Wander`, so that detection keeps its calibration); a
+them beyond z sigma of the estimates it is given (the selection gives the
+jackknife's, :func:`linear_estimates` without a :class:`Wander`, so that
+detection keeps its calibration; the verdict's :func:`interval_clear_of_zero`
+reads the stated interval); a
 cause that only changes the scale factor or the delay (a delay, a lag, a
 pressure drift, a mode split) needs its
 profile's SSE at the no-effect value (the model without it) to exceed the
@@ -164,9 +165,9 @@ def wander_law(noise, y_groups, x_groups, groups, rw_cap=math.inf):
     of the group means ``y_groups`` on the model's columns ``x_groups``: it
     measures the wander over the whole record, jointly with the model, and
     is 0 where the record shows none. ``rw_cap`` (rad^2/s^3) is the walk
-    the residual's short and middle averaging times allow
-    (:func:`.noise_model.random_walk_cap`): a misfit of the rate within
-    the groups is not a walk.
+    the model's residual allows at every averaging time up to a quarter of
+    its longest segment (:func:`.noise_model.random_walk_cap` with
+    ``tau_max_s``): a misfit of the rate within the groups is not a walk.
     """
     try:
         walk = statespace.fit_level(y_groups, x_groups, groups, rw_cap).rw_var_rad2_s3

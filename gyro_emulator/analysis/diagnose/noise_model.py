@@ -189,7 +189,7 @@ CAP_TAU_S = 100.0
 CAP_TAU_SHARE = 0.05
 
 
-def random_walk_cap(resid, time_s, dt_s, duration_s):
+def random_walk_cap(resid, time_s, dt_s, duration_s, tau_max_s=None):
     """
     Largest rate random walk the residual's short- and middle-term wander allows.
 
@@ -202,7 +202,10 @@ def random_walk_cap(resid, time_s, dt_s, duration_s):
     tightest bound is returned: a slow effect raises the wander it shows at
     long averaging times, not at these, so a walk large enough to mimic
     it is refuted here (issue 23, root 1). Flicker is not charged to K: it
-    only loosens the bound.
+    only loosens the bound. ``tau_max_s`` replaces that limit: the residual
+    of a model that holds the effects (the sandwich's, :func:`.intervals.
+    wander_law`) bounds K at every averaging time up to a quarter of its
+    longest segment, where a walk shows most.
 
     Returns
     -------
@@ -212,7 +215,7 @@ def random_walk_cap(resid, time_s, dt_s, duration_s):
 
     """
     parts = _segments(time_s, resid, dt_s) or [resid]
-    tau_max = min(CAP_TAU_S, CAP_TAU_SHARE * duration_s)
+    tau_max = min(CAP_TAU_S, CAP_TAU_SHARE * duration_s) if tau_max_s is None else tau_max_s
     longest = max(len(p) for p in parts) * dt_s
     tau_max = min(tau_max, 0.25 * longest)
     if tau_max < 8.0 * dt_s:

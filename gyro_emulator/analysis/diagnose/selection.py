@@ -204,7 +204,8 @@ class Selector:
             return intervals.Wander(noise, sb)
         s = prep.samples
         resid = s.gyro - models.predict(evaluated.model, self.ctx, s, evaluated.full)
-        cap = noise_model.random_walk_cap(resid, s.time_s, prep.dt_s, prep.duration_s)
+        cap = noise_model.random_walk_cap(resid, s.time_s, prep.dt_s, prep.duration_s,
+                                          tau_max_s=math.inf)
         return intervals.Wander(noise, sb, groups, sb.aggregate(prep.binned.gyro), cap)
 
     def sims_of(self, noise):
