@@ -244,26 +244,6 @@ class BiasTime(Effect):
         """Time constants from 1 % to 50 % of the record."""
         return (np.geomspace(0.01, 0.5, 20) * ctx.duration_s,)
 
-    def trained_grids(self, ctx, grids, first_s):
-        """
-        Time constants at least the time from the record's start to the first training row.
-
-        A warm-up that has decayed below 1/e of its start before the first
-        training row is seen by those rows only in its tail, where it cannot
-        be told from the part's wander: extrapolated back to the start it
-        multiplied a tail of noise by up to e^(t_1/tau) (a fold of 1300 s
-        and tau 290 s: 87; 8.3x the RMSE of the model without it on the
-        held-out first fold). Held at tau >= t_1 - t_start, the training
-        rows see the warm-up from at least 1/e of its start, and its
-        prediction at the start is at most e times what they see; a fit on
-        rows from the start (every fold but the first) is not cut.
-        """
-        least = first_s - ctx.time_span_s[0]
-        g = np.asarray(grids[0], dtype=float)
-        if least <= g[0]:
-            return grids
-        return (np.unique(np.r_[least, g[g > least]]),)
-
     def columns(self, ctx, frame, phi, basis):
         """[exp(-(t - t_start)/tau), t_h]."""
         t = frame.bins.binned.time_s - ctx.time_span_s[0]
