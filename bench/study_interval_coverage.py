@@ -32,13 +32,10 @@ Usage: python bench/study_interval_coverage.py [--records N] [--effects E,...]
 """
 
 import argparse
-import json
 import os
-import time
 
 import benchenv  # noqa: F401  one core: pins the BLAS thread pools before numpy loads
 
-from gyro_emulator.analysis.diagnose import diagnose, to_json  # noqa: E402
 from gyro_emulator.emulation.profiles import SampledProfile  # noqa: E402
 from gyro_emulator.emulation.truth import injection as inj  # noqa: E402
 from gyro_emulator.recording.record import Record  # noqa: E402
@@ -204,19 +201,10 @@ def main():
         return 2
     rng = np.random.default_rng(args.seed)
     jobs = [(e, s) for e in effects for s in (1.0, 1 / 3) for _ in range(args.records)]
-    rows, start = [], time.perf_counter()
-    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-    with open(args.out, 'w', encoding='utf-8') as handle:
-        for effect, scale in jobs:
-            log = 'adis' if rng.random() < 0.5 else 'mpu'
-            axis = 'xyz'[int(rng.integers(3))]
-            rec, truth = record(log, axis, effect, scale, rng, args.synthetic)
-            row = judge(to_json(diagnose(rec)), truth)
-            rows.append(row)
-            handle.write(json.dumps(row, default=float) + '\n')
-            handle.flush()
-    summary(rows)
-    print(f'{len(rows)} records in {time.perf_counter() - start:.0f} s')
+    sri.run_jobs(jobs, rng,
+                 lambda log, axis, effect, scale, r: record(log, axis, effect, scale, r,
+                                                            args.synthetic),
+                 judge, summary, args.out)
     return 0
 
 

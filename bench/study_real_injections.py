@@ -292,20 +292,31 @@ def main():
     rng = np.random.default_rng(args.seed)
     jobs = [(e, s) for e in NEEDS for s in (1.0, 1 / 3) for _ in range(args.records)]
     jobs += [(None, 0.0)] * args.raw
+    run_jobs(jobs, rng, record, judge, summary, args.out)
+    return 0
+
+
+def run_jobs(jobs, rng, make, score, report, out):
+    """
+    Diagnose one record per job, a log and an axis drawn at random, and print the figures.
+
+    ``jobs``: (effect, scale) pairs; ``make(log, axis, effect, scale, rng)``
+    gives (record, truth), ``score(document, truth)`` a row, written to
+    ``out`` (JSON lines) as it comes; ``report(rows)`` prints the summary.
+    """
     rows, start = [], time.perf_counter()
-    os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
-    with open(args.out, 'w', encoding='utf-8') as handle:
-        for k, (effect, scale) in enumerate(jobs):
+    os.makedirs(os.path.dirname(os.path.abspath(out)), exist_ok=True)
+    with open(out, 'w', encoding='utf-8') as handle:
+        for effect, scale in jobs:
             log = 'adis' if rng.random() < 0.5 else 'mpu'
             axis = 'xyz'[int(rng.integers(3))]
-            rec, truth = record(log, axis, effect, scale, rng)
-            row = judge(to_json(diagnose(rec)), truth)
+            rec, truth = make(log, axis, effect, scale, rng)
+            row = score(to_json(diagnose(rec)), truth)
             rows.append(row)
             handle.write(json.dumps(row, default=float) + '\n')
             handle.flush()
-    summary(rows)
+    report(rows)
     print(f'{len(rows)} records in {time.perf_counter() - start:.0f} s')
-    return 0
 
 
 if __name__ == '__main__':

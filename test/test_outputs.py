@@ -260,9 +260,15 @@ def test_a_signal_while_deferring_is_raised_when_armed(tmp_path):
     assert caught.value.status == 129
 
 
+def _python(script):
+    """Run ``script`` in a new Python with the checkout on its path; return the finished run."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    return subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                          timeout=60, env=dict(os.environ, PYTHONPATH=root))
+
+
 def test_after_close_a_signal_waits_for_the_exit_and_the_status_is_the_command_s():
     """A signal once the work is done neither kills the process nor runs during its exit."""
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     script = (
         'import os, signal, time\n'
         'from gyro_emulator.interrupts import TerminateOnSignal\n'
@@ -274,14 +280,12 @@ def test_after_close_a_signal_waits_for_the_exit_and_the_status_is_the_command_s
         'os.kill(os.getpid(), signal.SIGTERM)\n'
         'print("finished", guard.received)\n'
         'raise SystemExit(3)\n')
-    proc = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
-                          timeout=60, env=dict(os.environ, PYTHONPATH=root))
+    proc = _python(script)
     assert (proc.returncode, proc.stdout, proc.stderr) == (3, 'finished None\n', '')
 
 
 def test_a_signal_raised_inside_a_callback_is_kept_without_a_traceback():
     """A weakref callback cannot pass the exception on: no 'Exception ignored', it is kept."""
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     script = (
         'import os, signal, weakref\n'
         'from gyro_emulator.interrupts import TerminateOnSignal\n'
@@ -296,6 +300,5 @@ def test_a_signal_raised_inside_a_callback_is_kept_without_a_traceback():
         '    ref = weakref.ref(part, callback)\n'
         '    del part\n'
         '    print("kept", guard.received.status)\n')
-    proc = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
-                          timeout=60, env=dict(os.environ, PYTHONPATH=root))
+    proc = _python(script)
     assert (proc.returncode, proc.stdout, proc.stderr) == (0, 'kept 143\n', '')

@@ -252,11 +252,6 @@ def _gyro_column(record, axis):
                      + f'; the file has {", ".join(record.names)}')
 
 
-def _gyro_axis(column, axis):
-    """Return the axis a gyro column reads: its own (``gyro_y_rad_s``), else ``axis`` or 'z'."""
-    return column.split('_')[1] if column != 'gyro_rad_s' else axis or 'z'
-
-
 def _from_columns(record, axis=None, static=False):
     """Return the MeasuredData of a CSV or synthetic record (see :func:`measured`)."""
     path = record.path
@@ -272,10 +267,11 @@ def _from_columns(record, axis=None, static=False):
             f'found only {", ".join(accel)}')
     n = len(record.time_s)
     by_column = {c: a for a, c in record.gyro_sources.items()}
+    # the applied rate about the gyro column's own axis (a single column: ``axis``)
+    sense = (axis or 'z') if gyro == csvio.GYRO_SINGLE else by_column[gyro]
     return MeasuredData(
         time_s=record.time_s,
-        rate_cmd_rad_s=np.zeros(n) if record.rate is None else record.rate.axis(
-            _gyro_axis(gyro, axis)),
+        rate_cmd_rad_s=np.zeros(n) if record.rate is None else record.rate.axis(sense),
         temp_c=None if record.temp is None else record.temp.values,
         gyro_rad_s=record.gyro[by_column[gyro]],
         accel_m_s2=None if record.accel is None else record.accel.values,
