@@ -8,6 +8,7 @@ when issue 33 gave every parameter an interval and added ``ruled_out`` and
 """
 
 from dataclasses import FrozenInstanceError
+import functools
 import json
 import os
 
@@ -22,7 +23,9 @@ CASES = {'sf_tempco': {'effect': 'electronics_sf_tempco', 'seed': 5},
          'none_static': {'effect': 'none', 'seed': 1, 'profile': 'static', 'duration_s': 600}}
 
 
+@functools.lru_cache(maxsize=None)
 def _diagnosis(name):
+    """Return the diagnosis of case ``name``: made once, shared by the tests (it is frozen)."""
     record, _ = make_truth(**CASES[name])
     return diagnose(record)
 
