@@ -126,6 +126,16 @@ class ImuModel:
         memo[id(self._accel.plan)] = self._accel.plan
         return copy.deepcopy(self, memo)
 
+    def snapshot(self):
+        """Return both sensors' states and streams for :meth:`restore` (as the gyro's)."""
+        return self._gyro.snapshot(), self._accel.snapshot()
+
+    def restore(self, snapshot):
+        """Put both sensors back to a :meth:`snapshot` (ValueError: re-planned since)."""
+        gyro, accel = snapshot
+        self._gyro.restore(gyro)        # checks its plan first: a refusal changes nothing
+        self._accel.restore(accel)
+
     # --- what the gyro model has ------------------------------------------
 
     @property
