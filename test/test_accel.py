@@ -227,6 +227,28 @@ def test_a_copy_continues_identically_and_a_held_force_is_a_constant_one():
     assert np.array_equal(a.gyro_rad_s, b.gyro_rad_s)
 
 
+def test_a_step_of_plain_floats_is_the_step_of_arrays_and_of_run_bit_for_bit():
+    """The driver's inputs (tuples of floats) take a shorter path through ``step``: same bits."""
+    config = load_sensor_config('paper')
+    rate, temp, force = _inputs(400, seed=8)
+    whole = ImuModel(config, 200.0, np.random.default_rng(3)).run(rate, temp, force)
+    plain, arrays = (ImuModel(config, 200.0, np.random.default_rng(3)) for _ in range(2))
+    for k in range(400):
+        a = plain.step(tuple(rate[k].tolist()), float(temp[k]), tuple(force[k].tolist()))
+        b = arrays.step(rate[k], temp[k], force[k])
+        for name in a.__dataclass_fields__:
+            want = np.asarray(getattr(whole, name))[k].tobytes()
+            assert np.asarray(getattr(a, name)).tobytes() == want, (k, name)
+            assert np.asarray(getattr(b, name)).tobytes() == want, (k, name)
+    # bad values in plain floats are refused as before, naming the field
+    for args, match in ((((0.0, math.nan, 0.0), 25.0, (0.0, 0.0, G)), 'rate_rad_s'),
+                        (((0.0, 0.0, 0.0), 25.0, (0.0, math.inf, G)), 'specific_force'),
+                        (((0.0, 0.0, 0.0), 1e4, (0.0, 0.0, G)), 'ambient_temp_c')):
+        with pytest.raises(ValueError, match=match):
+            plain.step(*args)
+    assert plain.sample_index == 400
+
+
 def test_a_snapshot_restored_continues_identically_any_number_of_times():
     config = load_sensor_config('consumer')
     rate, temp, force = _inputs(6000, seed=3)
