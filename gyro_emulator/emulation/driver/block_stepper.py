@@ -63,6 +63,8 @@ HOLDS_KEPT = 8
 STEADY = 1.25
 #: At an unsteady pace, the block at a change is the hold of this rank (0: the shortest).
 UNSTEADY_RANK = 3
+#: The "block" of a single sample stepped on the kept snapshot (all of it used at once).
+_SINGLE = (None,)
 
 
 def _accel_sigma(model):
@@ -198,19 +200,21 @@ class BlockStepper:
 
     def _start_block(self, key, accel_m_s2, course, n):
         """Run ``n`` samples of this tick's inputs (n = 1: chained on the kept snapshot)."""
+        if self._checkpoint is None or self._replay_samples >= CHECKPOINT_SPAN:
+            self._checkpoint = self.model.snapshot()
+            self._replay, self._replay_samples = [], 0
+        if n == 1:
+            return self._single(key, accel_m_s2)
         forces = None
         if accel_m_s2 is None:
             accel = None
-        elif course is None or n == 1:
+        elif course is None:
             accel = np.tile(np.asarray(accel_m_s2, dtype=float), (n, 1))
         else:
             forces = course.forces(n)
             n = len(forces)
             accel = np.array(forces, dtype=float)
         inputs = (np.tile(np.asarray(key[0], dtype=float), (n, 1)), np.full(n, key[1]), accel)
-        if self._checkpoint is None or self._replay_samples >= CHECKPOINT_SPAN:
-            self._checkpoint = self.model.snapshot()
-            self._replay, self._replay_samples = [], 0
         self.model_calls += 1
         try:
             batch = self.model.run(*inputs)
@@ -223,6 +227,23 @@ class BlockStepper:
         self._forces = forces
         self._used = 1
         return batch.sample(0)
+
+    def _single(self, key, accel_m_s2):
+        """Step one sample chained on the kept snapshot (``step``: ``run`` of one, cheaper)."""
+        force = None if accel_m_s2 is None else tuple(accel_m_s2)
+        self.model_calls += 1
+        try:
+            sample = self.model.step(key[0], key[1], force)
+        except ValueError:
+            self._restore()
+            raise
+        self._batch = _SINGLE
+        self._key = key
+        self._inputs = (np.array((key[0],), dtype=float), np.array((key[1],)),
+                        None if force is None else np.array((force,), dtype=float))
+        self._forces = None
+        self._used = 1
+        return sample
 
     def _chain(self):
         """Add the block just used up to what a rewind re-runs after the snapshot."""
