@@ -220,7 +220,7 @@ def _decode_group(layout, rows):
         n = int(head[0, 2])
         offset = 4 + ((12 + n + 7) & ~7)
         names = rows[:, 16:16 + n - 1]
-        if count and np.array_equal(names, np.broadcast_to(names[0], names.shape)):
+        if count and (names == names[0]).all():
             frame_id = np.full(count, bytes(names[0]).decode('utf-8', 'replace'), object)
         else:
             unique, inverse = np.unique(names, axis=0, return_inverse=True)
@@ -272,13 +272,13 @@ def decode(type_name, payloads):
     stamp_ns = np.empty(count, dtype=np.int64)
     frame_id = np.empty(count, dtype=object)
     values = np.empty((count, width), dtype=np.float64)
-    uniform = bool(np.all(lengths == lengths[0]))
+    uniform = bool((lengths == lengths[0]).all())
     groups = [(None, int(lengths[0]))] if uniform else [
         (np.flatnonzero(lengths == size), int(size)) for size in np.unique(lengths)]
     for index, size in groups:
         chunk = payloads if index is None else [payloads[i] for i in index]
         rows = np.frombuffer(b''.join(chunk), dtype=np.uint8).reshape(len(chunk), size)
-        if size < 4 or np.any(rows[:, 1] != 1) or np.any(rows[:, 0] != 0):
+        if size < 4 or (rows[:, 1] != 1).any() or (rows[:, 0] != 0).any():
             raise ValueError(
                 f'{type_name}: a message is not little-endian plain CDR '
                 '(encapsulation 00 01)')
@@ -286,13 +286,14 @@ def decode(type_name, payloads):
             if size < 16:
                 raise ValueError(f'{type_name}: a {size}-byte message is too short')
             name_len = np.ascontiguousarray(rows[:, 12:16]).view('<u4')[:, 0]
-            subgroups = [np.arange(len(chunk))] if np.all(name_len == name_len[0]) else [
+            subgroups = [None] if (name_len == name_len[0]).all() else [
                 np.flatnonzero(name_len == n) for n in np.unique(name_len)]
         else:
-            subgroups = [np.arange(len(chunk))]
+            subgroups = [None]
         for sub in subgroups:
-            s, f, v = _decode_group(layout, rows[sub])
-            target = sub if index is None else index[sub]
+            s, f, v = _decode_group(layout, rows if sub is None else rows[sub])
+            target = (slice(None) if index is None else index) if sub is None else (
+                sub if index is None else index[sub])
             stamp_ns[target] = s
             frame_id[target] = f
             values[target] = v
