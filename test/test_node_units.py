@@ -165,11 +165,12 @@ def test_a_batch_of_commands_is_taken_as_each_in_turn(monkeypatch):
         n = int(rng.integers(1, 9))
         offsets = np.sort(rng.integers(-8, 2, n)) if rng.random() < 0.8 else \
             rng.integers(-8, 2, n)                  # in order, mostly
-        stamps = [0 if rng.random() < 0.1 else int(now + o * ms + (2000 * ms if rng.random()
-                                                                    < 0.01 else 0))
-                  for o in offsets]                  # 0: on receipt; +2 s: too far ahead
-        values = [tuple(rng.choice([rng.normal(), 1e9, float('nan'), 3], p=[0.97, 0.01, 0.01,
-                                                                         0.01]) for _ in range(3))
+        # 0: on receipt; +2 s: too far ahead
+        stamps = [0 if rng.random() < 0.1 else
+                  int(now + o * ms + (2000 * ms if rng.random() < 0.01 else 0))
+                  for o in offsets]
+        values = [tuple(rng.choice([rng.normal(), 1e9, float('nan'), 3],
+                                   p=[0.97, 0.01, 0.01, 0.01]) for _ in range(3))
                   for _ in range(n)]
         batched.offer(name, stamps, values, now, limits)
         for stamp, value in zip(stamps, values):

@@ -18,9 +18,10 @@ Encoding a whole recording is then one numpy array of rows; decoding a topic
 is a ``frombuffer`` and a column view. A batch of a few messages (a node's
 commands at a sample) is read message by message with ``struct`` instead,
 into the same columns (the column path's fixed cost is a few tens of numpy
-calls); an irregular message sends it to the column path, which names it. Padding bytes are written as zeros.
-Messages in other encodings (big-endian, XCDR2) raise ``ValueError`` so that
-the caller can fall back to a generic decoder.
+calls); an irregular message sends it to the column path, which names it.
+Padding bytes are written as zeros. Messages in other encodings
+(big-endian, XCDR2) raise ``ValueError`` so that the caller can fall back
+to a generic decoder.
 """
 
 from dataclasses import dataclass
