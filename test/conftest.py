@@ -6,7 +6,6 @@ localhost (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) and each test gets a
 private ROS_DOMAIN_ID, so concurrent test runs do not see each other.
 """
 
-import collections
 import itertools
 import os
 import signal
@@ -33,34 +32,6 @@ def pytest_configure(config):
     """
     if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
         signal.signal(signal.SIGINT, signal.default_int_handler)
-
-
-#: Files the xdist workers start first (``./dev.sh test`` runs the suite with ``--dist
-#: loadfile --no-loadscope-reorder``): each holds minutes of work, which at the end of
-#: the run would hold it while the other workers stand idle. The other files follow
-#: most tests first, the order pytest-xdist's own reordering gives. (test_first_run,
-#: a minute's wait, stays at the end: its 0.8 s steps got no sample once when it ran
-#: beside the heaviest part of the suite.)
-FIRST_FILES = ('test_ros2_run.py', 'test_diagnose_proof.py', 'test_diagnose.py',
-               'test_fuzz_outputs.py')
-
-
-def pytest_collection_modifyitems(config, items):
-    """Under ``--no-loadscope-reorder``, order the files: FIRST_FILES, then by test count."""
-    if getattr(config.option, 'loadscopereorder', True) is not False:
-        return
-    counts = collections.Counter(_file_of(item) for item in items)
-
-    def rank(item):
-        name = os.path.basename(_file_of(item))
-        first = FIRST_FILES.index(name) if name in FIRST_FILES else len(FIRST_FILES)
-        return first, -counts[_file_of(item)]
-
-    items.sort(key=rank)          # stable: each file's tests stay together, in their order
-
-
-def _file_of(item):
-    return item.nodeid.split('::', 1)[0]
 
 
 def _next_domain():
