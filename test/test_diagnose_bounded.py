@@ -6,15 +6,15 @@ jackknife interval of the held-out RMSE of the model it extends
 (``CrossValidation.interval``: how far the record's own blocks move that
 RMSE). Before the fixes, on these records, the Sutherland law predicted
 202x worse than the recalibrated baseline on a part with constant
-viscosity and a thermal lag forced to at least 5 s 1.032x (its bound
-1.031x). A warm-up extrapolated from its tail (8.3x) is not yet held: see
-docs/diagnose.md.
+viscosity, a warm-up extrapolated from its tail 8.3x worse, and a thermal
+lag forced to at least 5 s 1.032x (its bound 1.031x).
 """
 
 from gyro_emulator.analysis.diagnose import generic, models, pipeline, screening
 from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, measured
 from gyro_emulator.emulation.truth.generator import make_truth
 from gyro_emulator.physics.presets import physics_preset
+import numpy as np
 import pytest
 
 
@@ -35,6 +35,7 @@ def _ratio_and_bound(cv, effect_id):
 
 @pytest.mark.parametrize('truth, seed, effect_id', [
     ('none', 0, 'viscosity_temperature'),      # the law at share 1: 202x
+    ('g_sensitivity', 1, 'bias_time'),         # a warm-up from its tail: 8.3x
     ('none', 0, 'thermal_lag'),                # a lag of at least 5 s: 1.032x
 ])
 def test_a_cause_predicts_held_out_data_within_what_the_noise_can(truth, seed, effect_id):
@@ -42,6 +43,41 @@ def test_a_cause_predicts_held_out_data_within_what_the_noise_can(truth, seed, e
     ratio, bound, _ = _ratio_and_bound(_cv(record), effect_id)
     assert 1.0 < bound < 1.1
     assert ratio <= bound, (ratio, bound)
+
+
+def test_a_warm_up_seen_from_its_tail_is_held_to_e_times_what_the_rows_see():
+    record, _ = make_truth('g_sensitivity', 1)
+    cv = _cv(record)
+    _, _, ev = _ratio_and_bound(cv, 'bias_time')
+    b = cv.prep.binned
+    effect = ev.model.effects[-1]
+    unseen = models.unseen_s(effect, b, cv.fold_of_bin != 0)
+    # the first fold's training rows start one fold in; the others' at the start
+    assert unseen == pytest.approx(cv.prep.duration_s / 8, rel=0.01)
+    assert all(models.unseen_s(effect, b, cv.fold_of_bin != k) == 0.0 for k in ev.fits if k)
+    # its rows do not resolve the tail's time constant (its least SSE on the grid: 438 s) ...
+    rows = cv.fold_of_bin != 0
+    grid = effect.grids(cv.ctx)[0]
+    fits = [models.fit_model(ev.model, cv.ctx, b, rows, fixed=((tau,),)) for tau in grid]
+    least = fits[int(np.argmin([f.sse for f in fits]))]
+    resid = b.gyro[rows] - models.predict(ev.model, cv.ctx, b, least)[rows]
+    n_eff = models.effective_bins(resid, b.weight[rows])
+    assert least.phis[-1][0] < unseen / 2.0
+    assert not models.warm_up_resolved(grid, [f.sse for f in fits], n_eff, unseen)
+    # ... so it is held: at most e times what they see at their first row
+    assert ev.fits[0].phis[-1][0] >= unseen - 1e-9
+    assert ev.full.phis[-1][0] < unseen              # the full fit is not held
+
+
+def test_warm_up_resolved_by_the_spread_of_the_extrapolation_over_the_profile():
+    values = np.array([100.0, 200.0, 400.0, 800.0])
+    sses = np.array([[9.0, 5.0, 5.0], [8.0, 5.1, 5.0], [9.0, 5.1, 5.0], [9.0, 9.0, 5.0]])
+    # profile limits 8 (1 + 3.84 / 100), 5 (1 + 3.84 / 100): intervals [200, 200],
+    # [100, 400] and the whole grid (its top: not resolved)
+    got = models.warm_up_resolved(values, sses, 100.0, 300.0)
+    assert list(got) == [True, False, False]       # 300 (1/100 - 1/400) = 2.25 > 1
+    assert list(models.warm_up_resolved(values, sses, 100.0, 100.0)) == [True, True, False]
+    assert list(models.held_grid(values, 300.0)) == [300.0, 400.0, 800.0]
 
 
 def test_the_sutherland_law_is_still_found_at_share_one():

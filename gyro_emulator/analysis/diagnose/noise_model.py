@@ -342,17 +342,36 @@ def draw_noise_records(noise, superbins, n_sim, rng):
     return out
 
 
-def _held_out(x_tr, w_tr, y_tr, x_ho, penalty=None):
+def _held_out(x_tr, w_tr, y_tr, x_ho, penalty=None, resid=False):
     """
     Fit every column of ``y_tr`` (training rows) on ``x_tr``; predict the held-out rows.
 
     :func:`gyro_emulator.analysis.diagnose.models.solve_normal`, with the
     causes' ridge ``penalty`` (:meth:`.models.Model.penalty`). Returns
-    (predictions, training SSE per column).
+    (predictions, training SSE per column), and with ``resid`` the
+    training residuals.
     """
     beta, _, _ = models.solve_normal(x_tr, w_tr, y_tr, penalty)
     resid_tr = y_tr - x_tr @ beta
-    return x_ho @ beta, np.sum(w_tr[:, None] * resid_tr ** 2, axis=0)
+    out = (x_ho @ beta, np.sum(w_tr[:, None] * resid_tr ** 2, axis=0))
+    return out + (resid_tr,) if resid else out
+
+
+def _warm_up_pick(values, fits, w_tr, unseen):
+    """
+    Return the value each simulation's warm-up fit takes (:func:`.models.warm_up_resolved`).
+
+    ``fits`` are :func:`_held_out`'s (with residuals) at ``values``: the
+    least SSE where the rows resolve the extrapolation, else the least SSE
+    at a time constant of at least ``unseen`` (:func:`.models.held_grid`).
+    """
+    sses = np.array([f[1] for f in fits])
+    least = np.argmin(sses, axis=0)
+    n_eff = np.array([models.effective_bins(fits[i][2][:, j], w_tr)
+                      for j, i in enumerate(least)])
+    held = np.where(np.asarray(values)[:, None] >= unseen, sses, np.inf)
+    return np.where(models.warm_up_resolved(values, sses, n_eff, unseen), least,
+                    np.argmin(held, axis=0))
 
 
 def null_gain(current_cols, candidate, superbins, sims, penalty=None):
@@ -363,10 +382,14 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None):
     ----------
     current_cols : numpy.ndarray
         The current model's columns on the groups, (groups, p).
-    candidate : list
+    candidate : list or dict
         The candidate's added columns on the groups for each value of its
         grid (a list of (groups, q) arrays: the search picks, per fold and
-        simulation, the value with the least training SSE), or
+        simulation, the value with the least training SSE), or for each
+        fold the grid values, such a list and the time from the record's
+        start to the fold's first training row where a warm-up's fit
+        chooses among them by :func:`.models.warm_up_resolved` (0: by the
+        least SSE): {fold: (values, list, unseen)}, or
         ``('step', g, start_s)``: a step multiplying ``g`` that may start
         at any group start (located on all groups of each simulation with
         :func:`.models.step_search`, then its size refitted per fold, as
@@ -407,14 +430,13 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None):
                 pred1[:, j] = _held_out(x[tr], w[tr], sims[tr, j:j + 1], x[ho],
                                         pen)[0][:, 0]
         else:
-            best = np.full(sims.shape[1], np.inf)
-            pred1 = np.zeros((int(ho.sum()), sims.shape[1]))
-            for cols in candidate:
-                x = np.column_stack([current_cols, cols])
-                pred, sse_tr = _held_out(x[tr], w[tr], sims[tr], x[ho], pen)
-                better = sse_tr < best
-                best = np.where(better, sse_tr, best)
-                pred1[:, better] = pred[:, better]
+            values, sets, unseen = candidate[k] if isinstance(candidate, dict) else \
+                (None, candidate, 0.0)
+            fits = [_held_out(x[tr], w[tr], sims[tr], x[ho], pen, resid=bool(unseen))
+                    for x in (np.column_stack([current_cols, cols]) for cols in sets)]
+            pick = _warm_up_pick(values, fits, w[tr], unseen) if unseen else \
+                np.argmin(np.array([f[1] for f in fits]), axis=0)
+            pred1 = np.array([f[0] for f in fits])[pick, :, np.arange(sims.shape[1])].T
         sse1 = np.sum(w[ho, None] * (sims[ho] - pred1) ** 2, axis=0)
         out.append(sse0 - sse1)
     return np.asarray(out)

@@ -227,7 +227,9 @@ class Selector:
         scale-factor column (lag, pressure, mode split, delay): the change of
         that column at its full fit. Otherwise its columns,
         one set per value of its grid, thinned to at most 10 values (the
-        simulations search it too). Returned with the ridge of the added
+        simulations search it too) and, for a warm-up fitted on rows after
+        the record's start, the time it is held to (:func:`.models.unseen_s`):
+        {fold: (values, sets, unseen)}. Returned with the ridge of the added
         columns (:meth:`.models.Model.penalty`).
         """
         b = self.cv.prep.binned
@@ -244,11 +246,26 @@ class Selector:
                                                       current.model.effects):]
             return [np.column_stack([self.superbins.aggregate(c) for c in new])], \
                 np.r_[0.0, own]
-        # every other grid value at most 10: the simulations search a coarser grid
-        values = [()] if not grids else [(v,) for v in grids[0][::max(1, len(grids[0]) // 10)]]
-        return [np.column_stack([self.superbins.aggregate(c) for c in
-                                 effect.columns(self.ctx, b, phi, basis)])
-                for phi in values], own
+        if not grids:
+            return [np.column_stack([self.superbins.aggregate(c) for c in
+                                     effect.columns(self.ctx, b, (), basis)])], own
+        # every other grid value at most 10: the simulations search a coarser grid,
+        # with the time a fold's warm-up is held to where its fit has it (models.unseen_s)
+        thinned = np.asarray(grids[0])[::max(1, len(grids[0]) // 10)]
+        sets = {}
+
+        def at(v):
+            if v not in sets:
+                sets[v] = np.column_stack([self.superbins.aggregate(c) for c in
+                                           effect.columns(self.ctx, b, (v,), basis)])
+            return sets[v]
+
+        spec = {}
+        for k in self.cv.used_folds:
+            unseen = models.unseen_s(effect, b, self.cv.fold_of_bin != k)
+            values = np.unique(np.r_[thinned, unseen]) if unseen else thinned
+            spec[k] = (values, [at(float(v)) for v in values], unseen)
+        return spec, own
 
     def null_reduction(self, current, effect, candidate_eval):
         """
