@@ -135,6 +135,10 @@ class Effect:
     #: a fold whose training rows start later takes the slowest shape its rows
     #: allow (:func:`.models.extrapolates_back`).
     starts_with_record = False
+    #: The cause is a shape in time (a drift, a warm-up): the first and last
+    #: held-out folds see it carried past the training rows, which
+    #: :meth:`.cv.CrossValidation.evaluate` allows only where it predicts.
+    time_shaped = False
 
     def sf_factor(self, ctx, frame, phi):
         """Return the factor on R(T) on the bins, or None (no change)."""

@@ -207,6 +207,8 @@ class ScaleFactorTime(Effect):
               Param('sf_drift2_per_h2', '1/h^2', 'quadratic relative drift coefficient'))
     #: 10 %/h and 10 %/h^2
     scales = (0.1, 0.1)
+    #: carried into a held-out end fold only where it predicts its neighbour (:mod:`.cv`)
+    time_shaped = True
     mechanisms = ('a cavity pressure drift (pressure_drift)',
                   'ageing of the electronics gain',
                   'a temperature change confounded with time')
@@ -236,6 +238,8 @@ class BiasTime(Effect):
     grid = (None,)
     #: 5.7 deg/s of warm-up, 5.7 deg/s/h of drift
     scales = (0.1, 0.1)
+    #: carried into a held-out end fold only where it predicts its neighbour (:mod:`.cv`)
+    time_shaped = True
     mechanisms = ('warm-up after power-on', 'ageing',
                   'a temperature change confounded with time (bias_temperature)',
                   'bias wander slower than the record can show as noise')

@@ -226,11 +226,10 @@ class Selector:
         A step: its multiplier and the group starts. A cause that changes the
         scale-factor column (lag, pressure, mode split, delay): the change of
         that column at its full fit. Otherwise its columns,
-        one set per value of its grid, thinned to at most 10 values (the
-        simulations search it too) and, for a warm-up fitted on rows after
-        the record's start, the time it is held to (:func:`.models.unseen_s`):
-        {fold: (values, sets, unseen)}. Returned with the ridge of the added
-        columns (:meth:`.models.Model.penalty`).
+        one set per value of its grid, thinned to at most 10 values, that
+        the simulations search per fold as its fits do
+        (:class:`.noise_model.Searched`). Returned with the ridge of the
+        added columns (:meth:`.models.Model.penalty`).
         """
         b = self.cv.prep.binned
         phis = current.full.phis
@@ -246,26 +245,22 @@ class Selector:
                                                       current.model.effects):]
             return [np.column_stack([self.superbins.aggregate(c) for c in new])], \
                 np.r_[0.0, own]
-        if not grids:
-            return [np.column_stack([self.superbins.aggregate(c) for c in
-                                     effect.columns(self.ctx, b, (), basis)])], own
-        # every other grid value at most 10: the simulations search a coarser grid,
-        # with the time a fold's warm-up is held to where its fit has it (models.unseen_s)
-        thinned = np.asarray(grids[0])[::max(1, len(grids[0]) // 10)]
         sets = {}
 
-        def at(v):
+        def column_set(v):
             if v not in sets:
+                phi = () if v is None else (v,)
                 sets[v] = np.column_stack([self.superbins.aggregate(c) for c in
-                                           effect.columns(self.ctx, b, (v,), basis)])
+                                           effect.columns(self.ctx, b, phi, basis)])
             return sets[v]
 
-        spec = {}
-        for k in self.cv.used_folds:
-            unseen = models.unseen_s(effect, b, self.cv.fold_of_bin != k)
-            values = np.unique(np.r_[thinned, unseen]) if unseen else thinned
-            spec[k] = (values, [at(float(v)) for v in values], unseen)
-        return spec, own
+        def unseen_of(train):
+            return models.unseen_s(effect, b, train[self.superbins.group])
+
+        # every other grid value at most 10: the simulations search a coarser grid
+        values = None if not grids else \
+            np.asarray(grids[0])[::max(1, len(grids[0]) // 10)]
+        return noise_model.Searched(values, column_set, unseen_of, effect.time_shaped), own
 
     def null_reduction(self, current, effect, candidate_eval):
         """
