@@ -17,7 +17,10 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
   carries the uncertainty of a walk measured from one record. A step's
   size is refitted at every admissible step time (the step time's profile
   region) and its interval is the union (:func:`_step_size_union`): the
-  size at the best time alone is biased where a wander moves the time. A
+  size at the best time alone is biased where a wander moves the time. Its
+  sandwich also holds a drift beside the step as a random slope
+  (:func:`drift_variance`): the walk, fitted beside the step's column,
+  misses a drift over the whole record, which biases the size. A
   coefficient whose column the record does not vary (a g-sensitivity
   along an axis gravity never tilts into) is not measured, and says so
   (no interval; its sigma 0 says only that);
@@ -183,10 +186,10 @@ def _linear_variance(u, weight, noise, superbins):
     Return the variance of estimates u @ ybar under white noise and the wander of ``noise``.
 
     ``u`` (k, bins): each estimate's weights on the bin means ybar, whose
-    sample counts are ``weight``. White
-    noise of density N gives a bin mean of n samples the variance N^2 / (n
-    dt); the wander (:func:`.noise_model.wander_covariance`) is taken at the
-    super-bins, within which it barely moves: u summed over each super-bin.
+    sample counts are ``weight``. White noise of density N gives a bin mean
+    of n samples the variance N^2 / (n dt); the wander
+    (:func:`.noise_model.wander_covariance`) is taken at the super-bins,
+    within which it barely moves: u summed over each super-bin.
     """
     sb = superbins
     if len(u) == 0:
@@ -223,9 +226,22 @@ def wander_sigmas(evaluated, ctx, frame, wander, law=None):
     when already fitted (:meth:`Wander.law`).
     """
     model, full = evaluated.model, evaluated.full
-    u, _ = _cause_weights(model, ctx, frame, full.phis)
+    n = len(frame)
+    cols = model.columns(ctx, frame, full.phis)
+    x = np.column_stack([np.broadcast_to(c, (n,)) for c in cols])
+    w = frame.weight
+    start = 2 + sum(e.n_columns for e in model.effects[:-1])
+    rows = models.coefficient_map(x, w, model.penalty(ctx))[start:]
+    xw = x * w[:, None]
     noise = wander.law(model, ctx, frame, full.phis) if law is None else law
-    var = _linear_variance(u, frame.weight, noise, wander.superbins)
+    sb = wander.superbins
+    white = noise.arw_rad_s_sqrt_hz ** 2 / sb.dt_s
+    grouped = np.stack([np.bincount(sb.group, weights=xw[:, j], minlength=len(sb))
+                        for j in range(x.shape[1])])
+    h = rows @ grouped
+    a = rows @ (xw.T @ x)
+    var = white * np.einsum('ij,ij->i', a, rows) + np.einsum(
+        'ij,ij->i', h @ noise_model.wander_covariance(noise, sb), h)
     return np.sqrt(np.maximum(var, 0.0)) * _report_factors(model.effects[-1], full)
 
 
