@@ -16,6 +16,8 @@ in these scenarios:
   force changes every sample);
 * ``stream_x``: a new rate about x every 10 samples (a simulator's 100 Hz
   commands on a 1 kHz part);
+* ``jitter_x``: a new rate about x after 6 to 14 samples at random (a
+  simulator's 100 Hz commands from a timer on a loaded machine; seeded);
 * ``flood_z``: ten new rates about z per sample (a 10 kHz command flood),
   the driver taking them all (the node's inbox keeps the newest 100).
 
@@ -44,11 +46,11 @@ import numpy as np
 RATE_HZ = 1000.0
 PERIOD_NS = 1_000_000
 T0_NS = 10 ** 12
-#: Scenario: (rate command, samples between commands, 0: one command at the start;
-#: commands per tick).
+#: Scenario: (rate command, samples between commands, 0: one command at the start,
+#: (low, high): at random in low..high; commands per tick).
 SCENARIOS = {'rest': (None, 0, 1), 'turn_z': ((0.0, 0.0, 0.5), 0, 1),
              'turn_x': ((0.5, 0.0, 0.0), 0, 1), 'stream_x': ((0.5, 0.0, 0.0), 10, 1),
-             'flood_z': ((0.0, 0.0, 0.5), 1, 10)}
+             'jitter_x': ((0.5, 0.0, 0.0), (6, 14), 1), 'flood_z': ((0.0, 0.0, 0.5), 1, 10)}
 
 
 def node_values():
@@ -72,16 +74,31 @@ def run(name, ticks, values, config):
     if rate is not None:
         inbox.push('rate', T0_NS + 200 * PERIOD_NS, rate)
     calls = driver.situation(0)['model_calls']
+    changes = _change_ticks(every, 200, 200 + ticks)
     start = time.process_time()
     for k in range(200, 200 + ticks):
-        if every and k % every == 0:
-            sign = 1.0 if (k // every) % 2 else -1.0
+        if k in changes:
+            sign = 1.0 if changes[k] % 2 else -1.0
             for i in range(burst):              # a new rate each, stamped within the period
                 inbox.push('rate', T0_NS + k * PERIOD_NS - (burst - 1 - i) * PERIOD_NS // burst,
                            tuple(sign * (1.0 + 0.01 * i) * r for r in rate))
         driver.tick(T0_NS + k * PERIOD_NS)
     cpu = time.process_time() - start
     return cpu / ticks, (driver.situation(0)['model_calls'] - calls) / ticks
+
+
+def _change_ticks(every, first, stop):
+    """Return {tick: number of the change} of the ticks that bring a new rate."""
+    if not every:
+        return {}
+    if isinstance(every, int):
+        return {k: k // every for k in range(first, stop) if k % every == 0}
+    rng = np.random.default_rng(5)
+    ticks, k = {}, first
+    while k < stop:
+        ticks[k] = len(ticks)
+        k += int(rng.integers(every[0], every[1] + 1))
+    return ticks
 
 
 def reference(ticks):

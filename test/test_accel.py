@@ -227,6 +227,54 @@ def test_a_copy_continues_identically_and_a_held_force_is_a_constant_one():
     assert np.array_equal(a.gyro_rad_s, b.gyro_rad_s)
 
 
+def test_a_step_of_plain_floats_is_the_step_of_arrays_and_of_run_bit_for_bit():
+    """The driver's inputs (tuples of floats) take a shorter path through ``step``: same bits."""
+    config = load_sensor_config('paper')
+    rate, temp, force = _inputs(400, seed=8)
+    whole = ImuModel(config, 200.0, np.random.default_rng(3)).run(rate, temp, force)
+    plain, arrays = (ImuModel(config, 200.0, np.random.default_rng(3)) for _ in range(2))
+    for k in range(400):
+        a = plain.step(tuple(rate[k].tolist()), float(temp[k]), tuple(force[k].tolist()))
+        b = arrays.step(rate[k], temp[k], force[k])
+        for name in a.__dataclass_fields__:
+            want = np.asarray(getattr(whole, name))[k].tobytes()
+            assert np.asarray(getattr(a, name)).tobytes() == want, (k, name)
+            assert np.asarray(getattr(b, name)).tobytes() == want, (k, name)
+    # bad values in plain floats are refused as before, naming the field
+    for args, match in ((((0.0, math.nan, 0.0), 25.0, (0.0, 0.0, G)), 'rate_rad_s'),
+                        (((0.0, 0.0, 0.0), 25.0, (0.0, math.inf, G)), 'specific_force'),
+                        (((0.0, 0.0, 0.0), 1e4, (0.0, 0.0, G)), 'ambient_temp_c')):
+        with pytest.raises(ValueError, match=match):
+            plain.step(*args)
+    assert plain.sample_index == 400
+
+
+def test_a_snapshot_restored_continues_identically_any_number_of_times():
+    config = load_sensor_config('consumer')
+    rate, temp, force = _inputs(6000, seed=3)
+    model = ImuModel(config, 200.0, np.random.default_rng(5))
+    model.run(rate[:700], temp[:700], force[:700])
+    snap = model.snapshot()
+    # past several refills of the normal streams (MIN_REFILL) and back, twice
+    first = model.run(rate[700:], temp[700:], force[700:])
+    for _ in range(2):
+        model.restore(snap)
+        again = [model.step(rate[700], temp[700], force[700])]
+        again.append(model.run(rate[701:], temp[701:], force[701:]))
+        for name in ('gyro_rad_s', 'accel_m_s2', 'bias_rad_s', 'accel_bias_m_s2', 'die_temp_c',
+                     'output_delay_s'):
+            joined = np.concatenate([np.atleast_1d(getattr(again[0], name))[None]
+                                     if name not in ('die_temp_c', 'output_delay_s')
+                                     else [getattr(again[0], name)], getattr(again[1], name)])
+            assert joined.tobytes() == getattr(first, name).tobytes(), name
+    assert model.sample_index == 6000
+    # a snapshot of another plan is refused, and nothing moves
+    model.update_config(load_sensor_config('tactical'))
+    with pytest.raises(ValueError, match='another plan'):
+        model.restore(snap)
+    assert model.sample_index == 6000
+
+
 def test_the_accelerometer_terms_act_as_configured():
     acc = AccelConfig(turn_on_bias_m_s2=(0.1, -0.2, 0.3), scale_factor_error=(0.01, 0.0, -0.02),
                       scale_factor_temp_coeff_per_k=(1e-3, 0.0, 0.0),

@@ -75,8 +75,20 @@ def _inputs(n, seed):
     return out[:n]
 
 
-@pytest.mark.parametrize('preset', ['consumer', 'paper'])
-def test_samples_and_covariances_equal_those_of_fixed_blocks_bit_for_bit(preset):
+def _jittery_inputs(n, seed):
+    """Rates held 3-17 ticks at random (commands from a timer on a loaded machine)."""
+    rng = np.random.default_rng(seed)
+    out, temp = [], 25.0
+    while len(out) < n:
+        if rng.random() < 0.02:
+            temp = float(rng.uniform(0.0, 60.0))
+        out += [(tuple(rng.normal(scale=0.3, size=3)), temp)] * int(rng.integers(3, 18))
+    return out[:n]
+
+
+@pytest.mark.parametrize('preset,inputs', [('consumer', _inputs), ('paper', _inputs),
+                                           ('paper', _jittery_inputs)])
+def test_samples_and_covariances_equal_those_of_fixed_blocks_bit_for_bit(preset, inputs):
     config = load_sensor_config(preset)
     ref = FixedBlocks(ImuModel(config, 1000.0, np.random.default_rng(4)), 50)
     stepper = BlockStepper(ImuModel(config, 1000.0, np.random.default_rng(4)), 50)
@@ -85,7 +97,7 @@ def test_samples_and_covariances_equal_those_of_fixed_blocks_bit_for_bit(preset)
                             lambda ns, count: [ns + k * 1_000_000 for k in range(1, count + 1)])
               for _ in range(2)]
     version, refreshes, seen = stepper.sigma_version, 0, set()
-    for k, (rate, temp) in enumerate(_inputs(6000, seed=9)):
+    for k, (rate, temp) in enumerate(inputs(6000, seed=9)):
         forces = []
         for state in states:
             state.advance(k * 1_000_000, rate)
@@ -102,3 +114,5 @@ def test_samples_and_covariances_equal_those_of_fixed_blocks_bit_for_bit(preset)
         version = stepper.sigma_version
     # blocks were used; the covariance moved with the die temperature many times
     assert stepper.model_calls < 0.6 * 6000 and refreshes > 50 and len(seen) > 5
+    if inputs is _jittery_inputs:   # blocks at an unsteady pace: rewound, and singles after
+        assert stepper.rewinds > 50 and stepper.model_calls > 6000 / 17 + stepper.rewinds

@@ -107,3 +107,32 @@ def test_a_payload_of_another_layout_is_refused(type_name):
     wrong = [bytes(cdr.encode(type_name, [1], _values(layout, 1, 3), 'x')[0]) + b'\0' * 8]
     with pytest.raises(ValueError, match=type_name):
         cdr.decode(type_name, wrong)
+
+
+@pytest.mark.parametrize('type_name', LAYOUT_NAMES)
+def test_a_small_batch_decodes_message_by_message_to_the_same_columns(type_name):
+    """The per-message path of a few messages (a node's commands) equals the column path."""
+    layout = cdr.LAYOUTS[type_name]
+    rng = np.random.default_rng(len(type_name))
+    names = ['', 'imu_link', 'a', 'gyro_ü', 'x' * 13]
+    for trial in range(40):
+        count = int(rng.integers(1, cdr.SMALL_BATCH + 1))
+        values = _values(layout, count, seed=trial)
+        values[rng.random(values.shape) < 0.05] = np.nan
+        stamps = rng.choice(STAMPS_NS, count)
+        payloads = [cdr.encode(type_name, [stamp], row[None], str(rng.choice(names)))[0]
+                    for stamp, row in zip(stamps, values)]
+        if layout.has_header and trial % 5 == 0:     # a frame id that is not UTF-8
+            head = payloads[0][:16] + b'\xff' + payloads[0][17:]
+            payloads[0] = head if payloads[0][12] > 1 else payloads[0]
+        each = cdr._decode_each(layout, payloads)
+        columns = cdr._decode_columns(layout, payloads)
+        assert each.values.tobytes() == columns.values.tobytes(), trial
+        assert each.stamp_ns.tobytes() == columns.stamp_ns.tobytes(), trial
+        assert list(each.frame_id) == list(columns.frame_id), trial
+        assert (each.values.dtype, each.stamp_ns.dtype, each.frame_id.dtype) == \
+            (columns.values.dtype, columns.stamp_ns.dtype, columns.frame_id.dtype)
+    # an irregular message sends the batch to the column path, which names it
+    good = cdr.encode(type_name, [1], _values(layout, 1, 3), 'x')[0]
+    for bad in (good + b'\0' * 8, b'\x01\x00' + good[2:], good[:10], bytearray(good)):
+        assert cdr._decode_each(layout, [good, bad]) is None

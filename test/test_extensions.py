@@ -95,6 +95,18 @@ def _all_terms(start=3.0):
     return ex.ExtendedTerms(start_time_s=start, **terms)
 
 
+def test_a_snapshot_restores_the_extended_terms_exactly():
+    config = replace(load_sensor_config('consumer'), extended=_all_terms())
+    model = GyroModel(config, 200.0, np.random.default_rng(7))
+    model.run(RATE[:1500], TEMP[:1500])
+    snap = model.snapshot()
+    ahead = model.run(RATE[1500:], TEMP[1500:])
+    model.restore(snap)
+    again = model.run(RATE[1500:], TEMP[1500:])
+    for name in ('gyro_rad_s', 'bias_rad_s', 'scale_factor', 'die_temp_c'):
+        assert getattr(ahead, name).tobytes() == getattr(again, name).tobytes(), name
+
+
 def test_streaming_equals_batch_bit_for_bit():
     config = replace(load_sensor_config('consumer'), extended=_all_terms())
     batch = GyroModel(config, 200.0, np.random.default_rng(7)).run(RATE, TEMP)

@@ -140,6 +140,54 @@ def test_queue_overflow_drops_the_oldest():
     assert [v for _, v in stream.pending] == [2, 3, 4]
 
 
+def _streams_state(cmds):
+    return [(list(s.pending), s.value, s.accepted, s.newest_stamp_ns, s.applied_stamp_ns,
+             s.last_arrival_ns) for s in cmds.streams]
+
+
+def test_a_batch_of_commands_is_taken_as_each_in_turn(monkeypatch):
+    """A node's batch (its inbox at a sample) gives what offering its commands one by one does."""
+    rng = np.random.default_rng(11)
+    limits = commands.InputLimits(max_stamp_lead_s=1e-3)
+    made = []
+    for _ in range(2):
+        log = []
+        made.append((commands.Commands(25.0, (0.0, 0.0, 9.8), 6, lambda e, log=log: log.append(
+            (e.reason, str(e))), lambda *a, log=log: log.append(a)), log))
+    (batched, log_b), (single, log_s) = made
+    extend = commands.CommandStream.extend
+    at_once = []
+    monkeypatch.setattr(commands.CommandStream, 'extend',
+                        lambda *a: at_once.append(extend(*a)) or at_once[-1])
+    now, used, ms = 10**9, set(), 10**6
+    for round_ in range(3000):
+        name = ('rate', 'linear_acceleration')[int(rng.integers(2))]
+        n = int(rng.integers(1, 9))
+        offsets = np.sort(rng.integers(-8, 2, n)) if rng.random() < 0.8 else \
+            rng.integers(-8, 2, n)                  # in order, mostly
+        # 0: on receipt; +2 s: too far ahead
+        stamps = [0 if rng.random() < 0.1 else
+                  int(now + o * ms + (2000 * ms if rng.random() < 0.01 else 0))
+                  for o in offsets]
+        values = [tuple(rng.choice([rng.normal(), 1e9, float('nan'), 3],
+                                   p=[0.97, 0.01, 0.01, 0.01]) for _ in range(3))
+                  for _ in range(n)]
+        batched.offer(name, stamps, values, now, limits)
+        for stamp, value in zip(stamps, values):
+            single.offer(name, [stamp], [value], now, limits)
+        assert _streams_state(batched) == _streams_state(single), round_
+        assert log_b == log_s, round_
+        used.update(reason for reason, _ in log_b)
+        now += int(rng.integers(0, 3)) * ms
+        for cmds in (batched, single):
+            cmds.rate.advance(now - ms)
+            cmds.accel.advance(now - ms)
+    # every path was taken: batches queued at once and one by one, each reason of refusal
+    assert {'out_of_order', 'future_stamp', 'queue_overflow', 'non_finite_rate',
+            'rate_too_large', 'non_finite_acceleration'} <= used
+    assert 100 < sum(at_once) < len(at_once) - 100
+
+
 def test_throttle_lets_one_line_per_period_and_counts_the_rest():
     now = [0.0]
     throttle = commands.Throttle(1.0, lambda: now[0])

@@ -81,6 +81,27 @@ class SenseChannel:
         self.kernel = state
         self.plan = plan
 
+    def snapshot(self):
+        """Return the channel's state and streams as they are now (:meth:`restore`)."""
+        return (self.plan, tuple(a.copy() for a in self.kernel), self.flicker_key,
+                self.normals.snapshot())
+
+    def restore(self, snapshot):
+        """
+        Put the state and streams back to a :meth:`snapshot` of the same plan.
+
+        The samples that follow are those that followed the snapshot, bit for
+        bit. A plan applied since (a new configuration or rate) refuses it.
+        """
+        plan, arrays, key, normals = snapshot
+        if plan is not self.plan:
+            raise ValueError('SenseChannel.restore: the snapshot is of another plan '
+                             '(a configuration or rate applied since)')
+        for now, then in zip(self.kernel, arrays):
+            now[...] = then
+        self.flicker_key = key
+        self.normals.restore(normals)
+
     def restart_filters(self):
         """Restart the sense-mode and output filters from steady state at the next input."""
         ints = self.kernel.ints

@@ -33,6 +33,7 @@ from gyro_emulator.sensor.channel import new_outputs, NONE_ROWS, SenseChannel
 from gyro_emulator.sensor.model import (GyroModel, kernel_input, NonFiniteOutput, SensorBatch,
                                         SensorSample)
 from gyro_emulator.sensor.plan import accel_channel, Plan
+from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
 
 __all__ = ['ImuBatch', 'ImuModel', 'ImuSample', 'MAX_SPECIFIC_FORCE_M_S2']
@@ -125,6 +126,16 @@ class ImuModel:
         memo = self._gyro.shared_plans()
         memo[id(self._accel.plan)] = self._accel.plan
         return copy.deepcopy(self, memo)
+
+    def snapshot(self):
+        """Return both sensors' states and streams for :meth:`restore` (as the gyro's)."""
+        return self._gyro.snapshot(), self._accel.snapshot()
+
+    def restore(self, snapshot):
+        """Put both sensors back to a :meth:`snapshot` (ValueError: re-planned since)."""
+        gyro, accel = snapshot
+        self._gyro.restore(gyro)        # checks its plan first: a refusal changes nothing
+        self._accel.restore(accel)
 
     # --- what the gyro model has ------------------------------------------
 
@@ -257,6 +268,12 @@ class ImuModel:
         ImuSample
 
         """
+        rows = _plain_rows(rate_rad_s, ambient_temp_c, specific_force_m_s2)
+        if rows is not None:        # the driver's case, checked at once
+            out = self._gyro._advance(*rows)
+            accel = self._advance_accel(rows[2], out[2])
+            return ImuSample(out[0][0], out[1][0], float(out[2][0]), out[3][0], out[4][0],
+                             out[5][0], float(out[6][0]), *(v[0] for v in accel))
         force = _specific_force(specific_force_m_s2, 1, 'step')
         gyro = self._gyro.step(rate_rad_s, ambient_temp_c,
                                None if specific_force_m_s2 is None else force[0])
@@ -316,6 +333,31 @@ class ImuModel:
                                   f'{gyro.sample_index - len(rows) + int(np.argmax(rows))} '
                                   f'would be {values[int(np.argmax(rows))].tolist()} m/s^2, not '
                                   f'finite: {cause}', cause)
+
+
+def _plain_rows(rate, temp, force):
+    """
+    Return read-only (1, 3), (1,), (1, 3) arrays of one sample's inputs if plainly valid.
+
+    That is three finite floats of rate, a float ambient in the model range
+    and three floats of specific force within range, as :meth:`ImuModel.step`
+    would accept them; None otherwise (then ``step`` checks each and names
+    what is wrong).
+    """
+    if not (isinstance(temp, float) and isinstance(rate, (tuple, list))
+            and isinstance(force, (tuple, list)) and len(rate) == 3 and len(force) == 3
+            and all(isinstance(v, float) for v in rate)
+            and all(isinstance(v, float) for v in force)):
+        return None
+    lo, hi = MODEL_TEMP_RANGE_C
+    top = MAX_SPECIFIC_FORCE_M_S2
+    if not (math.isfinite(sum(rate)) and lo <= temp <= hi
+            and all(-top <= v <= top for v in force)):
+        return None
+    rows = np.array((rate,)), np.array((temp,)), np.array((force,))
+    for row in rows:
+        row.flags.writeable = False
+    return rows
 
 
 def _specific_force(value, n, call):

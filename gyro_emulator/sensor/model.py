@@ -208,6 +208,24 @@ class GyroModel:
         """
         return copy.deepcopy(self, self.shared_plans())
 
+    def snapshot(self):
+        """
+        Return the model's state and streams as they are now, for :meth:`restore`.
+
+        What :meth:`copy` would keep, without the copy: restoring it (any
+        number of times) puts this model back here, so the samples that
+        follow are those that followed the snapshot, bit for bit. It holds
+        while the configuration and the rate stay (a change refuses it).
+        """
+        return (self._gyro.snapshot(), self._extended.copy(), self.non_finite_samples,
+                self.non_finite_cause)
+
+    def restore(self, snapshot):
+        """Put the model back to a :meth:`snapshot` (ValueError: re-planned since)."""
+        channel, extended, self.non_finite_samples, self.non_finite_cause = snapshot
+        self._gyro.restore(channel)
+        self._extended = extended.copy()
+
     def shared_plans(self):
         """Return the ``copy.deepcopy`` memo that shares the immutable plan with a copy."""
         return {id(self._gyro.plan): self._gyro.plan}

@@ -164,6 +164,27 @@ class NormalStreams:
         fill_standard_normal(self.generators[stream], row[unread:stop])
         self.pos[stream], self.end[stream] = 0, stop
 
+    def snapshot(self):
+        """
+        Return what :meth:`restore` needs to continue every stream from here (a copy's worth).
+
+        The unread normals, the read positions and each generator's state:
+        only the unread normals are ever read again (a refill moves them to
+        the front first), and a generator continues from its state.
+        """
+        return (tuple(self.buffer[k, int(self.pos[k]):int(self.end[k])].copy()
+                      for k in range(STREAM_COUNT)),
+                tuple(g.bit_generator.state for g in self.generators))
+
+    def restore(self, snapshot):
+        """Put every stream back where it was at :meth:`snapshot` (the same normals follow)."""
+        unread, states = snapshot
+        for k, (row, state) in enumerate(zip(unread, states)):
+            self.buffer[k, :len(row)] = row
+            self.pos[k], self.end[k] = 0, len(row)
+            self.generators[k].bit_generator.state = state
+        self._headroom_streams, self._headroom = None, 0
+
     def __deepcopy__(self, memo):
         """Return an independent copy that continues every stream identically."""
         twin = NormalStreams.__new__(NormalStreams)

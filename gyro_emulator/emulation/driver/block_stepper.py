@@ -7,7 +7,7 @@ argument handling makes it ~15 us a call. At 1 kHz the node then used
 blocks of 50 (``bench/bench_node.py``). :class:`BlockStepper`
 calls ``GyroModel.run`` on K samples of the current (held) input ahead of
 time and hands them out one per tick. When the input changes before the block is used
-up, it restores a copy of the model taken before the block and re-runs only
+up, it restores a snapshot of the model taken before the block and re-runs only
 the samples already handed out, so the model is exactly where per-sample
 stepping would have left it. ``GyroModel`` guarantees that ``run`` and
 ``step`` give identical samples however a record is split into calls, so
@@ -15,14 +15,18 @@ the output equals ``step`` per tick bit for bit, for any input sequence.
 
 Blocks pay off only while the input holds. A block starts once the input
 has been unchanged for ``max_block`` ticks, or, at a change, when the last
-:data:`HOLDS_KEPT` inputs each held for two ticks or more at a steady pace
-(the longest at most :data:`STEADY` times the shortest): then the block
-is as long as the shortest of them (at most ``max_block``), so an input
-that changes at a steady pace (a simulator's commands) uses its blocks up
-without rewinds. Otherwise the model steps one sample per tick (a rewind
-and the copy after it cost more than the steps it saves). A rate
-that changes every tick therefore costs what ``step`` costs, and a held
-rate a few microseconds.
+:data:`HOLDS_KEPT` inputs each held for two ticks or more. At a steady
+pace (the longest at most :data:`STEADY` times the shortest) the block is
+as long as the shortest of them (at most ``max_block``), so an input that
+changes at a steady pace (a simulator's commands) uses its blocks up
+without rewinds. At an unsteady pace (commands from a timer on a loaded
+machine) it is as long as the hold of rank :data:`UNSTEADY_RANK` among
+them, shortest first: shorter holds rewind, longer ones go on in single
+samples, which costs less than a step per sample as long as the snapshot
+a rewind restores is cheap (``model.snapshot``, a few tens of
+microseconds). Otherwise (a hold of one tick among the last) the model
+steps one sample per tick. A rate that changes every tick therefore costs
+what ``step`` costs, and a held rate a few microseconds.
 
 "Holds" includes a specific force that changes every sample in a known way
 (gravity turning with a held rate): given a ``course``
@@ -30,10 +34,12 @@ rate a few microseconds.
 forecasts for its samples, and each tick checks that its force is the
 forecast one, bit for bit; any other force is a change.
 
-The copy taken before a block is kept across the blocks that follow while
-the input holds (at most :data:`CHECKPOINT_SPAN` samples): a rewind
-restores it and re-runs, in one call, every sample handed out since. A
-held input then pays one copy per span instead of one per block.
+The snapshot taken before a block (``model.snapshot``: the model's states
+and unread normals, not a copy of the model) is kept across the blocks
+that follow while the input holds (at most :data:`CHECKPOINT_SPAN`
+samples): a rewind restores it and re-runs, in one call, every sample
+handed out since. A held input then pays one snapshot per span instead of
+one per block.
 
 The white-noise sigmas (the published covariances, at the die temperature)
 are refreshed where a stepper of fixed blocks (a block of ``max_block``
@@ -49,12 +55,16 @@ import numpy as np
 
 #: Most samples of one model call that runs dropped samples (:meth:`BlockStepper.skip`).
 SKIP_CHUNK = 10000
-#: Most samples handed out since the model copy a rewind starts from (then a new copy).
+#: Most samples handed out since the snapshot a rewind starts from (then a new one).
 CHECKPOINT_SPAN = 1000
 #: How many of the last inputs' hold lengths set the block at a change.
 HOLDS_KEPT = 8
 #: Longest / shortest of those holds up to which the pace is steady (blocks at a change).
 STEADY = 1.25
+#: At an unsteady pace, the block at a change is the hold of this rank (0: the shortest).
+UNSTEADY_RANK = 3
+#: The "block" of a single sample stepped on the kept snapshot (all of it used at once).
+_SINGLE = (None,)
 
 
 def _accel_sigma(model):
@@ -165,7 +175,7 @@ class BlockStepper:
         return accel_m_s2 is want or same_bits(accel_m_s2, want)
 
     def _step_one(self, rate, temp, accel):
-        """Step the model one sample (the copy before it is no start for a rewind any more)."""
+        """Step the model one sample (the snapshot before it is no start for a rewind now)."""
         self._drop_checkpoint()
         self.model_calls += 1
         return self.model.step(rate, temp, None if accel is None else tuple(accel))
@@ -179,29 +189,32 @@ class BlockStepper:
         return 1 if held else max(1, min(self.max_block, self._steady_hold()))
 
     def _steady_hold(self):
-        """Return the shortest of the last holds if their pace is steady, else 0."""
+        """Return the block at a change from the last holds (module docstring), else 0."""
         holds = self._holds
         if len(holds) < HOLDS_KEPT:
             return 0
-        shortest = min(holds)
-        # an unsteady pace: rewinds would cost more than steps
-        return shortest if shortest >= 2 and shortest * STEADY >= max(holds) else 0
+        ranked = sorted(holds)
+        if ranked[0] < 2:
+            return 0            # an input that changes every tick: steps
+        return ranked[0] if ranked[0] * STEADY >= ranked[-1] else ranked[UNSTEADY_RANK]
 
     def _start_block(self, key, accel_m_s2, course, n):
-        """Run ``n`` samples of this tick's inputs (a chained copy's block when n is 1)."""
+        """Run ``n`` samples of this tick's inputs (n = 1: chained on the kept snapshot)."""
+        if self._checkpoint is None or self._replay_samples >= CHECKPOINT_SPAN:
+            self._checkpoint = self.model.snapshot()
+            self._replay, self._replay_samples = [], 0
+        if n == 1:
+            return self._single(key, accel_m_s2)
         forces = None
         if accel_m_s2 is None:
             accel = None
-        elif course is None or n == 1:
+        elif course is None:
             accel = np.tile(np.asarray(accel_m_s2, dtype=float), (n, 1))
         else:
             forces = course.forces(n)
             n = len(forces)
             accel = np.array(forces, dtype=float)
         inputs = (np.tile(np.asarray(key[0], dtype=float), (n, 1)), np.full(n, key[1]), accel)
-        if self._checkpoint is None or self._replay_samples >= CHECKPOINT_SPAN:
-            self._checkpoint = self.model.copy()
-            self._replay, self._replay_samples = [], 0
         self.model_calls += 1
         try:
             batch = self.model.run(*inputs)
@@ -215,15 +228,32 @@ class BlockStepper:
         self._used = 1
         return batch.sample(0)
 
+    def _single(self, key, accel_m_s2):
+        """Step one sample chained on the kept snapshot (``step``: ``run`` of one, cheaper)."""
+        force = None if accel_m_s2 is None else tuple(accel_m_s2)
+        self.model_calls += 1
+        try:
+            sample = self.model.step(key[0], key[1], force)
+        except ValueError:
+            self._restore()
+            raise
+        self._batch = _SINGLE
+        self._key = key
+        self._inputs = (np.array((key[0],), dtype=float), np.array((key[1],)),
+                        None if force is None else np.array((force,), dtype=float))
+        self._forces = None
+        self._used = 1
+        return sample
+
     def _chain(self):
-        """Add the block just used up to what a rewind re-runs after the copy."""
+        """Add the block just used up to what a rewind re-runs after the snapshot."""
         self._replay.append(self._inputs)
         self._replay_samples += len(self._inputs[0])
         self._inputs = self._forces = None
 
     def _restore(self):
-        """Put the model back to the copy, re-run the blocks used up since; no copy is left."""
-        self.model = self._checkpoint
+        """Put the model back to the snapshot, re-run the blocks used up since; none is kept."""
+        self.model.restore(self._checkpoint)
         replay = self._replay
         self._drop_checkpoint()
         if replay:
@@ -267,7 +297,7 @@ class BlockStepper:
         Drop the samples computed ahead so the model stands at the current tick.
 
         The model is then the caller's to change (restart its filters, set its
-        record time): the copy a rewind would start from is dropped too.
+        record time): the snapshot a rewind would start from is dropped too.
         """
         batch = self._batch
         if batch is not None and self._used < len(batch):

@@ -109,6 +109,26 @@ def _vector(values, name, limit, unit, nan_reason, large_reason):
     return out
 
 
+def _within(values, limit):
+    """
+    Return ``values`` as (x, y, z) float tuples if each number is finite and within the limit.
+
+    None when any is not (or a row is not three numbers): then the values
+    are checked one by one (:func:`check_rate`, :func:`check_acceleration`),
+    which name the first bad one.
+    """
+    try:
+        if any(len(row) != 3 for row in values):
+            return None
+        flat = [float(v) for row in values for v in row]
+    except (TypeError, ValueError):
+        return None
+    # a finite sum: no NaN and no infinity among them
+    if not (math.isfinite(sum(flat)) and -limit <= min(flat) and max(flat) <= limit):
+        return None
+    return list(zip(flat[0::3], flat[1::3], flat[2::3]))
+
+
 def check_rate(values, limits):
     """Return the rate (x, y, z) in rad/s as a tuple, or raise InputRejected."""
     return _vector(values, 'angular_velocity', limits.max_abs_rate_rad_s, 'rad/s',
@@ -229,6 +249,32 @@ class CommandStream:
             self.pending.append((effective, value))
         return dropped
 
+    def extend(self, stamps_ns, values, now_ns, max_lead_ns, overflow):
+        """
+        Queue checked commands (``values``) at once if :meth:`offer` would queue each in turn.
+
+        That is when their stamps (0: ``now_ns``) are in order, none older
+        than the last queued or the one in force, none too far ahead; then the
+        result is that of :meth:`offer` for each in turn (``overflow(self)``
+        once per command dropped from the full queue) and True comes back.
+        Otherwise nothing changes and False comes back (offer them one by one).
+        """
+        effective = [now_ns if stamp == 0 else stamp for stamp in stamps_ns]
+        floor = self.pending[-1][0] if self.pending else self.applied_stamp_ns
+        if (floor is not None and effective[0] < floor) or len(self.pending) > self.capacity \
+                or effective[-1] - now_ns > max_lead_ns \
+                or any(b < a for a, b in zip(effective, effective[1:])):
+            return False
+        self.newest_stamp_ns = max(effective[-1], self.newest_stamp_ns or effective[-1])
+        self.last_arrival_ns = now_ns
+        self.accepted += len(effective)
+        pending = self.pending
+        pending.extend(zip(effective, values))
+        for _ in range(len(pending) - self.capacity):
+            pending.popleft()
+            overflow(self)
+        return True
+
     def advance(self, now_ns):
         """Apply every queued command due at ``now_ns``; return the value in force."""
         pending = self.pending
@@ -308,15 +354,25 @@ class Commands:
         """
         stream = self._by_name[name]
         lead_ns = int(limits.max_stamp_lead_s * NS_PER_S)
+        if stream is not self.temperature and len(values) > 1:
+            limit = (limits.max_abs_rate_rad_s if stream is self.rate
+                     else limits.max_abs_accel_m_s2)
+            rows = _within(values, limit)
+            if rows is not None and stream.extend(stamps_ns, rows, now_ns, lead_ns,
+                                                  self._overflow):
+                return
         for stamp_ns, value in zip(stamps_ns, values):
             try:
                 checked = self._check(stream, value, limits)
                 if stream.offer(checked, stamp_ns, now_ns, lead_ns):
-                    self._reject(InputRejected(
-                        'queue_overflow', f'{stream.name}: more than {stream.capacity} '
-                        'commands wait for their stamp: the oldest was dropped'))
+                    self._overflow(stream)
             except InputRejected as exc:
                 self._reject(exc)
+
+    def _overflow(self, stream):
+        self._reject(InputRejected(
+            'queue_overflow', f'{stream.name}: more than {stream.capacity} '
+            'commands wait for their stamp: the oldest was dropped'))
 
     def _check(self, stream, value, limits):
         if stream is self.rate:
@@ -343,8 +399,9 @@ class CommandInbox:
     Commands waiting for the driver, as plain values (the node's inboxes hold messages).
 
     :meth:`take` returns what arrived since the previous call, as
-    ``(stream name, stamps, values)`` batches in arrival order, which is
-    what the driver reads from any command source.
+    ``(stream name, stamps, values)`` batches in arrival order (one batch
+    per run of commands of one stream), which is what the driver reads from
+    any command source.
     """
 
     def __init__(self):
@@ -355,7 +412,12 @@ class CommandInbox:
         if name not in STREAMS:
             raise ValueError(f'command stream {name!r} is not allowed: choose one of '
                              f'{", ".join(STREAMS)}')
-        self._waiting.append((name, [int(stamp_ns)], [value]))
+        waiting = self._waiting
+        if waiting and waiting[-1][0] == name:      # one batch per run of a stream, as a node's
+            waiting[-1][1].append(int(stamp_ns))
+            waiting[-1][2].append(value)
+        else:
+            waiting.append((name, [int(stamp_ns)], [value]))
 
     def take(self):
         """Return and forget the commands that arrived, as (name, stamps, values) batches."""
