@@ -108,6 +108,7 @@ def record(log, axis, effect, scale, rng, synthetic):
     elif effect == 'bias_step':
         when = rng.uniform(t[0] + 0.2 * (t[-1] - t[0]), t[-1] - 0.2 * (t[-1] - t[0]))
         truth['value'] = sign * scale * BIAS_STEP_RAD_S
+        truth['when_s'] = float(when)
         truth['true_bound'] = abs(truth['value']) * _DEG
         extra = truth['value'] * (t >= when)
     elif effect == 'g_sensitivity':
@@ -146,6 +147,8 @@ def judge(doc, truth):
         row['covered'] = None if interval is None else bool(interval[0] <= value <= interval[1])
         if interval is not None and value != 0.0:
             row['half_over_truth'] = 0.5 * (interval[1] - interval[0]) / abs(value)
+        row['estimates'] = {k: {f: p.get(f) for f in ('value', 'sigma', 'interval', 'method')}
+                            for k, p in chosen[cause]['parameters'].items()}
         return row
     if quantity is None:
         return row

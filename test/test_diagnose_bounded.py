@@ -6,15 +6,18 @@ jackknife interval of the held-out RMSE of the model it extends
 (``CrossValidation.interval``: how far the record's own blocks move that
 RMSE). Before the fixes, on these records, the Sutherland law predicted
 202x worse than the recalibrated baseline on a part with constant
-viscosity and a thermal lag forced to at least 5 s 1.032x (its bound
-1.031x). A warm-up extrapolated from its tail (8.3x) is not yet held: see
-docs/diagnose.md.
+viscosity, a warm-up extrapolated from its tail 8.3x worse, and a thermal
+lag forced to at least 5 s 1.032x (its bound 1.031x); shapes in time
+carried into the end folds past a temperature-driven bias or scale factor
+1.49-1.95x (bounds 1.13-1.44x).
 """
 
-from gyro_emulator.analysis.diagnose import generic, models, pipeline, screening
+from gyro_emulator.analysis.diagnose import cv as cv_mod
+from gyro_emulator.analysis.diagnose import generic, models, noise_model, pipeline, screening
 from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, measured
 from gyro_emulator.emulation.truth.generator import make_truth
 from gyro_emulator.physics.presets import physics_preset
+import numpy as np
 import pytest
 
 
@@ -35,6 +38,7 @@ def _ratio_and_bound(cv, effect_id):
 
 @pytest.mark.parametrize('truth, seed, effect_id', [
     ('none', 0, 'viscosity_temperature'),      # the law at share 1: 202x
+    ('g_sensitivity', 1, 'bias_time'),         # a warm-up from its tail: 8.3x
     ('none', 0, 'thermal_lag'),                # a lag of at least 5 s: 1.032x
 ])
 def test_a_cause_predicts_held_out_data_within_what_the_noise_can(truth, seed, effect_id):
@@ -42,6 +46,41 @@ def test_a_cause_predicts_held_out_data_within_what_the_noise_can(truth, seed, e
     ratio, bound, _ = _ratio_and_bound(_cv(record), effect_id)
     assert 1.0 < bound < 1.1
     assert ratio <= bound, (ratio, bound)
+
+
+def test_a_warm_up_seen_from_its_tail_is_held_to_e_times_what_the_rows_see():
+    record, _ = make_truth('g_sensitivity', 1)
+    cv = _cv(record)
+    _, _, ev = _ratio_and_bound(cv, 'bias_time')
+    b = cv.prep.binned
+    effect = ev.model.effects[-1]
+    unseen = models.unseen_s(effect, b, cv.fold_of_bin != 0)
+    # the first fold's training rows start one fold in; the others' at the start
+    assert unseen == pytest.approx(cv.prep.duration_s / 8, rel=0.01)
+    assert all(models.unseen_s(effect, b, cv.fold_of_bin != k) == 0.0 for k in ev.fits if k)
+    # its rows do not resolve the tail's time constant (its least SSE on the grid: 438 s) ...
+    rows = cv.fold_of_bin != 0
+    grid = effect.grids(cv.ctx)[0]
+    fits = [models.fit_model(ev.model, cv.ctx, b, rows, fixed=((tau,),)) for tau in grid]
+    least = fits[int(np.argmin([f.sse for f in fits]))]
+    resid = b.gyro[rows] - models.predict(ev.model, cv.ctx, b, least)[rows]
+    n_eff = models.effective_bins(resid, b.weight[rows])
+    assert least.phis[-1][0] < unseen / 2.0
+    assert not models.warm_up_resolved(grid, [f.sse for f in fits], n_eff, unseen)
+    # ... so it is held: at most e times what they see at their first row
+    assert ev.fits[0].phis[-1][0] >= unseen - 1e-9
+    assert ev.full.phis[-1][0] < unseen              # the full fit is not held
+
+
+def test_warm_up_resolved_by_the_spread_of_the_extrapolation_over_the_profile():
+    values = np.array([100.0, 200.0, 400.0, 800.0])
+    sses = np.array([[9.0, 5.0, 5.0], [8.0, 5.1, 5.0], [9.0, 5.1, 5.0], [9.0, 9.0, 5.0]])
+    # profile limits 8 (1 + 3.84 / 100), 5 (1 + 3.84 / 100): intervals [200, 200],
+    # [100, 400] and the whole grid (its top: not resolved)
+    got = models.warm_up_resolved(values, sses, 100.0, 300.0)
+    assert list(got) == [True, False, False]       # 300 (1/100 - 1/400) = 2.25 > 1
+    assert list(models.warm_up_resolved(values, sses, 100.0, 100.0)) == [True, True, False]
+    assert list(models.held_grid(values, 300.0)) == [300.0, 400.0, 800.0]
 
 
 def test_the_sutherland_law_is_still_found_at_share_one():
@@ -57,3 +96,74 @@ def test_the_sutherland_law_is_still_found_at_share_one():
     none, _ = make_truth('none', 0)
     _, _, ev0 = _ratio_and_bound(_cv(none), 'viscosity_temperature')
     assert abs(ev0.model.report(ev0.full.beta, ev0.full.phis)[-1]['sutherland_share']) < 0.01
+
+
+@pytest.mark.parametrize('truth, seed, effect_id', [
+    ('temperature_rate_bias', 0, 'bias_time'),   # a warm-up from a dT/dt bias's tail: 1.95x
+    ('bias_temperature', 0, 'bias_time'),        # a drift carried into both end folds: 1.57x
+    ('thermal_lag', 2, 'scale_factor_time'),     # an SF polynomial in time likewise: 1.49x
+])
+def test_a_shape_in_time_is_carried_into_an_end_fold_only_where_it_predicts(
+        truth, seed, effect_id):
+    record, _ = make_truth(truth, seed)
+    cv = _cv(record)
+    ratio, bound, ev = _ratio_and_bound(cv, effect_id)
+    assert ratio <= bound, (ratio, bound)
+    assert ev.kept_back and set(ev.kept_back) <= {cv.used_folds[0], cv.used_folds[-1]}
+    null = cv.evaluate(models.Model(()))
+    for k, (model, _) in ev.kept_back.items():
+        assert model.effects == ()
+        # the fold is predicted by the model without the shape, fitted on its training rows
+        mask = cv.fold_of_sample == k
+        assert np.allclose(ev.resid[mask], null.resid[mask], rtol=0.0, atol=1e-15)
+        # decided on the training rows: fitted without the neighbour too, the
+        # shape predicted the neighbour worse than the model without it
+        nb = dict(cv_mod.end_folds(cv.used_folds))[k]
+        rows = (cv.fold_of_bin != k) & (cv.fold_of_bin != nb)
+        near = cv.fold_of_sample == nb
+        s = cv.prep.samples
+        sse = [float(np.sum((s.gyro[near] - models.predict(m, cv.ctx, s, models.fit_model(
+            m, cv.ctx, cv.prep.binned, rows))[near]) ** 2)) for m in (ev.model, model)]
+        assert not cv_mod.carries_on(*sse)
+
+
+def test_end_folds_and_the_rule_that_carries_a_shape_on():
+    assert cv_mod.end_folds([0, 1, 2, 3]) == [(0, 1), (3, 2)]
+    assert cv_mod.end_folds([0, 1]) == []
+    assert cv_mod.carries_on(1.0, 1.0) and not cv_mod.carries_on(1.0 + 1e-12, 1.0)
+    assert list(cv_mod.carries_on(np.array([1.0, 3.0]), np.array([2.0, 2.0]))) == [True, False]
+
+
+def test_the_simulations_carry_a_shape_in_time_on_as_the_fits_do():
+    """Per end fold and simulation: the reduction carried on, or none (the current model's)."""
+    rng = np.random.default_rng(4)
+    fold_of_bin = np.repeat(np.arange(8), 40)
+    t = np.arange(len(fold_of_bin), dtype=float)
+
+    class _Bins:
+        bin_start_s = t
+
+    class _Binned:
+        weight = np.ones(len(t))
+        time_s = t
+        bins = _Bins()
+
+        def __len__(self):
+            return len(t)
+
+    sb = noise_model.SuperBins(_Binned(), fold_of_bin, 1.0, per_fold=10)
+    current = np.ones((len(sb), 1))
+    drift = ((sb.time_s - sb.time_s.mean()) / np.ptp(sb.time_s))[:, None]
+    sims = rng.normal(size=(len(sb), 64)) + 0.3 * np.cumsum(rng.normal(size=(len(sb), 64)),
+                                                            axis=0) / 10.0
+    pen = (np.zeros(1), np.zeros(1))
+    always = noise_model.null_gain(current, [drift], sb, sims, pen)
+    shaped = noise_model.Searched(None, lambda v: drift, lambda train: 0.0, time_shaped=True)
+    got = noise_model.null_gain(current, shaped, sb, sims, pen)
+    assert np.array_equal(got[1:-1], always[1:-1])           # interior folds: unchanged
+    for k in (0, -1):
+        carried = got[k] == always[k]
+        assert np.all(carried | (got[k] == 0.0))
+        assert 0 < np.sum(carried) < sims.shape[1]            # both happen on noise
+    unshaped = noise_model.Searched(None, lambda v: drift, lambda train: 0.0)
+    assert np.array_equal(noise_model.null_gain(current, unshaped, sb, sims, pen), always)

@@ -27,7 +27,7 @@ evidence is counted in folds, not samples:
   that reproduces the extension scores within it.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 
 from gyro_emulator.analysis.diagnose import models
@@ -40,7 +40,13 @@ INTERVAL_LEVEL = 0.95
 
 @dataclass
 class Evaluated:
-    """One model under cross-validation: per-fold fits, held-out residuals, full fit."""
+    """
+    One model under cross-validation: per-fold fits, held-out residuals, full fit.
+
+    ``kept_back`` holds, for a held-out end fold where the model's shapes in
+    time are not carried on (:meth:`CrossValidation.evaluate`), the model
+    without them and its fit on that fold's training rows: {fold: (model, fit)}.
+    """
 
     model: object
     fits: dict
@@ -48,6 +54,12 @@ class Evaluated:
     sse_fold: np.ndarray
     full: object
     rmse: float
+    kept_back: dict = field(default_factory=dict)
+
+    def predict(self, ctx, frame, k):
+        """Return the held-out prediction of fold ``k`` at ``frame``'s rows, rad/s."""
+        model, fit = self.kept_back.get(k, (self.model, self.fits[k]))
+        return models.predict(model, ctx, frame, fit)
 
 
 class CrossValidation:
@@ -124,16 +136,84 @@ class CrossValidation:
         cause. The last cause's parameters are searched on all rows first,
         then locally around that fit for each fold.
         """
-        b, s = self.prep.binned, self.prep.samples
+        b = self.prep.binned
         full = models.fit_model(model, self.ctx, b, None, fixed_full)
         start = full.phis[-1] if model.effects and full.phis[-1] else None
         fits = {k: models.fit_model(model, self.ctx, b, self.fold_of_bin != k,
                                     None if fixed_by_fold is None else fixed_by_fold[k],
                                     start=start)
                 for k in self.used_folds}
-        resid, sse = self.held_out(lambda k: models.predict(model, self.ctx, s, fits[k]))
-        return Evaluated(model, fits, resid, sse, full,
-                         math.sqrt(float(np.sum(sse)) / len(self.y)))
+        ev = Evaluated(model, fits, None, None, full, 0.0,
+                       self._kept_back(model, fixed_by_fold, start))
+        ev.resid, ev.sse_fold = self.held_out(
+            lambda k: ev.predict(self.ctx, self.prep.samples, k))
+        ev.rmse = math.sqrt(float(np.sum(ev.sse_fold)) / len(self.y))
+        return ev
+
+    def _kept_back(self, model, fixed_by_fold, start):
+        """
+        Return, for each end fold where the shapes in time stop, the model without them.
+
+        A cause that is a shape in time (``time_shaped``: a warm-up and
+        drift, a scale factor polynomial in time) predicts the first and
+        last fold from the training rows on one side only: it carries the
+        shape on past them. It is carried on only where, fitted without the
+        neighbouring fold as well, it predicts that fold no worse than the
+        model without its shapes in time does (:func:`carries_on`, on the
+        training rows: the held-out fold plays no part); otherwise the end
+        fold is predicted by the model without them. A temperature-driven
+        bias or scale factor taken up by a polynomial in time and carried
+        into the end folds predicted them up to 1.5x (scale factor) and 8x
+        (a warm-up from its tail) worse than the model it extends.
+        Returns {fold: (model without the time shapes, its fit on the fold's
+        training rows)}.
+        """
+        keep = [i for i, e in enumerate(model.effects) if not e.time_shaped]
+        if len(keep) == len(model.effects):
+            return {}
+        base = models.Model([model.effects[i] for i in keep])
+        searched = bool(keep) and keep[-1] == len(model.effects) - 1
+        b, s = self.prep.binned, self.prep.samples
+        out = {}
+        for k, nb in end_folds(self.used_folds):
+            fixed = () if fixed_by_fold is None else tuple(fixed_by_fold[k])
+            base_fixed = tuple(fixed[i] for i in keep if i < len(fixed))
+            base_start = start if searched else None
+            rows = (self.fold_of_bin != k) & (self.fold_of_bin != nb)
+            mask = self.fold_of_sample == nb
+            sse = []
+            for form, fx, st in ((model, fixed or None, start), (base, base_fixed, base_start)):
+                fit = models.fit_model(form, self.ctx, b, rows, fx or None, start=st)
+                sse.append(float(np.sum((self.y[mask] - models.predict(
+                    form, self.ctx, s, fit)[mask]) ** 2)))
+            if not carries_on(*sse):
+                out[k] = (base, models.fit_model(base, self.ctx, b, self.fold_of_bin != k,
+                                                 base_fixed or None, start=base_start))
+        return out
+
+
+def end_folds(folds):
+    """
+    Return (end fold, its neighbour) for the first and the last of ``folds``.
+
+    The held-out folds a shape in time is carried into from one side
+    (:meth:`CrossValidation._kept_back`); none with fewer than 3 folds.
+    """
+    folds = list(folds)
+    return [] if len(folds) < 3 else [(folds[0], folds[1]), (folds[-1], folds[-2])]
+
+
+def carries_on(sse_shape, sse_without):
+    """
+    Tell whether a model's shapes in time are carried into a held-out end fold.
+
+    ``sse_shape`` and ``sse_without``: the SSE of the end fold's neighbour
+    predicted from the rows beyond it by the model and by the model without
+    its shapes in time. Carried on where the first is not larger: the one
+    rule of the fits (:meth:`CrossValidation._kept_back`) and of the
+    noise-only simulations (:func:`.noise_model.null_gain`).
+    """
+    return sse_shape <= sse_without
 
 
 def fold_test(sse_ref, sse_new, null_reduction=None):

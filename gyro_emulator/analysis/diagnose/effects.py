@@ -131,14 +131,14 @@ class Effect:
         """
         return self
 
-    def trained_grids(self, ctx, grids, first_s):
-        """
-        Return ``grids`` cut to what training rows from ``first_s`` (s) can resolve.
-
-        All of them, but for a cause whose shape starts with the record (a
-        warm-up, :class:`.generic.BiasTime`).
-        """
-        return grids
+    #: The cause's shape starts with the record (a warm-up, :class:`.generic.BiasTime`):
+    #: a fold whose training rows start later takes the slowest shape its rows
+    #: allow (:func:`.models.extrapolates_back`).
+    starts_with_record = False
+    #: The cause is a shape in time (a drift, a warm-up): the first and last
+    #: held-out folds see it carried past the training rows, which
+    #: :meth:`.cv.CrossValidation.evaluate` allows only where it predicts.
+    time_shaped = False
 
     def sf_factor(self, ctx, frame, phi):
         """Return the factor on R(T) on the bins, or None (no change)."""

@@ -17,7 +17,10 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
   carries the uncertainty of a walk measured from one record. A step's
   size is refitted at every admissible step time (the step time's profile
   region) and its interval is the union (:func:`_step_size_union`): the
-  size at the best time alone is biased where a wander moves the time. A
+  size at the best time alone is biased where a wander moves the time. Its
+  sandwich also holds a drift beside the step as a random slope
+  (:func:`drift_variance`): the walk, fitted beside the step's column,
+  misses a drift over the whole record, which biases the size. A
   coefficient whose column the record does not vary (a g-sensitivity
   along an axis gravity never tilts into) is not measured, and says so
   (no interval; its sigma 0 says only that);
@@ -75,6 +78,8 @@ Z_LEVEL = 1.959963984540054
 STEP_TIMES = 24
 #: ``method`` of a coefficient interval from the record's noise law (:func:`wander_sigmas`).
 WANDER_METHOD = 'sandwich under the noise law of the record (white noise and a random walk)'
+#: The same for a step's size, whose law holds a drift beside it (:func:`drift_variance`).
+STEP_METHOD = WANDER_METHOD + ', a drift beside the step as a random slope'
 
 
 @dataclass(frozen=True)
@@ -176,7 +181,36 @@ def wander_law(noise, y_groups, x_groups, groups, rw_cap=math.inf):
     return replace(noise, bias_instability_rad_s=0.0, rrw_rad_s_sqrt_s=math.sqrt(max(walk, 0.0)))
 
 
-def wander_sigmas(evaluated, ctx, frame, wander):
+def _linear_variance(u, weight, noise, superbins):
+    """
+    Return the variance of estimates u @ ybar under white noise and the wander of ``noise``.
+
+    ``u`` (k, bins): each estimate's weights on the bin means ybar, whose
+    sample counts are ``weight``. White noise of density N gives a bin mean
+    of n samples the variance N^2 / (n dt); the wander
+    (:func:`.noise_model.wander_covariance`) is taken at the super-bins,
+    within which it barely moves: u summed over each super-bin.
+    """
+    sb = superbins
+    if len(u) == 0:
+        return np.zeros(0)
+    white = noise.arw_rad_s_sqrt_hz ** 2 / sb.dt_s
+    inv_w = 1.0 / np.maximum(weight, 1e-300)
+    h = np.stack([np.bincount(sb.group, weights=row, minlength=len(sb)) for row in u])
+    return white * np.einsum('ij,ij,j->i', u, u, inv_w) + np.einsum(
+        'ij,ij->i', h @ noise_model.wander_covariance(noise, sb), h)
+
+
+def _cause_weights(model, ctx, frame, phis):
+    """Return the last cause's coefficients' weights on the bin means, (k, bins), and x."""
+    n = len(frame)
+    x = np.column_stack([np.broadcast_to(c, (n,)) for c in model.columns(ctx, frame, phis)])
+    start = 2 + sum(e.n_columns for e in model.effects[:-1])
+    rows = models.coefficient_map(x, frame.weight, model.penalty(ctx))[start:]
+    return rows @ (x * frame.weight[:, None]).T, x
+
+
+def wander_sigmas(evaluated, ctx, frame, wander, law=None):
     """
     Return the 1-sigma of the last cause's reported coefficients under the record's noise law.
 
@@ -188,7 +222,8 @@ def wander_sigmas(evaluated, ctx, frame, wander):
     M^-1, H the rows of W X summed over each super-bin: the sandwich of a
     linear estimator (Newey & West 1987; here with the covariance taken
     from the fitted noise model, not from the residuals' own lags, which a
-    few blocks of a slow walk cannot give).
+    few blocks of a slow walk cannot give). ``law``: the model's noise law
+    when already fitted (:meth:`Wander.law`).
     """
     model, full = evaluated.model, evaluated.full
     n = len(frame)
@@ -198,7 +233,8 @@ def wander_sigmas(evaluated, ctx, frame, wander):
     start = 2 + sum(e.n_columns for e in model.effects[:-1])
     rows = models.coefficient_map(x, w, model.penalty(ctx))[start:]
     xw = x * w[:, None]
-    noise, sb = wander.law(model, ctx, frame, full.phis), wander.superbins
+    noise = wander.law(model, ctx, frame, full.phis) if law is None else law
+    sb = wander.superbins
     white = noise.arw_rad_s_sqrt_hz ** 2 / sb.dt_s
     grouped = np.stack([np.bincount(sb.group, weights=xw[:, j], minlength=len(sb))
                         for j in range(x.shape[1])])
@@ -209,12 +245,66 @@ def wander_sigmas(evaluated, ctx, frame, wander):
     return np.sqrt(np.maximum(var, 0.0)) * _report_factors(model.effects[-1], full)
 
 
+def drift_variance(evaluated, ctx, frame, law, superbins):
+    """
+    Return the variance a drift beside the last cause adds to its reported coefficients.
+
+    The random walk of the noise law is fitted on all averaging times, and
+    a drift over the whole record (a warm-up's tail, a slow temperature
+    trend: wander whose power sits at the record's own scale) barely raises
+    it, least of all beside a step, whose column takes up the drift's first
+    mode (a level that falls over the record is a step at its middle). A
+    step's size is then biased by the drift times the step's lever on it,
+    l = u . t (u the size's weights on the bin means, t the centred time),
+    and the walk does not say so. The drift is taken as a random slope in
+    the noise law, Cov(ybar) += s^2 t t', s^2 estimated from the record by
+    its moment: the slope of the model's residual on the time beside the
+    model's columns, s_hat, with its variance v under ``law`` (which holds
+    the walk's share), s^2 = max(0, s_hat^2 - v). The variance added is
+    s^2 l^2 (in the reported unit); 0 where the residual shows no drift
+    beyond its noise, or the model holds a drift already.
+    """
+    model, full = evaluated.model, evaluated.full
+    u, x = _cause_weights(model, ctx, frame, full.phis)
+    w = frame.weight
+    t = np.asarray(frame.time_s, float)
+    span = max(float(t.max() - t.min()), 1e-300)
+    tc = (t - float(np.sum(w * t) / np.sum(w))) / span
+    xw = x * w[:, None]
+    perp = tc - x @ (np.linalg.pinv(xw.T @ x) @ (xw.T @ tc))
+    norm = float(np.sum(w * perp * perp))
+    if not norm > 1e-9 * float(np.sum(w * tc * tc)):
+        return np.zeros(len(u))
+    resid = frame.gyro - models.predict(model, ctx, frame, full)
+    slope = float(np.sum(w * perp * resid)) / norm
+    v = float(_linear_variance((w * perp / norm)[None, :], w, law, superbins)[0])
+    lever = (u @ tc) * _report_factors(model.effects[-1], full)
+    return max(slope * slope - v, 0.0) * lever * lever
+
+
 def _report_factors(effect, full):
     """Return d(reported value)/d(coefficient) of the last cause's columns (1/s0 or 1)."""
     k = effect.n_columns
     names = [p.name for p in effect.params[len(effect.params) - k:]]
     phi, s0 = full.phis[-1], float(full.beta[1])
     return np.array([abs(effect.report(np.eye(k)[i], phi, s0)[names[i]]) for i in range(k)])
+
+
+def noise_sigmas(effect, evaluated, ctx, frame, wander, drift=None):
+    """
+    Return the sandwich's 1-sigmas of the last cause's coefficients (:func:`wander_sigmas`).
+
+    A step's size (a change-point cause) adds the variance of the drift
+    beside it in quadrature: ``drift``, or :func:`drift_variance` at this fit.
+    """
+    model, full = evaluated.model, evaluated.full
+    law = wander.law(model, ctx, frame, full.phis)
+    sigma = wander_sigmas(evaluated, ctx, frame, wander, law)
+    if getattr(effect, 'change_point', False):
+        if drift is None:
+            drift = drift_variance(evaluated, ctx, frame, law, wander.superbins)
+        sigma = np.sqrt(sigma ** 2 + drift)
+    return sigma
 
 
 def linear_estimates(effect, evaluated, ctx, frame, wander=None):
@@ -229,7 +319,8 @@ def linear_estimates(effect, evaluated, ctx, frame, wander=None):
     jack = jackknife(effect, evaluated)
     skip = n_nonlinear(effect, ctx)
     cols = _cause_columns(evaluated, ctx, frame)
-    noise_sig = None if wander is None else wander_sigmas(evaluated, ctx, frame, wander)
+    noise_sig = None if wander is None else noise_sigmas(effect, evaluated, ctx, frame, wander)
+    label = STEP_METHOD if getattr(effect, 'change_point', False) else WANDER_METHOD
     out = {}
     for i, p in enumerate(effect.params[skip:]):
         value, sigma, kf = jack[p.name]
@@ -241,7 +332,7 @@ def linear_estimates(effect, evaluated, ctx, frame, wander=None):
             continue
         method = f'jackknife over {kf} folds, t_{kf - 1}'
         if noise_sig is not None and noise_sig[i] > sigma:
-            sigma, method = float(noise_sig[i]), WANDER_METHOD + f', t_{kf - 1}'
+            sigma, method = float(noise_sig[i]), label + f', t_{kf - 1}'
         half = float(stdtrit(kf - 1, 0.5 + LEVEL / 2.0)) * sigma
         out[p.name] = Estimate(value, sigma, (value - half, value + half), method)
     return out
@@ -370,7 +461,8 @@ def _step_size_union(effect, evaluated, ctx, frame, n_eff, wander, size):
     each of up to :data:`STEP_TIMES` times inside the step time's profile
     region (:func:`_profile_step`'s threshold) the size is refitted and its
     sigma taken as the larger of the best time's and the sandwich's there
-    (:func:`wander_sigmas`); the interval is the union of theirs.
+    (:func:`noise_sigmas`, with the drift measured at the best time); the
+    interval is the union of theirs.
     """
     model, full = evaluated.model, evaluated.full
     fixed = tuple(full.phis[:-1])
@@ -382,11 +474,15 @@ def _step_size_union(effect, evaluated, ctx, frame, n_eff, wander, size):
     q = (size.interval[1] - size.interval[0]) / (2.0 * size.sigma)
     lo, hi = size.interval
     name = effect.params[-1].name
+    # the drift is the record's, measured beside the step at its best time (beside a
+    # step at a worse time the residual's own misfit would read as a drift)
+    drift = drift_variance(evaluated, ctx, frame, wander.law(model, ctx, frame, full.phis),
+                           wander.superbins)
     for k in np.unique(ok[np.linspace(0, len(ok) - 1, min(len(ok), STEP_TIMES)).astype(int)]):
         fit = models.fit_model(model, ctx, frame, None, fixed + ((float(starts[k]),),))
         at = replace(evaluated, full=fit)
         value = float(model.report(fit.beta, fit.phis)[-1][name])
-        sigma = max(size.sigma, float(wander_sigmas(at, ctx, frame, wander)[0]))
+        sigma = max(size.sigma, float(noise_sigmas(effect, at, ctx, frame, wander, drift)[0]))
         lo, hi = min(lo, value - q * sigma), max(hi, value + q * sigma)
     if (lo, hi) == tuple(size.interval):
         return size

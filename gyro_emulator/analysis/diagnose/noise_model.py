@@ -32,9 +32,11 @@ the wander and asks how much held-out gain it alone would give:
 """
 
 from dataclasses import dataclass, replace
+import functools
 import math
 
 from gyro_emulator.analysis import allan
+from gyro_emulator.analysis.diagnose import cv as cvmod
 from gyro_emulator.analysis.diagnose import models
 from gyro_emulator.sensor import noise as sensor_noise
 import numpy as np
@@ -342,17 +344,97 @@ def draw_noise_records(noise, superbins, n_sim, rng):
     return out
 
 
-def _held_out(x_tr, w_tr, y_tr, x_ho, penalty=None):
+def _held_out(x_tr, w_tr, y_tr, x_ho, penalty=None, resid=False):
     """
     Fit every column of ``y_tr`` (training rows) on ``x_tr``; predict the held-out rows.
 
     :func:`gyro_emulator.analysis.diagnose.models.solve_normal`, with the
     causes' ridge ``penalty`` (:meth:`.models.Model.penalty`). Returns
-    (predictions, training SSE per column).
+    (predictions, training SSE per column), and with ``resid`` the
+    training residuals.
     """
     beta, _, _ = models.solve_normal(x_tr, w_tr, y_tr, penalty)
     resid_tr = y_tr - x_tr @ beta
-    return x_ho @ beta, np.sum(w_tr[:, None] * resid_tr ** 2, axis=0)
+    out = (x_ho @ beta, np.sum(w_tr[:, None] * resid_tr ** 2, axis=0))
+    return out + (resid_tr,) if resid else out
+
+
+def _warm_up_pick(values, fits, w_tr, unseen):
+    """
+    Return the value each simulation's warm-up fit takes (:func:`.models.warm_up_resolved`).
+
+    ``fits`` are :func:`_held_out`'s (with residuals) at ``values``: the
+    least SSE where the rows resolve the extrapolation, else the least SSE
+    at a time constant of at least ``unseen`` (:func:`.models.held_grid`).
+    """
+    sses = np.array([f[1] for f in fits])
+    least = np.argmin(sses, axis=0)
+    n_eff = np.array([models.effective_bins(fits[i][2][:, j], w_tr)
+                      for j, i in enumerate(least)])
+    held = np.where(np.asarray(values)[:, None] >= unseen, sses, np.inf)
+    return np.where(models.warm_up_resolved(values, sses, n_eff, unseen), least,
+                    np.argmin(held, axis=0))
+
+
+@dataclass(frozen=True)
+class Searched:
+    """
+    A candidate's added columns for the simulations, searched over its grid as its fits are.
+
+    ``values`` are its grid values (None: no grid), ``column_set`` returns
+    its columns on the groups at a value ((groups, q); at None without a
+    grid), ``unseen_of`` the time a warm-up fitted on training groups (a
+    bool mask) is held to (:func:`.models.unseen_s`; 0: none), and
+    ``time_shaped`` says whether it is carried into the end folds only
+    where it predicts their neighbour (:meth:`.cv.CrossValidation.evaluate`).
+    """
+
+    values: object
+    column_set: object
+    unseen_of: object
+    time_shaped: bool = False
+
+    def entry(self, train):
+        """Return (values, column sets, unseen s) of a fit on the training groups ``train``."""
+        if self.values is None:
+            return None, [self.column_set(None)], 0.0
+        unseen = self.unseen_of(train)
+        values = np.unique(np.r_[self.values, unseen]) if unseen else self.values
+        return values, [self.column_set(float(v)) for v in values], unseen
+
+
+def _searched_fit(current_cols, candidate, w, sims, pen, tr, ho):
+    """
+    Return each simulation's prediction of the groups ``ho`` by the candidate fitted on ``tr``.
+
+    ``candidate`` a :class:`Searched` (its grid searched as its fits search
+    it: the least training SSE, or for a warm-up after the record's start
+    :func:`_warm_up_pick`) or a list of column sets (the least SSE).
+    """
+    values, sets, unseen = candidate.entry(tr) if isinstance(candidate, Searched) else \
+        (None, candidate, 0.0)
+    fits = [_held_out(x[tr], w[tr], sims[tr], x[ho], pen, resid=bool(unseen))
+            for x in (np.column_stack([current_cols, cols]) for cols in sets)]
+    pick = _warm_up_pick(values, fits, w[tr], unseen) if unseen else \
+        np.argmin(np.array([f[1] for f in fits]), axis=0)
+    return np.array([f[0] for f in fits])[pick, :, np.arange(sims.shape[1])].T
+
+
+def _carried_on(current_cols, fit, w, sims, pen0, near, tr, pred1, pred0):
+    """
+    Return an end fold's predictions: the candidate's where it is carried on, else the current's.
+
+    Each simulation as :meth:`.cv.CrossValidation.evaluate` decides: fitted
+    without the neighbouring groups ``near`` too, the candidate (``fit``)
+    must predict them no worse than the current model does
+    (:func:`.cv.carries_on`).
+    """
+    inner = tr & ~near
+    pc = fit(inner, near)
+    p0, _ = _held_out(current_cols[inner], w[inner], sims[inner], current_cols[near], pen0)
+    sse_c = np.sum(w[near, None] * (sims[near] - pc) ** 2, axis=0)
+    sse_0 = np.sum(w[near, None] * (sims[near] - p0) ** 2, axis=0)
+    return np.where(cvmod.carries_on(sse_c, sse_0)[None, :], pred1, pred0)
 
 
 def null_gain(current_cols, candidate, superbins, sims, penalty=None):
@@ -363,10 +445,13 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None):
     ----------
     current_cols : numpy.ndarray
         The current model's columns on the groups, (groups, p).
-    candidate : list
+    candidate : list or Searched or tuple
         The candidate's added columns on the groups for each value of its
         grid (a list of (groups, q) arrays: the search picks, per fold and
-        simulation, the value with the least training SSE), or
+        simulation, the value with the least training SSE), or a
+        :class:`Searched` (searched per fold as its fits are, and for a
+        shape in time carried into the end folds only where it predicts
+        their neighbour, :func:`_carried_on`), or
         ``('step', g, start_s)``: a step multiplying ``g`` that may start
         at any group start (located on all groups of each simulation with
         :func:`.models.step_search`, then its size refitted per fold, as
@@ -395,6 +480,9 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None):
         _, g, start = candidate
         at = models.step_search(current_cols, g, w, sims)
         steps = g[:, None] * (start[:, None] >= start[at][None, :])
+    kept = {}
+    if isinstance(candidate, Searched) and candidate.time_shaped:
+        kept = dict(cvmod.end_folds(np.unique(superbins.fold)))
     for k in np.unique(superbins.fold):
         ho = superbins.fold == k
         tr = ~ho
@@ -407,14 +495,11 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None):
                 pred1[:, j] = _held_out(x[tr], w[tr], sims[tr, j:j + 1], x[ho],
                                         pen)[0][:, 0]
         else:
-            best = np.full(sims.shape[1], np.inf)
-            pred1 = np.zeros((int(ho.sum()), sims.shape[1]))
-            for cols in candidate:
-                x = np.column_stack([current_cols, cols])
-                pred, sse_tr = _held_out(x[tr], w[tr], sims[tr], x[ho], pen)
-                better = sse_tr < best
-                best = np.where(better, sse_tr, best)
-                pred1[:, better] = pred[:, better]
+            fit = functools.partial(_searched_fit, current_cols, candidate, w, sims, pen)
+            pred1 = fit(tr, ho)
+            if k in kept:
+                pred1 = _carried_on(current_cols, fit, w, sims, pen0, superbins.fold == kept[k],
+                                    tr, pred1, pred0)
         sse1 = np.sum(w[ho, None] * (sims[ho] - pred1) ** 2, axis=0)
         out.append(sse0 - sse1)
     return np.asarray(out)

@@ -221,8 +221,7 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
         'baseline': _all_samples_rms(cv, rmse_base, lambda k, f: base.baseline_prediction(
             f, ctx.phys, cals[k])),
         'best': None if not chosen else _all_samples_rms(
-            cv, chosen[0].evaluated.rmse, lambda k, f: models.predict(
-                chosen[0].evaluated.model, ctx, f, chosen[0].evaluated.fits[k]))}
+            cv, chosen[0].evaluated.rmse, lambda k, f: chosen[0].evaluated.predict(ctx, f, k))}
     b = prep.binned
     cal_all = base.calibrate(b, ctx.phys)
     plots = ResidualPlots(

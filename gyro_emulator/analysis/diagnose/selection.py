@@ -226,9 +226,10 @@ class Selector:
         A step: its multiplier and the group starts. A cause that changes the
         scale-factor column (lag, pressure, mode split, delay): the change of
         that column at its full fit. Otherwise its columns,
-        one set per value of its grid, thinned to at most 10 values (the
-        simulations search it too). Returned with the ridge of the added
-        columns (:meth:`.models.Model.penalty`).
+        one set per value of its grid, thinned to at most 10 values, that
+        the simulations search per fold as its fits do
+        (:class:`.noise_model.Searched`). Returned with the ridge of the
+        added columns (:meth:`.models.Model.penalty`).
         """
         b = self.cv.prep.binned
         phis = current.full.phis
@@ -244,11 +245,22 @@ class Selector:
                                                       current.model.effects):]
             return [np.column_stack([self.superbins.aggregate(c) for c in new])], \
                 np.r_[0.0, own]
+        sets = {}
+
+        def column_set(v):
+            if v not in sets:
+                phi = () if v is None else (v,)
+                sets[v] = np.column_stack([self.superbins.aggregate(c) for c in
+                                           effect.columns(self.ctx, b, phi, basis)])
+            return sets[v]
+
+        def unseen_of(train):
+            return models.unseen_s(effect, b, train[self.superbins.group])
+
         # every other grid value at most 10: the simulations search a coarser grid
-        values = [()] if not grids else [(v,) for v in grids[0][::max(1, len(grids[0]) // 10)]]
-        return [np.column_stack([self.superbins.aggregate(c) for c in
-                                 effect.columns(self.ctx, b, phi, basis)])
-                for phi in values], own
+        values = None if not grids else \
+            np.asarray(grids[0])[::max(1, len(grids[0]) // 10)]
+        return noise_model.Searched(values, column_set, unseen_of, effect.time_shaped), own
 
     def null_reduction(self, current, effect, candidate_eval):
         """
