@@ -13,7 +13,6 @@ play its acceleration commands into the node.
 """
 
 import os
-import signal
 import subprocess
 import sys
 
@@ -156,35 +155,19 @@ def test_replay_refuses_an_older_bags_acceleration_commands(tilt, tmp_path):
 def _node_run(tilt, tmp_path):
     """Replay the bag's commands into the node on sim time; return its truth and output."""
     from sensor_msgs.msg import Imu
-    from test_node import NodeProcess, Probe, stamp_ns, vector
+    from test_node import NodeProcess, replay_into_node, stamp_ns, vector
     out = tilt[1]
     env = ros_env()
     node = NodeProcess(env, str(tmp_path / 'node.log'), '-p', 'use_sim_time:=true', '-p',
                        f'sensor_config:={CONFIG}', '-p', f'rate_hz:={RATE_HZ}', '-p',
                        f'seed:={SEED}', '-p', 'max_stamp_lead_s:=30.0')
-    probe = Probe(env)
-    replay = None
-    try:
-        truth = probe.listen(Imu, f'/{topics.NODE_NAME}/truth/imu')
-        imu = probe.listen(Imu, '/imu/data_raw')
-        probe.spin_until(lambda: probe.node.count_publishers('/imu/data_raw') > 0, 60.0,
-                         'the node on the graph')
-        replay = subprocess.Popen(
-            [sys.executable, '-m', 'gyro_emulator.ros.replay', out, '--clock', '100',
-             '--wait-for-subscribers', '60', '--reliable', '--topics',
-             '/cmd/angular_velocity', '/cmd/temperature', '/cmd/linear_acceleration'],
-            env=env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        end_ns = START_NS + int((REST_S[-1][1]) * NS_PER_S)
-        probe.spin_until(lambda: replay.poll() not in (None, 0) or (
-            truth and stamp_ns(truth[-1].header) >= end_ns), 120.0, 'the replayed bag')
-        assert replay.wait(60) == 0, replay.stdout.read()
-        assert node.proc.poll() is None, node.log()
-    finally:
-        if replay is not None and replay.poll() is None:
-            replay.send_signal(signal.SIGINT)
-            replay.wait(30)
-        probe.close()
-        assert node.stop() == 0
+    end_ns = START_NS + int((REST_S[-1][1]) * NS_PER_S)
+    truth, imu = replay_into_node(
+        env, node, '/imu/data_raw',
+        [(Imu, f'/{topics.NODE_NAME}/truth/imu'), (Imu, '/imu/data_raw')],
+        [out, '--clock', '100', '--wait-for-subscribers', '60', '--reliable', '--topics',
+         '/cmd/angular_velocity', '/cmd/temperature', '/cmd/linear_acceleration'],
+        end_ns, 60.0)
     return tuple(((np.array([stamp_ns(m.header) for m in messages]) - START_NS) / NS_PER_S,
                   np.array([vector(m.linear_acceleration) for m in messages]))
                  for messages in (truth, imu))

@@ -131,6 +131,39 @@ class NodeProcess:
         return self.proc.returncode
 
 
+def replay_into_node(env, node, output_topic, listen, replay_args, end_ns, exit_wait_s):
+    """
+    Play a bag into the running ``node`` with ``gyro_emulator.ros.replay``; return what was heard.
+
+    The replay starts once the node publishes ``output_topic``. ``listen``
+    is a list of ``(message type, topic)``; the play ends when the messages
+    of the first hold a stamp at or past ``end_ns`` (or the replay fails).
+    The replay must exit 0 within ``exit_wait_s`` and the node still run;
+    the node is stopped (status 0) however the play ends.
+    """
+    probe = Probe(env)
+    replay = None
+    try:
+        heard = [probe.listen(kind, topic) for kind, topic in listen]
+        first = heard[0]
+        probe.spin_until(lambda: probe.node.count_publishers(output_topic) > 0, 60.0,
+                         'the node on the graph')
+        replay = subprocess.Popen(
+            [sys.executable, '-m', 'gyro_emulator.ros.replay', *replay_args],
+            env=env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+        probe.spin_until(lambda: replay.poll() not in (None, 0) or (
+            first and stamp_ns(first[-1].header) >= end_ns), 120.0, 'the replayed bag')
+        assert replay.wait(exit_wait_s) == 0, replay.stdout.read()
+        assert node.proc.poll() is None, node.log()
+    finally:
+        if replay is not None and replay.poll() is None:
+            replay.send_signal(signal.SIGINT)
+            replay.wait(30)
+        probe.close()
+        assert node.stop() == 0
+    return heard
+
+
 def write_sensor_yaml(directory):
     path = os.path.join(directory, 'sensor_test.yaml')
     with open(path, 'w') as handle:

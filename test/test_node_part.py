@@ -19,7 +19,6 @@ record time 4000 s and a warm-up plus drift on y (``start_time_s``,
 """
 
 import os
-import signal
 import subprocess
 import sys
 
@@ -30,7 +29,7 @@ import numpy as np
 import pytest
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
-from test_node import NodeProcess, Probe, stamp_ns, vector
+from test_node import NodeProcess, Probe, replay_into_node, stamp_ns, vector
 import yaml
 
 pytestmark = pytest.mark.ros
@@ -113,29 +112,13 @@ def _play(tmp_path, part_yaml, t_s, temp_c):
                        'rate_hz:=1.0', '-p', f'initial_temperature_c:={temp_c[0]}', '-p',
                        'publish_truth:=false', '-p', 'max_stamp_lead_s:=30.0', '-p',
                        'seed:=5', '-p', f'record_start_clock_s:={BASE_NS / NS}')
-    probe = Probe(env)
-    replay = None
-    try:
-        imu = probe.listen(Imu, '/part/imu/data_raw')
-        probe.spin_until(lambda: probe.node.count_publishers('/part/imu/data_raw') > 0, 60.0,
-                         'the node on the graph')
-        replay = subprocess.Popen(
-            [sys.executable, '-m', 'gyro_emulator.ros.replay', source, '--rate', str(RATE),
-             '--clock', str(CLOCK_HZ), '--wait-for-subscribers', '60', '--reliable'],
-            env=env, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-        # the node's /clock subscription is best effort: the last messages (4 record
-        # seconds each) may be lost, so wait for the record up to 12 s before its end
-        end_ns = BASE_NS + int(t_s[-1] * NS) - 12 * NS
-        probe.spin_until(lambda: replay.poll() not in (None, 0) or (
-            imu and stamp_ns(imu[-1].header) >= end_ns), 120.0, 'the replayed record')
-        assert replay.wait(30) == 0, replay.stdout.read()
-        assert node.proc.poll() is None, node.log()
-    finally:
-        if replay is not None and replay.poll() is None:
-            replay.send_signal(signal.SIGINT)
-            replay.wait(30)
-        probe.close()
-        assert node.stop() == 0
+    # the node's /clock subscription is best effort: the last messages (4 record
+    # seconds each) may be lost, so wait for the record up to 12 s before its end
+    end_ns = BASE_NS + int(t_s[-1] * NS) - 12 * NS
+    imu, = replay_into_node(
+        env, node, '/part/imu/data_raw', [(Imu, '/part/imu/data_raw')],
+        [source, '--rate', str(RATE), '--clock', str(CLOCK_HZ), '--wait-for-subscribers', '60',
+         '--reliable'], end_ns, 30.0)
     stamps = np.array([stamp_ns(m.header) for m in imu], dtype=np.int64)
     return stamps, np.array([vector(m.angular_velocity) for m in imu])
 
