@@ -32,7 +32,7 @@ def _cv(record):
 def _ratio_and_bound(cv, effect_id):
     """Held-out RMSE of the cause over the recalibrated baseline's, and the rule's bound."""
     null = cv.evaluate(models.Model(()))
-    ev = cv.evaluate(models.Model((generic.effect(effect_id),)))
+    ev = cv.evaluate(models.Model((generic.effect(effect_id),)), extends=null)
     return ev.rmse / null.rmse, cv.interval(null.sse_fold)[1] / null.rmse, ev
 
 
@@ -102,6 +102,8 @@ def test_the_sutherland_law_is_still_found_at_share_one():
     ('temperature_rate_bias', 0, 'bias_time'),   # a warm-up from a dT/dt bias's tail: 1.95x
     ('bias_temperature', 0, 'bias_time'),        # a drift carried into both end folds: 1.57x
     ('thermal_lag', 2, 'scale_factor_time'),     # an SF polynomial in time likewise: 1.49x
+    ('bias_temperature', 2, 'bias_time'),        # a neighbour 18 % better, not beyond 1.25x: 1.62x
+    ('thermal_lag', 1, 'scale_factor_time'),     # likewise, bound 1.23x: 1.39x
 ])
 def test_a_shape_in_time_is_carried_into_an_end_fold_only_where_it_predicts(
         truth, seed, effect_id):
@@ -117,14 +119,15 @@ def test_a_shape_in_time_is_carried_into_an_end_fold_only_where_it_predicts(
         mask = cv.fold_of_sample == k
         assert np.allclose(ev.resid[mask], null.resid[mask], rtol=0.0, atol=1e-15)
         # decided on the training rows: fitted without the neighbour too, the
-        # shape predicted the neighbour worse than the model without it
+        # shape predicted the neighbour no better than the model without it by
+        # more than the spread of the held-out RMSE of the model extended
         nb = dict(cv_mod.end_folds(cv.used_folds))[k]
         rows = (cv.fold_of_bin != k) & (cv.fold_of_bin != nb)
         near = cv.fold_of_sample == nb
         s = cv.prep.samples
         sse = [float(np.sum((s.gyro[near] - models.predict(m, cv.ctx, s, models.fit_model(
             m, cv.ctx, cv.prep.binned, rows))[near]) ** 2)) for m in (ev.model, model)]
-        assert not cv_mod.carries_on(*sse)
+        assert not cv_mod.carries_on(*sse, cv_mod.rmse_bound(null.sse_fold, cv.fold_samples()))
 
 
 def test_end_folds_and_the_rule_that_carries_a_shape_on():
@@ -132,6 +135,24 @@ def test_end_folds_and_the_rule_that_carries_a_shape_on():
     assert cv_mod.end_folds([0, 1]) == []
     assert cv_mod.carries_on(1.0, 1.0) and not cv_mod.carries_on(1.0 + 1e-12, 1.0)
     assert list(cv_mod.carries_on(np.array([1.0, 3.0]), np.array([2.0, 2.0]))) == [True, False]
+    # beyond a bound b the shape's neighbour RMSE must be at most 1/b of the other's
+    assert cv_mod.carries_on(1.0, 1.22, 1.1) and not cv_mod.carries_on(1.0, 1.2, 1.1)
+    assert list(cv_mod.carries_on(np.ones(2), np.full(2, 1.3), np.array([1.1, 1.2]))) == \
+        [True, False]
+
+
+def test_the_carrying_bound_is_the_jackknife_interval_of_the_rule():
+    """rmse_bound is CrossValidation.interval's upper end over the RMSE, per column too."""
+    record, _ = make_truth('bias_temperature', 2)
+    cv = _cv(record)
+    null = cv.evaluate(models.Model(()))
+    n = cv.fold_samples()
+    bound = cv.interval(null.sse_fold)[1] / null.rmse
+    assert cv_mod.rmse_bound(null.sse_fold, n) == pytest.approx(bound, rel=1e-12)
+    assert bound > 1.1                          # the tempco left in: a wide spread
+    both = cv_mod.rmse_bound(np.column_stack([null.sse_fold, 4.0 * null.sse_fold]), n)
+    assert both == pytest.approx([bound, bound], rel=1e-12)
+    assert cv_mod.rmse_bound(null.sse_fold[:2], n[:2]) == 1.0
 
 
 def test_the_simulations_carry_a_shape_in_time_on_as_the_fits_do():

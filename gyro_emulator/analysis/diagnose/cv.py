@@ -98,6 +98,11 @@ class CrossValidation:
                           minlength=max(self.used_folds) + 1)[self.used_folds]
         return resid, sse
 
+    def fold_samples(self):
+        """Return the number of kept samples in each used fold."""
+        return np.bincount(self.fold_of_sample,
+                           minlength=max(self.used_folds) + 1)[self.used_folds].astype(float)
+
     def interval(self, sse_fold, sse_ref=None, level=INTERVAL_LEVEL):
         """
         Delete-a-fold jackknife interval of a held-out RMSE, rad/s (module docstring).
@@ -107,8 +112,7 @@ class CrossValidation:
         1 - RMSE / RMSE_ref. Returns (low, high), or None with fewer than 3
         used folds.
         """
-        n = np.bincount(self.fold_of_sample,
-                        minlength=max(self.used_folds) + 1)[self.used_folds].astype(float)
+        n = self.fold_samples()
         sse = np.asarray(sse_fold, dtype=float)
         ref = None if sse_ref is None else np.asarray(sse_ref, dtype=float)
         k = len(n)
@@ -126,7 +130,7 @@ class CrossValidation:
         half = float(stdtrit(k - 1, 0.5 + level / 2.0)) * sigma
         return (full - half, full + half)
 
-    def evaluate(self, model, fixed_by_fold=None, fixed_full=None):
+    def evaluate(self, model, fixed_by_fold=None, fixed_full=None, extends=None):
         """
         Fit ``model`` per fold and on everything; return an :class:`Evaluated`.
 
@@ -134,7 +138,10 @@ class CrossValidation:
         non-linear parameters of every cause but the last (those of the
         model the last cause is added to); None for a model of at most one
         cause. The last cause's parameters are searched on all rows first,
-        then locally around that fit for each fold.
+        then locally around that fit for each fold. ``extends``: the
+        :class:`Evaluated` model this one extends, whose held-out spread
+        sets how much better a shape in time must predict an end fold's
+        neighbour to be carried on (:func:`carries_on`).
         """
         b = self.prep.binned
         full = models.fit_model(model, self.ctx, b, None, fixed_full)
@@ -144,13 +151,14 @@ class CrossValidation:
                                     start=start)
                 for k in self.used_folds}
         ev = Evaluated(model, fits, None, None, full, 0.0,
-                       self._kept_back(model, fixed_by_fold, start))
+                       self._kept_back(model, fixed_by_fold, start, 1.0 if extends is None else
+                                       rmse_bound(extends.sse_fold, self.fold_samples())))
         ev.resid, ev.sse_fold = self.held_out(
             lambda k: ev.predict(self.ctx, self.prep.samples, k))
         ev.rmse = math.sqrt(float(np.sum(ev.sse_fold)) / len(self.y))
         return ev
 
-    def _kept_back(self, model, fixed_by_fold, start):
+    def _kept_back(self, model, fixed_by_fold, start, bound=1.0):
         """
         Return, for each end fold where the shapes in time stop, the model without them.
 
@@ -186,7 +194,7 @@ class CrossValidation:
                 fit = models.fit_model(form, self.ctx, b, rows, fx or None, start=st)
                 sse.append(float(np.sum((self.y[mask] - models.predict(
                     form, self.ctx, s, fit)[mask]) ** 2)))
-            if not carries_on(*sse):
+            if not carries_on(*sse, bound):
                 out[k] = (base, models.fit_model(base, self.ctx, b, self.fold_of_bin != k,
                                                  base_fixed or None, start=base_start))
         return out
@@ -203,17 +211,42 @@ def end_folds(folds):
     return [] if len(folds) < 3 else [(folds[0], folds[1]), (folds[-1], folds[-2])]
 
 
-def carries_on(sse_shape, sse_without):
+def rmse_bound(sse_fold, n_fold, level=INTERVAL_LEVEL):
+    """
+    Upper end of the jackknife interval of a held-out RMSE over that RMSE (vectorised).
+
+    ``sse_fold``: SSE per fold, (folds,) or (folds, records); ``n_fold``:
+    samples per fold. The ratio high / RMSE of
+    :meth:`CrossValidation.interval`; 1 with fewer than 3 folds.
+    """
+    sse = np.asarray(sse_fold, dtype=float)
+    n = np.asarray(n_fold, dtype=float).reshape((-1,) + (1,) * (sse.ndim - 1))
+    k = sse.shape[0]
+    if k < 3:
+        return np.ones(sse.shape[1:]) if sse.ndim > 1 else 1.0
+    full = np.sqrt(np.sum(sse, axis=0) / np.sum(n))
+    loo = np.sqrt((np.sum(sse, axis=0) - sse) / (np.sum(n) - n))
+    sigma = np.sqrt((k - 1) / k * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
+    return 1.0 + float(stdtrit(k - 1, 0.5 + level / 2.0)) * sigma / full
+
+
+def carries_on(sse_shape, sse_without, bound=1.0):
     """
     Tell whether a model's shapes in time are carried into a held-out end fold.
 
     ``sse_shape`` and ``sse_without``: the SSE of the end fold's neighbour
     predicted from the rows beyond it by the model and by the model without
-    its shapes in time. Carried on where the first is not larger: the one
-    rule of the fits (:meth:`CrossValidation._kept_back`) and of the
-    noise-only simulations (:func:`.noise_model.null_gain`).
+    its shapes in time; ``bound``: the upper end of the jackknife interval
+    of the held-out RMSE of the model extended over that RMSE
+    (:func:`rmse_bound`). Carried on where the shape's RMSE on the
+    neighbour is at most the other's divided by ``bound``: better by more
+    than the record's own blocks move the held-out RMSE of the model
+    extended, the spread within which the rule of the fits lets a
+    candidate be worse. The one rule of the fits
+    (:meth:`CrossValidation._kept_back`) and of the noise-only simulations
+    (:func:`.noise_model.null_gain`).
     """
-    return sse_shape <= sse_without
+    return sse_shape * np.square(bound) <= sse_without
 
 
 def fold_test(sse_ref, sse_new, null_reduction=None):

@@ -420,24 +420,25 @@ def _searched_fit(current_cols, candidate, w, sims, pen, tr, ho):
     return np.array([f[0] for f in fits])[pick, :, np.arange(sims.shape[1])].T
 
 
-def _carried_on(current_cols, fit, w, sims, pen0, near, tr, pred1, pred0):
+def _carried_on(current_cols, fit, w, sims, pen0, near, tr, pred1, pred0, bound, within):
     """
     Return an end fold's predictions: the candidate's where it is carried on, else the current's.
 
     Each simulation as :meth:`.cv.CrossValidation.evaluate` decides: fitted
     without the neighbouring groups ``near`` too, the candidate (``fit``)
-    must predict them no worse than the current model does
-    (:func:`.cv.carries_on`).
+    must predict them better than the current model does by the
+    simulation's own ``bound`` (:func:`.cv.carries_on`); ``within`` is the
+    neighbour's within-group noise SSE, which the fits' per-sample SSEs hold.
     """
     inner = tr & ~near
     pc = fit(inner, near)
     p0, _ = _held_out(current_cols[inner], w[inner], sims[inner], current_cols[near], pen0)
-    sse_c = np.sum(w[near, None] * (sims[near] - pc) ** 2, axis=0)
-    sse_0 = np.sum(w[near, None] * (sims[near] - p0) ** 2, axis=0)
-    return np.where(cvmod.carries_on(sse_c, sse_0)[None, :], pred1, pred0)
+    sse_c = np.sum(w[near, None] * (sims[near] - pc) ** 2, axis=0) + within
+    sse_0 = np.sum(w[near, None] * (sims[near] - p0) ** 2, axis=0) + within
+    return np.where(cvmod.carries_on(sse_c, sse_0, bound)[None, :], pred1, pred0)
 
 
-def null_gain(current_cols, candidate, superbins, sims, penalty=None):
+def null_gain(current_cols, candidate, superbins, sims, penalty=None, white_sigma=0.0):
     """
     Held-out SSE reductions that noise alone gives a candidate, per fold and simulation.
 
@@ -463,6 +464,11 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None):
     penalty : tuple, optional
         The ridge of the current model's columns and of the candidate's
         added ones (:meth:`.models.Model.penalty`): (p,) and (q,) arrays.
+    white_sigma : float, optional
+        The noise's short-term per-sample spread, rad/s: each group's
+        (n_g - 1) sigma^2 of within-group noise is added to the SSEs that
+        decide whether a shape in time is carried on, as the fits'
+        per-sample SSEs hold it.
 
     Returns
     -------
@@ -480,14 +486,21 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None):
         _, g, start = candidate
         at = models.step_search(current_cols, g, w, sims)
         steps = g[:, None] * (start[:, None] >= start[at][None, :])
-    kept = {}
+    folds = np.unique(superbins.fold)
+    current = [_held_out(current_cols[~ho], w[~ho], sims[~ho], current_cols[ho], pen0)[0]
+               for ho in (superbins.fold == k for k in folds)]
+    sse_current = np.array([np.sum(w[superbins.fold == k, None] * (sims[superbins.fold == k] - p)
+                                   ** 2, axis=0) for k, p in zip(folds, current)])
+    kept, within = {}, np.maximum(w - 1.0, 0.0) * white_sigma ** 2
     if isinstance(candidate, Searched) and candidate.time_shaped:
-        kept = dict(cvmod.end_folds(np.unique(superbins.fold)))
-    for k in np.unique(superbins.fold):
+        kept = dict(cvmod.end_folds(folds))
+        within_fold = np.array([np.sum(within[superbins.fold == k]) for k in folds])
+        bound = cvmod.rmse_bound(sse_current + within_fold[:, None],
+                                 [np.sum(w[superbins.fold == k]) for k in folds])
+    for i, k in enumerate(folds):
         ho = superbins.fold == k
         tr = ~ho
-        pred0, _ = _held_out(current_cols[tr], w[tr], sims[tr], current_cols[ho], pen0)
-        sse0 = np.sum(w[ho, None] * (sims[ho] - pred0) ** 2, axis=0)
+        pred0, sse0 = current[i], sse_current[i]
         if isinstance(candidate, tuple):
             pred1 = np.empty((int(ho.sum()), sims.shape[1]))
             for j in range(sims.shape[1]):
@@ -498,8 +511,9 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None):
             fit = functools.partial(_searched_fit, current_cols, candidate, w, sims, pen)
             pred1 = fit(tr, ho)
             if k in kept:
-                pred1 = _carried_on(current_cols, fit, w, sims, pen0, superbins.fold == kept[k],
-                                    tr, pred1, pred0)
+                near = superbins.fold == kept[k]
+                pred1 = _carried_on(current_cols, fit, w, sims, pen0, near, tr, pred1, pred0,
+                                    bound, float(np.sum(within[near])))
         sse1 = np.sum(w[ho, None] * (sims[ho] - pred1) ** 2, axis=0)
         out.append(sse0 - sse1)
     return np.asarray(out)

@@ -284,9 +284,10 @@ class Selector:
         penalty = (current.model.penalty(self.ctx), own)
         alt = self.noise_of(candidate_eval)
         wide = alt.wider(self.noise_of(current))
-        sims = noise_model.null_gain(cols, spec, self.superbins, self.sims_of(alt), penalty)
+        sims = noise_model.null_gain(cols, spec, self.superbins, self.sims_of(alt), penalty,
+                                     alt.white_sigma_rad_s)
         sims_wide = noise_model.null_gain(cols, spec, self.superbins, self.sims_of(wide),
-                                          penalty)
+                                          penalty, wide.white_sigma_rad_s)
         reduction = np.mean(np.maximum(sims, 0.0), axis=1)
         drop = float(np.sum(current.sse_fold - candidate_eval.sse_fold))
         fold_s = self.cv.prep.duration_s / max(len(self.cv.used_folds), 1)
@@ -467,7 +468,7 @@ class Selector:
         """Score ``effect`` added to ``current`` (a :class:`.cv.Evaluated`) as a Candidate."""
         model = current.model.extend(effect)
         fixed = {k: f.phis for k, f in current.fits.items()}
-        ev = self.cv.evaluate(model, fixed, current.full.phis)
+        ev = self.cv.evaluate(model, fixed, current.full.phis, current)
         reduction, share, totals, measured = self.null_reduction(current, effect, ev)
         p_fold = cvmod.fold_test(current.sse_fold, ev.sse_fold, reduction)
         if measured:
