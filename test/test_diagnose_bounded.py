@@ -127,7 +127,8 @@ def test_a_shape_in_time_is_carried_into_an_end_fold_only_where_it_predicts(
         s = cv.prep.samples
         sse = [float(np.sum((s.gyro[near] - models.predict(m, cv.ctx, s, models.fit_model(
             m, cv.ctx, cv.prep.binned, rows))[near]) ** 2)) for m in (ev.model, model)]
-        assert not cv_mod.carries_on(*sse, cv_mod.rmse_bound(null.sse_fold, cv.fold_samples()))
+        bound = cv_mod.fold_bound(null.sse_fold, cv.fold_samples(), cv.used_folds.index(k))
+        assert not cv_mod.carries_on(*sse, bound)
 
 
 def test_end_folds_and_the_rule_that_carries_a_shape_on():
@@ -153,6 +154,10 @@ def test_the_carrying_bound_is_the_jackknife_interval_of_the_rule():
     both = cv_mod.rmse_bound(np.column_stack([null.sse_fold, 4.0 * null.sse_fold]), n)
     assert both == pytest.approx([bound, bound], rel=1e-12)
     assert cv_mod.rmse_bound(null.sse_fold[:2], n[:2]) == 1.0
+    # an end fold's bound leaves that fold out; none without the model extended
+    assert cv_mod.fold_bound(null.sse_fold, n, 0) == pytest.approx(
+        cv_mod.rmse_bound(null.sse_fold[1:], n[1:]), rel=1e-12)
+    assert cv_mod.fold_bound(None, n, 0) == 1.0
 
 
 def test_the_simulations_carry_a_shape_in_time_on_as_the_fits_do():

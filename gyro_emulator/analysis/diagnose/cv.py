@@ -151,14 +151,14 @@ class CrossValidation:
                                     start=start)
                 for k in self.used_folds}
         ev = Evaluated(model, fits, None, None, full, 0.0,
-                       self._kept_back(model, fixed_by_fold, start, 1.0 if extends is None else
-                                       rmse_bound(extends.sse_fold, self.fold_samples())))
+                       self._kept_back(model, fixed_by_fold, start,
+                                       None if extends is None else extends.sse_fold))
         ev.resid, ev.sse_fold = self.held_out(
             lambda k: ev.predict(self.ctx, self.prep.samples, k))
         ev.rmse = math.sqrt(float(np.sum(ev.sse_fold)) / len(self.y))
         return ev
 
-    def _kept_back(self, model, fixed_by_fold, start, bound=1.0):
+    def _kept_back(self, model, fixed_by_fold, start, sse_extended=None):
         """
         Return, for each end fold where the shapes in time stop, the model without them.
 
@@ -166,13 +166,15 @@ class CrossValidation:
         drift, a scale factor polynomial in time) predicts the first and
         last fold from the training rows on one side only: it carries the
         shape on past them. It is carried on only where, fitted without the
-        neighbouring fold as well, it predicts that fold no worse than the
-        model without its shapes in time does (:func:`carries_on`, on the
-        training rows: the held-out fold plays no part); otherwise the end
-        fold is predicted by the model without them. A temperature-driven
-        bias or scale factor taken up by a polynomial in time and carried
-        into the end folds predicted them up to 1.5x (scale factor) and 8x
-        (a warm-up from its tail) worse than the model it extends.
+        neighbouring fold as well, it predicts that fold better than the
+        model without its shapes in time does by more than the jackknife
+        spread of the held-out RMSE of the model extended over the other
+        folds (``sse_extended``, :func:`fold_bound`, :func:`carries_on`: the
+        held-out fold plays no part); otherwise the end fold is predicted by the model
+        without them. A temperature-driven bias or scale factor taken up by
+        a polynomial in time and carried into the end folds predicted them
+        up to 1.5x (scale factor) and 8x (a warm-up from its tail) worse
+        than the model it extends.
         Returns {fold: (model without the time shapes, its fit on the fold's
         training rows)}.
         """
@@ -194,7 +196,8 @@ class CrossValidation:
                 fit = models.fit_model(form, self.ctx, b, rows, fx or None, start=st)
                 sse.append(float(np.sum((self.y[mask] - models.predict(
                     form, self.ctx, s, fit)[mask]) ** 2)))
-            if not carries_on(*sse, bound):
+            if not carries_on(*sse, fold_bound(sse_extended, self.fold_samples(),
+                                               self.used_folds.index(k))):
                 out[k] = (base, models.fit_model(base, self.ctx, b, self.fold_of_bin != k,
                                                  base_fixed or None, start=base_start))
         return out
@@ -230,6 +233,20 @@ def rmse_bound(sse_fold, n_fold, level=INTERVAL_LEVEL):
     return 1.0 + float(stdtrit(k - 1, 0.5 + level / 2.0)) * sigma / full
 
 
+def fold_bound(sse_fold, n_fold, i):
+    """
+    Return the carrying bound for the held-out fold at position ``i``: 1 without ``sse_fold``.
+
+    :func:`rmse_bound` of the model extended over the folds other than the
+    held-out one, so the decision to carry a shape into it does not see it;
+    ``sse_fold`` (folds,) or (folds, records).
+    """
+    if sse_fold is None:
+        return 1.0
+    return rmse_bound(np.delete(np.asarray(sse_fold, dtype=float), i, axis=0),
+                      np.delete(np.asarray(n_fold, dtype=float), i))
+
+
 def carries_on(sse_shape, sse_without, bound=1.0):
     """
     Tell whether a model's shapes in time are carried into a held-out end fold.
@@ -237,8 +254,8 @@ def carries_on(sse_shape, sse_without, bound=1.0):
     ``sse_shape`` and ``sse_without``: the SSE of the end fold's neighbour
     predicted from the rows beyond it by the model and by the model without
     its shapes in time; ``bound``: the upper end of the jackknife interval
-    of the held-out RMSE of the model extended over that RMSE
-    (:func:`rmse_bound`). Carried on where the shape's RMSE on the
+    of the held-out RMSE of the model extended over that RMSE, on the folds
+    other than the end fold (:func:`fold_bound`). Carried on where the shape's RMSE on the
     neighbour is at most the other's divided by ``bound``: better by more
     than the record's own blocks move the held-out RMSE of the model
     extended, the spread within which the rule of the fits lets a

@@ -495,8 +495,7 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None, white_sigm
     if isinstance(candidate, Searched) and candidate.time_shaped:
         kept = dict(cvmod.end_folds(folds))
         within_fold = np.array([np.sum(within[superbins.fold == k]) for k in folds])
-        bound = cvmod.rmse_bound(sse_current + within_fold[:, None],
-                                 [np.sum(w[superbins.fold == k]) for k in folds])
+        n_fold = [np.sum(w[superbins.fold == k]) for k in folds]
     for i, k in enumerate(folds):
         ho = superbins.fold == k
         tr = ~ho
@@ -512,6 +511,7 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None, white_sigm
             pred1 = fit(tr, ho)
             if k in kept:
                 near = superbins.fold == kept[k]
+                bound = cvmod.fold_bound(sse_current + within_fold[:, None], n_fold, i)
                 pred1 = _carried_on(current_cols, fit, w, sims, pen0, near, tr, pred1, pred0,
                                     bound, float(np.sum(within[near])))
         sse1 = np.sum(w[ho, None] * (sims[ho] - pred1) ** 2, axis=0)
