@@ -134,6 +134,46 @@ def test_the_size_rule_needs_one_component_beyond_two_sigma():
         g, dict(within, **_found(**{names[2]: (2.2e-5, 1.0e-5)})), None, 1.0, 0.9, 100.0)
 
 
+def _polynomial_folds(rng, slope, folds=8, n=400):
+    """Fit [1, dT, dT^2] through two cycles; return (theta, the delete-a-fold thetas)."""
+    d_t = 40.0 * np.sin(2.0 * np.pi * 2.0 * np.linspace(0.0, 1.0, n)) ** 2 - 10.0
+    x = np.column_stack([np.ones(n), d_t, d_t ** 2])
+    y = slope * d_t + rng.standard_normal(n)
+    keep = [np.setdiff1d(np.arange(n), f) for f in np.array_split(np.arange(n), folds)]
+    per_fold = np.array([np.linalg.lstsq(x[k], y[k], rcond=None)[0][1:] for k in keep])
+    return np.linalg.lstsq(x, y, rcond=None)[0][1:], per_fold
+
+
+def test_the_joint_size_rule_holds_its_level_and_sees_a_correlated_pair():
+    # dT and dT^2 through cycles from 15 to 55 C about T_ref 25 C: r = 0.89.
+    # Hotelling's T^2 on the folds' jackknife covariance at the level of one
+    # coefficient at 2 sigma on 8 folds, 2 P(t_7 > 2) = 0.086: with no effect
+    # it rejects at that level (2000 draws: binomial sd 0.0063, 4 sd allowed),
+    # and on a linear tempco it finds what neither coefficient alone shows.
+    rng = np.random.default_rng(20261129)
+    level = 2.0 * stats.t.sf(2.0, 7)
+    null = [intervals.hotelling_p(*_polynomial_folds(rng, 0.0)) < level for _ in range(2000)]
+    assert abs(np.mean(null) - level) < 4.0 * math.sqrt(level * (1.0 - level) / 2000)
+    # paired over 400 draws (McNemar): the draws only the joint rule finds
+    # outnumber those only one coefficient finds by 4 sd of their difference
+    only_joint = only_alone = 0
+    for _ in range(400):
+        theta, per_fold = _polynomial_folds(rng, 0.01)
+        sigma = np.sqrt(7.0 / 8.0 * np.sum((per_fold - per_fold.mean(axis=0)) ** 2, axis=0))
+        joint = intervals.hotelling_p(theta, per_fold) < level
+        alone = bool(np.any(np.abs(theta) > 2.0 * sigma))
+        only_joint += joint and not alone
+        only_alone += alone and not joint
+    assert only_joint - only_alone > 4.0 * math.sqrt(only_joint + only_alone)
+
+
+def test_the_joint_rule_gives_no_verdict_where_the_folds_cannot():
+    assert intervals.hotelling_p([1.0, 2.0], np.ones((8, 2))) == 1.0     # no spread
+    assert intervals.hotelling_p([1.0, 2.0, 3.0], np.zeros((3, 3))) == 1.0   # K - p < 1
+    collinear = np.outer(np.arange(8.0), [1.0, 2.0])
+    assert intervals.hotelling_p([1.0, 2.0], collinear) == 1.0
+
+
 def test_a_cause_without_coefficients_is_judged_on_its_profile_at_no_effect():
     delay = generic.effect('time_delay')
     ctx = type('Ctx', (), {})()

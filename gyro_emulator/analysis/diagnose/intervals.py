@@ -49,8 +49,10 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
 is not within ``z`` sigma of zero: a cause with coefficients needs one of
 them beyond z sigma of the estimates it is given (the selection gives the
 jackknife's, :func:`linear_estimates` without a :class:`Wander`, so that
-detection keeps its calibration; the verdict's :func:`interval_clear_of_zero`
-reads the stated interval); a
+detection keeps its calibration), or all of them together beyond the same
+level on the folds' joint spread (Hotelling's T^2, :func:`hotelling_p`:
+the columns of a temperature polynomial are correlated through cycles);
+the verdict's :func:`interval_clear_of_zero` reads each stated interval; a
 cause that only changes the scale factor or the delay (a delay, a lag, a
 pressure drift, a mode split) needs its
 profile's SSE at the no-effect value (the model without it) to exceed the
@@ -64,7 +66,7 @@ from gyro_emulator.analysis.diagnose import models, noise_model, statespace
 import numpy as np
 from scipy import optimize
 from scipy.special import stdtrit
-from scipy.stats import chi2
+from scipy.stats import chi2, f as f_dist, t as t_dist
 
 #: Two-sided level of every parameter interval.
 LEVEL = 0.95
@@ -94,18 +96,65 @@ class Estimate:
     open_high: bool = False
 
 
-def jackknife(effect, evaluated):
-    """Return the last cause's parameters: {name: (value, jackknife sigma, per-fold values)}."""
+def _fold_values(effect, evaluated, names):
+    """Return the full fit's values of ``names`` (p,) and the per-fold fits' values (K, p)."""
     values = evaluated.model.report(evaluated.full.beta, evaluated.full.phis)[-1]
     per_fold = [evaluated.model.report(f.beta, f.phis)[-1] for f in evaluated.fits.values()]
-    kf = len(per_fold)
+    full = np.array([values[n] for n in names], dtype=float)
+    return full, np.array([[d[n] for n in names] for d in per_fold], dtype=float).reshape(
+        len(per_fold), len(names))
+
+
+def jackknife(effect, evaluated):
+    """Return the last cause's parameters: {name: (value, jackknife sigma, number of folds)}."""
+    names = [p.name for p in effect.params]
+    full, arr = _fold_values(effect, evaluated, names)
+    kf = len(arr)
     out = {}
-    for p in effect.params:
-        arr = np.asarray([d[p.name] for d in per_fold], dtype=float)
-        sigma = math.sqrt((kf - 1) / kf * float(np.sum((arr - arr.mean()) ** 2))) \
+    for j, name in enumerate(names):
+        sigma = math.sqrt((kf - 1) / kf * float(np.sum((arr[:, j] - arr[:, j].mean()) ** 2))) \
             if kf > 1 else float('nan')
-        out[p.name] = (float(values[p.name]), sigma, kf)
+        out[name] = (float(full[j]), sigma, kf)
     return out
+
+
+def hotelling_p(theta, per_fold):
+    """
+    Return the p-value of Hotelling's T^2 that the coefficients ``theta`` are all zero.
+
+    ``per_fold`` (K, p): the delete-a-fold estimates. Their jackknife
+    covariance, S = (K-1)/K sum_k (theta_(k) - mean)(theta_(k) - mean)'
+    (its diagonal is each coefficient's jackknife sigma^2), gives T^2 =
+    theta' S^-1 theta, referred to Hotelling's law on K - 1 degrees of
+    freedom: (K - p) T^2 / (p (K - 1)) ~ F(p, K - p) (Hotelling 1931). For
+    one coefficient T^2 = (theta / sigma)^2 ~ t_{K-1}^2, the rule of a
+    single coefficient. Through temperature cycles the columns of a
+    polynomial (dT, dT^2) are correlated: each coefficient's own spread is
+    wide where the pair together is not, and only the joint test sees it.
+    1 where there are too few folds or S is singular.
+    """
+    theta = np.asarray(theta, dtype=float)
+    arr = np.asarray(per_fold, dtype=float).reshape(-1, len(theta))
+    kf, p = arr.shape
+    if p == 0 or kf - p < 1:
+        return 1.0
+    dev = arr - arr.mean(axis=0)
+    scale = np.sqrt(np.sum(dev * dev, axis=0))
+    if not np.all(scale > 0.0):
+        return 1.0
+    cov = (kf - 1) / kf * (dev / scale).T @ (dev / scale)       # in units of each spread
+    try:
+        t2 = float((theta / scale) @ np.linalg.solve(cov, theta / scale))
+    except np.linalg.LinAlgError:
+        return 1.0
+    if not np.isfinite(t2):
+        return 1.0
+    return float(f_dist.sf((kf - p) * t2 / (p * (kf - 1)), p, kf - p))
+
+
+def joint_p(effect, evaluated, names):
+    """Return :func:`hotelling_p` of the last cause's coefficients ``names`` over its folds."""
+    return hotelling_p(*_fold_values(effect, evaluated, names))
 
 
 def n_nonlinear(effect, ctx):
@@ -507,18 +556,29 @@ def _null_excluded(effect, ctx, current_sse, sse, n_eff, level):
     return current_sse - sse > float(chi2.ppf(level, q)) * sse / max(n_eff, 1.0)
 
 
-def clear_of_zero(effect, found, ctx, current_sse, sse, n_eff, z):
+def clear_of_zero(effect, found, ctx, current_sse, sse, n_eff, z, evaluated=None):
     """
     Tell whether a cause's size is more than ``z`` sigma from zero (module docstring).
 
     ``found``: the cause's :class:`Estimate` s; ``current_sse``, ``sse``: the
-    full-fit SSE without and with the cause. A cause without coefficients is
-    judged on its profile at the equivalent level (chi^2 with one degree of
-    freedom per searched parameter at the two-sided normal level of ``z``).
+    full-fit SSE without and with the cause. A cause with coefficients is
+    clear when one of them is beyond ``z`` sigma or, given its
+    ``evaluated`` fits and two or more measured coefficients, when they are
+    together (:func:`joint_p`) at the level of one coefficient at ``z``
+    sigma on the same folds, 2 P(t_{K-1} > z) (z = 2, K = 8: 0.086). A
+    cause without coefficients is judged on its profile at the equivalent
+    level (chi^2 with one degree of freedom per searched parameter at the
+    two-sided normal level of ``z``).
     """
     if effect.n_columns > 0:
-        return any(e.interval is not None and abs(e.value) > z * e.sigma
-                   for e in found.values() if e.method != 'profile likelihood')
+        measured = [name for name, e in found.items()
+                    if e.interval is not None and e.method != 'profile likelihood']
+        if any(abs(found[name].value) > z * found[name].sigma for name in measured):
+            return True
+        if evaluated is None or len(measured) < 2:
+            return False
+        kf = len(evaluated.fits)
+        return joint_p(effect, evaluated, measured) < 2.0 * float(t_dist.sf(z, kf - 1))
     level = float(chi2.cdf(z * z, 1))          # z = 2: 0.9545
     return _null_excluded(effect, ctx, current_sse, sse, n_eff, level)
 

@@ -22,7 +22,8 @@ or the likelihood route establishes it (:meth:`Selector.score`). It is
 held-out data better than the current model, per sample or in the group
 means at the verdict's averaging time (a held-out gain > 0: the
 likelihood route's evidence is in-sample), and its size stands more than
-``SIZE_Z`` (2) sigma clear of zero (:func:`.intervals.clear_of_zero`). A
+``SIZE_Z`` (2) sigma clear of zero (:func:`.intervals.clear_of_zero`: one
+coefficient, or all of them together on the folds' joint spread). A
 supported candidate that fails either is *supported in-sample, not
 confirmed on held-out data* (``in_sample_only`` says why): listed, never
 chosen.
@@ -527,7 +528,7 @@ class Selector:
             return False
         found = intervals.linear_estimates(effect, ev, self.ctx, self.cv.prep.binned)
         if not intervals.clear_of_zero(effect, found, self.ctx, current.full.sse, ev.full.sse,
-                                       cand.n_eff, SIZE_Z):
+                                       cand.n_eff, SIZE_Z, ev):
             cand.in_sample_only = f'its estimate is within {SIZE_Z:g} sigma of zero'
             return False
         return True
