@@ -4,7 +4,10 @@ The typed diagnosis (issue 31 item 1): frozen values, one JSON.
 ``test/data/diagnosis_*.json`` are the documents ``diagnose`` writes for two
 seeded truth records (first those of the untyped diagnosis; rewritten once
 when issue 33 gave every parameter an interval and added ``ruled_out`` and
-``supported_in_sample``): :func:`to_json` must give them back byte for byte.
+``supported_in_sample``, and for ``sf_tempco`` when a shape in time was
+carried into an end fold only on evidence beyond the noise: the held-out
+figures of ``bias_time`` and ``scale_factor_time`` and the order the
+candidates rank in): :func:`to_json` must give them back byte for byte.
 """
 
 from dataclasses import FrozenInstanceError
