@@ -61,12 +61,10 @@ LOGS = {
     'mpu': (MPU, 'xyz', 1, None, (0.0,)),
     'adis-1hz': (ADIS, 'xyz', 100, 20.0, (0.0,)),
 }
-#: Default tempcos per log, deg/s/K.
-SIZES = {'adis-x': '0,0.0005,0.001,0.0015,0.002,0.003,0.004',
-         'adis-y': '0,0.0005,0.001,0.0015,0.002,0.003,0.004',
-         'adis-z': '0,0.0005,0.001,0.0015,0.002,0.003,0.004',
-         'mpu': '0,0.0002,0.0004,0.0006,0.0008,0.0012,0.0016',
-         'adis-1hz': '0,0.0005,0.001,0.0015,0.002,0.003,0.004'}
+#: Default tempcos per log, deg/s/K: the sizes of the table in docs/diagnose.md.
+_ADIS_SIZES = '0.0005,0.001,0.0015,0.002,0.003'
+SIZES = {'adis-x': _ADIS_SIZES, 'adis-y': _ADIS_SIZES, 'adis-z': _ADIS_SIZES,
+         'mpu': '0.00005,0.0001,0.00015,0.0002,0.0003', 'adis-1hz': _ADIS_SIZES}
 
 
 def _bin_means(time_s, values, bin_s):
