@@ -602,6 +602,25 @@ class _KillFleetTasks(WorkerPlugin):
             os.kill(os.getpid(), signal.SIGKILL)
 
 
+def _unregister_when_settled(client, timeout_s=120.0):
+    """
+    Remove the killing plugin once both workers are up.
+
+    A killed worker's nanny restarts it, and a plugin change broadcast to a
+    worker still dying or starting fails in distributed ("Stream is
+    closed", CommClosedError). The scheduler drops the plugin from its
+    registry before the broadcast, so a worker it restarts after that
+    starts without it: the error leaves nothing to undo.
+    """
+    from distributed.comm import CommClosedError
+
+    client.wait_for_workers(2, timeout=timeout_s)
+    try:
+        client.unregister_worker_plugin(_KillFleetTasks.name)
+    except CommClosedError:
+        pass
+
+
 def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resumes(tmp_path):
     """
     A LocalCluster whose scheduler gives up on a task at its first lost worker.
@@ -634,19 +653,16 @@ def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resum
         assert once['run']['tasks_resubmitted'] >= 1
         assert _without_run(once) == _without_run(whole)
         assert _rows(tmp_path / 'once').equals(_rows(tmp_path / 'whole'))
-        # the killed worker's nanny is still restarting it: a plugin change sent to it
-        # now fails in distributed ("Stream is closed"), so wait for both first
-        client.wait_for_workers(2, timeout=120)
-        client.unregister_worker_plugin(_KillFleetTasks.name)
+        _unregister_when_settled(client)
         client.register_plugin(_KillFleetTasks(str(tmp_path / 'always'), 10 ** 6))
         with pytest.raises(run.FleetIncomplete, match=r'the cluster lost the task of blocks '
                                                       r'\d+-\d+ 3 times \(KilledWorker') as info:
             run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'),
                           scheduler=cluster.scheduler_address, blocks_per_task=1)
+        _unregister_when_settled(client)
         # let the nannies finish restarting the killed workers before the cluster
         # closes: closing a nanny whose new process has not started yet fails in
         # distributed's own teardown ("can only join a started process")
-        client.unregister_worker_plugin(_KillFleetTasks.name)
         client.wait_for_workers(2, timeout=120)
     assert '\n' not in str(info.value) and 'run again with --resume' in str(info.value)
     resumed = run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'), scheduler='in-process',
