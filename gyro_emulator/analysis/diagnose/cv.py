@@ -112,22 +112,10 @@ class CrossValidation:
         1 - RMSE / RMSE_ref. Returns (low, high), or None with fewer than 3
         used folds.
         """
-        n = self.fold_samples()
-        sse = np.asarray(sse_fold, dtype=float)
-        ref = None if sse_ref is None else np.asarray(sse_ref, dtype=float)
-        k = len(n)
-        if k < 3:
+        spread = rmse_jackknife(sse_fold, self.fold_samples(), sse_ref, level)
+        if spread is None:
             return None
-
-        def figure(keep):
-            rmse = math.sqrt(float(np.sum(sse[keep]) / np.sum(n[keep])))
-            return rmse if ref is None else 1.0 - rmse / math.sqrt(
-                float(np.sum(ref[keep]) / np.sum(n[keep])))
-
-        full = figure(np.ones(k, bool))
-        loo = np.array([figure(np.arange(k) != j) for j in range(k)])
-        sigma = math.sqrt((k - 1) / k * float(np.sum((loo - loo.mean()) ** 2)))
-        half = float(stdtrit(k - 1, 0.5 + level / 2.0)) * sigma
+        full, half = (float(v) for v in spread)
         return (full - half, full + half)
 
     def evaluate(self, model, fixed_by_fold=None, fixed_full=None, extends=None):
@@ -184,11 +172,12 @@ class CrossValidation:
         base = models.Model([model.effects[i] for i in keep])
         searched = bool(keep) and keep[-1] == len(model.effects) - 1
         b, s = self.prep.binned, self.prep.samples
+        base_start = start if searched else None
+        n_fold = self.fold_samples()
         out = {}
         for k, nb in end_folds(self.used_folds):
             fixed = () if fixed_by_fold is None else tuple(fixed_by_fold[k])
             base_fixed = tuple(fixed[i] for i in keep if i < len(fixed))
-            base_start = start if searched else None
             rows = (self.fold_of_bin != k) & (self.fold_of_bin != nb)
             mask = self.fold_of_sample == nb
             sse = []
@@ -196,8 +185,7 @@ class CrossValidation:
                 fit = models.fit_model(form, self.ctx, b, rows, fx or None, start=st)
                 sse.append(float(np.sum((self.y[mask] - models.predict(
                     form, self.ctx, s, fit)[mask]) ** 2)))
-            if not carries_on(*sse, fold_bound(sse_extended, self.fold_samples(),
-                                               self.used_folds.index(k))):
+            if not carries_on(*sse, fold_bound(sse_extended, n_fold, self.used_folds.index(k))):
                 out[k] = (base, models.fit_model(base, self.ctx, b, self.fold_of_bin != k,
                                                  base_fixed or None, start=base_start))
         return out
@@ -214,23 +202,51 @@ def end_folds(folds):
     return [] if len(folds) < 3 else [(folds[0], folds[1]), (folds[-1], folds[-2])]
 
 
+def rmse_jackknife(sse_fold, n_fold, sse_ref=None, level=INTERVAL_LEVEL):
+    """
+    Return (figure, half width) of the delete-a-fold jackknife interval of a held-out RMSE.
+
+    ``sse_fold``: SSE per fold, (folds,) or (folds, records); ``n_fold``:
+    samples per fold. The figure is the RMSE, or with ``sse_ref`` (a
+    reference's, on the same folds) the gain 1 - RMSE / RMSE_ref; the half
+    width t_{K-1} sigma, sigma^2 = (K-1)/K sum_k (figure_(k) - mean)^2 over
+    the K figures without fold k (module docstring). None with fewer than
+    3 folds. The one computation of :meth:`CrossValidation.interval` and
+    :func:`rmse_bound`.
+    """
+    sse = np.asarray(sse_fold, dtype=float)
+    ref = None if sse_ref is None else np.asarray(sse_ref, dtype=float)
+    n = np.asarray(n_fold, dtype=float)
+    k = len(n)
+    if k < 3:
+        return None
+
+    def figure(keep):
+        rmse = np.sqrt(np.sum(sse[keep], axis=0) / np.sum(n[keep]))
+        return rmse if ref is None else 1.0 - rmse / np.sqrt(
+            np.sum(ref[keep], axis=0) / np.sum(n[keep]))
+
+    full = figure(np.ones(k, bool))
+    loo = np.array([figure(np.arange(k) != j) for j in range(k)])
+    sigma = np.sqrt((k - 1) / k * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
+    return full, float(stdtrit(k - 1, 0.5 + level / 2.0)) * sigma
+
+
 def rmse_bound(sse_fold, n_fold, level=INTERVAL_LEVEL):
     """
     Upper end of the jackknife interval of a held-out RMSE over that RMSE (vectorised).
 
     ``sse_fold``: SSE per fold, (folds,) or (folds, records); ``n_fold``:
     samples per fold. The ratio high / RMSE of
-    :meth:`CrossValidation.interval`; 1 with fewer than 3 folds.
+    :meth:`CrossValidation.interval` (:func:`rmse_jackknife`); 1 with fewer than
+    3 folds.
     """
-    sse = np.asarray(sse_fold, dtype=float)
-    n = np.asarray(n_fold, dtype=float).reshape((-1,) + (1,) * (sse.ndim - 1))
-    k = sse.shape[0]
-    if k < 3:
+    spread = rmse_jackknife(sse_fold, n_fold, level=level)
+    if spread is None:
+        sse = np.asarray(sse_fold)
         return np.ones(sse.shape[1:]) if sse.ndim > 1 else 1.0
-    full = np.sqrt(np.sum(sse, axis=0) / np.sum(n))
-    loo = np.sqrt((np.sum(sse, axis=0) - sse) / (np.sum(n) - n))
-    sigma = np.sqrt((k - 1) / k * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
-    return 1.0 + float(stdtrit(k - 1, 0.5 + level / 2.0)) * sigma / full
+    full, half = spread
+    return 1.0 + half / full
 
 
 def fold_bound(sse_fold, n_fold, i):

@@ -25,13 +25,14 @@ from dataclasses import dataclass
 from gyro_emulator.analysis.diagnose.effects import Basis, cached, slow_temp
 import numpy as np
 from scipy.optimize import minimize, minimize_scalar
+from scipy.stats import chi2
 
 #: Rows kept at each end of a change-point search (share of the rows, and at least 3).
 STEP_MARGIN = 0.02
 #: Least ridge of a cause's column on the unit-scaled normal equations (:func:`solve_normal`).
 MIN_RIDGE = 1e-6
 #: chi^2 with 1 degree of freedom at 95 %: the profile limit of :func:`warm_up_resolved`.
-PROFILE_CHI2 = 3.841458820694124
+PROFILE_CHI2 = float(chi2.ppf(0.95, 1))
 
 
 @dataclass
