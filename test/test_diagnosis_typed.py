@@ -5,9 +5,10 @@ The typed diagnosis (issue 31 item 1): frozen values, one JSON.
 seeded truth records (first those of the untyped diagnosis; rewritten once
 when issue 33 gave every parameter an interval and added ``ruled_out`` and
 ``supported_in_sample``, and for ``sf_tempco`` when a shape in time was
-carried into an end fold only on evidence beyond the noise: the held-out
-figures of ``bias_time`` and ``scale_factor_time`` and the order the
-candidates rank in): :func:`to_json` must give them back byte for byte.
+carried into an end fold only on evidence beyond the noise, and again when
+that evidence was asked of two origins next to the end fold: the held-out
+figures of ``scale_factor_time`` and the order the candidates rank in):
+:func:`to_json` must give them back byte for byte.
 """
 
 from dataclasses import FrozenInstanceError

@@ -420,22 +420,29 @@ def _searched_fit(current_cols, candidate, w, sims, pen, tr, ho):
     return np.array([f[0] for f in fits])[pick, :, np.arange(sims.shape[1])].T
 
 
-def _carried_on(current_cols, fit, w, sims, pen0, near, tr, pred1, pred0, bound, within):
+def _carried_on(current_cols, fit, w, sims, pen0, origins, tr, pred1, pred0, bound, within):
     """
     Return an end fold's predictions: the candidate's where it is carried on, else the current's.
 
-    Each simulation as :meth:`.cv.CrossValidation.evaluate` decides: fitted
-    without the neighbouring groups ``near`` too, the candidate (``fit``)
-    must predict them better than the current model does by the
-    simulation's own ``bound`` (:func:`.cv.carries_on`); ``within`` is the
-    neighbour's within-group noise SSE, which the fits' per-sample SSEs hold.
+    Each simulation as :meth:`.cv.CrossValidation.evaluate` decides: at each
+    origin (``origins``, group masks nearest first, :func:`.cv.end_folds`),
+    fitted without it and the origins before it too, the candidate
+    (``fit``) and the current model predict it; on the nearest origin and
+    on all together the candidate must be better by the simulation's own
+    ``bound`` (:func:`.cv.carries_on`). ``within`` is the groups'
+    within-group noise SSE, which the fits' per-sample SSEs hold.
     """
-    inner = tr & ~near
-    pc = fit(inner, near)
-    p0, _ = _held_out(current_cols[inner], w[inner], sims[inner], current_cols[near], pen0)
-    sse_c = np.sum(w[near, None] * (sims[near] - pc) ** 2, axis=0) + within
-    sse_0 = np.sum(w[near, None] * (sims[near] - p0) ** 2, axis=0) + within
-    return np.where(cvmod.carries_on(sse_c, sse_0, bound)[None, :], pred1, pred0)
+    sse_c, sse_0 = [], []
+    inner = tr.copy()
+    for origin in origins:
+        inner &= ~origin
+        pc = fit(inner, origin)
+        p0, _ = _held_out(current_cols[inner], w[inner], sims[inner], current_cols[origin], pen0)
+        extra = float(np.sum(within[origin]))
+        sse_c.append(np.sum(w[origin, None] * (sims[origin] - pc) ** 2, axis=0) + extra)
+        sse_0.append(np.sum(w[origin, None] * (sims[origin] - p0) ** 2, axis=0) + extra)
+    return np.where(cvmod.carries_on(np.array(sse_c), np.array(sse_0), bound)[None, :],
+                    pred1, pred0)
 
 
 def null_gain(current_cols, candidate, superbins, sims, penalty=None, white_sigma=0.0):
@@ -452,7 +459,7 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None, white_sigm
         simulation, the value with the least training SSE), or a
         :class:`Searched` (searched per fold as its fits are, and for a
         shape in time carried into the end folds only where it predicts
-        their neighbour, :func:`_carried_on`), or
+        the folds next to them, :func:`_carried_on`), or
         ``('step', g, start_s)``: a step multiplying ``g`` that may start
         at any group start (located on all groups of each simulation with
         :func:`.models.step_search`, then its size refitted per fold, as
@@ -510,10 +517,10 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None, white_sigm
             fit = functools.partial(_searched_fit, current_cols, candidate, w, sims, pen)
             pred1 = fit(tr, ho)
             if k in kept:
-                near = superbins.fold == kept[k]
+                origins = [superbins.fold == j for j in kept[k]]
                 bound = cvmod.fold_bound(sse_current + within_fold[:, None], n_fold, i)
-                pred1 = _carried_on(current_cols, fit, w, sims, pen0, near, tr, pred1, pred0,
-                                    bound, float(np.sum(within[near])))
+                pred1 = _carried_on(current_cols, fit, w, sims, pen0, origins, tr, pred1, pred0,
+                                    bound, within)
         sse1 = np.sum(w[ho, None] * (sims[ho] - pred1) ** 2, axis=0)
         out.append(sse0 - sse1)
     return np.asarray(out)
