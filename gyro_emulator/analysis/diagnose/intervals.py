@@ -271,26 +271,14 @@ def wander_sigmas(evaluated, ctx, frame, wander, law=None):
     M^-1, H the rows of W X summed over each super-bin: the sandwich of a
     linear estimator (Newey & West 1987; here with the covariance taken
     from the fitted noise model, not from the residuals' own lags, which a
-    few blocks of a slow walk cannot give). ``law``: the model's noise law
-    when already fitted (:meth:`Wander.law`).
+    few blocks of a slow walk cannot give): :func:`_linear_variance` of the
+    weights M^-1 X' W (:func:`_cause_weights`). ``law``: the model's noise
+    law when already fitted (:meth:`Wander.law`).
     """
     model, full = evaluated.model, evaluated.full
-    n = len(frame)
-    cols = model.columns(ctx, frame, full.phis)
-    x = np.column_stack([np.broadcast_to(c, (n,)) for c in cols])
-    w = frame.weight
-    start = 2 + sum(e.n_columns for e in model.effects[:-1])
-    rows = models.coefficient_map(x, w, model.penalty(ctx))[start:]
-    xw = x * w[:, None]
+    u, _ = _cause_weights(model, ctx, frame, full.phis)
     noise = wander.law(model, ctx, frame, full.phis) if law is None else law
-    sb = wander.superbins
-    white = noise.arw_rad_s_sqrt_hz ** 2 / sb.dt_s
-    grouped = np.stack([np.bincount(sb.group, weights=xw[:, j], minlength=len(sb))
-                        for j in range(x.shape[1])])
-    h = rows @ grouped
-    a = rows @ (xw.T @ x)
-    var = white * np.einsum('ij,ij->i', a, rows) + np.einsum(
-        'ij,ij->i', h @ noise_model.wander_covariance(noise, sb), h)
+    var = _linear_variance(u, frame.weight, noise, wander.superbins)
     return np.sqrt(np.maximum(var, 0.0)) * _report_factors(model.effects[-1], full)
 
 
