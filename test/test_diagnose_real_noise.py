@@ -353,3 +353,34 @@ def test_the_cli_takes_a_reference_record_and_says_so(tmp_path):
     doc = json.loads(out.read_text())
     assert doc['reference']['source'].endswith('ref.csv')
     assert 'time_delay' in _named(doc)
+
+
+def test_a_cause_whose_size_is_not_established_states_its_joint_p():
+    """
+    Chosen on the joint size rule, its interval holding zero: the report says so, with p.
+
+    A bias tempco of 1e-4 deg/s/K through two 15 <-> 55 C cycles in the
+    MPU-6050 x noise: dT and dT^2 together stand clear of zero over the
+    folds, neither does alone, so ``bias_temperature`` is chosen and the
+    verdict stays ``partly_explained`` (issue 33).
+    """
+    from gyro_emulator.emulation.profiles import SampledProfile
+    t, y, _ = _log('mpu', 'x')
+    n = len(t)
+    prof = SampledProfile('cycles', t, np.zeros((n, 3)), inj.temperature_cycles(t, phase=0.0),
+                          np.tile([0.0, 0.0, 9.80665], (n, 1)))
+    diagnosis = diagnose(inj.inject(y, prof, {'bias_tempco': 1e-4 * DEG}))
+    doc = to_json(diagnosis)
+    entry = doc['selected'][0]
+    assert entry['effect'] == 'bias_temperature' and not entry['interval_excludes_zero']
+    assert doc['verdict'] == 'partly_explained'
+    assert any(v['interval'][0] < 0.0 < v['interval'][1] for v in entry['parameters'].values())
+    # below the size rule's joint level, 2 P(t_7 > 2) = 0.086 on 8 folds
+    assert 0.0 < entry['joint_p_value'] < 0.086
+    assert diagnosis.selected[0].joint_p_value == entry['joint_p_value']
+    assert (f"(its coefficients together: p = {entry['joint_p_value']:.2g} over the folds"
+            in doc['residual']['message'])
+    # a cause whose interval excludes zero does not carry the figure
+    strong = to_json(diagnose(inj.inject(y, prof, {'bias_tempco': 1e-3 * DEG})))
+    assert strong['selected'][0]['interval_excludes_zero']
+    assert 'joint_p_value' not in strong['selected'][0]

@@ -109,6 +109,10 @@ class Cause:
     part_sf_temp_coeff_per_k: OwnTempco = field(default=None, metadata=_OMIT_NONE)
     #: Whether the cause's 95 % interval excludes zero (``explained`` needs it).
     interval_excludes_zero: bool = None
+    #: Where that interval includes zero and the cause has two or more measured
+    #: coefficients: the p-value that they are zero together, Hotelling's T^2
+    #: over the folds (the size rule's joint test; omitted otherwise).
+    joint_p_value: float = field(default=None, metadata=_OMIT_NONE)
 
 
 @dataclass(frozen=True)

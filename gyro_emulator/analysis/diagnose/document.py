@@ -138,6 +138,7 @@ def _cause(cand, current, rmse_base, cv, sse_base, twins, phys):
     # that holds zero
     clear = intervals.interval_clear_of_zero(eff, found, cv.ctx, current.full.sse,
                                              ev.full.sse, cand.n_eff)
+    joint = None if clear else intervals.size_joint_p(eff, found, ev)
     own = None
     mechanisms = list(eff.mechanisms)
     if phys is not None and eff.effect_id == 'scale_factor_temperature':
@@ -153,7 +154,8 @@ def _cause(cand, current, rmse_base, cv, sse_base, twins, phys):
                  rmse_interval_rad_s=_interval(cv, ev.sse_fold),
                  gain_interval=_interval(cv, ev.sse_fold, sse_base),
                  mechanisms=tuple(mechanisms), competitors=tuple(eff.competitors),
-                 part_sf_temp_coeff_per_k=own, interval_excludes_zero=bool(clear))
+                 part_sf_temp_coeff_per_k=own, interval_excludes_zero=bool(clear),
+                 joint_p_value=joint)
 
 
 def _finding(cand, rmse_base, rmse_null, cv):
@@ -260,7 +262,12 @@ def _message(result, selected, res, coverage, pair, hint, steps, alpha, extra):
     for e in selected:
         if not e.interval_excludes_zero:
             text += (f" {e.effect}'s 95 % interval includes zero: it gains on held-out data "
-                     'but its size is not established.')
+                     'but its size is not established')
+            if e.joint_p_value is not None:
+                text += (f' (its coefficients together: p = {e.joint_p_value:.2g} over the '
+                         "folds, Hotelling's T^2)")
+            text += '.'
+
     if pair is not None:
         text += (f" The record cannot separate the two: {pair['text']}. To tell "
                  f"them apart, {pair['experiment']}.")

@@ -559,16 +559,34 @@ def clear_of_zero(effect, found, ctx, current_sse, sse, n_eff, z, evaluated=None
     two-sided normal level of ``z``).
     """
     if effect.n_columns > 0:
-        measured = [name for name, e in found.items()
-                    if e.interval is not None and e.method != 'profile likelihood']
-        if any(abs(found[name].value) > z * found[name].sigma for name in measured):
+        if any(abs(found[name].value) > z * found[name].sigma
+               for name in _measured_names(found)):
             return True
-        if evaluated is None or len(measured) < 2:
-            return False
-        kf = len(evaluated.fits)
-        return joint_p(effect, evaluated, measured) < 2.0 * float(t_dist.sf(z, kf - 1))
+        joint = size_joint_p(effect, found, evaluated)
+        return joint is not None and joint < 2.0 * float(t_dist.sf(z, len(evaluated.fits) - 1))
     level = float(chi2.cdf(z * z, 1))          # z = 2: 0.9545
     return _null_excluded(effect, ctx, current_sse, sse, n_eff, level)
+
+
+def _measured_names(found):
+    """Return the names of the coefficients measured with an interval (not by a profile)."""
+    return [name for name, e in found.items()
+            if e.interval is not None and e.method != 'profile likelihood']
+
+
+def size_joint_p(effect, found, evaluated):
+    """
+    Return :func:`joint_p` of a cause's measured coefficients together, or None.
+
+    None without ``evaluated`` fits or with fewer than two measured
+    coefficients (``found``'s :class:`Estimate` s): the joint half of the
+    size rule of :func:`clear_of_zero`, and the figure a report states
+    beside an interval that includes zero.
+    """
+    measured = _measured_names(found)
+    if evaluated is None or len(measured) < 2:
+        return None
+    return joint_p(effect, evaluated, measured)
 
 
 def interval_clear_of_zero(effect, found, ctx, current_sse, sse, n_eff):
