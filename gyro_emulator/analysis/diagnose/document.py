@@ -267,7 +267,6 @@ def _message(result, selected, res, coverage, pair, hint, steps, alpha, extra):
                 text += (f' (its coefficients together: p = {e.joint_p_value:.2g} over the '
                          "folds, Hotelling's T^2)")
             text += '.'
-
     if pair is not None:
         text += (f" The record cannot separate the two: {pair['text']}. To tell "
                  f"them apart, {pair['experiment']}.")
