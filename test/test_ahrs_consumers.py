@@ -3,8 +3,8 @@ The IMU a navigation stack reads: attitude filters (the ``ahrs`` package) on the
 
 Real node processes on sim time: a probe drives ``/clock`` step by step and
 the rate commands of a scenario, and records ``imu/data_raw`` and
-``~/truth/*`` from the node's first message (reliable, matched before the
-clock starts). The bounds are derived in :mod:`attitude_reference`; an
+``~/truth/*`` from T0 on (reliable; clock steps before T0 first prove that
+every writer has matched the probe's readers, :meth:`SimRun.preroll`). The bounds are derived in :mod:`attitude_reference`; an
 offline test checks that the heading bound is calibrated (its false-alarm
 rate over many seeds), so the one seeded node run is not a lucky seed.
 """
@@ -32,6 +32,8 @@ DEEP = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=20000,
                   reliability=ReliabilityPolicy.RELIABLE)
 #: Samples per /clock step.
 STEP_SAMPLES = 5
+#: At most this many /clock steps before T0 for every node's writers to match.
+PREROLL_STEPS = 400
 
 
 # --- the bounds are calibrated (offline, many seeds) -----------------------------------
@@ -99,6 +101,39 @@ class SimRun:
             set_stamp(msg.header, t_ns)
             pub.publish(msg)
 
+    def tick(self, t_ns):
+        msg = Clock()
+        msg.clock.sec, msg.clock.nanosec = t_ns // NS, t_ns % NS
+        self.clock_pub.publish(msg)
+
+    def preroll(self, period_ns):
+        """
+        Step the clock before T0 until every node's output, truth and bias have arrived.
+
+        A reliable writer drops what it publishes before it has matched a
+        reader, and the probe sees a match from its own side only: once, under
+        load, a node's first truth was lost and the clock at T0 waited for it
+        in vain. Whole periods before T0, so T0 stays on each node's grid;
+        :meth:`drop_before` removes these samples afterwards.
+        """
+        topics = (self.imu, self.truth, self.bias)
+        for m in range(PREROLL_STEPS, 0, -1):
+            self.tick(T0_NS - m * period_ns)
+            try:
+                self.probe.spin_until(lambda: all(store[ns] for store in topics
+                                                  for ns in self.imu), 0.05, 'every topic')
+                return
+            except AssertionError:
+                continue
+        raise AssertionError('no node delivered all its topics before T0: ' + ', '.join(
+            f'{ns}: {[len(store[ns]) for store in topics]}' for ns in self.imu))
+
+    def drop_before(self, t_ns):
+        """Forget every message stamped before ``t_ns`` (the pre-roll's)."""
+        for store in (self.imu, self.truth, self.bias):
+            for ns, got in store.items():
+                store[ns] = [m for m in got if stamp_ns(m.header) >= t_ns]
+
     def clock(self, t_ns, period_ns):
         """
         Step the clock to t_ns; wait until every node's sample at t_ns arrived.
@@ -106,10 +141,8 @@ class SimRun:
         A part with a clock drift samples off the nominal grid: its last sample
         instant (``~/truth/imu``, no latency) within one period before t_ns counts.
         """
-        msg = Clock()
-        msg.clock.sec, msg.clock.nanosec = t_ns // NS, t_ns % NS
         for _ in range(20):
-            self.clock_pub.publish(msg)     # again if lost: same time, no extra sample
+            self.tick(t_ns)                 # again if lost: same time, no extra sample
             try:
                 self.probe.spin_until(lambda: all(
                     got and stamp_ns(got[-1].header) > t_ns - period_ns
@@ -123,8 +156,14 @@ class SimRun:
             f'{len(self.truth[ns])} truths' for ns, got in self.imu.items()))
 
     def play(self, rates, rate_hz):
-        """Command ``rates`` (N, 3) sample by sample from T0 (a command where it changes)."""
+        """
+        Command ``rates`` (N, 3) sample by sample from T0 (a command where it changes).
+
+        After the pre-roll (:meth:`preroll`); what was recorded before T0
+        (half a period's margin for a part whose clock drifts) is dropped.
+        """
         period_ns = int(round(NS / rate_hz))
+        self.preroll(period_ns)
         last = None
         for k in range(len(rates)):
             if last is None or not np.array_equal(rates[k], last):
@@ -132,6 +171,7 @@ class SimRun:
                 last = rates[k]
             if k % STEP_SAMPLES == 0 or k == len(rates) - 1:
                 self.clock(T0_NS + k * period_ns, period_ns)
+        self.drop_before(T0_NS - period_ns // 2)
 
     def close(self):
         self.probe.close()
@@ -231,8 +271,8 @@ def test_covariances_match_a_static_run_and_gravity_turns_from_z_to_y(tmp_path):
     for ns in ('paper', 'consumer'):
         _, gyro, accel = arrays(run.imu[ns])
         assert len(gyro) >= len(rates) - 1    # a clock drift (1000 ppm: consumer): +- a few
-        # From the node's first message (its sample at T0, recorded: matched before the
-        # clock started) the accelerometer is present and never a zero vector.
+        # From the node's sample at T0 (every writer matched in the pre-roll) the
+        # accelerometer is present and never a zero vector.
         assert stamp_ns(run.truth[ns][0].header) <= T0_NS + int(NS / rate_hz), ns
         assert all(m.linear_acceleration_covariance[0] > 0.0 for m in run.imu[ns]), ns
         assert np.all(np.linalg.norm(accel, axis=1) > 0.5 * G), ns
