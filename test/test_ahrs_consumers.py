@@ -4,9 +4,10 @@ The IMU a navigation stack reads: attitude filters (the ``ahrs`` package) on the
 Real node processes on sim time: a probe drives ``/clock`` step by step and
 the rate commands of a scenario, and records ``imu/data_raw`` and
 ``~/truth/*`` from T0 on (reliable; clock steps before T0 first prove that
-every writer has matched the probe's readers, :meth:`SimRun.preroll`). The bounds are derived in :mod:`attitude_reference`; an
-offline test checks that the heading bound is calibrated (its false-alarm
-rate over many seeds), so the one seeded node run is not a lucky seed.
+every writer has matched the probe's readers, :meth:`SimRun.preroll`).
+The bounds are derived in :mod:`attitude_reference`; an offline test
+checks that the heading bound is calibrated (its false-alarm rate over
+many seeds), so the one seeded node run is not a lucky seed.
 """
 
 import math
