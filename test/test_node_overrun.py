@@ -59,6 +59,12 @@ def consecutive(stamps, period_ns):
     return np.round(np.diff(np.asarray(stamps, dtype=np.int64)) / period_ns).astype(int)
 
 
+def lost_in(messages, period_ns):
+    """Return how many samples are missing between the first and last received."""
+    gaps = consecutive([stamp_ns(m.header) for m in messages], period_ns)
+    return int(np.sum(gaps - 1))
+
+
 @pytest.mark.parametrize('step_ms', [10, 20])
 def test_a_coarse_clock_gets_every_sample_stamped_with_its_own_time(tmp_path, step_ms):
     """use_sim_time, /clock every 10 or 20 ms at 200 Hz: ~all samples out (was 1/2, 1/4)."""
@@ -139,6 +145,7 @@ def test_under_a_cpu_hog_fifo_loses_nothing_and_drop_counts_what_it_loses(tmp_pa
         '-p', 'max_burst_samples:=16', '-p', 'publish_truth:=false'))
     probe = Probe(env)
     hogs = []
+    period_ns = 2_000_000
     try:
         out, sub = listen_matched(probe, Imu, 'imu/data_raw')
         diags = probe.listen(DiagnosticArray, '/diagnostics', 200)
@@ -152,8 +159,13 @@ def test_under_a_cpu_hog_fifo_loses_nothing_and_drop_counts_what_it_loses(tmp_pa
         after_ns = time.time_ns() + NS // 2
         probe.spin_until(lambda: out and stamp_ns(out[-1].header) > after_ns, 60.0,
                          'the samples after the hog')
+        # A report is made every 0.2 s: the one that counts the last loss comes
+        # after it. Wait for a report that counts at least the gaps seen so far
+        # (it can count more: a sample dropped after the last one received).
         diags.clear()
-        probe.spin_until(lambda: diags, 10.0, 'a report after the hog')
+        probe.spin_until(lambda: diags and int(last_diag(diags)[1]['samples_dropped'])
+                         >= lost_in(out, period_ns), 10.0,
+                         'a report that counts every sample lost so far')
     finally:
         for h in hogs:
             h.kill()
@@ -162,13 +174,11 @@ def test_under_a_cpu_hog_fifo_loses_nothing_and_drop_counts_what_it_loses(tmp_pa
         code = node.stop()
     log = node.log()
     assert code == 0 and 'Traceback' not in log
-    period_ns = 2_000_000
     stamps = [stamp_ns(m.header) for m in out]
-    gaps = consecutive(stamps, period_ns)
     values = last_diag(diags)[1]
     assert np.all(np.diff(stamps) > 0)
     assert int(values['overruns']) > 0, 'the hog made no tick late: nothing was tested'
-    lost = int(np.sum(gaps - 1))
+    lost = lost_in(out, period_ns)
     if policy == 'fifo':
         assert lost == 0 and values['samples_dropped'] == '0'
         assert float(values['emitted_ratio']) == 1.0
