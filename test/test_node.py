@@ -19,6 +19,7 @@ from conftest import ros_env
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped
 from gyro_emulator.emulation import profiles
+from gyro_emulator.emulation.driver import parameters
 from gyro_emulator.emulation.driver.attitude import AttitudeState
 from gyro_emulator.physics import first_order
 from gyro_emulator.physics.kinematics import LEVEL_WXYZ
@@ -722,6 +723,12 @@ def test_help_prints_parameters_and_topics_without_starting_ros():
                  '~/truth/fault', '/diagnostics', 'cmd/temperature'):
         assert name in text, name
     assert '``' not in text and 'gyro emulator up' not in text
+    # The sensor fields said to be settable at run time are the declared sensor.* parameters.
+    listed = ' '.join(text.split('settable at run time:')[1].split('sensor.terms.')[0].split())
+    declared = {name.split('.', 1)[1] for name in
+                parameters.sensor_param_values(sensor_config.load_sensor_config('paper'))
+                if not name.startswith(parameters.TERMS_PREFIX)}
+    assert set(listed.replace(',', ' ').split()) == declared, listed
 
 
 @pytest.mark.parametrize('args,message', [
@@ -731,7 +738,16 @@ def test_help_prints_parameters_and_topics_without_starting_ros():
     (['-p', 'sensor.range_rad_s:=[1.0, 2.0]'], 'SensorConfig.range_rad_s'),
     (['-p', 'sensor_config:={bad_extended}'],
      'BiasHysteresis.hysteresis_width_k = -2.0 is out of range'),
-], ids=['range', 'choice', 'sensor_config', 'sensor_field', 'extended_term'])
+    (['-p', 'qos_overrides./imu/data_raw.publisher.reliability:=bogus'],
+     "qos_overrides./imu/data_raw.publisher.reliability = 'bogus' is not allowed: choose one "
+     'of system_default, reliable, best_effort, best_available'),
+    (['-p', 'qos_overrides./cmd/angular_velocity.subscription.history:=unknown'],
+     "qos_overrides./cmd/angular_velocity.subscription.history = 'unknown' is not allowed"),
+    (['-p', 'qos_overrides./imu/data_raw.publisher.depth:=-1'],
+     'qos_overrides./imu/data_raw.publisher.depth = -1 is out of range: allowed '
+     '[0, 2147483647]'),
+], ids=['range', 'choice', 'sensor_config', 'sensor_field', 'extended_term',
+        'qos_policy_name', 'qos_subscription_history', 'qos_depth'])
 def test_bad_configuration_exits_with_a_clear_message(tmp_path, args, message):
     sensor_yaml = write_sensor_yaml(str(tmp_path))
     bad = tmp_path / 'bad_extended.yaml'
@@ -744,6 +760,27 @@ def test_bad_configuration_exits_with_a_clear_message(tmp_path, args, message):
     assert proc.returncode == 2
     assert message in proc.stderr and 'Traceback' not in proc.stderr
     assert proc.stderr.strip().count('\n') == 0, proc.stderr
+
+
+def test_a_qos_override_the_node_does_not_take_is_said_on_its_log(tmp_path):
+    """A durability override (not overridable) and a topic typo: warned, and the node runs."""
+    names = ('qos_overrides./imu/data_raw.publisher.durability',
+             'qos_overrides./imu/data.publisher.reliability')
+    node = NodeProcess(ros_env(), str(tmp_path / 'node.log'),
+                       '-p', f'{names[0]}:=transient_local', '-p', f'{names[1]}:=reliable',
+                       '-p', 'qos_overrides./imu/data_raw.publisher.depth:=7')
+    try:
+        deadline = time.monotonic() + 60.0
+        while 'gyro emulator up' not in node.log() and node.proc.poll() is None:
+            assert time.monotonic() < deadline, node.log()
+            time.sleep(0.05)                # polling the log file
+        text = node.log()
+        assert node.proc.poll() is None, text
+        for name in names:
+            assert f"parameter '{name}' is unknown and ignored" in text, text
+        assert 'depth' not in text, text
+    finally:
+        assert node.stop() == 0
 
 
 @pytest.mark.parametrize('sig,preset', [(signal.SIGINT, 'consumer'),

@@ -111,6 +111,7 @@ class GyroEmulatorNode(Node):
                               follow_timer=not self.get_parameter('use_sim_time').value,
                               log=self.get_logger(), commands=self._intake)
         self._pending = None
+        params.check_qos_overrides(self)
         self._out = OutputStage(self, self.frame_id, values['qos_reliability'])
         self._name = self.get_fully_qualified_name()
         self._hardware_id = f'gyro_emulator/{values["sensor_config"]}'

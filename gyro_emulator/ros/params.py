@@ -21,9 +21,18 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
                                 ParameterType)
 from rclpy.parameter import (Parameter, parameter_dict_from_yaml_file,
                              parameter_value_to_python)
+from rclpy.qos import HistoryPolicy, ReliabilityPolicy
 
 NODE_NAME = topics.NODE_NAME
 DEFAULTS_FILE = 'gyro_emulator.yaml'
+#: Prefix of the QoS parameters (``QoSOverridingOptions``) of the node's topics.
+QOS_PREFIX = 'qos_overrides.'
+#: Largest history depth the middleware takes (a DDS 32-bit signed length).
+MAX_QOS_DEPTH = 2 ** 31 - 1
+#: The overridable QoS policies that are names, with the names rclpy takes.
+QOS_POLICY_NAMES = {
+    policy: tuple(m.name.lower() for m in enum if m.name != 'UNKNOWN')
+    for policy, enum in (('history', HistoryPolicy), ('reliability', ReliabilityPolicy))}
 
 
 def descriptor(spec):
@@ -117,7 +126,7 @@ def node_defaults(path=None):
     if missing:
         raise ValueError(f'{path}: missing parameter(s) {", ".join(missing)}')
     unknown = sorted(name for name in raw if name not in NODE_SPECS and not name.startswith(
-        (SENSOR_PREFIX, 'qos_overrides.')) and name != 'use_sim_time')
+        (SENSOR_PREFIX, QOS_PREFIX)) and name != 'use_sim_time')
     if unknown:
         raise ValueError(f'{path}: unknown parameter(s) {", ".join(unknown)}; allowed: '
                          f'{", ".join(NODE_SPECS)}, sensor.*')
@@ -188,8 +197,40 @@ def declare_sensor_parameters(node, base):
             for name, default in sensor_param_values(base).items()}
 
 
-def unknown_overrides(node):
-    """Return the names of parameter overrides that ``node`` does not declare, sorted."""
+def check_qos_overrides(node):
+    """
+    Refuse a ``qos_overrides.*`` value that rclpy or the middleware cannot take.
+
+    Call before the node creates its publishers and subscriptions: rclpy
+    turns a policy name it does not know into a RuntimeError and rcl a depth
+    beyond the middleware's into an RCLError without the parameter's name.
+    Raises ValueError naming the parameter, the value and what is allowed
+    (``depth`` [0, 2^31 - 1]; ``history`` and ``reliability`` one of rclpy's
+    policy names, in any case). A value of the wrong type is left to rclpy,
+    which names the parameter and both types.
+    """
     overrides = getattr(node, '_parameter_overrides', None) or {}
-    return [name for name in sorted(overrides)
-            if not node.has_parameter(name) and not name.startswith('qos_overrides.')]
+    for name in sorted(overrides):
+        if not name.startswith(QOS_PREFIX):
+            continue
+        policy, value = name.rsplit('.', 1)[-1], overrides[name].value
+        if policy == 'depth' and isinstance(value, int) and not isinstance(value, bool) \
+                and not 0 <= value <= MAX_QOS_DEPTH:
+            raise ValueError(f'{name} = {value!r} is out of range: allowed '
+                             f'[0, {MAX_QOS_DEPTH}]')
+        allowed = QOS_POLICY_NAMES.get(policy)
+        if allowed and isinstance(value, str) and value.lower() not in allowed:
+            raise ValueError(f'{name} = {value!r} is not allowed: choose one of '
+                             f'{", ".join(allowed)}')
+
+
+def unknown_overrides(node):
+    """
+    Return the names of parameter overrides that ``node`` does not declare, sorted.
+
+    Once the node's publishers and subscriptions exist, a ``qos_overrides.*``
+    name it did not declare is unknown too: a policy its topics do not let
+    change (durability) or a topic it does not have.
+    """
+    overrides = getattr(node, '_parameter_overrides', None) or {}
+    return [name for name in sorted(overrides) if not node.has_parameter(name)]
