@@ -746,8 +746,9 @@ def test_help_prints_parameters_and_topics_without_starting_ros():
     (['-p', 'qos_overrides./imu/data_raw.publisher.depth:=-1'],
      'qos_overrides./imu/data_raw.publisher.depth = -1 is out of range: allowed '
      '[0, 2147483647]'),
+    (['-p', "frame_id:=''"], "frame_id = '' is not allowed: a tf2 frame name"),
 ], ids=['range', 'choice', 'sensor_config', 'sensor_field', 'extended_term',
-        'qos_policy_name', 'qos_subscription_history', 'qos_depth'])
+        'qos_policy_name', 'qos_subscription_history', 'qos_depth', 'empty_frame_id'])
 def test_bad_configuration_exits_with_a_clear_message(tmp_path, args, message):
     sensor_yaml = write_sensor_yaml(str(tmp_path))
     bad = tmp_path / 'bad_extended.yaml'

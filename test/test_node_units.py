@@ -333,10 +333,17 @@ def test_defaults_file_errors_name_the_problem(tmp_path):
     ('stale_rate_policy', 'freeze', 'choose one of zero, hold'),
     ('seed', 1.5, 'not an integer'),
     ('noise_enabled', 1, 'choose true or false'),
+    ('frame_id', '', r"frame_id = '' is not allowed: a tf2 frame name \(not empty"),
+    ('frame_id', '/imu_link', "frame_id = '/imu_link' is not allowed: a tf2 frame name"),
 ])
 def test_check_value_names_parameter_value_and_range(name, value, match):
     with pytest.raises(ValueError, match=match):
         parameters.check_value(parameters.NODE_SPECS[name], value)
+
+
+@pytest.mark.parametrize('frame', ['imu_link', 'base/imu', 'gyro_1_imu_link'])
+def test_a_tf2_frame_name_is_taken_as_it_is(frame):
+    assert parameters.check_value(parameters.NODE_SPECS['frame_id'], frame) == frame
 
 
 def test_descriptors_carry_ranges_and_read_only():

@@ -85,6 +85,9 @@ class ParamSpec:
         Allowed values of a string parameter (empty: any).
     low_open : bool
         ``low`` itself is refused: the range is (low, high].
+    frame : bool
+        A tf2 frame name: not empty and not starting with ``/`` (tf2 refuses
+        both in a transform lookup, so a consumer could not place the data).
 
     """
 
@@ -96,6 +99,7 @@ class ParamSpec:
     high: float = None
     choices: tuple = ()
     low_open: bool = False
+    frame: bool = False
 
 
 NODE_PARAMS = (
@@ -103,7 +107,7 @@ NODE_PARAMS = (
               'with input_source imu, the rate until the input stamps give one)',
               True, 1.0, MAX_RATE_HZ),
     ParamSpec('frame_id', 'string', 'header.frame_id of imu/data_raw (REP 145: the '
-              'sensor frame)', True),
+              'sensor frame; a tf2 frame name)', True, frame=True),
     ParamSpec('seed', 'integer', 'Seed of the numpy random generator of every noise '
               'term: same seed + same inputs = same output; -1 = derived from the '
               'fully qualified node name (a SeedSequence of it: independent per instance, '
@@ -270,6 +274,9 @@ def check_value(spec, value):
         if spec.choices and value not in spec.choices:
             raise ValueError(f'{spec.name} = {value!r} is not allowed: choose one of '
                              f'{", ".join(spec.choices)}')
+        if spec.frame and (not value or value.startswith('/')):
+            raise ValueError(f'{spec.name} = {value!r} is not allowed: a tf2 frame name '
+                             "(not empty, not starting with '/')")
         return value
     if kind == 'double_array':
         return _check_triple(spec, value)
