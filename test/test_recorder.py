@@ -106,6 +106,26 @@ def _check_with_rosbags(path, reader):
                                   .field('angular_velocity.x'))
 
 
+@pytest.mark.parametrize('args,message', [
+    (['-e', '('], "--regex = '(' is not a regular expression"),
+    (['--topics', 'bad name!'], "--topics = 'bad name!' is not a ROS topic name: topic name "
+     'must not contain characters other than'),
+    (['--topics', '/a//b'], "--topics = '/a//b' is not a ROS topic name: topic name must "
+     "not contain repeated '/'"),
+    (['-x', 'bad name!'], "--exclude = 'bad name!' is not a ROS topic name"),
+], ids=['regex', 'topic', 'topic_slashes', 'exclude'])
+def test_a_bad_topic_or_pattern_is_one_line_and_leaves_no_bag(tmp_path, args, message):
+    path = tmp_path / 'rec'
+    out = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.recorder', '-o', str(path),
+                          *args], env=ros_env(), cwd=ROOT, capture_output=True, text=True,
+                         timeout=60)
+    assert out.returncode == 2, out.stderr
+    assert out.stderr.startswith('recorder: error: '), out.stderr
+    assert message in out.stderr and 'Traceback' not in out.stderr, out.stderr
+    assert out.stderr.strip().count('\n') == 0, out.stderr
+    assert not path.exists()
+
+
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
 def test_signal_leaves_a_complete_bag(tmp_path, sig):
     env = ros_env()

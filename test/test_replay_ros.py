@@ -121,9 +121,44 @@ def test_replay_loops_until_interrupted(tmp_path):
 
 
 def test_replay_bad_input_is_a_clean_message(tmp_path):
+    source = str(tmp_path / 'source')
+    _make_bag(source, 5, 10_000_000)
     for args, text in ((['missing_bag'], 'no bag at'),
-                       ([str(tmp_path), '--rate', '0'], 'out of range')):
+                       ([str(tmp_path), '--rate', '0'], 'out of range'),
+                       ([source, '--remap', '/imu/data_raw:=bad name!'],
+                        "--remap /imu/data_raw:=bad name!: 'bad name!' is not a ROS topic "
+                        'name: topic name must not contain characters other than'),
+                       ([source, '--remap', '/imu/data_raw:=/a//b'],
+                        "'/a//b' is not a ROS topic name: topic name must not contain "
+                        "repeated '/'"),
+                       ([source, '--remap', 'imu/data_raw:=/x'],
+                        'topic imu/data_raw is not in bag')):
         out = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.replay', *args],
                              env=ros_env(), cwd=str(tmp_path), capture_output=True, text=True)
         assert out.returncode == 2 and text in out.stderr
         assert 'Traceback' not in out.stderr
+
+
+def test_replay_remap_publishes_a_topic_under_its_new_name(tmp_path):
+    """``--remap FROM:=TO`` (docs/recording.md): rclpy must not take it as a ROS remap rule."""
+    env = ros_env()
+    source, target = str(tmp_path / 'source'), str(tmp_path / 'target')
+    _make_bag(source, 50, 10_000_000)
+    recorder = _start(['gyro_emulator.ros.recorder', '-o', target, '--topics',
+                       '/imu/remapped', '/imu/data_raw'], env, stdout=subprocess.DEVNULL,
+                      stderr=subprocess.DEVNULL)
+    replay = _start(['gyro_emulator.ros.replay', source, '--remap', '/imu/data_raw:=/imu/remapped',
+                     '--rate', '5', '--wait-for-subscribers', '60'], env,
+                    stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = replay.communicate(timeout=120)
+        assert replay.returncode == 0, err
+        assert 'published 50 messages' in out and 'deprecated' not in err, (out, err)
+        _wait(lambda: _recorded_count(target, '/imu/remapped') >= 50, [recorder])
+    finally:
+        _stop(replay)
+        assert _stop(recorder) == 0
+    reader = bag.BagReader(target)
+    assert '/imu/data_raw' not in reader.topics
+    counter = reader.read_arrays('/imu/remapped').field('angular_velocity.x')
+    np.testing.assert_array_equal(counter, np.arange(50))

@@ -11,7 +11,6 @@ rclpy down (:class:`Run`).
 import sys
 
 from gyro_emulator.ros.spinning import close, ERROR_STATUS
-import rclpy
 from rclpy.executors import ExternalShutdownException
 
 
@@ -35,7 +34,36 @@ def parse_arguments(parser, program, args=None):
 
     """
     argv = list(sys.argv) if args is None else [program] + list(args)
-    return argv, parser.parse_args(rclpy.utilities.remove_ros_args(argv)[1:])
+    own, ros = split_ros_args(argv[1:])
+    # The program's own options first: an option value may hold ":=" (replay's
+    # --remap FROM:=TO), which rclpy.utilities.remove_ros_args would take away
+    # as a remap rule in the deprecated syntax. Only what the options leave of
+    # that syntax goes on to rcl, as before.
+    opts, rest = parser.parse_known_args(own)
+    legacy = [a for a in rest if ':=' in a and not a.startswith('-')]
+    unknown = [a for a in rest if a not in legacy]
+    if unknown:
+        parser.error(f'unrecognized arguments: {" ".join(unknown)}')
+    return [argv[0]] + ros + legacy, opts
+
+
+def split_ros_args(items):
+    """
+    Split arguments into the program's own and the ROS ones (``--ros-args`` blocks).
+
+    A block runs from ``--ros-args`` to the next ``--`` (which ends it and
+    is dropped) or to the end, as rcl reads it.
+    """
+    own, ros, inside = [], [], False
+    for item in items:
+        if item == '--ros-args':
+            inside = True
+            ros.append(item)
+        elif inside and item == '--':
+            inside = False
+        else:
+            (ros if inside else own).append(item)
+    return own, ros
 
 
 def add_seconds_options(parser, options):

@@ -237,9 +237,34 @@ def requested_topics(node, opts):
     if opts.topics is None:
         truth_ns = emulator_ns + TRUTH_PRIVATE_NAMESPACE[1:]
         regexes.append('^' + re.escape(truth_ns) + '(/|$)')
-    names = [node.resolve_topic_name(emulator_ns + t[1:] if t.startswith('~') else t)
-             for t in requested]
+    names = [resolve_topic(node, emulator_ns + t[1:] if t.startswith('~') else t, t,
+                           '--topics') for t in requested]
     return names, regexes
+
+
+def resolve_topic(node, name, given, option):
+    """
+    Return ``name`` resolved by ``node``, or raise ValueError naming ``option`` and ``given``.
+
+    rcl refuses a name that is not a ROS topic name (a space, a ``!``, a
+    repeated ``/``, an unknown ``{substitution}``) with an RCLError, a
+    RuntimeError.
+    """
+    try:
+        return node.resolve_topic_name(name)
+    except RuntimeError as exc:
+        reason = str(exc).split(', at /')[0].replace('failed to resolve name: ', '')
+        raise ValueError(f'{option} = {given!r} is not a ROS topic name: {reason}') from None
+
+
+def check_regexes(regexes):
+    """Raise ValueError for a ``--regex`` that is not a Python regular expression."""
+    for text in regexes:
+        try:
+            re.compile(text)
+        except re.error as exc:
+            raise ValueError(f'--regex = {text!r} is not a regular expression ({exc}): '
+                             'allowed a Python re pattern') from None
 
 
 def _finish(writer, recorder):
@@ -270,17 +295,19 @@ def main(args=None):
         if opts.duration is not None and not opts.duration > 0:
             raise ValueError(f'--duration = {opts.duration} is out of range: '
                              'allowed (0, inf) s')
+        check_regexes(opts.regex)
         rclpy.init(args=argv)
         writer = recorder = None
         run.on_exit(lambda: _finish(writer, recorder))
         node = run.node = Node('gyro_recorder')
+        # Every name is checked before the bag exists: a refused one leaves no bag behind.
         names, regexes = requested_topics(node, opts)
+        excluded = [resolve_topic(node, t, t, '--exclude') for t in opts.exclude]
         writer = bag.BagWriter(opts.output or default_output(), compression=opts.compression,
                                flush_interval_s=opts.flush_interval, overwrite=opts.overwrite,
                                custom_data={'recorder': 'gyro_emulator recorder',
                                             **topics.ACCEL_CMD_MEANING})
-        recorder = TopicRecorder(node, writer, names, regexes, opts.all,
-                                 [node.resolve_topic_name(t) for t in opts.exclude])
+        recorder = TopicRecorder(node, writer, names, regexes, opts.all, excluded)
         node.get_logger().info(f'recording to {writer.path}; waiting for '
                                f'{", ".join(sorted(names))}')
         executor = SingleThreadedExecutor()

@@ -33,6 +33,7 @@ from gyro_emulator.ros import codec, program, spinning
 from gyro_emulator.units import NS_PER_S
 import rclpy
 from rclpy.duration import Duration
+from rclpy.exceptions import InvalidTopicNameException
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
@@ -152,6 +153,9 @@ class Player:
         #: lands between a publish and its count.
         self.stop = threading.Event() if stop is None else stop
         remap = remap or {}
+        for name in sorted(set(remap) - set(reader.topics)):
+            raise ValueError(f'--remap {name}:={remap[name]}: topic {name} is not in bag '
+                             f'{reader.path}: topics are {", ".join(sorted(reader.topics))}')
         for name in self.topics:
             info = reader.topics.get(name)
             if info is None:
@@ -162,8 +166,14 @@ class Player:
                 QoSProfile(depth=100)
             if reliable:
                 qos.reliability = ReliabilityPolicy.RELIABLE
-            self.publishers[name] = node.create_publisher(
-                codec.message_class(info.type_name), remap.get(name, name), qos)
+            target = remap.get(name, name)
+            try:
+                self.publishers[name] = node.create_publisher(
+                    codec.message_class(info.type_name), target, qos)
+            except InvalidTopicNameException as exc:
+                reason = str(exc).splitlines()[0].replace('Invalid topic name: ', '')
+                raise ValueError(f'--remap {name}:={target}: {target!r} is not a ROS topic '
+                                 f'name: {reason.rstrip(":")}') from None
         self.clock_publisher = None
         if self.clock_period_s is not None:
             self._clock_msg = Clock()
