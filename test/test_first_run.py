@@ -76,3 +76,13 @@ def test_a_node_that_dies_before_it_runs_ends_the_wait_at_once(tmp_path):
     assert lines[-2].startswith('main: the node exited with status 3 after '), lines
     assert lines[-1] == 'main: exit status 1: the emulator node did not run (above)'
     assert 'Traceback' not in proc.stderr
+
+
+@pytest.mark.parametrize('wait', ['-1', 'nan', 'inf'])
+def test_a_wait_that_is_not_a_duration_is_refused_at_once(wait):
+    """``scenario --wait nan`` waited forever ("at most nan s"), -1 tried and failed."""
+    proc = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.scenario', '--wait', wait],
+                          env=ros_env(), cwd=ROOT, capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert proc.stderr.strip() == (f'scenario: error: --wait = {float(wait):g} is out of '
+                                   'range: allowed [0, inf) s'), proc.stderr

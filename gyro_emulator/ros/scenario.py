@@ -29,6 +29,7 @@ it.
 """
 
 import argparse
+import math
 import os
 import signal
 import sys
@@ -407,6 +408,8 @@ def main(args=None):
     opts = build_parser().parse_args(remove_ros_args(['scenario'] + argv)[1:])
     signal.signal(signal.SIGTERM, _interrupt)
     try:
+        if not 0.0 <= opts.wait < math.inf:
+            raise ValueError(f'--wait = {opts.wait:g} is out of range: allowed [0, inf) s')
         outputs.check([outputs.file('--json', opts.json)], inputs=[opts.profile],
                       overwrite=opts.overwrite)
         profile = load_scenario(opts.profile)
