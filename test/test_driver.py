@@ -625,3 +625,17 @@ def test_without_noise_the_window_is_exact_and_behind_a_simulator_it_counts_peri
     assert situation['bias_calibration.samples'] == 62
     assert len(set(rates(out[:62]))) == 1               # no noise: one value
     assert set(rates(out[62:])) == {(0.0, 0.0, 0.0)}
+
+
+@pytest.mark.parametrize('source', ['/clock', 'imu/ideal'])
+def test_off_the_wall_clock_no_sample_yet_is_a_warning_until_the_first(source):
+    """use_sim_time without a /clock bridge (or no simulator yet): not an OK with 0 samples."""
+    driver, _, _ = make()
+    report = driver.report(1.0, driver.situation(0), check_rate=False, waiting_for=source)
+    assert report.level == WARN and report.message == f'no sample yet: waiting for {source}'
+    assert dict(report.values)['samples'] == 0
+    assert len(driver.tick(10 * NS_PER_S)) == 1
+    report = driver.report(1.0, driver.situation(0), check_rate=False, waiting_for=source)
+    assert report.level == OK and report.message == 'OK'
+    nothing = driver.report(1.0, driver.situation(0), check_rate=False, waiting_for=source)
+    assert nothing.level == OK                # a paused simulation after samples: not said

@@ -11,7 +11,7 @@ Every wait polls with a timeout; nothing sleeps for synchronisation.
 """
 
 from conftest import ros_env
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3Stamped
 import numpy as np
 import pytest
@@ -105,3 +105,40 @@ def test_startup_bias_calibration_removes_the_turn_on_bias_and_says_it(tmp_path)
     # ... and it is gone from the output: within 1e-3 rad/s, ten standard errors
     # of the 200-sample window mean (1e-4 rad/s).
     assert np.abs(np.mean(after, axis=0)).max() < 1e-3, np.mean(after, axis=0)
+
+
+def test_sim_time_without_a_clock_is_a_warning_until_the_first_sample(tmp_path):
+    """A missing /clock bridge: /diagnostics warns (no sample yet) instead of OK with 0 samples."""
+    env = ros_env()
+    node = NodeProcess(env, str(tmp_path / 'node.log'), '-r', '__ns:=/noclock', '-p',
+                       'use_sim_time:=true', '-p', 'diagnostics_period_s:=0.2')
+    probe = Probe(env)
+    try:
+        clock = probe.publisher(Clock, '/clock', 10)
+        imu = probe.listen(Imu, '/noclock/imu/data_raw')
+        diags = probe.listen(DiagnosticArray, '/diagnostics', 50)
+
+        def said(predicate):
+            return [status for status, values in map(diag_values, diags)
+                    if predicate(status, values)]
+        probe.spin_until(lambda: said(lambda s, v: v.get('samples') == '0'), 60.0,
+                         'a status before any /clock')
+        msg = Clock()
+        msg.clock.sec = 10
+        probe.spin_until(lambda: clock.get_subscription_count() > 0, 60.0, 'the node on /clock')
+        for k in range(400):                    # 10 ms steps until a status counts samples
+            msg.clock.sec, msg.clock.nanosec = divmod(10 * NS + k * NS // 100, NS)
+            clock.publish(msg)
+            probe.spin_for(0.01)
+            if imu and said(lambda s, v: v.get('samples', '0') != '0'):
+                break
+    finally:
+        probe.close()
+        code = node.stop()
+    log = node.log()
+    assert code == 0 and 'Traceback' not in log, log
+    before = said(lambda s, v: v.get('samples') == '0')
+    assert before and all(s.level == DiagnosticStatus.WARN and
+                          s.message == 'no sample yet: waiting for /clock' for s in before)
+    after = said(lambda s, v: v.get('samples', '0') != '0')
+    assert after and all('no sample yet' not in s.message for s in after), after

@@ -231,8 +231,10 @@ class GyroEmulatorNode(Node):
 
     def _diagnose(self, elapsed_s):
         sim = self.get_parameter('use_sim_time').value
+        # Off the wall clock, no sample at all is said (a missing /clock bridge), not a pause.
+        waiting = 'imu/ideal' if self._imu_mode else ('/clock' if sim else None)
         report = self._driver.report(elapsed_s, self.situation(),
-                                     check_rate=not (sim or self._imu_mode))
+                                     check_rate=not (sim or self._imu_mode), waiting_for=waiting)
         self._out.diag_pub.publish(diagnostics.to_msg(
             report, self.get_clock().now().to_msg(), f'{self._name}: gyro', self._hardware_id))
 

@@ -13,7 +13,9 @@ since the previous report and the node's current situation into one status:
 * WARN: an injected fault that degrades the output is acting (bias_step,
   drift, spike, noise_burst), stale rate command, inputs rejected or temperatures clamped in the
   period, samples dropped by the overrun policy in the period, saturation in
-  the period, or (wall clock only) an achieved rate below 90 % of ``rate_hz``.
+  the period, or (wall clock only) an achieved rate below 90 % of ``rate_hz``,
+  or (sim time, or behind a simulator) no sample yet, waiting for what the
+  time line comes from (``/clock``, ``imu/ideal``).
 * OK otherwise.
 
 Events (:meth:`DiagnosticsBook.event`: a clock jump, the end of the start-up
@@ -101,7 +103,7 @@ class DiagnosticsBook:
         """Say ``text`` once, in the next report, at ``level`` (OK, WARN or ERROR) at least."""
         self._events.append((level, text))
 
-    def report(self, elapsed_s, rate_hz, situation, check_rate=True):
+    def report(self, elapsed_s, rate_hz, situation, check_rate=True, waiting_for=None):
         """
         Close the period and return a :class:`Report`.
 
@@ -117,6 +119,9 @@ class DiagnosticsBook:
             ``fault`` (its description), and any further key/values to show.
         check_rate : bool
             Warn on a low achieved rate (False under use_sim_time).
+        waiting_for : str or None
+            Where the samples' time comes from when it is not the wall clock
+            (``/clock``, ``imu/ideal``): warn while no sample has come yet.
 
         """
         rejected0, clamped0, samples0, saturated0, errors0, dropped0, nonfinite0 = self._mark
@@ -167,6 +172,9 @@ class DiagnosticsBook:
         if sat_axes:
             level = max(level, WARN)
             notes.append('saturated on ' + ', '.join(sat_axes))
+        if waiting_for and not self.samples:
+            level = max(level, WARN)
+            notes.append(f'no sample yet: waiting for {waiting_for}')
         if check_rate and elapsed_s > 0 and achieved < RATE_WARN_FRACTION * rate_hz:
             level = max(level, WARN)
             notes.append(f'output rate {achieved:.1f} Hz below target {rate_hz:g} Hz')

@@ -644,10 +644,10 @@ class Driver:
         out.update(self._calibration.situation())
         return out
 
-    def report(self, elapsed_s, situation, check_rate=True):
+    def report(self, elapsed_s, situation, check_rate=True, waiting_for=None):
         """Close a diagnostics period of ``elapsed_s`` s; return its :class:`.book.Report`."""
         return self.book.report(elapsed_s, self.values['rate_hz'], situation,
-                                check_rate=check_rate)
+                                check_rate=check_rate, waiting_for=waiting_for)
 
     def summary(self):
         """One line of totals for the shutdown log."""
