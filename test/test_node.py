@@ -458,6 +458,28 @@ def test_runtime_parameters_are_validated(wall):
                                           ('temperature_override_enabled', False)))
 
 
+def test_an_integer_set_at_run_time_for_a_double_is_taken_as_a_double(wall):
+    """``ros2 param set /gyro_emulator command_timeout_s 2`` sends an INTEGER: as at start-up."""
+    probe, client = wall.probe, wall.params
+    before = probe.call(client.get_parameters(['command_timeout_s'])).values[0].double_value
+    try:
+        result = probe.call(client.set_parameters([Parameter('command_timeout_s', value=2)]))
+        assert result.results[0].successful, result.results[0].reason
+        got = probe.call(client.get_parameters(['command_timeout_s'])).values[0]
+        assert got.type == Parameter.Type.DOUBLE.value and got.double_value == 2.0
+        refused = probe.call(client.set_parameters(
+            [Parameter('command_timeout_s', value=-1)])).results[0]
+        assert not refused.successful and 'out of range' in refused.reason
+        refused = probe.call(client.set_parameters(
+            [Parameter('command_timeout_s', value='2')])).results[0]
+        assert not refused.successful
+    finally:
+        probe.call(client.set_parameters([Parameter('command_timeout_s', value=before)]))
+    assert probe.call(client.get_parameters(
+        ['command_timeout_s'])).values[0].double_value == before
+    assert wall.node.proc.poll() is None
+
+
 def test_a_clock_drift_set_at_run_time_retimes_the_timer(wall):
     """Issue 14: the part's period 1 / (f_s (1 + ppm 1e-6)) follows a runtime drift change."""
     probe, client = wall.probe, wall.params

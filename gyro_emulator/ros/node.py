@@ -125,6 +125,7 @@ class GyroEmulatorNode(Node):
         self._publish_faults(self._driver.start(self._now_ns()))
         self._diagnostics = diagnostics.DiagnosticsThread(
             self, values['diagnostics_period_s'], self._diagnose)
+        self.add_pre_set_parameters_callback(params.integers_as_doubles)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         for name in params.unknown_overrides(self):

@@ -150,20 +150,36 @@ def sensor_descriptor(name, value):
                                additional_constraints='validated by SensorConfig')
 
 
+def _as_double(name, value):
+    """Return Parameter ``value`` of node parameter ``name``, an integer of a double as a double."""
+    spec = NODE_SPECS.get(name)
+    if spec is None:
+        return value
+    if spec.kind == 'double' and value.type_ == Parameter.Type.INTEGER:
+        return Parameter(name, Parameter.Type.DOUBLE, float(value.value))
+    if spec.kind == 'double_array' and value.type_ == Parameter.Type.INTEGER_ARRAY:
+        return Parameter(name, Parameter.Type.DOUBLE_ARRAY, [float(v) for v in value.value])
+    return value
+
+
 def _doubles_as_doubles(node):
     """Take an integer override of a double as a double (a params file may write 200)."""
     overrides = getattr(node, '_parameter_overrides', None)
     if not isinstance(overrides, dict):
         return
     for name, value in list(overrides.items()):
-        spec = NODE_SPECS.get(name)
-        if spec is None:
-            continue
-        if spec.kind == 'double' and value.type_ == Parameter.Type.INTEGER:
-            overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(value.value))
-        elif spec.kind == 'double_array' and value.type_ == Parameter.Type.INTEGER_ARRAY:
-            overrides[name] = Parameter(name, Parameter.Type.DOUBLE_ARRAY,
-                                        [float(v) for v in value.value])
+        overrides[name] = _as_double(name, value)
+
+
+def integers_as_doubles(parameters):
+    """
+    Pre-set callback: an integer set at run time for a double is taken as a double.
+
+    ``ros2 param set /gyro_emulator fault.magnitude 2`` sends an INTEGER,
+    which rclpy would refuse for a DOUBLE parameter without naming it, as
+    at start-up (:func:`declare_node_parameters`) it is taken as 2.0.
+    """
+    return [_as_double(p.name, p) for p in parameters]
 
 
 def declare_node_parameters(node):
