@@ -151,7 +151,7 @@ def sensor_descriptor(name, value):
 
 
 def _as_double(name, value):
-    """Return Parameter ``value`` of node parameter ``name``, an integer of a double as a double."""
+    """Return Parameter ``value`` of parameter ``name``, an integer of a double as a double."""
     spec = NODE_SPECS.get(name)
     if spec is None:
         return value
