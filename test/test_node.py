@@ -23,6 +23,7 @@ from gyro_emulator.emulation.driver import parameters
 from gyro_emulator.emulation.driver.attitude import AttitudeState
 from gyro_emulator.physics import first_order
 from gyro_emulator.physics.kinematics import LEVEL_WXYZ
+from gyro_emulator.ros import params
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import model as sensor_model
 from gyro_emulator.sensor.imu import ImuModel
@@ -747,10 +748,12 @@ def test_help_prints_parameters_and_topics_without_starting_ros():
     assert '``' not in text and 'gyro emulator up' not in text
     # The sensor fields said to be settable at run time are the declared sensor.* parameters.
     listed = ' '.join(text.split('settable at run time:')[1].split('sensor.terms.')[0].split())
-    declared = {name.split('.', 1)[1] for name in
-                parameters.sensor_param_values(sensor_config.load_sensor_config('paper'))
-                if not name.startswith(parameters.TERMS_PREFIX)}
+    declared = {name.split('.', 1)[1] for name, value in
+                parameters.sensor_param_values(sensor_config.load_sensor_config('paper')).items()
+                if not name.startswith(parameters.TERMS_PREFIX)
+                and not params.sensor_descriptor(name, value).read_only}
     assert set(listed.replace(',', ' ').split()) == declared, listed
+    assert 'sensor.device' in text and 'device,' not in listed
 
 
 @pytest.mark.parametrize('args,message', [

@@ -66,13 +66,15 @@ def help_text():
         default = str(default).lower() if isinstance(default, bool) else repr(default)
         out.append(_wrap(spec.name, f'{spec.description} (default {default}; '
                                     f'{_constraint(spec)}{flag})'))
-    structural = ('terms', 'extended', 'accelerometer')
+    structural = ('terms', 'extended', 'accelerometer', 'device')
     fields = ', '.join(sorted(k for k in parameters.SENSOR_DESCRIPTIONS
                               if k not in structural))
     out.append(_wrap('sensor.<field>', 'one error-model parameter per SensorConfig '
                      f'field, default from sensor_config, settable at run time: {fields}'))
     out.append(_wrap('sensor.terms.<term>', 'on/off switch of each error term, settable '
                      'at run time'))
+    out.append(_wrap('sensor.device', f'{parameters.SENSOR_DESCRIPTIONS["device"]} '
+                                      '(read-only)'))
     out.append(_wrap('accelerometer', parameters.SENSOR_DESCRIPTIONS['accelerometer']))
     out.append(_wrap('extended terms', parameters.SENSOR_DESCRIPTIONS['extended']))
     out += ['', 'topics (relative names follow the namespace; ~/ is under the node name):']
