@@ -1,6 +1,7 @@
 """The node's driver without ROS (emulation.driver.core): inputs and times in, samples out."""
 
 import dataclasses
+import math
 
 from gyro_emulator.emulation.driver import parameters
 from gyro_emulator.emulation.driver.book import ERROR, OK, WARN
@@ -639,3 +640,22 @@ def test_off_the_wall_clock_no_sample_yet_is_a_warning_until_the_first(source):
     assert report.level == OK and report.message == 'OK'
     nothing = driver.report(1.0, driver.situation(0), check_rate=False, waiting_for=source)
     assert nothing.level == OK                # a paused simulation after samples: not said
+
+
+def test_an_ideal_imu_without_acceleration_senses_gravity_and_marks_it_absent():
+    """REP 145: an imu/ideal whose acceleration covariance[0] is -1 has none (values ignored)."""
+    driver, _, _ = imu_driver()
+    dt = 5_000_000                                   # the nominal 200 Hz: no re-plan
+    out = driver.ideal_imu(T0_NS, (0.1, 0.0, 0.0), None)
+    out += driver.ideal_imu(T0_NS + dt, (0.2, 0.0, 0.0), None)
+    out += driver.ideal_imu(T0_NS + 3 * dt, (0.3, 0.0, 0.0), None)     # one lost
+    assert len(out) == 3 and driver.book.model_errors == 0
+    assert not any(o.accel_shown for o in out)       # nothing made up on imu/data_raw
+    assert out[0].accel.true_specific_force_m_s2 == LEVEL
+    # the model sensed gravity turning with the attitude integrated from the rates
+    roll = [math.atan2(o.accel.true_specific_force_m_s2[1], o.accel.true_specific_force_m_s2[2])
+            for o in out]
+    # (each rate held until the next sample: 0.1 over dt, then 0.2 over the 2 dt to the third)
+    assert roll == pytest.approx([0.0, 0.1 * dt * 1e-9, (0.1 + 0.2 * 2) * dt * 1e-9], abs=1e-12)
+    shown = driver.ideal_imu(T0_NS + 4 * dt, (0.0, 0.0, 0.0), (0.0, 0.0, 9.0))
+    assert shown[0].accel_shown and shown[0].accel.true_specific_force_m_s2 == (0.0, 0.0, 9.0)

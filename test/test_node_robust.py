@@ -142,3 +142,44 @@ def test_sim_time_without_a_clock_is_a_warning_until_the_first_sample(tmp_path):
                           s.message == 'no sample yet: waiting for /clock' for s in before)
     after = said(lambda s, v: v.get('samples', '0') != '0')
     assert after and all('no sample yet' not in s.message for s in after), after
+
+
+def test_an_ideal_imu_without_acceleration_is_passed_on_as_absent(tmp_path):
+    """REP 145 on the input: covariance[0] = -1 (values NaN, to be ignored) is not refused."""
+    env = ros_env()
+    node = NodeProcess(env, str(tmp_path / 'node.log'), '-r', '__ns:=/noaccel', '-p',
+                       'input_source:=imu')
+    probe = Probe(env)
+    try:
+        ideal = probe.publisher(Imu, '/noaccel/imu/ideal')
+        imu = probe.listen(Imu, '/noaccel/imu/data_raw')
+        truth = probe.listen(Imu, '/noaccel/gyro_emulator/truth/imu')
+        probe.spin_until(lambda: ideal.get_subscription_count() > 0 and
+                         probe.node.count_publishers('/noaccel/imu/data_raw') > 0, 60.0,
+                         'the node on the graph')
+        for k in range(20):
+            msg = Imu()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(1000 * NS + k * 5_000_000, NS)
+            msg.angular_velocity.z = 0.1
+            msg.linear_acceleration.x = msg.linear_acceleration.y = float('nan')
+            msg.linear_acceleration.z = float('nan')
+            msg.linear_acceleration_covariance[0] = -1.0
+            seen = len(imu)
+            for _ in range(20):                     # until its output comes (or 1 s)
+                if k == 0 or len(imu) > seen:
+                    break
+                probe.spin_for(0.05)
+            ideal.publish(msg)
+        probe.spin_until(lambda: len(imu) >= 15 and len(truth) >= 15, 10.0, 'the outputs')
+    finally:
+        probe.close()
+        code = node.stop()
+    log = node.log()
+    assert code == 0 and 'Traceback' not in log and 'input rejected' not in log, log
+    assert ' 0 inputs rejected' in log, log
+    for m in imu:
+        assert m.linear_acceleration_covariance[0] == -1.0
+        assert np.all(np.isfinite(vector(m.angular_velocity) + vector(m.linear_acceleration)))
+    # a level part turning about z: the model sensed gravity on z
+    np.testing.assert_allclose([vector(m.linear_acceleration) for m in truth],
+                               [(0.0, 0.0, 9.80665)] * len(truth), atol=1e-12)

@@ -217,8 +217,10 @@ class GyroEmulatorNode(Node):
         """Publish the one sample of an ``imu/ideal`` message."""
         stamp = msg.header.stamp
         v, a = msg.angular_velocity, msg.linear_acceleration
+        # REP 145: covariance element 0 = -1 marks the acceleration absent (values ignored).
+        accel = None if msg.linear_acceleration_covariance[0] == -1.0 else (a.x, a.y, a.z)
         self._publish(self._driver.ideal_imu(stamp.sec * NS_PER_S + stamp.nanosec,
-                                             (v.x, v.y, v.z), (a.x, a.y, a.z)))
+                                             (v.x, v.y, v.z), accel))
 
     # --- diagnostics and teardown --------------------------------------------
 

@@ -450,7 +450,7 @@ class Driver:
         attitude = self._attitude.advance(sample_ns, inputs.rate_rad_s)
         # Behind a simulator its acceleration is the specific force; else gravity turns in.
         if self.imu_mode:
-            force, course = inputs.accel_m_s2, None
+            force, course = self._ideal_force(inputs.accel_m_s2), None
         else:
             force, course = self._attitude.specific_force(inputs.accel_m_s2), self._attitude
         try:
@@ -490,7 +490,8 @@ class Driver:
             GyroChannel(rate, self._covariance, s.true_rate_rad_s, s.bias_rad_s,
                         s.scale_factor, saturated),
             AccelChannel(tuple(s.accel_m_s2.tolist()), self._accel_covariance, force),
-            self.values['publish_linear_acceleration'], attitude,
+            self.values['publish_linear_acceleration'] and inputs.accel_m_s2 is not None,
+            attitude,
             self._fault_report(sample_ns) if self._fault.changed else None)
         self.book.sample(saturated)
         return out
@@ -527,13 +528,17 @@ class Driver:
         """
         Return the :class:`Output` of one simulator message stamped ``stamp_ns`` (ns).
 
-        ``rate_rad_s`` and ``accel_m_s2`` are the ideal IMU's (x, y, z). An
-        empty list: the message was refused (a bad value, a repeated or too
-        close stamp) or the model refused the sample; both are counted.
+        ``rate_rad_s`` and ``accel_m_s2`` are the ideal IMU's (x, y, z);
+        ``accel_m_s2`` None: the message has none (REP 145: its covariance
+        element 0 is -1, its values are ignored), the model senses gravity
+        at the attitude integrated from the rates and the sample's
+        acceleration is marked absent. An empty list: the message was
+        refused (a bad value, a repeated or too close stamp) or the model
+        refused the sample; both are counted.
         """
         try:
             rate = check_rate(rate_rad_s, self.limits)
-            accel = check_acceleration(accel_m_s2, self.limits)
+            accel = None if accel_m_s2 is None else check_acceleration(accel_m_s2, self.limits)
             step = self._timeline.advance(stamp_ns)
         except InputRejected as exc:
             self._reject(exc)
@@ -561,11 +566,15 @@ class Driver:
             # Messages lost or a sensor update skipped: the part kept sampling.
             try:
                 for _ in range(step.samples - 1):
-                    self._stepper.step(held[0], temp, held[1])
+                    self._stepper.step(held[0], temp, self._ideal_force(held[1]))
             except ValueError as exc:
                 self.book.model_error(str(exc))
         out = self._sample(Inputs(rate, temp, accel), stamp_ns)
         return [] if out is None else [out]
+
+    def _ideal_force(self, accel_m_s2):
+        """Return a simulator's specific force, or gravity at the attitude where it gave none."""
+        return self._attitude.specific_force(ZERO3) if accel_m_s2 is None else accel_m_s2
 
     def _replan(self, rate_hz):
         """Run the model at the input's rate from now on (every discretisation follows)."""

@@ -31,9 +31,9 @@ class Inputs:
         True angular rate (x, y, z), rad/s, sensor frame.
     ambient_temp_c : float
         Ambient temperature, deg C (already inside the model's range).
-    accel_m_s2 : tuple of float
+    accel_m_s2 : tuple of float or None
         Applied linear acceleration (x, y, z), m/s^2, body frame (behind a
-        simulator: its specific force).
+        simulator: its specific force; None where it gave none, REP 145).
 
     """
 
