@@ -255,6 +255,33 @@ def test_an_accelerometer_reading_zero_throughout_is_taken_as_absent(walk_record
     assert code == 2 and '--format vins needs --accel-noise-density' in got.err
 
 
+def test_a_gyro_only_preset_refuses_accelerometer_figures_it_would_not_write(walk_record,
+                                                                             tmp_path, capsys):
+    """
+    A gyro-only preset refuses the accelerometer figures in one line, before the fit.
+
+    --format preset writes the accelerometer twin from the log's own, so
+    figures given by hand on a gyro-only log would be dropped. Before, the
+    console said ``exported accelerometer: N_a 0.002 ... (given by the
+    user)`` and the preset held no accelerometer at all.
+    """
+    path = tmp_path / 'gyro_only.csv'
+    gyro = walk_record.gyro
+    csvio.write_csv(str(path), {'time_s': walk_record.time_s[:30_000],
+                                **{f'gyro_{a}_rad_s': gyro[a][:30_000] for a in 'xyz'}})
+    out = tmp_path / 'twin.yaml'
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'preset', '-o', str(out),
+                      '--accel-noise-density', '0.002', '--accel-random-walk', '1e-4'], capsys)
+    assert code == 2 and not out.exists()
+    assert '--accel-noise-density 0.002 and --accel-random-walk 0.0001' in got.err
+    assert 'exported' not in got.out
+    assert len(got.err.strip().splitlines()) == 1
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'preset', '-o', str(out)],
+                     capsys)
+    assert code == 0
+    assert "the paper device's accelerometer" in out.read_text().splitlines()[0]
+
+
 def test_a_bag_gives_its_imu_topic_and_linear_acceleration(tmp_path, capsys):
     """The consumer preset (accelerometer 400 ug/sqrt(Hz)) in a simulated bag."""
     bag = str(tmp_path / 'bag')

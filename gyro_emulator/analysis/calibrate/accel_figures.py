@@ -112,3 +112,14 @@ def require_accel(fmt, accel):
                          'accelerometer: VINS-Fusion reads a missing acc_n or acc_w as 0 and a '
                          'text one as 1.8e308, without an error (parameters.cpp), so no file '
                          'without them can stop it')
+
+
+def refuse_unwritten(fmt, accel):
+    """Refuse figures ``preset`` would drop: it writes the accelerometer from the log's own."""
+    if fmt == 'preset' and accel is not None:
+        raise ValueError(f'--accel-noise-density {accel.noise_density_m_s2_sqrt_hz:g} and '
+                         f'--accel-random-walk {accel.random_walk_m_s3_sqrt_hz:g}: '
+                         '--format preset writes the accelerometer twin only from a log with '
+                         'an accelerometer, and this log has none: leave them out (the twin '
+                         "keeps the paper device's accelerometer), or give them with --format "
+                         'kalibr, openvins, vins, orbslam3, orbslam3-settings or gazebo')

@@ -465,7 +465,8 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     fitted to the log); the IEEE Std 952 values are in the comments. Every
     term the log does not measure is off. The log's accelerometer, when it
     has one, is the ``accelerometer:`` of the file (:func:`accel_twin_noise`);
-    accelerometer figures given without one are not written (a gyro model).
+    accelerometer figures given without one are refused by the command line
+    (:func:`~gyro_emulator.analysis.calibrate.accel_figures.refuse_unwritten`).
     """
     fields = twin_noise(calibration, inflate)
     twin = fields.twin
@@ -475,7 +476,9 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
                   'as Gauss-Markov terms across bias_instability_band_s.')
     lines = ["gyro_emulator sensor YAML: a whole file (simulate --config FILE, the node's "
              'sensor_config); ' + ('the gyro and the accelerometer of the log.' if logged else
-                                   'a gyro model, so no accelerometer figures.')]
+                                   'a gyro log, so no accelerometer figures: simulate and '
+                                   "the node run the paper device's accelerometer (the proof "
+                                   "mass's Brownian noise only), not this part's.")]
     lines += noise_lines(calibration, export_noise(calibration, inflate), 'preset', convention,
                          accel)
     lines += [f"Twin: the emulator's noise model (white + flicker over correlation times "
