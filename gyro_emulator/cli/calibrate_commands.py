@@ -38,7 +38,7 @@ def _check_outputs(args, plots=None):
     plots = [args.plot] if plots is None else plots
     outputs.check([outputs.file('--out', getattr(args, 'out', None)),
                    outputs.file('--json', args.json)]
-                  + [outputs.file('--plot', p) for p in plots if p],
+                  + [outputs.image('--plot', p) for p in plots if p],
                   inputs=logs + [getattr(args, 'config', None), getattr(args, 'px4', None)],
                   overwrite=args.overwrite)
 
