@@ -234,6 +234,35 @@ def test_a_grid_coarser_than_the_noise_is_warned(tmp_path):
         assert cal.lsb_rad_s == (0.0 if warned else pytest.approx(lsb, rel=1e-6))
 
 
+def test_a_gap_that_splits_the_log_is_said_in_the_output_and_every_file(tmp_path):
+    """
+    A 120 s gap: the header gives the 720 s span, the note the two segments and the longest tau.
+
+    Before, ``calibrate noise`` said nothing of it (``allan`` did: 2 segments).
+    """
+    rng = np.random.default_rng(8)
+    t = np.arange(60_000) / 100.0
+    t[30_000:] += 120.0
+    path = tmp_path / 'gap.csv'
+    csvio.write_csv(str(path), {'time_s': t, 'gyro_rad_s': 1e-3 * rng.standard_normal(60_000)})
+    cal = noise.calibrate_noise(load_record(str(path)))
+    assert cal.timing == ('1 gap(s) in the stamps (longest 120 s) split the record into 2 '
+                          'segments: the Allan deviation pools them, its taus reach a quarter '
+                          'of the longest segment (300 s), not of the 720 s span',)
+    assert cal.axes[0].fit.tau_range_s[1] <= 75.0
+    assert '# Timing: 1 gap(s) in the stamps' in export_noise.write_noise(cal, 'kalibr')
+    whole = noise.calibrate_noise(load_record(noise_log_path(tmp_path, rng)))
+    assert whole.timing == ()
+
+
+def noise_log_path(folder, rng):
+    """Write 10 min at 100 Hz without a gap; return its path."""
+    path = folder / 'whole.csv'
+    csvio.write_csv(str(path), {'time_s': np.arange(60_000) / 100.0,
+                                'gyro_rad_s': 1e-3 * rng.standard_normal(60_000)})
+    return str(path)
+
+
 # --- thermal ---------------------------------------------------------------
 
 C1_RAD_S_K = float(units.deg_s_to_rad_s(0.02))

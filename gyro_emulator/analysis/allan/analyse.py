@@ -221,6 +221,26 @@ def missing_note(timing):
             f'{100 * (1 / np.sqrt(1 - share) - 1):.2g} % high',)
 
 
+def gap_note(timing):
+    """
+    Say how the record's gaps split it, and what that does (or nothing).
+
+    ``timing`` is the record's :class:`gyro_emulator.recording.timing.Timing`.
+    The Allan deviation pools the segments: its longest tau is a quarter of
+    the longest one, not of the span the header gives.
+    """
+    bounds = timing.bounds
+    if len(bounds) < 2:
+        return ()
+    t = timing.time_s
+    gaps = [float(t[a] - t[b - 1]) for (_, b), (a, _) in zip(bounds[:-1], bounds[1:])]
+    longest = max(float(t[b - 1] - t[a]) for a, b in bounds)
+    return (f'{len(gaps)} gap(s) in the stamps (longest {max(gaps):.4g} s) split the record into '
+            f'{len(bounds)} segments: the Allan deviation pools them, its taus reach a quarter '
+            f'of the longest segment ({longest:.4g} s), not of the {float(t[-1] - t[0]):.4g} s '
+            'span',)
+
+
 def analyse_record(record, axis=None, max_tau_fraction=0.25, gap_factor=3.0,
                    outlier_threshold=outliers.THRESHOLD):
     """
