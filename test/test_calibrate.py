@@ -413,4 +413,11 @@ def test_calibrate_cli(noise_log, thermal_log, tmp_path, capsys):
                      str(preset)]) == 0
     assert cli.main(['calibrate', 'check-thermal', thermal_log, '--config', str(preset),
                      '--px4', str(params)]) == 0
-    assert 'PX4 correction: group-mean spread' in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert 'PX4 correction: group-mean spread' in out
+    assert out.count('group means within the noise') == 3
+    # the twin of another part: each line says FAIL and, before, "within the noise" beside it
+    assert cli.main(['calibrate', 'check-thermal', thermal_log, '--config', 'paper']) == 1
+    lines = [line for line in capsys.readouterr().out.splitlines() if 'twin slope' in line]
+    assert len(lines) == 3
+    assert all('(FAIL)' in line and 'group means beyond the noise' in line for line in lines)
