@@ -255,15 +255,14 @@ def test_an_accelerometer_reading_zero_throughout_is_taken_as_absent(walk_record
     assert code == 2 and '--format vins needs --accel-noise-density' in got.err
 
 
-def test_a_gyro_only_preset_refuses_accelerometer_figures_it_would_not_write(walk_record,
-                                                                             tmp_path, capsys):
+def test_a_gyro_only_preset_writes_the_accelerometer_figures_given(walk_record, tmp_path,
+                                                                   capsys):
     """
-    A gyro-only preset refuses the accelerometer figures in one line, before the fit.
+    ``--format preset`` of a gyro-only log writes the figures given as its accelerometer.
 
-    --format preset writes the accelerometer twin from the log's own, so
-    figures given by hand on a gyro-only log would be dropped. Before, the
-    console said ``exported accelerometer: N_a 0.002 ... (given by the
-    user)`` and the preset held no accelerometer at all.
+    Before, the console said ``exported accelerometer: N_a 0.002 ... (given by
+    the user)`` and the preset held no accelerometer: the twin ran the paper
+    device's (6.5 ug/sqrt(Hz)). Without figures, the file's first line says so.
     """
     path = tmp_path / 'gyro_only.csv'
     gyro = walk_record.gyro
@@ -272,12 +271,22 @@ def test_a_gyro_only_preset_refuses_accelerometer_figures_it_would_not_write(wal
     out = tmp_path / 'twin.yaml'
     code, got = _cli(['calibrate', 'noise', str(path), '--format', 'preset', '-o', str(out),
                       '--accel-noise-density', '0.002', '--accel-random-walk', '1e-4'], capsys)
-    assert code == 2 and not out.exists()
-    assert '--accel-noise-density 0.002 and --accel-random-walk 0.0001' in got.err
-    assert 'exported' not in got.out
-    assert len(got.err.strip().splitlines()) == 1
-    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'preset', '-o', str(out)],
-                     capsys)
+    assert code == 0 and 'exported accelerometer: N_a 0.002 ' in got.out
+    assert 'figures given by the user' in out.read_text().splitlines()[0]
+    accel = load_sensor_config(str(out)).accelerometer
+    assert accel.electronics_noise_m_s2_sqrt_hz == (0.002,) * 3
+    assert accel.random_walk_m_s3_sqrt_hz == (1e-4,) * 3
+    assert sorted(n for n in AccelTerms.names() if getattr(accel.terms, n)) == [
+        'electronics_noise', 'random_walk']
+    sim = tmp_path / 'sim.csv'
+    assert cli.main(['simulate', '--config', str(out), '--duration-s', '60', '--rate-hz',
+                     '100', '--seed', '3', '--out', str(sim)]) == 0
+    values = csvio.read_csv(str(sim), required=('accel_x_m_s2',))
+    for axis in 'xyz':                  # white: 0.002 sqrt(100 Hz) per sample; the walk adds 0.1 %
+        spread = np.std(np.diff(values[f'accel_{axis}_m_s2'])) / np.sqrt(2.0)
+        assert spread == pytest.approx(0.02, rel=0.03)
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'preset', '-o', str(out),
+                      '--overwrite'], capsys)
     assert code == 0
     assert "the paper device's accelerometer" in out.read_text().splitlines()[0]
 

@@ -15,7 +15,7 @@ from gyro_emulator.analysis.allan import plot_adev
 from gyro_emulator.analysis.allan.analyse import summary
 from gyro_emulator.analysis.calibrate import (export_noise, export_thermal, noise, plots,
                                               thermal, twin)
-from gyro_emulator.analysis.calibrate.accel_figures import accel_figures, refuse_unwritten
+from gyro_emulator.analysis.calibrate.accel_figures import accel_figures
 from gyro_emulator.analysis.sense import ACCEL, GYRO
 from gyro_emulator.cli.allan import outlier_threshold, print_terms
 from gyro_emulator.cli.jsonout import write_json
@@ -73,9 +73,8 @@ def _calibrate(args):
     if record.accel is not None:        # a log in g is refused before any fit
         noise.gravity_at_rest(record.accel.values * args.accel_scale, record.path,
                               args.accel_scale)
-    else:                               # before the fit: it takes seconds
-        export_noise.require_accel(getattr(args, 'format', None), _accel(args))
-        refuse_unwritten(getattr(args, 'format', None), _accel(args))
+    elif getattr(args, 'format', None) == 'vins':
+        export_noise.require_accel('vins', _accel(args))    # before the fit: it takes seconds
     cal = noise.calibrate_noise(record, axes, outlier_threshold=threshold)
     accel = None
     if record.accel is not None:
@@ -89,9 +88,8 @@ def _calibrate(args):
         notes += [f'accelerometer: {note}' for note in accel.skipped + accel.notes]
     for note in cal.recovery + cal.skipped + cal.timing + tuple(notes):
         print(f'gyro-emulator calibrate: warning: {note}', file=sys.stderr)
-    if accel is None:
-        export_noise.require_accel(getattr(args, 'format', None), _accel(args))
-        refuse_unwritten(getattr(args, 'format', None), _accel(args))
+    if accel is None and getattr(args, 'format', None) == 'vins':
+        export_noise.require_accel('vins', _accel(args))
     return cal, accel, record
 
 
