@@ -516,7 +516,7 @@ def _preset_accel_words(logged, accel):
         return ('the gyro of the log, which has no accelerometer: its white noise and random '
                 'walk are the figures given by the user (--accel-noise-density, '
                 '--accel-random-walk) on every axis, no other accelerometer term.')
-    return ("a gyro log, so no accelerometer figures: simulate and the node run the paper "
+    return ('a gyro log, so no accelerometer figures: simulate and the node run the paper '
             "device's accelerometer (the proof mass's Brownian noise only), not this part's.")
 
 
