@@ -247,12 +247,29 @@ def test_a_gap_that_splits_the_log_is_said_in_the_output_and_every_file(tmp_path
     csvio.write_csv(str(path), {'time_s': t, 'gyro_rad_s': 1e-3 * rng.standard_normal(60_000)})
     cal = noise.calibrate_noise(load_record(str(path)))
     assert cal.timing == ('1 gap(s) in the stamps (longest 120 s) split the record into 2 '
-                          'segments: the Allan deviation pools them, its taus reach a quarter '
-                          'of the longest segment (300 s), not of the 720 s span',)
+                          'segments: the Allan deviation pools them, and its longest tau is set '
+                          'by the longest segment (300 s), not by the 720 s span',)
     assert cal.axes[0].fit.tau_range_s[1] <= 75.0
     assert '# Timing: 1 gap(s) in the stamps' in export_noise.write_noise(cal, 'kalibr')
     whole = noise.calibrate_noise(load_record(noise_log_path(tmp_path, rng)))
     assert whole.timing == ()
+
+
+def test_a_log_stamped_in_milliseconds_is_named_not_exported_silently(tmp_path):
+    """
+    100 Hz stamped in ms reads as 0.1 Hz, N sqrt(1e3) off: the note names the unit.
+
+    Before, the export went out with exit 0 and no word (a 1 Hz log gets none).
+    """
+    rng = np.random.default_rng(9)
+    for scale, rate, noted in ((1e3, 100.0, True), (1.0, 1.0, False)):
+        path = tmp_path / f'log{rate:g}.csv'
+        csvio.write_csv(str(path), {'time_s': np.arange(6000) / rate * scale,
+                                    'gyro_rad_s': 1e-3 * rng.standard_normal(6000)})
+        cal = noise.calibrate_noise(load_record(str(path)))
+        notes = [n for n in cal.timing if 'looks like milliseconds: divide by 1e3' in n]
+        assert bool(notes) == noted, cal.timing
+    assert notes == [] and cal.rate_hz == 1.0
 
 
 def noise_log_path(folder, rng):

@@ -19,6 +19,7 @@ from gyro_emulator import units
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import adev, band, fit as fitting
 from gyro_emulator.analysis.sense import GYRO
+from gyro_emulator.recording.timing import slow_step_note
 import numpy as np
 
 #: A stretch set aside no longer than this is filled with its neighbours' mean,
@@ -221,13 +222,19 @@ def missing_note(timing):
             f'{100 * (1 / np.sqrt(1 - share) - 1):.2g} % high',)
 
 
+def slow_clock_note(timing):
+    """Say which unit the stamps may be in when they give under 1 Hz (or nothing)."""
+    note = slow_step_note(timing.time_s, timing.median_step_s)
+    return (note,) if note else ()
+
+
 def gap_note(timing):
     """
     Say how the record's gaps split it, and what that does (or nothing).
 
     ``timing`` is the record's :class:`gyro_emulator.recording.timing.Timing`.
-    The Allan deviation pools the segments: its longest tau is a quarter of
-    the longest one, not of the span the header gives.
+    The Allan deviation pools the segments: its longest tau is a fraction
+    of the longest one, not of the span the header gives.
     """
     bounds = timing.bounds
     if len(bounds) < 2:
@@ -236,8 +243,8 @@ def gap_note(timing):
     gaps = [float(t[a] - t[b - 1]) for (_, b), (a, _) in zip(bounds[:-1], bounds[1:])]
     longest = max(float(t[b - 1] - t[a]) for a, b in bounds)
     return (f'{len(gaps)} gap(s) in the stamps (longest {max(gaps):.4g} s) split the record into '
-            f'{len(bounds)} segments: the Allan deviation pools them, its taus reach a quarter '
-            f'of the longest segment ({longest:.4g} s), not of the {float(t[-1] - t[0]):.4g} s '
+            f'{len(bounds)} segments: the Allan deviation pools them, and its longest tau is set '
+            f'by the longest segment ({longest:.4g} s), not by the {float(t[-1] - t[0]):.4g} s '
             'span',)
 
 
