@@ -248,6 +248,18 @@ def gap_note(timing):
             'span',)
 
 
+def timing_notes(timing):
+    """
+    Say what the record's stamps do to the fit, in one note (or nothing).
+
+    The samples missing between stamps (:func:`missing_note`), the gaps that
+    split the record (:func:`gap_note`) and a clock under 1 Hz
+    (:func:`slow_clock_note`), joined: ``allan`` and ``calibrate noise``.
+    """
+    parts = missing_note(timing) + gap_note(timing) + slow_clock_note(timing)
+    return ('; '.join(parts),) if parts else ()
+
+
 def analyse_record(record, axis=None, max_tau_fraction=0.25, gap_factor=3.0,
                    outlier_threshold=outliers.THRESHOLD):
     """
@@ -273,7 +285,7 @@ def analyse_record(record, axis=None, max_tau_fraction=0.25, gap_factor=3.0,
     info = {
         'file': str(path), 'column': column, 'sample_rate_hz': rate_hz,
         'recovery': list(record.recovery),
-        'timing': list(missing_note(timing)),
+        'timing': list(timing_notes(timing)),
         'set_aside': set_aside_summary(screened, handled),
         'n_samples': result.n_samples, 'segments': len(segments),
         'repeated_timestamps': int(np.sum(np.diff(time_s) == 0.0)),
