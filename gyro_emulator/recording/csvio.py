@@ -16,7 +16,6 @@ import gzip
 import io
 import itertools
 import os
-import warnings
 import zlib
 
 from gyro_emulator import atomic
@@ -158,9 +157,7 @@ def _read_columns(path, required, time_order, only):
     """Read the columns (see :func:`read_csv`); decompression errors pass through."""
     names, skip, wanted, index = _wanted_columns(path, required, only)
     try:
-        with _open_text(path, 'r') as handle, warnings.catch_warnings():
-            # a file without data rows is refused below in one line, not numpy's warning
-            warnings.filterwarnings('ignore', 'loadtxt: input contained no data')
+        with _open_text(path, 'r') as handle:
             data = np.loadtxt(handle, delimiter=',', skiprows=skip, comments='#',
                               ndmin=2, dtype=float, usecols=None if only is None else index)
     except ValueError:
