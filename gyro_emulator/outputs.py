@@ -19,13 +19,14 @@ in one line before it reads or computes anything:
 
 An :class:`Output` is a file (``kind='file'``), a directory written whole
 (``'dir'``: a bag), or files with known names inside a folder
-(``'in'``: ``--report DIR``, ``--out-dir DIR``).
+(``'in'``: ``--report DIR``, ``--out-dir DIR``); a plot's format is checked
+with its name (:func:`image`).
 """
 
 from dataclasses import dataclass
 import os
 
-from gyro_emulator import atomic
+from gyro_emulator import atomic, plotting
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,24 @@ class Output:
 def file(option, path):
     """Return the :class:`Output` of one file; None without a path."""
     return None if path is None else Output(option, os.fspath(path))
+
+
+def image(option, path):
+    """
+    Return the :class:`Output` of a plot (None without a path): the file ``savefig`` writes.
+
+    A name without an extension gets PNG's, as matplotlib gives it
+    (:func:`gyro_emulator.plotting.image_path`); a format matplotlib does not
+    write is refused here, before the work, not after the other outputs.
+    """
+    if path is None:
+        return None
+    target, fmt = plotting.image_path(path)
+    formats = plotting.image_formats()
+    if fmt not in formats:
+        raise ValueError(f'{option} {os.fspath(path)}: {fmt!r} is not an image format; allowed: '
+                         f'{", ".join(formats)}')
+    return Output(option, target)
 
 
 def directory(option, path):

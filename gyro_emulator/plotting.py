@@ -45,6 +45,13 @@ def image_path(path):
     return path, fmt
 
 
+def image_formats():
+    """Return the image formats ``savefig`` writes (extensions, lower case)."""
+    pyplot()
+    from matplotlib.backend_bases import FigureCanvasBase
+    return tuple(sorted(FigureCanvasBase.get_supported_filetypes()))
+
+
 def save(fig, path, dpi=120):
     """
     Lay the figure out, write it to ``path`` (complete or absent) and free it.

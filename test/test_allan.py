@@ -387,3 +387,54 @@ def test_a_log_with_some_axes_is_read_by_axis(tmp_path):
     with pytest.raises(ValueError, match="no gyro column for axis 'x'; the file has "
                                          'gyro_y_rad_s, gyro_z_rad_s'):
         record.gyro_axis('x')
+
+
+def _white_and_walk(seed, n, rate_hz):
+    """N 0.3 deg/sqrt(h) and K 100 deg/h/sqrt(h): at 1 Hz the white region is 1 .. 20 s."""
+    rng = np.random.default_rng(seed)
+    n_true = float(units.arw_deg_sqrt_h_to_rad_s_sqrt_hz(0.3))
+    k_true = float(units.rrw_deg_h_sqrt_h_to_rad_s_sqrt_s(100.0))
+    return (rng.standard_normal(n) * n_true * math.sqrt(rate_hz)
+            + np.cumsum(rng.standard_normal(n)) * k_true / math.sqrt(rate_hz))
+
+
+def test_a_1hz_log_without_a_filter_is_not_given_one():
+    """
+    A 2 h log at 1 Hz of white noise and a random walk has no output filter.
+
+    Its PSD is too coarse for a white run, so the band limit falls back on
+    the Allan slope. Before, a slope lifted 0.02 above -1/2 by the random
+    walk read as a filter (tau < 2-3 s dropped on 4 of these 40 logs), and once a
+    slope of -1/2 at the noisy long end, past the curve's minimum, dropped
+    every tau below 1800 s and the log was refused as too short.
+    """
+    flagged = 0
+    for seed in range(1000, 1040):
+        y = _white_and_walk(seed, 7200, 1.0)
+        res = allan.overlapping_adev(y, 1.0, taus=allan.tau_multiples(7200, 10, 0.25))
+        limit = allan.band.band_limit([y], 1.0, res.taus_s, res.adev)
+        flagged += limit.tau_min_s > res.taus_s[0]
+    assert flagged <= 1
+
+
+def test_the_slope_fallback_stops_at_the_curves_minimum():
+    """A white region comes before the minimum: a -1/2 slope after it is no anchor."""
+    taus = np.logspace(0.0, 3.0, 31)
+    adev = 1e-4 / np.sqrt(taus) + 1e-6 * np.sqrt(taus)
+    slopes = np.full(len(taus), -0.45)
+    slopes[np.argmin(adev) + 1:] = 0.4
+    slopes[-3] = -0.5                                    # a noisy dip at the long end
+    limit = allan.band.slope_band_limit(taus, adev, slopes=slopes)
+    assert limit.method == 'none' and limit.tau_min_s == taus[0]
+
+
+def test_the_slope_fallback_still_finds_a_filter():
+    """Filtered white noise (2nd order at 30 Hz, 1 kHz): the slope region ends near 1 / fc."""
+    rng = np.random.default_rng(4)
+    fs, fc = 1000.0, 30.0
+    b, a = signal.butter(2, fc / (fs / 2))
+    y = signal.lfilter(b, a, rng.standard_normal(600_000))
+    res = allan.overlapping_adev(y, fs, taus=allan.tau_multiples(len(y), 10, 0.25) / fs)
+    limit = allan.band.slope_band_limit(res.taus_s, res.adev)
+    assert limit.method == 'slope'
+    assert 2.0 / fc <= limit.tau_min_s <= 25.0 / fc

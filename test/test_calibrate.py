@@ -234,6 +234,52 @@ def test_a_grid_coarser_than_the_noise_is_warned(tmp_path):
         assert cal.lsb_rad_s == (0.0 if warned else pytest.approx(lsb, rel=1e-6))
 
 
+def test_a_gap_that_splits_the_log_is_said_in_the_output_and_every_file(tmp_path):
+    """
+    A 120 s gap: the header gives the 720 s span, the note the two segments and the longest tau.
+
+    Before, ``calibrate noise`` said nothing of it (``allan`` did: 2 segments).
+    """
+    rng = np.random.default_rng(8)
+    t = np.arange(60_000) / 100.0
+    t[30_000:] += 120.0
+    path = tmp_path / 'gap.csv'
+    csvio.write_csv(str(path), {'time_s': t, 'gyro_rad_s': 1e-3 * rng.standard_normal(60_000)})
+    cal = noise.calibrate_noise(load_record(str(path)))
+    assert cal.timing == ('1 gap(s) in the stamps (longest 120 s) split the record into 2 '
+                          'segments: the Allan deviation pools them, and its longest tau is set '
+                          'by the longest segment (300 s), not by the 720 s span',)
+    assert cal.axes[0].fit.tau_range_s[1] <= 75.0
+    assert '# Timing: 1 gap(s) in the stamps' in export_noise.write_noise(cal, 'kalibr')
+    whole = noise.calibrate_noise(load_record(noise_log_path(tmp_path, rng)))
+    assert whole.timing == ()
+
+
+def test_a_log_stamped_in_milliseconds_is_named_not_exported_silently(tmp_path):
+    """
+    100 Hz stamped in ms reads as 0.1 Hz, N sqrt(1e3) off: the note names the unit.
+
+    Before, the export went out with exit 0 and no word (a 1 Hz log gets none).
+    """
+    rng = np.random.default_rng(9)
+    for scale, rate, noted in ((1e3, 100.0, True), (1.0, 1.0, False)):
+        path = tmp_path / f'log{rate:g}.csv'
+        csvio.write_csv(str(path), {'time_s': np.arange(6000) / rate * scale,
+                                    'gyro_rad_s': 1e-3 * rng.standard_normal(6000)})
+        cal = noise.calibrate_noise(load_record(str(path)))
+        notes = [n for n in cal.timing if 'looks like milliseconds: divide by 1e3' in n]
+        assert bool(notes) == noted, cal.timing
+    assert notes == [] and cal.rate_hz == 1.0
+
+
+def noise_log_path(folder, rng):
+    """Write 10 min at 100 Hz without a gap; return its path."""
+    path = folder / 'whole.csv'
+    csvio.write_csv(str(path), {'time_s': np.arange(60_000) / 100.0,
+                                'gyro_rad_s': 1e-3 * rng.standard_normal(60_000)})
+    return str(path)
+
+
 # --- thermal ---------------------------------------------------------------
 
 C1_RAD_S_K = float(units.deg_s_to_rad_s(0.02))
@@ -384,4 +430,11 @@ def test_calibrate_cli(noise_log, thermal_log, tmp_path, capsys):
                      str(preset)]) == 0
     assert cli.main(['calibrate', 'check-thermal', thermal_log, '--config', str(preset),
                      '--px4', str(params)]) == 0
-    assert 'PX4 correction: group-mean spread' in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert 'PX4 correction: group-mean spread' in out
+    assert out.count('group means within the noise') == 3
+    # the twin of another part: each line says FAIL and, before, "within the noise" beside it
+    assert cli.main(['calibrate', 'check-thermal', thermal_log, '--config', 'paper']) == 1
+    lines = [line for line in capsys.readouterr().out.splitlines() if 'twin slope' in line]
+    assert len(lines) == 3
+    assert all('(FAIL)' in line and 'group means beyond the noise' in line for line in lines)

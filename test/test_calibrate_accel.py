@@ -255,6 +255,42 @@ def test_an_accelerometer_reading_zero_throughout_is_taken_as_absent(walk_record
     assert code == 2 and '--format vins needs --accel-noise-density' in got.err
 
 
+def test_a_gyro_only_preset_writes_the_accelerometer_figures_given(walk_record, tmp_path,
+                                                                   capsys):
+    """
+    ``--format preset`` of a gyro-only log writes the figures given as its accelerometer.
+
+    Before, the console said ``exported accelerometer: N_a 0.002 ... (given by
+    the user)`` and the preset held no accelerometer: the twin ran the paper
+    device's (6.5 ug/sqrt(Hz)). Without figures, the file's first line says so.
+    """
+    path = tmp_path / 'gyro_only.csv'
+    gyro = walk_record.gyro
+    csvio.write_csv(str(path), {'time_s': walk_record.time_s[:30_000],
+                                **{f'gyro_{a}_rad_s': gyro[a][:30_000] for a in 'xyz'}})
+    out = tmp_path / 'twin.yaml'
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'preset', '-o', str(out),
+                      '--accel-noise-density', '0.002', '--accel-random-walk', '1e-4'], capsys)
+    assert code == 0 and 'exported accelerometer: N_a 0.002 ' in got.out
+    assert 'figures given by the user' in out.read_text().splitlines()[0]
+    accel = load_sensor_config(str(out)).accelerometer
+    assert accel.electronics_noise_m_s2_sqrt_hz == (0.002,) * 3
+    assert accel.random_walk_m_s3_sqrt_hz == (1e-4,) * 3
+    assert sorted(n for n in AccelTerms.names() if getattr(accel.terms, n)) == [
+        'electronics_noise', 'random_walk']
+    sim = tmp_path / 'sim.csv'
+    assert cli.main(['simulate', '--config', str(out), '--duration-s', '60', '--rate-hz',
+                     '100', '--seed', '3', '--out', str(sim)]) == 0
+    values = csvio.read_csv(str(sim), required=('accel_x_m_s2',))
+    for axis in 'xyz':                  # white: 0.002 sqrt(100 Hz) per sample; the walk adds 0.1 %
+        spread = np.std(np.diff(values[f'accel_{axis}_m_s2'])) / np.sqrt(2.0)
+        assert spread == pytest.approx(0.02, rel=0.03)
+    code, got = _cli(['calibrate', 'noise', str(path), '--format', 'preset', '-o', str(out),
+                      '--overwrite'], capsys)
+    assert code == 0
+    assert "the paper device's accelerometer" in out.read_text().splitlines()[0]
+
+
 def test_a_bag_gives_its_imu_topic_and_linear_acceleration(tmp_path, capsys):
     """The consumer preset (accelerometer 400 ug/sqrt(Hz)) in a simulated bag."""
     bag = str(tmp_path / 'bag')

@@ -77,6 +77,30 @@ def test_two_outputs_of_one_name_existing_outputs_and_bad_folders(tmp_path):
     outputs.check([None, outputs.file('--plot', None)])      # options not given
 
 
+def test_a_plot_format_matplotlib_cannot_write_is_refused_before_the_work(tmp_path, capsys):
+    """
+    Before, ``calibrate noise --plot p.txt`` wrote its export, then failed on the plot (exit 2).
+
+    The image's name is what ``savefig`` writes: no extension gets ``.png``.
+    """
+    from gyro_emulator import cli
+    assert outputs.image('--plot', str(tmp_path / 'adev')).path == str(tmp_path / 'adev.png')
+    with pytest.raises(ValueError, match=r"--plot .*p.txt: 'txt' is not an image format; "
+                                         'allowed: .*png'):
+        outputs.image('--plot', str(tmp_path / 'p.txt'))
+    log = tmp_path / 'log.csv'
+    rng = np.random.default_rng(3)
+    csvio.write_csv(str(log), {'time_s': np.arange(6000) / 100.0,
+                               'gyro_rad_s': rng.normal(0.0, 1e-3, 6000)})
+    out = tmp_path / 'imu.yaml'
+    code = cli.main(['calibrate', 'noise', str(log), '--format', 'kalibr', '-o', str(out),
+                     '--plot', str(tmp_path / 'p.txt')])
+    err = capsys.readouterr().err
+    assert code == 2 and "'txt' is not an image format" in err
+    assert len(err.strip().splitlines()) == 1 and 'Traceback' not in err
+    assert _files(tmp_path) == ['log.csv']
+
+
 def test_a_folder_that_cannot_be_written_is_refused_before_the_work(tmp_path):
     if os.geteuid() == 0:
         pytest.skip('root writes anywhere')

@@ -111,7 +111,7 @@ def run(args):
     from gyro_emulator.analysis import allan
     from gyro_emulator.recording.record import load_record
 
-    outputs.check([outputs.file('--json', args.json), outputs.file('--plot', args.plot)],
+    outputs.check([outputs.file('--json', args.json), outputs.image('--plot', args.plot)],
                   inputs=[args.file], overwrite=args.overwrite)
     info, result, fit = allan.analyse_record(load_record(args.file, {'gyro': args.topic}),
                                              args.axis, args.max_tau_fraction, args.gap_factor,

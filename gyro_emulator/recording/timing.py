@@ -66,6 +66,26 @@ def _unit_hint(first, step):
             + ' or '.join(_power(f) for _, f in fits))
 
 
+#: A nominal step above this, s, is slower than an IMU logs: a note names the unit it may be.
+SLOW_STEP_S = 1.0
+
+
+def slow_step_note(time_s, step_s):
+    """
+    Name the unit a slow clock's stamps may be in, or return ''.
+
+    A median step over :data:`SLOW_STEP_S` is allowed (a slow logger), but a
+    100 Hz log stamped in milliseconds reads as 0.1 Hz: a noise density
+    per sqrt(Hz) of the wrong rate is then sqrt(1e3) off, without an error.
+    """
+    if step_s <= SLOW_STEP_S:
+        return ''
+    hint = _unit_hint(float(np.asarray(time_s)[0]), step_s)
+    return (f'the stamps give {1.0 / step_s:.3g} Hz (a median step of {step_s:.4g} s){hint} '
+            '(a time column in another unit puts N and K off by the square root of its factor)'
+            if hint else '')
+
+
 def check_time_base(time_s, what='time_s'):
     """
     Raise ValueError unless ``time_s`` (increasing) is in seconds at a plausible rate.

@@ -19,6 +19,7 @@ from gyro_emulator import units
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import adev, band, fit as fitting
 from gyro_emulator.analysis.sense import GYRO
+from gyro_emulator.recording.timing import slow_step_note
 import numpy as np
 
 #: A stretch set aside no longer than this is filled with its neighbours' mean,
@@ -221,6 +222,44 @@ def missing_note(timing):
             f'{100 * (1 / np.sqrt(1 - share) - 1):.2g} % high',)
 
 
+def slow_clock_note(timing):
+    """Say which unit the stamps may be in when they give under 1 Hz (or nothing)."""
+    note = slow_step_note(timing.time_s, timing.median_step_s)
+    return (note,) if note else ()
+
+
+def gap_note(timing):
+    """
+    Say how the record's gaps split it, and what that does (or nothing).
+
+    ``timing`` is the record's :class:`gyro_emulator.recording.timing.Timing`.
+    The Allan deviation pools the segments: its longest tau is a fraction
+    of the longest one, not of the span the header gives.
+    """
+    bounds = timing.bounds
+    if len(bounds) < 2:
+        return ()
+    t = timing.time_s
+    gaps = [float(t[a] - t[b - 1]) for (_, b), (a, _) in zip(bounds[:-1], bounds[1:])]
+    longest = max(float(t[b - 1] - t[a]) for a, b in bounds)
+    return (f'{len(gaps)} gap(s) in the stamps (longest {max(gaps):.4g} s) split the record into '
+            f'{len(bounds)} segments: the Allan deviation pools them, and its longest tau is set '
+            f'by the longest segment ({longest:.4g} s), not by the {float(t[-1] - t[0]):.4g} s '
+            'span',)
+
+
+def timing_notes(timing):
+    """
+    Say what the record's stamps do to the fit, in one note (or nothing).
+
+    The samples missing between stamps (:func:`missing_note`), the gaps that
+    split the record (:func:`gap_note`) and a clock under 1 Hz
+    (:func:`slow_clock_note`), joined: ``allan`` and ``calibrate noise``.
+    """
+    parts = missing_note(timing) + gap_note(timing) + slow_clock_note(timing)
+    return ('; '.join(parts),) if parts else ()
+
+
 def analyse_record(record, axis=None, max_tau_fraction=0.25, gap_factor=3.0,
                    outlier_threshold=outliers.THRESHOLD):
     """
@@ -246,7 +285,7 @@ def analyse_record(record, axis=None, max_tau_fraction=0.25, gap_factor=3.0,
     info = {
         'file': str(path), 'column': column, 'sample_rate_hz': rate_hz,
         'recovery': list(record.recovery),
-        'timing': list(missing_note(timing)),
+        'timing': list(timing_notes(timing)),
         'set_aside': set_aside_summary(screened, handled),
         'n_samples': result.n_samples, 'segments': len(segments),
         'repeated_timestamps': int(np.sum(np.diff(time_s) == 0.0)),

@@ -30,7 +30,9 @@ log-log slope >= +0.3 over the top octave) is the signature of quantisation
 (white phase) noise, the IEEE Std 952
 tau^-1 term: that region is kept and fitted, not dropped. When no white run
 exists (flicker or a filter everywhere), :func:`slope_band_limit` reads the
-region from the Allan slope instead.
+region from the Allan slope instead: up to the first tau, no later than the
+curve's minimum, whose slope is within :data:`SLOPE_MARGIN` of -1/2, when
+the slope has steepened to it from a shallower start.
 """
 
 from dataclasses import dataclass
@@ -258,13 +260,18 @@ def slope_band_limit(taus_s, adev, slopes=None):
 
     Filtered white noise has a local slope shallower than -1/2 at short tau
     that steepens toward -1/2. The region ends at the first tau whose slope
-    is within :data:`SLOPE_MARGIN` of -1/2 or steeper; when no tau qualifies
-    there is no white region to anchor on and nothing is dropped.
+    is within :data:`SLOPE_MARGIN` of -1/2 or steeper, searched no later
+    than the curve's minimum (the white region comes before it: a noisy
+    slope at the long end is no anchor), and only when the slope has
+    steepened to it by more than :data:`SLOPE_MARGIN` from the shortest
+    tau (a slope that rises from the start is a longer-tau term lifting the
+    white region, not a filter). Otherwise nothing is dropped.
     """
     taus = np.asarray(taus_s, dtype=float)
     slopes = local_slopes(taus, adev, half_width=1) if slopes is None else slopes
-    ok = np.flatnonzero(slopes <= -0.5 + SLOPE_MARGIN)
-    if len(ok) == 0 or ok[0] == 0:
+    searched = int(np.argmin(adev)) + 1
+    ok = np.flatnonzero(slopes[:searched] <= -0.5 + SLOPE_MARGIN)
+    if len(ok) == 0 or slopes[0] - slopes[ok[0]] <= SLOPE_MARGIN:
         return BandLimit(tau_min_s=float(taus[0]), method='none',
                          note='no band-limited region found from the Allan slope')
     first = int(ok[0])

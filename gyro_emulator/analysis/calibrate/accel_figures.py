@@ -24,6 +24,8 @@ it states for the gyro. :func:`accel_figures` decides where they come from:
 from dataclasses import dataclass
 
 from gyro_emulator.analysis.calibrate.noise import export_noise
+from gyro_emulator.sensor.accel import accel_from_mapping, AccelTerms
+from gyro_emulator.sensor.fields import YamlKey
 from gyro_emulator.yaml_text import float_text
 import numpy as np
 
@@ -112,3 +114,30 @@ def require_accel(fmt, accel):
                          'accelerometer: VINS-Fusion reads a missing acc_n or acc_w as 0 and a '
                          'text one as 1.8e308, without an error (parameters.cpp), so no file '
                          'without them can stop it')
+
+
+#: The two terms of an accelerometer given by hand for a gyro-only log's preset.
+GIVEN_TERMS = ('electronics_noise', 'random_walk')
+
+
+def given_accel_config(accel):
+    """
+    Return the preset's accelerometer from figures given for a log without one.
+
+    White noise N_a and random walk K_a on every axis and nothing else:
+    mechanical_noise off (N_a is the whole white noise, as the gyro twin's
+    N), no bias, flicker, temperature or scale terms (the log measures none).
+    """
+    terms = {name: name in GIVEN_TERMS for name in AccelTerms.names()}
+    return accel_from_mapping({
+        'terms': terms,
+        'electronics_noise_m_s2_sqrt_hz': [accel.noise_density_m_s2_sqrt_hz] * 3,
+        'random_walk_m_s3_sqrt_hz': [accel.random_walk_m_s3_sqrt_hz] * 3},
+        'the accelerometer given by the user')
+
+
+def given_accel_layout():
+    """Return the ``accelerometer:`` key of :func:`given_accel_config` for the sensor YAML."""
+    return YamlKey('accelerometer', parts=(
+        YamlKey('terms'), YamlKey('electronics_noise_m_s2_sqrt_hz', '.6g'),
+        YamlKey('random_walk_m_s3_sqrt_hz', '.6g')))

@@ -55,7 +55,7 @@ from dataclasses import dataclass, replace
 
 from gyro_emulator import units
 from gyro_emulator.analysis.calibrate.accel_figures import (  # noqa: F401 (the API)
-    ACCEL_OPTIONS, AccelFigures, require_accel)
+    ACCEL_OPTIONS, AccelFigures, given_accel_config, given_accel_layout, require_accel)
 from gyro_emulator.analysis.calibrate.export_gazebo import (  # noqa: F401 (the API)
     ACCEL_CORRELATION_TIME_S, gauss_markov_match, gazebo)
 from gyro_emulator.analysis.calibrate.lowpass import identify_output_filter
@@ -465,7 +465,8 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
     fitted to the log); the IEEE Std 952 values are in the comments. Every
     term the log does not measure is off. The log's accelerometer, when it
     has one, is the ``accelerometer:`` of the file (:func:`accel_twin_noise`);
-    accelerometer figures given without one are not written (a gyro model).
+    figures given for a log without one are its white noise and random walk
+    (:func:`~gyro_emulator.analysis.calibrate.accel_figures.given_accel_config`).
     """
     fields = twin_noise(calibration, inflate)
     twin = fields.twin
@@ -474,8 +475,7 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
                   'simulate or the node: white sigma N / sqrt(dt), walk K sqrt(dt), flicker '
                   'as Gauss-Markov terms across bias_instability_band_s.')
     lines = ["gyro_emulator sensor YAML: a whole file (simulate --config FILE, the node's "
-             'sensor_config); ' + ('the gyro and the accelerometer of the log.' if logged else
-                                   'a gyro model, so no accelerometer figures.')]
+             'sensor_config); ' + _preset_accel_words(logged, accel)]
     lines += noise_lines(calibration, export_noise(calibration, inflate), 'preset', convention,
                          accel)
     lines += [f"Twin: the emulator's noise model (white + flicker over correlation times "
@@ -502,7 +502,22 @@ def preset(calibration, inflate=1.0, rate_hz=None, accel=None, topic=None):
         lines += accel_twin_lines(accel, accel_fields)
         config = replace(config, accelerometer=accel_config(accel_fields))
         layout += (accel_layout(accel_fields),)
+    elif accel is not None:
+        config = replace(config, accelerometer=given_accel_config(accel))
+        layout += (given_accel_layout(),)
     return config_yaml(config, layout, as_comments(lines))
+
+
+def _preset_accel_words(logged, accel):
+    """Say what the preset's accelerometer is: the log's, the user's figures, the paper's."""
+    if logged:
+        return 'the gyro and the accelerometer of the log.'
+    if accel is not None:
+        return ('the gyro of the log, which has no accelerometer: its white noise and random '
+                'walk are the figures given by the user (--accel-noise-density, '
+                '--accel-random-walk) on every axis, no other accelerometer term.')
+    return ('a gyro log, so no accelerometer figures: simulate and the node run the paper '
+            "device's accelerometer (the proof mass's Brownian noise only), not this part's.")
 
 
 #: The measured keys of ``--format preset``, in order: 6-digit figures in datasheet units.

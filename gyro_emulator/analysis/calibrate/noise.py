@@ -324,8 +324,8 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
                             duration_s=float(timing.time_s[-1] - timing.time_s[0]),
                             axes=tuple(found), lsb_rad_s=lsb, recovery=record.recovery,
                             skipped=tuple(skipped),
-                            timing=allan_record.missing_note(timing), sense=sense,
-                            gravity_m_s2=gravity, notes=notes, scale=float(scale))
+                            timing=allan_record.timing_notes(timing),
+                            sense=sense, gravity_m_s2=gravity, notes=notes, scale=float(scale))
 
 
 @dataclass(frozen=True)

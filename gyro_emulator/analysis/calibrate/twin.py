@@ -214,6 +214,10 @@ def log_profile(fit):
     return profiles.ScriptedProfile('thermal-log', tuple(segments))
 
 
+#: Largest rms of the group-mean z of a thermal twin that is within the noise.
+THERMAL_RMS_Z = 1.5
+
+
 @dataclass(frozen=True)
 class ThermalCheck:
     """
@@ -223,8 +227,8 @@ class ThermalCheck:
     ``z`` their differences from the log's means over the expected scatter
     (the log's residual about its fit and the twin's own standard error);
     ``slope`` (log, twin, combined standard error) in rad/s/K; ``passed``
-    when the rms of z is at most 1.5 and the slopes agree within 2 standard
-    errors.
+    when the rms of z is at most :data:`THERMAL_RMS_Z` and the slopes agree
+    within 2 standard errors.
     """
 
     twin: dict
@@ -257,6 +261,6 @@ def check_thermal(fit, log, config, seed=1):
         err = float(np.hypot(log_e[1], sim_e[1]))
         out['twin'][axis], out['twin_sem'][axis], out['z'][axis] = means, sems, z
         out['slope'][axis] = (float(log_c[1]), float(sim_c[1]), err)
-        out['passed'][axis] = bool(np.sqrt(np.mean(z ** 2)) <= 1.5
+        out['passed'][axis] = bool(np.sqrt(np.mean(z ** 2)) <= THERMAL_RMS_Z
                                    and abs(sim_c[1] - log_c[1]) <= 2.0 * err)
     return ThermalCheck(**out)
