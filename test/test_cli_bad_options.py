@@ -128,8 +128,8 @@ def test_the_timing_and_the_fit_check_their_own_arguments():
         analyse.identify([segment], 100.0, 0.75)
 
 
-@pytest.mark.parametrize('workers,scheduler', [('0', 'local'), ('-4', 'in-process'),
-                                                ('0', 'in-process'), ('2000', 'local')])
+@pytest.mark.parametrize('workers,scheduler', [
+    ('0', 'local'), ('-4', 'in-process'), ('0', 'in-process'), ('2000', 'local')])
 def test_fleet_names_a_bad_worker_count_before_any_work(tmp_path, capsys, workers, scheduler):
     config = os.path.join(HERE, '..', 'config', 'fleet_paper_etch2.yaml')
     out = tmp_path / 'fleet'
@@ -172,7 +172,7 @@ def test_calibrate_thermal_refuses_one_file_given_as_two_axes(tmp_path, capsys):
 
 
 def _damaged_bag(tmp_path, capsys):
-    """A simulate bag whose middle is zeroed: two chunks lost."""
+    """Return a simulate bag whose middle is zeroed: two chunks lost."""
     bag = tmp_path / 'bag'
     assert cli.main(['simulate', '--profile', 'steps', '--duration-s', '5', '--out', str(bag),
                      '--start-time', '0']) == 0

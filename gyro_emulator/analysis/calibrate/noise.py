@@ -195,7 +195,7 @@ SCALE_RANGE = (1e-6, 1e6)
 
 
 def check_scale(scale, name='accel_scale'):
-    """Return ``scale`` (a factor on the logged samples); ValueError outside :data:`SCALE_RANGE`."""
+    """Return ``scale``, a factor on the logged samples; ValueError outside :data:`SCALE_RANGE`."""
     return check_range('calibrate', name, scale, *SCALE_RANGE, low_open=False)
 
 
