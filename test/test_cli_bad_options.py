@@ -10,6 +10,7 @@ terminal (a CSV with a header and no rows) or a damaged bag read without a
 word (``simulate --profile``).
 """
 
+import json
 import os
 import shutil
 import warnings
@@ -196,3 +197,24 @@ def test_simulate_says_what_a_damaged_bag_profile_lost(tmp_path, capsys):
     assert lost and all(line.startswith('simulate: note: ') for line in lost), err
     rows = int(printed.split(': ')[1].split()[0])
     assert rows == len(csvio.read_csv(str(out))['time_s']) < 1000
+
+
+def test_allan_keep_outliers_writes_json_a_strict_reader_takes(tmp_path, capsys):
+    path = _static_csv(tmp_path / 'static.csv')
+    out = tmp_path / 'a.json'
+    assert _run(['allan', path, '--keep-outliers', '--json', str(out)], capsys)[0] == 0
+
+    def refuse(word):
+        raise ValueError(f'{word} is not JSON')
+    doc = json.loads(out.read_text(), parse_constant=refuse)
+    assert doc['set_aside']['sigma_rad_s'] is None
+    assert doc['set_aside']['threshold_sigma'] is None
+
+
+@pytest.mark.parametrize('option,value', [('--effect', '+'), ('--effect', ''),
+                                          ('--outliers', '+')])
+def test_truth_refuses_an_effect_or_outlier_list_that_names_nothing(tmp_path, capsys, option,
+                                                                    value):
+    _refused(['truth', str(tmp_path / 't.csv'), option, value, '--profile', 'static'], capsys,
+             f'truth.{option[2:]} = {value!r}')
+    assert os.listdir(tmp_path) == []

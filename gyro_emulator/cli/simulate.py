@@ -8,7 +8,8 @@ from 25 to 85 C, the paper's Fig 6 conditions) or a YAML profile file (see
 rosbag2 bag: its applied rate, temperature and acceleration on its own
 times, the output at its sample times; ``--static`` for a record without a
 rate; ``gyro_emulator.emulation.recorded_profile``). The CSV columns are time_s, rate_{x,y,z}_rad_s
-(true rate), temp_c (ambient) and gyro_{x,y,z}_rad_s (sensor output).
+(true rate), temp_c (ambient), gyro_{x,y,z}_rad_s (sensor output) and
+accel_{x,y,z}_m_s2 (the accelerometer's output).
 An ``--out`` path not ending in .csv/.csv.gz is a rosbag2 MCAP bag directory
 with the node's topics (see ``gyro_emulator.analysis.replay``), stamped from
 ``--start-time`` (default: now).

@@ -148,7 +148,7 @@ def _parse_outliers(outliers):
         return set()
     kinds = {k.strip() for k in str(outliers).split('+') if k.strip()}
     bad = sorted(kinds - set(OUTLIER_KINDS))
-    if bad:
+    if bad or not kinds:
         raise ValueError(f'truth.outliers = {outliers!r} is not allowed: choose '
                          f'{", ".join(OUTLIER_KINDS)} or both joined by +')
     return kinds
