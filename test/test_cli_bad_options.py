@@ -218,3 +218,20 @@ def test_truth_refuses_an_effect_or_outlier_list_that_names_nothing(tmp_path, ca
     _refused(['truth', str(tmp_path / 't.csv'), option, value, '--profile', 'static'], capsys,
              f'truth.{option[2:]} = {value!r}')
     assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize('argv,words', [
+    (['simulate', '--duration-s', '1', '--out', ''], "--out '': an empty name"),
+    (['allan', '{csv}', '--json', ''], "--json '': an empty name; give a file name"),
+    (['paper', '--out-dir', ''], "--out-dir '': an empty name; give a folder name"),
+    (['bag', 'repair', '{bag}', '--out', ''], "--out '': an empty name; give a directory name"),
+])
+def test_an_empty_output_name_is_refused_not_taken_as_the_working_directory(
+        tmp_path, capsys, monkeypatch, argv, words):
+    monkeypatch.chdir(tmp_path)
+    csv = _static_csv(tmp_path / 'static.csv')
+    assert cli.main(['simulate', '--duration-s', '1', '--out', 'bag']) == 0
+    capsys.readouterr()
+    before = sorted(os.listdir(tmp_path))
+    _refused([a.format(csv=csv, bag='bag') for a in argv], capsys, words)
+    assert sorted(os.listdir(tmp_path)) == before

@@ -220,7 +220,7 @@ def write_simulation_csv(path, chunks, progress=None, total=None):
 
 def output(out):
     """Return the :class:`gyro_emulator.outputs.Output` of ``--out``: a CSV file or a bag."""
-    out = os.path.abspath(out)
+    out = os.path.abspath(out) if out else out      # '' is said as such by outputs.check
     return (outputs.file if is_csv_path(out) else outputs.directory)('--out', out)
 
 
