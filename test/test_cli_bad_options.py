@@ -235,3 +235,21 @@ def test_an_empty_output_name_is_refused_not_taken_as_the_working_directory(
     before = sorted(os.listdir(tmp_path))
     _refused([a.format(csv=csv, bag='bag') for a in argv], capsys, words)
     assert sorted(os.listdir(tmp_path)) == before
+
+
+@pytest.mark.parametrize('segment,words', [
+    ('rate_deg_s: .inf', 'rate_deg_s = inf is not allowed: give a finite number'),
+    ('rate_rpm: .nan', 'rate_rpm = nan is not allowed: give a finite number'),
+    ('rate_deg_s: [1, 2, .inf]', 'Segment.rate_start_rad_s = (0.017453292519943295, '
+                                 '0.03490658503988659, inf) is not allowed'),
+])
+def test_a_profile_rate_that_is_not_finite_is_named_as_written(tmp_path, capsys, segment,
+                                                               words):
+    profile = tmp_path / 'profile.yaml'
+    profile.write_text(f'segments:\n  - {{duration_s: 1, {segment}}}\n')
+    out = tmp_path / 'out.csv'
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter('always')
+        _refused(['simulate', '--profile', str(profile), '--duration-s', '1', '--out',
+                  str(out)], capsys, 'segment 1: ' + words)
+    assert [str(w.message) for w in caught] == [] and not out.exists()
