@@ -253,3 +253,18 @@ def test_a_profile_rate_that_is_not_finite_is_named_as_written(tmp_path, capsys,
         _refused(['simulate', '--profile', str(profile), '--duration-s', '1', '--out',
                   str(out)], capsys, 'segment 1: ' + words)
     assert [str(w.message) for w in caught] == [] and not out.exists()
+
+
+@pytest.mark.parametrize('name', ['excel.csv', 'excel.csv.gz'])
+def test_a_csv_with_a_byte_order_mark_reads_as_without(tmp_path, name):
+    plain = _static_csv(tmp_path / 'plain.csv')
+    text = b'\xef\xbb\xbf' + open(plain, 'rb').read()
+    path = tmp_path / name
+    if name.endswith('.gz'):
+        import gzip
+        text = gzip.compress(text)
+    path.write_bytes(text)
+    marked, clean = csvio.read_csv(str(path)), csvio.read_csv(plain)
+    assert list(marked) == list(clean) == ['time_s', 'gyro_x_rad_s']
+    for column in clean:
+        np.testing.assert_array_equal(marked[column], clean[column])

@@ -29,11 +29,16 @@ GYRO_SINGLE = 'gyro_rad_s'
 GYRO_AXES = ('gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s')
 
 
+#: How a CSV is read: UTF-8, a leading byte-order mark (Excel's "CSV UTF-8") skipped.
+READ_ENCODING = 'utf-8-sig'
+
+
 def _open_text(path, mode):
+    """Open a CSV (``.gz``: gunzipped) as text to read, :data:`READ_ENCODING`."""
     if str(path).endswith('.gz'):
-        return io.TextIOWrapper(gzip.open(path, mode + 'b'), encoding='utf-8',
+        return io.TextIOWrapper(gzip.open(path, mode + 'b'), encoding=READ_ENCODING,
                                 newline='')
-    return open(path, mode, encoding='utf-8', newline='')
+    return open(path, mode, encoding=READ_ENCODING, newline='')
 
 
 def _open_staged(tmp, path):
