@@ -268,3 +268,26 @@ def test_a_csv_with_a_byte_order_mark_reads_as_without(tmp_path, name):
     assert list(marked) == list(clean) == ['time_s', 'gyro_x_rad_s']
     for column in clean:
         np.testing.assert_array_equal(marked[column], clean[column])
+
+
+@pytest.mark.parametrize('argv,words', [
+    (['diagnose', '{csv}', '--config', 'paper', '--write-config', '{preset}'],
+     'is the input {preset}'),
+    (['calibrate', 'check-noise', '{csv}', '--config', 'paper', '--json', '{preset}'],
+     'is the input {preset}'),
+    (['simulate', '--config', 'paper', '--out', '{presets}'], 'holds the input {preset}'),
+])
+def test_no_output_replaces_the_sensor_preset_the_run_read(tmp_path, capsys, monkeypatch,
+                                                           argv, words):
+    from gyro_emulator.sensor import config as sensor_config
+    presets = tmp_path / 'config'
+    presets.mkdir()
+    shutil.copy(sensor_config.preset_path('paper'), presets / 'sensor_paper.yaml')
+    monkeypatch.setattr(sensor_config, 'config_dir', lambda: str(presets))
+    preset = presets / 'sensor_paper.yaml'
+    before = preset.read_bytes()
+    csv = _static_csv(tmp_path / 'static.csv')
+    line = _refused([a.format(csv=csv, preset=preset, presets=presets) for a in argv]
+                    + ['--overwrite'], capsys, words.format(preset=preset))
+    assert 'choose another' in line
+    assert preset.read_bytes() == before and os.listdir(presets) == ['sensor_paper.yaml']

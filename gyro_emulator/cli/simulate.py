@@ -96,9 +96,11 @@ def run(args):
     # top: `gyro-emulator --help` imports every command module.
     from gyro_emulator.emulation import recorded_profile, simulate
     from gyro_emulator.sensor import faults
+    from gyro_emulator.sensor.config import config_source
 
     started = time.monotonic()
-    outputs.check([simulate.output(args.out)], inputs=[args.config, args.profile, args.faults],
+    outputs.check([simulate.output(args.out)],
+                  inputs=[config_source(args.config), args.profile, args.faults],
                   overwrite=args.overwrite)
     profile, measured = args.profile, recorded_profile.is_record_path(args.profile)
     if measured:
