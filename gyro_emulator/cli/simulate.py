@@ -51,8 +51,8 @@ def add_arguments(parser):
     parser.add_argument('--rate-hz', type=float, default=200.0, metavar='R',
                         help='output data rate, Hz (default: %(default)s)')
     parser.add_argument('--temp-c', type=float, default=25.0, metavar='C',
-                        help='ambient of the static and steps profiles, deg C '
-                             '(default: %(default)s)')
+                        help='ambient of the static and steps profiles, and of a measured '
+                             'profile without a temperature, deg C (default: %(default)s)')
     parser.add_argument('--seed', type=int, default=0, metavar='N',
                         help='random seed (default: %(default)s)')
     parser.add_argument('--out', required=True, metavar='FILE.csv|DIR',
