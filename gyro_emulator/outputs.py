@@ -60,6 +60,10 @@ class Output:
         return (self.path,)
 
 
+#: How a message names what each kind of :class:`Output` needs.
+_KIND_NAMES = {'file': 'file', 'dir': 'directory', 'in': 'folder'}
+
+
 def file(option, path):
     """Return the :class:`Output` of one file; None without a path."""
     return None if path is None else Output(option, os.fspath(path))
@@ -176,6 +180,9 @@ def check(outputs, inputs=(), overwrite=False):
     sources = [os.fspath(s) for s in inputs if s is not None and os.path.lexists(os.fspath(s))]
     seen = {}
     for output in outputs:
+        if not output.path:             # '' would be the working directory
+            raise ValueError(f'{output.option} {output.path!r}: an empty name; give a '
+                             f'{_KIND_NAMES[output.kind]} name')
         if output.kind == 'in':
             _check_folder(output.option, os.path.join(output.path, 'x'))
             if os.path.lexists(output.path) and not os.path.isdir(output.path):

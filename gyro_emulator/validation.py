@@ -176,6 +176,20 @@ def _all_inside(arr, low, high, low_open, high_open):
     return not np.any(outside(ends, low, high, low_open, high_open))
 
 
+def check_seed(owner, seed):
+    """
+    Return ``seed``, a seed of ``numpy.random.default_rng``; ValueError unless an integer >= 0.
+
+    The message names ``owner.seed``, the value and the range (numpy's own
+    says only "expected non-negative integer").
+    """
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)) \
+            or seed < 0:
+        raise ValueError(f'{owner}.seed = {quote(seed)} is out of range: allowed integers '
+                         '>= 0')
+    return seed
+
+
 def check_choice(owner, name, value, choices):
     """Raise ValueError unless ``value`` is one of ``choices``."""
     if value not in choices:

@@ -121,6 +121,40 @@ def test_a_bit_flip_in_the_summary_is_caught_by_its_crc(original, tmp_path, wher
     assert list(bag.BagReader(path).topics) == [TOPIC] and _messages(path) == original[1]
 
 
+@pytest.mark.parametrize('head', [b'XXXXXXXX', bytes(8), b'\x89MCAP1\r\n'])
+def test_a_damaged_leading_magic_is_said_and_repair_makes_a_file_rosbags_reads(
+        original, tmp_path, head):
+    from rosbags.rosbag2 import Reader
+    path, mcap_path = _copy(original, tmp_path)
+    with open(mcap_path, 'r+b') as handle:
+        handle.write(head)
+    with pytest.raises(Exception):      # what the consumers do with it
+        with Reader(path) as reader:
+            list(reader.messages())
+    with pytest.raises(ValueError) as caught:
+        bag.BagReader(path).read_arrays(TOPIC)
+    assert _one_line(str(caught.value)) and 'bag repair' in str(caught.value)
+    info = _cli('bag', 'info', path)
+    assert info.returncode == 0 and 'the leading MCAP magic is damaged' in info.stdout
+    assert f'run: gyro-emulator bag repair {path}' in info.stdout
+    assert _messages(path, tolerant=True) == original[1]
+    report = bag.repair_bag(path)
+    assert report.rewritten and report.message_count == len(original[1])
+    assert 'complete,' not in report.describe()
+    with open(mcap_path, 'rb') as handle:
+        assert handle.read(8) == b'\x89MCAP0\r\n'
+    with Reader(path) as reader:
+        assert len(list(reader.messages())) == len(original[1])
+    assert _messages(path) == original[1]
+
+
+def test_a_file_that_is_not_mcap_at_either_end_is_still_refused(tmp_path):
+    path = tmp_path / 'not.mcap'
+    path.write_bytes(b'XXXXXXXX' + bytes(100))
+    with pytest.raises(ValueError, match='is not an MCAP file'):
+        bag.repair_bag(str(path))
+
+
 def test_summary_damage_gives_one_line_from_every_command(original, tmp_path):
     path, mcap_path = _copy(original, tmp_path)
     summary = _summary(mcap_path)

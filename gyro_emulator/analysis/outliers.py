@@ -322,11 +322,11 @@ class SetAside:
         return self.count / max(len(self.keep), 1)
 
     def as_dict(self, max_spans=50):
-        """JSON-ready form (the first ``max_spans`` stretches)."""
+        """JSON-ready form (the first ``max_spans`` stretches; a scale not worked out: null)."""
         doc = {'count': self.count, 'fraction': self.fraction,
                'stretches': len(self.spans),
                'spans': [list(s) for s in self.spans[:max_spans]],
-               'sigma_rad_s': self.sigma_rad_s,
+               'sigma_rad_s': self.sigma_rad_s if math.isfinite(self.sigma_rad_s) else None,
                'threshold_sigma': None if math.isinf(self.threshold) else self.threshold,
                'note': self.note}
         if self.outside:

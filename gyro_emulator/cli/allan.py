@@ -51,11 +51,11 @@ def add_arguments(parser):
     parser.add_argument('--plot', metavar='PNG', help='write the Allan deviation plot')
     add_overwrite(parser)
     parser.add_argument('--gap-factor', type=float, default=3.0, metavar='F',
-                        help='a time step over F median steps is a gap '
+                        help='a time step over F median steps is a gap; F > 1 '
                              '(default: %(default)s)')
     parser.add_argument('--max-tau-fraction', type=float, default=0.25, metavar='F',
-                        help='longest tau as a fraction of the longest segment '
-                             '(default: %(default)s)')
+                        help='longest tau as a fraction of the longest segment, '
+                             'in (0, 0.5] (default: %(default)s)')
     add_outlier_arguments(parser)
 
 

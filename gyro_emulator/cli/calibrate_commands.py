@@ -20,7 +20,7 @@ from gyro_emulator.analysis.sense import ACCEL, GYRO
 from gyro_emulator.cli.allan import outlier_threshold, print_terms
 from gyro_emulator.cli.jsonout import write_json
 from gyro_emulator.recording.record import load_record
-from gyro_emulator.sensor.config import load_sensor_config
+from gyro_emulator.sensor.config import config_source, load_sensor_config
 import numpy as np
 from tqdm import tqdm
 
@@ -39,7 +39,8 @@ def _check_outputs(args, plots=None):
     outputs.check([outputs.file('--out', getattr(args, 'out', None)),
                    outputs.file('--json', args.json)]
                   + [outputs.image('--plot', p) for p in plots if p],
-                  inputs=logs + [getattr(args, 'config', None), getattr(args, 'px4', None)],
+                  inputs=logs + [config_source(getattr(args, 'config', None)),
+                                 getattr(args, 'px4', None)],
                   overwrite=args.overwrite)
 
 

@@ -60,8 +60,10 @@ def add_arguments(parser):
 def run(args):
     """Replay the bag through the model, write the bag and the report."""
     from gyro_emulator.analysis.replay.run import OUTPUTS, replay_bag
+    from gyro_emulator.sensor.config import config_source
 
-    outputs.check([outputs.inside('--out', args.out, OUTPUTS)], inputs=[args.bag, args.config],
+    outputs.check([outputs.inside('--out', args.out, OUTPUTS)],
+                  inputs=[args.bag, config_source(args.config)],
                   overwrite=args.overwrite)
     run = replay_bag(
         args.bag, args.out, config=args.config, seed=args.seed, plots=not args.no_plots,

@@ -8,7 +8,8 @@ from 25 to 85 C, the paper's Fig 6 conditions) or a YAML profile file (see
 rosbag2 bag: its applied rate, temperature and acceleration on its own
 times, the output at its sample times; ``--static`` for a record without a
 rate; ``gyro_emulator.emulation.recorded_profile``). The CSV columns are time_s, rate_{x,y,z}_rad_s
-(true rate), temp_c (ambient) and gyro_{x,y,z}_rad_s (sensor output).
+(true rate), temp_c (ambient), gyro_{x,y,z}_rad_s (sensor output) and
+accel_{x,y,z}_m_s2 (the accelerometer's output).
 An ``--out`` path not ending in .csv/.csv.gz is a rosbag2 MCAP bag directory
 with the node's topics (see ``gyro_emulator.analysis.replay``), stamped from
 ``--start-time`` (default: now).
@@ -50,8 +51,8 @@ def add_arguments(parser):
     parser.add_argument('--rate-hz', type=float, default=200.0, metavar='R',
                         help='output data rate, Hz (default: %(default)s)')
     parser.add_argument('--temp-c', type=float, default=25.0, metavar='C',
-                        help='ambient of the static and steps profiles, deg C '
-                             '(default: %(default)s)')
+                        help='ambient of the static and steps profiles, and of a measured '
+                             'profile without a temperature, deg C (default: %(default)s)')
     parser.add_argument('--seed', type=int, default=0, metavar='N',
                         help='random seed (default: %(default)s)')
     parser.add_argument('--out', required=True, metavar='FILE.csv|DIR',
@@ -95,9 +96,11 @@ def run(args):
     # top: `gyro-emulator --help` imports every command module.
     from gyro_emulator.emulation import recorded_profile, simulate
     from gyro_emulator.sensor import faults
+    from gyro_emulator.sensor.config import config_source
 
     started = time.monotonic()
-    outputs.check([simulate.output(args.out)], inputs=[args.config, args.profile, args.faults],
+    outputs.check([simulate.output(args.out)],
+                  inputs=[config_source(args.config), args.profile, args.faults],
                   overwrite=args.overwrite)
     profile, measured = args.profile, recorded_profile.is_record_path(args.profile)
     if measured:

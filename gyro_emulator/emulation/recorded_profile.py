@@ -36,7 +36,6 @@ import os
 
 from gyro_emulator.emulation.profiles import SampledProfile
 from gyro_emulator.emulation.run_profile import MotionForce
-from gyro_emulator.recording import topics as table
 from gyro_emulator.recording.record import is_bag, load_record
 from gyro_emulator.units import AXES
 from gyro_emulator.validation import check_record_values, MODEL_TEMP_RANGE_C
@@ -71,8 +70,9 @@ class RecordedProfile(SampledProfile):
         A bag's applied linear acceleration (body frame, gravity excluded),
         shape (N, 3), with a specific force left to the motion.
     notes : tuple of str
-        How the record was read (a bag's acceleration commands taken as the
-        specific force: :func:`~gyro_emulator.recording.topics.old_accel_note`).
+        How the record was read (``Record.recovery``): what a damaged bag
+        lost, a bag's acceleration commands taken as the specific force
+        (:func:`~gyro_emulator.recording.topics.old_accel_note`).
 
     """
 
@@ -214,9 +214,8 @@ def recorded_profile(path, axis='z', static=False, temp_c=25.0, topics=None):
     for name, values in (('rate', rate), ('accel', accel), ('linear_accel', linear)):
         if values is not None and not np.all(np.isfinite(values)):
             raise ValueError(f'{path}: the {name} channel has values that are not finite')
-    older = table.old_accel_note(record.topics['accel']) if 'accel' in record.topics else None
     return RecordedProfile(str(path), t, rate, temp, accel, linear_accel_m_s2=linear,
-                           notes=(older,) if older in record.recovery else ())
+                           notes=tuple(record.recovery))
 
 
 def commanded_specific_force(record, time_s):

@@ -105,9 +105,17 @@ def _start_end(where, key, value, shape):
                      f'[start, end] of {want}')
 
 
+def _floats(values):
+    """Return ``values`` as a tuple of Python floats (an error shows them as numbers)."""
+    return tuple(float(v) for v in values)
+
+
 def _rate_start_end(where, key, value, axis):
     """Rates of a segment: a number along ``axis``, a 3-vector, or [start, end] 3-vectors."""
     if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if not np.isfinite(value):      # inf x 0 would be NaN on the other axes
+            raise ValueError(f'{where}: {key} = {quote(value)} is not allowed: give a finite '
+                             'number')
         along = np.asarray(axis) * float(value)
         return along, along
     return _start_end(where, key, value, (3,))
@@ -160,12 +168,13 @@ def parse_segment(where, seg, axis=DEFAULT_AXIS, last_temp_c=25.0,
         raise ValueError(f'{where}: linear_accel_m_s2 is for a specific force left to the '
                          'motion: give it or accel_m_s2 (the specific force itself), not both')
     if acc is not None:
-        acc = tuple(_start_end(where, 'accel_m_s2', acc, (3,))[0])
+        acc = _floats(_start_end(where, 'accel_m_s2', acc, (3,))[0])
     linear, _ = _start_end(where, 'linear_accel_m_s2',
                            seg.get('linear_accel_m_s2', default_linear_m_s2), (3,))
     try:
-        return Segment(float(seg['duration_s']), tuple(r0), tuple(r1), float(t0), float(t1),
-                       acc, float(seg.get('settle_s', 0.0)), linear_accel_m_s2=tuple(linear))
+        return Segment(float(seg['duration_s']), _floats(r0), _floats(r1), float(t0),
+                       float(t1), acc, float(seg.get('settle_s', 0.0)),
+                       linear_accel_m_s2=_floats(linear))
     except (TypeError, ValueError) as exc:
         raise ValueError(f'{where}: {exc}') from None
 

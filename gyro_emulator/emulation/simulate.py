@@ -33,6 +33,7 @@ from gyro_emulator.emulation.run_profile import (CHUNK_SAMPLES, fault_injector, 
 from gyro_emulator.recording import csvio
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.imu import ImuModel
+from gyro_emulator.validation import check_seed
 import numpy as np
 
 #: Columns of the simulation CSV, in order: the accelerometer's output under the
@@ -49,21 +50,16 @@ MAX_SAMPLES = 20_000_000
 def _resolve(config, profile, duration_s, rate_hz, temp_c):
     if not isinstance(config, SensorConfig):
         config = load_sensor_config(config)
-    duration_s = float(duration_s)
-    rate_hz = float(rate_hz)
-    if not (np.isfinite(duration_s) and duration_s > 0.0):
-        raise ValueError(f'duration_s = {duration_s!r} is out of range: allowed > 0 s')
-    if not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
-        raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
+    n = sample_count(duration_s, rate_hz)
+    duration_s, rate_hz = float(duration_s), float(rate_hz)
     if isinstance(profile, (str, os.PathLike)):
         profile = make_profile(profile, duration_s, temp_c)
-    n = int(np.floor(duration_s * rate_hz + 1e-9))
-    if n < 1:
-        raise ValueError(f'duration_s = {duration_s!r} at {rate_hz:g} Hz gives no sample')
-    if n > MAX_SAMPLES:
-        raise ValueError(f'duration_s x rate_hz = {n} samples is out of range: allowed '
-                         f'<= {MAX_SAMPLES}')
     return config, profile, n, rate_hz
+
+
+def _rng(seed):
+    """Return the run's generator, the seed checked first (:func:`check_seed`)."""
+    return np.random.default_rng(check_seed('simulate', seed))
 
 
 def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
@@ -102,7 +98,7 @@ def iter_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
         yield from _iter_recorded(config, profile, seed, chunk_samples, faults)
         return
     config, profile, n, rate_hz = _resolve(config, profile, duration_s, rate_hz, temp_c)
-    rng = np.random.default_rng(seed)
+    rng = _rng(seed)
     model = ImuModel(config, rate_hz, rng)
     yield from run_over_profile(model, OnClock(profile, n, model.sample_period_s), chunk_samples,
                                 fault_injector(faults, config, rng))
@@ -123,7 +119,7 @@ def _iter_recorded(config, profile, seed, chunk_samples, faults):
         config = load_sensor_config(config)
     config = replace(config, extended=replace(config.extended,
                                               start_time_s=float(profile.time_s[0])))
-    rng = np.random.default_rng(seed)
+    rng = _rng(seed)
     model = ImuModel(config, profile.rate_hz, rng)
     grid = profile.on_model_grid(model.sample_period_s)
     if grid.count > MAX_SAMPLES:
@@ -133,8 +129,26 @@ def _iter_recorded(config, profile, seed, chunk_samples, faults):
 
 
 def sample_count(duration_s, rate_hz):
-    """Return the number of samples of a simulation: floor(duration_s rate_hz)."""
-    return int(np.floor(float(duration_s) * float(rate_hz) + 1e-9))
+    """
+    Return the number of samples of a simulation: floor(duration_s rate_hz).
+
+    Raises ValueError, one line naming the value and its range, unless
+    ``duration_s`` > 0 and 0 < ``rate_hz`` <= 1e6 are finite and give 1 to
+    :data:`MAX_SAMPLES` samples.
+    """
+    duration_s = float(duration_s)
+    rate_hz = float(rate_hz)
+    if not (np.isfinite(duration_s) and duration_s > 0.0):
+        raise ValueError(f'duration_s = {duration_s!r} is out of range: allowed > 0 s')
+    if not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
+        raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
+    n = int(np.floor(duration_s * rate_hz + 1e-9))
+    if n < 1:
+        raise ValueError(f'duration_s = {duration_s!r} at {rate_hz:g} Hz gives no sample')
+    if n > MAX_SAMPLES:
+        raise ValueError(f'duration_s x rate_hz = {n} samples is out of range: allowed '
+                         f'<= {MAX_SAMPLES}')
+    return n
 
 
 def run_simulation(config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
@@ -206,7 +220,7 @@ def write_simulation_csv(path, chunks, progress=None, total=None):
 
 def output(out):
     """Return the :class:`gyro_emulator.outputs.Output` of ``--out``: a CSV file or a bag."""
-    out = os.path.abspath(out)
+    out = os.path.abspath(out) if out else out      # '' is said as such by outputs.check
     return (outputs.file if is_csv_path(out) else outputs.directory)('--out', out)
 
 
@@ -305,10 +319,12 @@ def write_record(out, config, profile, duration_s, rate_hz, seed=0, temp_c=25.0,
 
     """
     start_ns = time.time_ns() if start_time_ns is None else int(start_time_ns)
+    check_seed('simulate', seed)
     sensor = config if isinstance(config, SensorConfig) else load_sensor_config(config)
-    total = sample_count(duration_s, rate_hz)
     if isinstance(profile, RecordedProfile):
         duration_s, rate_hz, total = profile.duration_s, profile.rate_hz, len(profile.time_s)
+    else:
+        total = sample_count(duration_s, rate_hz)
     chunks = iter_simulation(sensor, profile, duration_s, rate_hz, seed=seed, temp_c=temp_c,
                              faults=faults)
     if is_csv_path(out):

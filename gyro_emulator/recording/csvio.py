@@ -16,6 +16,7 @@ import gzip
 import io
 import itertools
 import os
+import warnings
 import zlib
 
 from gyro_emulator import atomic
@@ -28,11 +29,16 @@ GYRO_SINGLE = 'gyro_rad_s'
 GYRO_AXES = ('gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s')
 
 
+#: How a CSV is read: UTF-8, a leading byte-order mark (Excel's "CSV UTF-8") skipped.
+READ_ENCODING = 'utf-8-sig'
+
+
 def _open_text(path, mode):
+    """Open a CSV (``.gz``: gunzipped) as text to read, :data:`READ_ENCODING`."""
     if str(path).endswith('.gz'):
-        return io.TextIOWrapper(gzip.open(path, mode + 'b'), encoding='utf-8',
+        return io.TextIOWrapper(gzip.open(path, mode + 'b'), encoding=READ_ENCODING,
                                 newline='')
-    return open(path, mode, encoding='utf-8', newline='')
+    return open(path, mode, encoding=READ_ENCODING, newline='')
 
 
 def _open_staged(tmp, path):
@@ -153,13 +159,25 @@ def _wanted_columns(path, required, only):
     return names, skip, wanted, [names.index(n) for n in wanted]
 
 
+def _loadtxt(source, **options):
+    """
+    Return ``numpy.loadtxt`` of CSV lines: floats, 2-D, ``#`` comments.
+
+    Data rows absent give an empty array without numpy's UserWarning (the
+    callers say it in one line: "no data rows after the header").
+    """
+    with warnings.catch_warnings():
+        warnings.filterwarnings('ignore', 'loadtxt: input contained no data', UserWarning)
+        return np.loadtxt(source, delimiter=',', comments='#', ndmin=2, dtype=float,
+                          **options)
+
+
 def _read_columns(path, required, time_order, only):
     """Read the columns (see :func:`read_csv`); decompression errors pass through."""
     names, skip, wanted, index = _wanted_columns(path, required, only)
     try:
         with _open_text(path, 'r') as handle:
-            data = np.loadtxt(handle, delimiter=',', skiprows=skip, comments='#',
-                              ndmin=2, dtype=float, usecols=None if only is None else index)
+            data = _loadtxt(handle, skiprows=skip, usecols=None if only is None else index)
     except ValueError:
         raise ValueError(_find_bad_cell(path, names, skip, wanted)) from None
     if data.size == 0:
@@ -211,8 +229,7 @@ def iter_csv_blocks(path, required=(), only=None, block_rows=BLOCK_ROWS):
 def _parse_block(path, names, skip, wanted, index, lines, first):
     """Parse the data lines of one block into columns (see :func:`iter_csv_blocks`)."""
     try:
-        data = np.loadtxt(lines, delimiter=',', comments='#', ndmin=2, dtype=float,
-                          usecols=index)
+        data = _loadtxt(lines, usecols=index)
     except ValueError:
         raise ValueError(_find_bad_cell(path, names, skip, wanted)) from None
     if data.size and data.shape[1] != len(wanted):

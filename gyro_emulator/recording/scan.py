@@ -31,12 +31,14 @@ _COMPRESSIONS = (b'', b'zstd', b'lz4')
 
 def summary_crc_problem(handle, size):
     """
-    Return why the summary of a file cannot be trusted (its CRC fails), or None.
+    Return why a finished file cannot be trusted as it is (its CRC fails), or None.
 
     The footer's ``summary_crc`` covers every byte from the summary start
     through the footer's ``summary_offset_start`` (MCAP specification); 0
-    means the writer stored none, which is accepted. A file without a
-    footer and closing magic is left to the caller (None).
+    means the writer stored none, which is accepted. A damaged leading
+    magic is said too (:func:`head_problem`): the records and the summary
+    may be intact, but ``mcap`` and ``rosbags`` refuse the file. A file
+    without a footer and closing magic is left to the caller (None).
     """
     footer_at = size - len(MCAP_MAGIC) - _FOOTER.size
     if footer_at < len(MCAP_MAGIC):
@@ -45,6 +47,9 @@ def summary_crc_problem(handle, size):
     tail = handle.read(_FOOTER.size + len(MCAP_MAGIC))
     if tail[_FOOTER.size:] != MCAP_MAGIC:
         return None
+    damaged = head_problem(handle)
+    if damaged is not None:
+        return damaged
     opcode, length, summary_start, _, crc = _FOOTER.unpack(tail[:_FOOTER.size])
     if opcode != Opcode.FOOTER or length != _FOOTER.size - 9:
         return f'the footer at byte {footer_at} is corrupt'
@@ -59,6 +64,24 @@ def summary_crc_problem(handle, size):
     if computed != crc:
         return f'summary CRC mismatch (stored 0x{crc:08x}, computed 0x{computed:08x})'
     return None
+
+
+def head_problem(handle):
+    """Return why the leading MCAP magic of an open file is wrong, or None when it is right."""
+    handle.seek(0)
+    magic = handle.read(len(MCAP_MAGIC))
+    if magic == MCAP_MAGIC:
+        return None
+    return (f'the leading MCAP magic is damaged ({magic!r}): mcap and rosbags refuse the '
+            'file')
+
+
+def _finished(handle, size):
+    """Return whether an open file ends with the MCAP magic (a footer was written)."""
+    if size < 2 * len(MCAP_MAGIC):
+        return False
+    handle.seek(size - len(MCAP_MAGIC))
+    return handle.read(len(MCAP_MAGIC)) == MCAP_MAGIC
 
 
 @dataclass
@@ -401,7 +424,8 @@ def scan_mcap(path, report=None):
     Raises
     ------
     ValueError
-        If the file does not start with the MCAP magic.
+        If the file does not start with the MCAP magic (nor end with it: a
+        finished file whose leading magic alone is damaged is read).
 
     """
     report = report if report is not None else ScanReport(path)
@@ -413,9 +437,12 @@ def scan_mcap(path, report=None):
         if len(magic) < len(MCAP_MAGIC) and MCAP_MAGIC.startswith(magic):
             report.problem = f'the file is truncated to {size} bytes, before any record'
             return
-        if magic != MCAP_MAGIC:
+        if magic != MCAP_MAGIC and not _finished(handle, size):
             raise ValueError(f'{path} is not an MCAP file (it does not start with the '
                              f'MCAP magic; {size} bytes)')
+        # a finished file whose head alone is damaged: its records are read, the damage
+        # said at the footer (summary_crc_problem)
+        handle.seek(len(MCAP_MAGIC))
         yield from _scan_records(handle, report, size)
 
 

@@ -16,7 +16,7 @@ once, as a :class:`Timing`; a record carries its own
 
 from dataclasses import dataclass
 
-from gyro_emulator.validation import RECORD_TIME_LIMIT_S
+from gyro_emulator.validation import check_range, RECORD_TIME_LIMIT_S
 import numpy as np
 
 
@@ -198,6 +198,7 @@ def timing_of(time_s, gap_factor=GAP_FACTOR):
 def _median_step_and_segments(time_s, gap_factor):
     """Return the median positive step, the steps within segments, and the segments."""
     t = np.asarray(time_s, dtype=float)
+    check_range('timing', 'gap_factor', gap_factor, 1.0, None)
     if len(t) < 2:
         raise ValueError(f'time_s has {len(t)} samples: need >= 2')
     step = np.diff(t)

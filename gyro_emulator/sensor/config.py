@@ -407,6 +407,19 @@ def preset_path(name):
     return os.path.join(config_dir(), f'sensor_{name}.yaml')
 
 
+def config_source(name_or_path):
+    """
+    Return the file a sensor config names: a preset's YAML, else the path as given.
+
+    None gives None. Commands name it among their inputs, so that no output
+    replaces the preset a run read (:func:`gyro_emulator.outputs.check`).
+    """
+    if name_or_path is None:
+        return None
+    name = str(name_or_path)
+    return preset_path(name) if name in PRESET_NAMES else name
+
+
 def load_sensor_config(name_or_path=None):
     """
     Load a sensor configuration by preset name or YAML path.
@@ -428,7 +441,7 @@ def load_sensor_config(name_or_path=None):
 
     """
     name = DEFAULT_SENSOR_PRESET if name_or_path is None else str(name_or_path)
-    path = preset_path(name) if name in PRESET_NAMES else name
+    path = config_source(name)
     if not os.path.isfile(path):
         raise ValueError(
             f'sensor config {quote(name)} is neither a preset '

@@ -20,8 +20,11 @@ from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import adev, band, fit as fitting
 from gyro_emulator.analysis.sense import GYRO
 from gyro_emulator.recording.timing import slow_step_note
+from gyro_emulator.validation import check_range
 import numpy as np
 
+#: Longest tau as a share of the longest segment (``identify``): 2 tau fit in it.
+MAX_TAU_FRACTION = 0.5
 #: A stretch set aside no longer than this is filled with its neighbours' mean,
 #: a longer one splits the record, s.
 FILL_MAX_S = 10.0
@@ -140,7 +143,10 @@ def identify(segments, rate_hz, max_tau_fraction=0.25, ci=0.683):
     ``ci``), and the five-term fit (95 % term intervals)
     above the band-limited region, with its ``band``, ``readings`` and the
     warnings of the fit, of the read-off comparison and of the band limit.
+    ``max_tau_fraction``, the longest tau as a share of the longest segment,
+    lies in (0, 0.5] (the overlapping Allan variance needs 2 tau within it).
     """
+    check_range('allan', 'max_tau_fraction', max_tau_fraction, 0.0, MAX_TAU_FRACTION)
     longest = max(len(s) for s in segments)
     taus = adev.tau_multiples(longest, 10, max_tau_fraction) / rate_hz
     result = adev.overlapping_adev(segments, rate_hz, taus=taus, ci=ci)

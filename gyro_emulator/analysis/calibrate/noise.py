@@ -35,6 +35,7 @@ from gyro_emulator.analysis.allan import analyse as allan_record
 from gyro_emulator.analysis.sense import ACCEL, GYRO
 from gyro_emulator.recording.record import grid_step
 from gyro_emulator.units import AXES
+from gyro_emulator.validation import check_range
 import numpy as np
 
 #: Most distinct values a log may have for its grid to be looked for (grid_step).
@@ -189,6 +190,15 @@ GRAVITY_TOLERANCE = 0.15
 IN_G = (0.5, 2.0)
 
 
+#: The factors a logged channel may be multiplied by (``--accel-scale``), inclusive.
+SCALE_RANGE = (1e-6, 1e6)
+
+
+def check_scale(scale, name='accel_scale'):
+    """Return ``scale``, a factor on the logged samples; ValueError outside :data:`SCALE_RANGE`."""
+    return check_range('calibrate', name, scale, *SCALE_RANGE, low_open=False)
+
+
 def gravity_at_rest(values, path, scale=1.0):
     """
     Return the gravity a static accelerometer reads, (x, y, z) m/s^2, and notes.
@@ -202,6 +212,7 @@ def gravity_at_rest(values, path, scale=1.0):
     :data:`GRAVITY_TOLERANCE` from g gets a note (not static, or another
     unit or a scale error).
     """
+    check_scale(scale)
     means = np.median(np.asarray(values, dtype=float), axis=0)
     size = float(np.linalg.norm(means))
     g = units.STANDARD_GRAVITY_M_S2
@@ -284,8 +295,7 @@ def calibrate_noise(record, axes=None, gap_factor=3.0, max_tau_fraction=0.25,
     NoiseCalibration
 
     """
-    if not (np.isfinite(scale) and 1e-6 <= scale <= 1e6):
-        raise ValueError(f'scale = {scale!r} is out of range: allowed [1e-06, 1e+06]')
+    check_scale(scale, 'scale')
     path, columns, timing = _channel(record, sense, axes, gap_factor, scale)
     gravity, notes = None, ()
     if sense is ACCEL:

@@ -37,6 +37,7 @@ offset change: the coefficients hold for the attitude of the log.
 """
 
 from dataclasses import dataclass, field, replace
+import os
 
 from gyro_emulator.analysis import outliers
 from gyro_emulator.analysis.allan import analyse as allan_record
@@ -130,6 +131,7 @@ def thermal_log(recs):
                          'one to three one-axis files (x, y, z in that order)')
     if len(recs) == 1 and recs[0].is_bag:
         return ThermalLog(paths, *_bag_axes(recs[0].require_gyro()))
+    _refuse_repeated(paths)
     axes, columns, temps, records = {}, {}, {}, {}
     for i, rec in enumerate(recs):
         path = rec.path
@@ -147,6 +149,19 @@ def thermal_log(recs):
             temps[axis] = f'{path}: {rec.temp.source}'
             records[axis] = rec
     return ThermalLog(paths, axes, columns, temps, records)
+
+
+def _refuse_repeated(paths):
+    """Refuse a file given twice (as two axes), through a link or another spelling too."""
+    for i, path in enumerate(paths):
+        for j, other in enumerate(paths[:i]):
+            try:
+                same = os.path.samefile(path, other)
+            except OSError:
+                same = os.path.realpath(path) == os.path.realpath(other)
+            if same:
+                raise ValueError(f'thermal log: {path} is given twice (as axes {AXES[j]} and '
+                                 f'{AXES[i]}): give one file per axis, x, y, z in that order')
 
 
 def accel_thermal_log(recs):

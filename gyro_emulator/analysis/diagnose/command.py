@@ -18,6 +18,7 @@ import warnings
 
 from gyro_emulator import outputs
 from gyro_emulator.recording import topics
+from gyro_emulator.sensor.config import config_source
 from gyro_emulator.validation import check_range
 
 
@@ -89,7 +90,8 @@ def execute(request, console):
                    outputs.inside('--report', request.report, ('report.md',) + tuple(
                        f'residuals_{key}.png' for key, _, _ in report.PLOTS)),
                    outputs.file('--write-config', request.write_config)],
-                  inputs=[request.source, request.config], overwrite=request.overwrite)
+                  inputs=[request.source, config_source(request.config)],
+                  overwrite=request.overwrite)
     record = data.load_measured(request.source, rate_topic=request.rate_topic,
                                 temp_topic=request.temp_topic, gyro_topic=request.gyro_topic,
                                 accel_topic=request.accel_topic, axis=request.axis,

@@ -37,6 +37,8 @@ LOCAL_FROM_DEVICES = 1_000_000
 
 #: Most devices in one fleet (1e10: 152 588 blocks).
 MAX_DEVICES = 10_000_000_000
+#: Most workers of a local cluster.
+MAX_WORKERS = 1024
 
 #: Environment of the ``local`` cluster's worker processes. Dask's default sets
 #: MALLOC_TRIM_THRESHOLD_, which switches glibc's adaptive mmap threshold off:
@@ -345,9 +347,11 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
     n_devices = _whole('n_devices', n_devices, 1, MAX_DEVICES)
     seed = _whole('seed', seed, 0, 2 ** 63 - 1)
     scheduler = _check_scheduler(scheduler or default_scheduler(n_devices))
+    if workers is not None:             # given: checked even where it is not used
+        _whole('workers', workers, 1, MAX_WORKERS)
     if scheduler == 'in-process':
         workers = 1
-    workers = _whole('workers', workers or os.cpu_count() or 1, 1, 1024)
+    workers = _whole('workers', workers or os.cpu_count() or 1, 1, MAX_WORKERS)
     job = engine.Job(config, seed, n_devices, os.path.abspath(out_dir), write)
     tasks = _tasks(n_devices, workers, blocks_per_task, scheduler)
     done, todo = _start(job, tasks, overwrite, resume)

@@ -52,6 +52,9 @@ def parse_effects(effect):
     Raises ValueError naming the unknown entry and the allowed ones.
     """
     names = tuple(e.strip() for e in str(effect).split('+') if e.strip())
+    if not names:
+        raise ValueError(f'truth.effect = {effect!r} names no effect: choose one of random, '
+                         f'{", ".join(TRUTH_EFFECTS)} (or several joined by +)')
     for name in names:
         if name not in TRUTH_EFFECTS:
             raise ValueError(f'truth.effect = {name!r} is not allowed: choose one of '

@@ -38,7 +38,7 @@ from gyro_emulator.sensor.config import ErrorTerms, SensorConfig
 from gyro_emulator.sensor.model import GyroModel
 from gyro_emulator.units import (deg_h_to_rad_s, deg_s_to_rad_s,
                                  rrw_deg_h_sqrt_h_to_rad_s_sqrt_s)
-from gyro_emulator.validation import check_range
+from gyro_emulator.validation import check_range, check_seed
 import numpy as np
 from scipy.signal import butter, lfilter
 
@@ -148,7 +148,7 @@ def _parse_outliers(outliers):
         return set()
     kinds = {k.strip() for k in str(outliers).split('+') if k.strip()}
     bad = sorted(kinds - set(OUTLIER_KINDS))
-    if bad:
+    if bad or not kinds:
         raise ValueError(f'truth.outliers = {outliers!r} is not allowed: choose '
                          f'{", ".join(OUTLIER_KINDS)} or both joined by +')
     return kinds
@@ -323,7 +323,7 @@ def make_truth(effect, seed, profile='lab', sample_rate_hz=25.0, levels=5, param
     check_range('truth', 'levels', levels, 3, 12, '', low_open=False)
     if duration_s is not None:
         check_range('truth', 'duration_s', duration_s, 60.0, 1e7, 's', low_open=False)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(check_seed('truth', seed))
     prof = draw_profile(profile, rng, sample_rate_hz, levels=levels,
                         duration_s=duration_s if duration_s is not None else max_duration_s)
     has_rate = prof.max_rate_rad_s > 0.0
