@@ -404,6 +404,33 @@ def test_bad_fleet_yaml_gives_one_line_naming_the_field(mapping, match):
     assert '\n' not in str(info.value)
 
 
+def test_an_exponent_without_a_dot_is_a_number_in_every_field(tmp_path):
+    # YAML 1.1 reads 2e-8 (no dot) as a string; the device mapping took it as
+    # the number it spells, the tolerances, factors, specs and nominals must too.
+    path = tmp_path / 'fleet.yaml'
+    path.write_text('device: {preset: paper, geometry: {thickness_m: 2e-6}}\n'
+                    'electronics: {noise_rad_s_sqrt_hz: 1e-4}\n'
+                    'factors:\n'
+                    '  etch: {uniform: 2e-8, moves: {geometry.beam1_width_m: -2e0}}\n'
+                    'tolerances:\n'
+                    '  gas.pressure_pa: {normal: 1e+1, offset: 5e-1}\n'
+                    'specs:\n'
+                    '  arw_deg_sqrt_h: {max: 3e-1}\n')
+    config = fleet_config.load_fleet_config(path)
+    assert config.parameters['geometry.thickness_m'].nominal == 2e-6
+    assert config.parameters['electronics.noise_rad_s_sqrt_hz'].nominal == 1e-4
+    assert config.factors[0].scale == 2e-8 and config.factors[0].moves[0][1] == -2.0
+    assert (config.tolerances[0].scale, config.tolerances[0].offset) == (10.0, 0.5)
+    assert config.specs[0].high == 0.3
+    for text, match in (('{normal: 1e-8x}', r"normal: '1e-8x' is not a number"),
+                        ('{normal: "nan"}', r'normal: nan is not a finite number'),
+                        ('{normal: 1e-3, offset: -1e999}', r'offset: -inf is not a finite')):
+        path.write_text(f'tolerances:\n  gas.pressure_pa: {text}\n')
+        with pytest.raises(ValueError, match=match) as info:
+            fleet_config.load_fleet_config(path)
+        assert '\n' not in str(info.value)
+
+
 def test_cli_runs_a_fleet_and_refuses_bad_input_in_one_line(tmp_path, capsys):
     path = tmp_path / 'fleet.yaml'
     path.write_text('tolerances:\n  gas.pressure_pa: {uniform: 10%}\n'

@@ -182,10 +182,26 @@ def _mapping(where, value, allowed=None):
 
 
 def _number(where, value):
+    """
+    Return ``value`` as a finite float, or fail naming ``where``.
+
+    A number YAML 1.1 leaves a string (``1e-8``, an exponent without a dot)
+    is the number it spells, as in the device mapping and the sensor YAML.
+    """
+    if isinstance(value, str):
+        value = _spelled_number(value)
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(
             value):
         _fail(where, f'{quote(value)} is not a finite number')
     return float(value)
+
+
+def _spelled_number(text):
+    """Return the float a string spells (``'1e-8'``), else the string unchanged."""
+    try:
+        return float(text)
+    except ValueError:
+        return text
 
 
 def amount(where, value):
@@ -199,7 +215,9 @@ def amount(where, value):
 
     """
     if isinstance(value, str) and not value.strip().endswith('%'):
-        _fail(where, f'{quote(value)} is not a number or a percentage such as "2%"')
+        if isinstance(_spelled_number(value), str):
+            _fail(where, f'{quote(value)} is not a number or a percentage such as "2%"')
+        return _number(where, value), False
     if isinstance(value, str):
         try:
             number = float(value.strip()[:-1])
