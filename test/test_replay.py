@@ -108,8 +108,8 @@ def test_hold_is_a_zero_order_hold_at_the_stamps():
                                   [1, 1, 2, 2, 2, 3, 3])
 
 
-def _robot_bag(path, rate_hz=100.0, seconds=30.0, seed=0):
-    """Write a "real robot" bag: Imu under a namespace, temperature at 1 Hz."""
+def _robot_bag(path, rate_hz=100.0, seconds=30.0, seed=0, spoil=None):
+    """Write a "real robot" bag: Imu under a namespace, temperature at 1 Hz (``spoil`` edits)."""
     rng = np.random.default_rng(seed)
     n = int(seconds * rate_hz)
     t0 = 1_700_000_000_000_000_000
@@ -124,6 +124,8 @@ def _robot_bag(path, rate_hz=100.0, seconds=30.0, seed=0):
     temp_stamps = stamps[::int(rate_hz)]
     temps = np.column_stack([30.0 + np.arange(len(temp_stamps)) * 0.1,
                              np.zeros(len(temp_stamps))])
+    if spoil is not None:
+        spoil(values, temps)
     with bag.BagWriter(path) as writer:
         writer.add_topic('/robot/imu', IMU)
         writer.add_topic('/robot/imu_temp', TEMPERATURE)
@@ -188,3 +190,33 @@ def test_replay_bad_options_are_clean_messages(tmp_path, args, message):
     out = _cli('replay', path, '--out', str(tmp_path / 'out'), *args)
     assert out.returncode == 2 and message in out.stderr, out.stderr
     assert 'Traceback' not in out.stderr
+
+
+@pytest.mark.parametrize('topic, column, value, message', [
+    ('/robot/imu', 14, np.nan, r'/robot/imu angular_velocity is not finite at message 7 '
+                               r'\(1 of 100 messages\)'),
+    ('/robot/imu', 13, np.inf, r'/robot/imu angular_velocity is not finite at message 7'),
+    ('/robot/imu', 26, np.nan, r'/robot/imu linear_acceleration is not finite at message 7'),
+    ('/robot/imu', 15, 5e3, r'/robot/imu angular_velocity = 5000.0 at sample 7 .* is beyond '
+                            r'\[-1000, 1000\] rad/s'),
+    ('/robot/imu_temp', 0, np.nan, r'/robot/imu_temp temperature is not finite at message 0'),
+    ('/robot/imu_temp', 0, 900.0, r'/robot/imu_temp temperature = 900.0 at sample 0 .* is '
+                                  r'beyond \[-60, 200\] C'),
+])
+def test_a_drive_no_part_could_have_is_refused_naming_the_topic_and_message(
+        tmp_path, topic, column, value, message):
+    # the rule simulate --profile and diagnose apply: it reached the model as
+    # "propagate: rate_rad_s ... not finite" (or not at all: 5000 rad/s was replayed)
+    def spoil(imu, temps):
+        (imu[7] if topic == '/robot/imu' else temps[0])[column] = value
+
+    path = str(tmp_path / 'robot')
+    _robot_bag(path, seconds=1.0, spoil=spoil)
+    with pytest.raises(ValueError, match=message) as info:
+        load_inputs(bag.BagReader(path), rate_topic='/robot/imu',
+                    temperature_topic='/robot/imu_temp')
+    assert '\n' not in str(info.value)
+    out = _cli('replay', path, '--out', str(tmp_path / 'out'), '--rate-topic', '/robot/imu',
+               '--temperature-topic', '/robot/imu_temp')
+    assert out.returncode == 2 and 'Traceback' not in out.stderr, out.stderr
+    assert len(out.stderr.strip().splitlines()) == 1 and not os.path.exists(tmp_path / 'out')

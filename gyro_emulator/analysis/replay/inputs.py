@@ -41,7 +41,7 @@ from gyro_emulator.recording import record, topics as table
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.imu import ImuBatch, ImuModel
 from gyro_emulator.units import AXES, NS_PER_S
-from gyro_emulator.validation import check_choice, check_range
+from gyro_emulator.validation import check_choice, check_range, check_record_values
 import numpy as np
 
 SOURCES = record.DRIVE_SOURCES
@@ -245,6 +245,7 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
     rate_stamp, rate_values = rec.rate.stamp_ns, rec.rate.values
     if len(rate_stamp) < 2:
         raise ValueError(f'{rec.topics["rate"]} has {len(rate_stamp)} message(s): need at least 2')
+    _check_drive(rec)
     frame_id = rec.frames.get('gyro') or rec.frames['rate'] or DEFAULT_FRAME_ID
     measured_stamp = measured = None
     if rec.gyro:
@@ -283,6 +284,31 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
                         rate_hz=rate_hz, measured_stamp_ns=measured_stamp,
                         measured_rad_s=measured, topics=_role_topics(rec, source),
                         frame_id=frame_id, notes=notes)
+
+
+def _check_drive(rec):
+    """
+    Refuse a drive no part could have had, in one line naming the topic field and message.
+
+    The rule ``simulate --profile`` and ``diagnose`` apply to a record: every
+    rate, temperature and acceleration finite, the rate and the ambient
+    within :data:`gyro_emulator.validation.RECORD_LIMITS`.
+    """
+    owner = str(rec.path)
+    for role, kind in (('rate', 'rate'), ('temp', 'temp'), ('accel', None),
+                       ('linear_accel', None)):
+        channel = getattr(rec, role)
+        if channel is None:
+            continue
+        values = np.asarray(channel.values, dtype=float)
+        bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f'{owner}: {channel.source} is not finite at message {i} ({int(bad.sum())} of '
+                f'{len(bad)} messages): expected finite values')
+        if kind is not None:
+            check_record_values(owner, channel.source, values, kind)
 
 
 def _role_topics(rec, source):
