@@ -354,6 +354,13 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
     workers = _whole('workers', workers or os.cpu_count() or 1, 1, MAX_WORKERS)
     job = engine.Job(config, seed, n_devices, os.path.abspath(out_dir), write)
     tasks = _tasks(n_devices, workers, blocks_per_task, scheduler)
+    with state.exclusive(job.out_dir):
+        return _run(job, tasks, scheduler, workers, progress, overwrite, resume)
+
+
+def _run(job, tasks, scheduler, workers, progress, overwrite, resume):
+    """Run the fleet in ``job.out_dir``, held by this run (see :func:`run_fleet`)."""
+    n_devices, out_dir = job.n_devices, job.out_dir
     done, todo = _start(job, tasks, overwrite, resume)
     for result in done:
         result['sample'] = engine.sample_blocks(job, result['blocks'])

@@ -18,9 +18,16 @@ process was killed outright; deleted too), and runs the blocks no finished
 task holds. The rows and the summary are those of an uninterrupted run
 (``test_fleet.py``), because part i is the same part whatever the
 partitioning.
+
+One run at a time writes a directory: a run holds an exclusive lock on
+``DIR`` itself (:func:`exclusive`, ``flock``, released when the process
+ends, however it ends), and a second run on the same ``DIR`` is refused
+in one line before it touches anything.
 """
 
+import contextlib
 from dataclasses import replace
+import fcntl
 import glob
 import hashlib
 import json
@@ -32,6 +39,37 @@ from gyro_emulator.analysis.fleet.sampling import BLOCK_DEVICES
 
 #: The state directory inside a fleet's output directory.
 STATE_DIR = '.fleet-state'
+
+
+@contextlib.contextmanager
+def exclusive(out_dir):
+    """
+    Hold ``out_dir`` for one fleet run: a second run on it is refused in one line.
+
+    The lock is ``flock`` on the directory itself, so it leaves no file
+    behind and the kernel releases it when the holder ends (a Ctrl-C, a
+    ``kill -9``). A directory made here and still empty at the end (a run
+    refused before it wrote) is removed again.
+    """
+    made = not os.path.isdir(out_dir)
+    try:
+        os.makedirs(out_dir, exist_ok=True)
+        handle = os.open(out_dir, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError as exc:
+        raise ValueError(f'fleet.out = {out_dir!r} cannot be used: {exc.strerror}') from None
+    try:
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            raise ValueError(f'fleet.out = {out_dir!r} is being written by another fleet run '
+                             'now: wait for it to end (then --resume or --overwrite if it '
+                             'stopped) or choose another directory') from None
+        yield
+    finally:
+        os.close(handle)
+        if made:
+            with contextlib.suppress(OSError):
+                os.rmdir(out_dir)
 
 
 def state_dir(out_dir):
