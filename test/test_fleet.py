@@ -5,6 +5,7 @@ import glob
 import json
 import os
 
+from conftest import ROOT
 from distributed.diagnostics.plugin import WorkerPlugin
 from gyro_emulator.analysis.fleet import config as fleet_config
 from gyro_emulator.analysis.fleet import engine, evaluate, report, run, sampling
@@ -453,6 +454,74 @@ def test_cli_runs_a_fleet_and_refuses_bad_input_in_one_line(tmp_path, capsys):
     assert main(['fleet', str(tmp_path / 'none.yaml'), '--devices', '10', '--out',
                  str(tmp_path / 'y')]) == 2
     assert main(['fleet', str(path), '--devices', '0', '--out', str(tmp_path / 'z')]) == 2
+
+
+def test_a_second_run_on_a_directory_in_use_is_refused_until_the_first_ends(tmp_path, capsys):
+    """
+    Two runs writing one DIR at once: the second is refused before it touches anything.
+
+    Without the lock, a second ``--overwrite`` run deleted the first one's
+    files under it (the first died with "part-000000.parquet: nothing was
+    written") and a second ``--resume`` ran the same tasks twice. The holder
+    here is another process; ``kill -9`` releases it.
+    """
+    import subprocess
+    import sys
+
+    path = tmp_path / 'fleet.yaml'
+    path.write_text('tolerances:\n  gas.pressure_pa: {uniform: 10%}\n'
+                    'specs:\n  sf_tempco_ppm_k: {max: 546}\nattribution_devices: 0\n')
+    out = tmp_path / 'out'
+    assert main(['fleet', str(path), '--devices', '100', '--out', str(out)]) == 0
+    before = sorted(p.name for p in out.rglob('*'))
+    holder = subprocess.Popen(
+        [sys.executable, '-c', 'import sys\nfrom gyro_emulator.analysis.fleet import state\n'
+         'with state.exclusive(sys.argv[1]):\n    print("held", flush=True)\n'
+         '    sys.stdin.read()\n', str(out)],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+        env={**os.environ, 'PYTHONPATH': ROOT})
+    try:
+        assert holder.stdout.readline() == 'held\n'
+        capsys.readouterr()
+        for extra in (['--overwrite'], ['--resume'], []):
+            assert main(['fleet', str(path), '--devices', '200', '--out', str(out),
+                         *extra]) == 2
+            err = capsys.readouterr().err
+            assert err.count('\n') == 1 and 'is being written by another fleet run' in err
+        assert sorted(p.name for p in out.rglob('*')) == before
+    finally:
+        holder.kill()
+        holder.wait()
+    assert main(['fleet', str(path), '--devices', '200', '--out', str(out),
+                 '--overwrite']) == 0
+    assert json.loads((out / 'summary.json').read_text())['devices'] == 200
+    # a run refused for another reason (1e10 parts: 1.4 TB) leaves no directory it made
+    assert main(['fleet', str(path), '--devices', '1e10', '--out', str(tmp_path / 'new')]) == 2
+    assert 'free' in capsys.readouterr().err and not (tmp_path / 'new').exists()
+
+
+def test_no_spec_is_said_to_fail_most_when_every_part_passes(tmp_path, capsys):
+    # it named the first spec ("fails most: f_drive_hz", and a fails_most.png
+    # titled so) on a fleet where every part passed every spec
+    path = tmp_path / 'fleet.yaml'
+    path.write_text('tolerances:\n  gas.pressure_pa: {uniform: 10%}\nattribution_devices: 0\n'
+                    'specs:\n  f_drive_hz: {min: 1000}\n  split_hz: {abs_max: 1000}\n')
+    out = tmp_path / 'all'
+    assert main(['fleet', str(path), '--devices', '500', '--out', str(out)]) == 0
+    printed = capsys.readouterr().out
+    summary = json.loads((out / 'summary.json').read_text())
+    assert summary['pass'] == 500 and summary['fails_most'] is None
+    assert 'fails most' not in printed
+    assert sorted(p.name for p in (out / 'plots').iterdir()) == [
+        'sf_envelope.png', 'split_histogram.png', 'yield_per_spec.png']
+    # one part failing one spec is enough to name it
+    path.write_text(path.read_text() + '  sf_tempco_ppm_k: {max: 546}\n')
+    assert main(['fleet', str(path), '--devices', '500', '--out', str(out),
+                 '--overwrite']) == 0
+    summary = json.loads((out / 'summary.json').read_text())
+    assert 0 < summary['pass'] < 500
+    assert summary['fails_most'] == 'sf_tempco_ppm_k'
+    assert (out / 'plots' / 'fails_most.png').exists()
 
 
 def test_sensor_runs_find_the_part_s_own_angle_random_walk(tmp_path):

@@ -163,6 +163,8 @@ def summary(job, results, run):
     specs = {spec.metric: _bounded(spec, counts['spec_pass'][spec.metric], n, 'yield')
              for spec in config.specs}
     worst = min(specs, key=lambda m: specs[m]['pass']) if specs else None
+    if worst is not None and specs[worst]['pass'] == n:
+        worst = None                    # no part fails a spec: none fails most
     attribution = next((r['attribution'] for r in results if r['attribution']), None)
     sample = sample_of(results)
     cpu = sum(r['cpu_s'] for r in results)
@@ -307,7 +309,8 @@ def plots(job, results, summary, out_dir):
                    'Drive-sense split')
     if summary['specs']:
         plot_yield(summary, f'{out_dir}/yield_per_spec.png')
-        worst = summary['fails_most']
+    worst = summary['fails_most']
+    if worst is not None:
         driver = (summary['attribution'] or {}).get('spec_driver', {}).get(worst)
         plot_histogram(config, sample, worst, f'{out_dir}/fails_most.png',
                        f'Fails most: {worst}\n{100 * summary["specs"][worst]["yield"]:.1f} % '
