@@ -500,6 +500,19 @@ def test_a_second_run_on_a_directory_in_use_is_refused_until_the_first_ends(tmp_
     assert 'free' in capsys.readouterr().err and not (tmp_path / 'new').exists()
 
 
+def test_a_file_system_that_cannot_lock_runs_the_fleet_unguarded(tmp_path, monkeypatch):
+    import errno
+    import fcntl
+
+    def no_locks(handle, operation):
+        raise OSError(errno.ENOLCK, 'No locks available')
+
+    monkeypatch.setattr(fcntl, 'flock', no_locks)
+    summary = run.run_fleet(fleet(attribution_devices=0), 10, 1, str(tmp_path / 'o'),
+                            scheduler='in-process')
+    assert summary['devices'] == 10 and (tmp_path / 'o' / 'summary.json').exists()
+
+
 def test_no_spec_is_said_to_fail_most_when_every_part_passes(tmp_path, capsys):
     # it named the first spec ("fails most: f_drive_hz", and a fails_most.png
     # titled so) on a fleet where every part passed every spec

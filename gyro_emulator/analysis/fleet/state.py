@@ -49,7 +49,8 @@ def exclusive(out_dir):
     The lock is ``flock`` on the directory itself, so it leaves no file
     behind and the kernel releases it when the holder ends (a Ctrl-C, a
     ``kill -9``). A directory made here and still empty at the end (a run
-    refused before it wrote) is removed again.
+    refused before it wrote) is removed again. On a file system that cannot
+    lock (some NFS mounts) the run goes on unguarded.
     """
     made = not os.path.isdir(out_dir)
     try:
@@ -64,6 +65,8 @@ def exclusive(out_dir):
             raise ValueError(f'fleet.out = {out_dir!r} is being written by another fleet run '
                              'now: wait for it to end (then --resume or --overwrite if it '
                              'stopped) or choose another directory') from None
+        except OSError:
+            pass                        # a file system without locks (some NFS): unguarded
         yield
     finally:
         os.close(handle)
