@@ -365,3 +365,35 @@ def test_the_small_chunk_screen_drops_exactly_what_the_full_comparison_drops(see
         known.update(ids)
         dropped += got[1]
     assert dropped > 100 and screened._small_keys is None    # repeats met; a large chunk seen
+
+
+def test_bag_info_says_where_metadata_yaml_counts_other_messages_than_the_files(
+        original, tmp_path):
+    # rosbags and ros2 bag info report metadata.yaml's counts; bag info showed
+    # the files' without a word, and did not point to repair, which rewrites it
+    path, _ = _copy(original, tmp_path)
+    meta = os.path.join(path, 'metadata.yaml')
+    info = _cli('bag', 'info', path)
+    assert 'Notice' not in info.stdout and 'repair' not in info.stdout, info.stdout
+    with open(meta, encoding='utf-8') as handle:
+        doc = yaml.safe_load(handle)
+    doc['rosbag2_bagfile_information']['message_count'] = 99999
+    doc['rosbag2_bagfile_information']['topics_with_message_count'][0]['message_count'] = 7
+    with open(meta, 'w', encoding='utf-8') as handle:
+        yaml.safe_dump(doc, handle)
+    from pathlib import Path
+
+    from rosbags.rosbag2 import Reader
+
+    with Reader(Path(path)) as reader:
+        assert reader.message_count == 99999           # what a rosbags user is told
+    info = _cli('bag', 'info', path)
+    assert info.returncode == 0 and 'Traceback' not in info.stderr
+    assert ('metadata.yaml counts 99999 messages, the files hold 2000' in info.stdout
+            and f'metadata.yaml counts 7 messages on {TOPIC}, the files hold 2000' in info.stdout
+            and f'run: gyro-emulator bag repair {path}' in info.stdout), info.stdout
+    bag.repair_bag(path)
+    info = _cli('bag', 'info', path)
+    assert 'Notice' not in info.stdout, info.stdout
+    with Reader(Path(path)) as reader:
+        assert reader.message_count == 2000

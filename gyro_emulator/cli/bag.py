@@ -36,7 +36,7 @@ def run(args):
     """Print the bag summary or repair the bag."""
     # The bag modules (mcap, lz4, yaml: 40 ms) are imported here, not at the
     # top: `gyro-emulator --help` imports every command module.
-    from gyro_emulator.recording import bag
+    from gyro_emulator.recording import bag, files
 
     if args.action == 'info':
         reader = bag.BagReader(args.bag, tolerant=True)
@@ -54,7 +54,12 @@ def run(args):
         if lost:
             print(f'Messages lost:    {lost} of {reader.message_count} (counted, but in no '
                   'intact chunk)')
-        if reader.problems or corrupt or lost:
+        disagree = files.count_disagreements(
+            reader.metadata, reader.message_count,
+            {name: topic.message_count for name, topic in reader.topics.items()})
+        for note in disagree:
+            print(f'Notice:           {note}')
+        if reader.problems or corrupt or lost or disagree:
             print(f'run: gyro-emulator bag repair {args.bag}')
         return 0
     # --out: not the bag, not inside it, not holding it; a non-empty one is refused by the repair

@@ -93,6 +93,33 @@ def load_metadata(path):
     return meta
 
 
+def count_disagreements(meta, message_count, topic_counts):
+    """
+    Return where ``metadata.yaml``'s message counts disagree with the files', one note each.
+
+    ``rosbags`` and ``ros2 bag info`` report ``metadata.yaml``'s counts, this
+    package the files' (their summaries, or a scan): a difference means a
+    reader of the bag is told something else than what it holds.
+    ``topic_counts`` maps each topic in the files to its count.
+    """
+    if not meta:
+        return []
+    notes = []
+    count = meta.get('message_count')
+    if isinstance(count, int) and count != message_count:
+        notes.append(f'metadata.yaml counts {count} messages, the files hold {message_count} '
+                     "(rosbags and ros2 bag info report metadata.yaml's count)")
+    for entry in meta.get('topics_with_message_count') or ():
+        topic = (entry.get('topic_metadata') or {}) if isinstance(entry, dict) else {}
+        name, listed = topic.get('name') if isinstance(topic, dict) else None, \
+            entry.get('message_count') if isinstance(entry, dict) else None
+        if isinstance(name, str) and isinstance(listed, int) and \
+                listed != topic_counts.get(name, 0):
+            notes.append(f'metadata.yaml counts {listed} messages on {name}, the files hold '
+                         f'{topic_counts.get(name, 0)}')
+    return notes
+
+
 def inside_bag(bag_dir, name, what):
     """
     Return the real path of ``name``, a path the bag gives, refusing one outside ``bag_dir``.
