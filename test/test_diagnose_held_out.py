@@ -321,6 +321,68 @@ def test_a_reference_shorter_than_the_record_is_a_one_line_error():
     assert '\n' not in str(err.value)
 
 
+def _static_record(n, seed, dt=0.5, source='ref'):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt
+    y = np.round(1e-3 * rng.standard_normal(n) / 1e-4) * 1e-4   # quantised, 3.3 LSB rms
+    return MeasuredData(t, np.zeros(n), None, y, source=source)
+
+
+@pytest.mark.parametrize('how', ['itself', 'a copy', 'a log that holds it'])
+def test_a_reference_that_holds_the_record_is_a_one_line_error(how):
+    # its noise would be the record's own wander, effect included: the null too tight
+    long = _static_record(2400, 8, source='long')
+    record = MeasuredData(long.time_s[:1800], long.rate_cmd_rad_s[:1800], None,
+                          long.gyro_rad_s[:1800], source='record')
+    ref = {'itself': record,
+           'a copy': MeasuredData(record.time_s, record.rate_cmd_rad_s, None,
+                                  record.gyro_rad_s.copy(), source='copy'),
+           'a log that holds it': MeasuredData(long.time_s, long.rate_cmd_rad_s, None,
+                                               long.gyro_rad_s - 0.0, source='long')}[how]
+    with pytest.raises(ValueError, match=r'holds 100 % of the record.s output samples .*'
+                                         r'not measured independently') as err:
+        diagnose(record, reference=ref)
+    assert '\n' not in str(err.value)
+
+
+def test_a_separate_reference_of_the_same_part_shares_no_samples():
+    # two quantised static records of one part: far below the 1 % the check allows,
+    # down to an output whose noise is a fifth of its LSB; a copy is found there too
+    rng = np.random.default_rng(2)
+    for sigma_lsb in (3.0, 1.0, 0.5, 0.2):
+        a, b = (np.round(sigma_lsb * rng.standard_normal(100_000)) for _ in range(2))
+        assert reference.shared_share(a, b) < 1e-3 < reference.MAX_SHARED_SHARE
+        assert reference.shared_share(a[500:60_000], np.r_[b[:7], a]) > \
+            reference.MAX_SHARED_SHARE
+    record, ref = _static_record(1800, 8), _static_record(1800, 9)
+    assert reference.shared_share(record.gyro_rad_s, ref.gyro_rad_s) == 0.0
+
+
+def test_a_moving_reference_is_a_one_line_error():
+    # its output holds the motion: the noise held fixed would be far too loose
+    ref = _static_record(1800, 9)
+    moving = MeasuredData(ref.time_s, 0.5 * np.sin(ref.time_s), None,
+                          ref.gyro_rad_s + 0.5 * np.sin(ref.time_s), source='moving')
+    with pytest.raises(ValueError, match=r"reference 'moving' is not static: its applied "
+                                         r'rate is 0.35[0-9] rad/s rms: allowed: below 0.001 '
+                                         r'rad/s rms'):
+        reference.reference_noise(moving)
+
+
+def test_a_reference_with_a_gap_lasts_the_time_it_covers():
+    # two 300 s stretches 1300 s apart measured no slow noise over 1800 s
+    record, _ = make_truth('none', 1, profile='static', duration_s=900.0, sample_rate_hz=2.0)
+    whole = _static_record(3800, 9)
+    keep = (whole.time_s < 300.0) | (whole.time_s >= 1600.0)
+    gappy = MeasuredData(whole.time_s[keep], whole.rate_cmd_rad_s[keep], None,
+                         whole.gyro_rad_s[keep], source='gappy')
+    assert reference.covered_s(gappy.time_s, 0.5) == pytest.approx(600.0)
+    assert reference.covered_s(whole.time_s, 0.5) == 1900.0
+    with pytest.raises(ValueError, match=r"reference 'gappy' lasts 600 s \(its logging gaps "
+                                         r'left out\), shorter than the record \(900 s\)'):
+        diagnose(record, reference=gappy)
+
+
 def test_effective_tests_of_a_grid():
     x = np.random.default_rng(0).standard_normal((500, 1))
     assert selection.effective_tests(np.repeat(x, 20, axis=1)) == pytest.approx(1.0)

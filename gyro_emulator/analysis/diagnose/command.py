@@ -90,7 +90,7 @@ def execute(request, console):
                    outputs.inside('--report', request.report, ('report.md',) + tuple(
                        f'residuals_{key}.png' for key, _, _ in report.PLOTS)),
                    outputs.file('--write-config', request.write_config)],
-                  inputs=[request.source, config_source(request.config)],
+                  inputs=[request.source, request.reference, config_source(request.config)],
                   overwrite=request.overwrite)
     record = data.load_measured(request.source, rate_topic=request.rate_topic,
                                 temp_topic=request.temp_topic, gyro_topic=request.gyro_topic,
