@@ -212,6 +212,35 @@ def test_bounds_are_in_datasheet_units():
         ('share of the Sutherland law', 100 * (0.01 + 2.4 * 0.02), '%'))
 
 
+def test_a_nonlinearity_is_measured_only_beside_more_than_one_rate_magnitude():
+    # a bias and a scale factor are calibrated: on one magnitude the deviation at the
+    # largest rate is a scale factor, and no bound on it holds
+    levels = np.repeat([0.0, 0.5, 0.0, 0.5, 0.0], 100)
+    assert not ruled_out.nonlinearity_measured(levels)              # rate^2 = 0.5 rate
+    assert not ruled_out.nonlinearity_measured(np.r_[levels, -levels])   # rate^3 = 0.25 rate
+    assert not ruled_out.nonlinearity_measured(np.zeros(50))
+    assert ruled_out.nonlinearity_measured(np.r_[levels, -levels, 0.5 * levels])
+    found = _found(nonlinearity_quadratic_s_rad=(0.0, 1e-4),
+                   nonlinearity_cubic_s2_rad2=(0.0, 1e-4))
+    info = {'max_rate_rad_s': 0.5}
+    assert ruled_out.bounds_of('scale_factor_nonlinearity', found, info)
+    info['nonlinearity_measured'] = False
+    assert ruled_out.bounds_of('scale_factor_nonlinearity', found, info) == []
+
+
+def test_a_one_magnitude_record_rules_out_no_nonlinearity_it_holds():
+    # 1 % at 0.5 rad/s, rates 0 and 0.5 rad/s only: the bound stated was 0.0002 %
+    rng = np.random.default_rng(0)
+    t = np.arange(20_000) * 0.01
+    rate = np.repeat(rng.choice([0.0, 0.5], 20), 1000)
+    gyro = rate * (1.0 + 0.02 * rate) + 1e-3 * rng.standard_normal(len(t))
+    doc = to_json(diagnose(MeasuredData(t, rate, np.full(len(t), 25.0), gyro, source='nl'),
+                           effects=('scale_factor_nonlinearity', 'bias_step')))
+    assert 'scale_factor_nonlinearity' in doc['residual']['causes_tested']
+    assert 'scale_factor_nonlinearity' not in {b['effect'] for b in doc['ruled_out']}
+    assert 'SF nonlinearity' not in doc['residual']['message']
+
+
 @pytest.mark.parametrize('seed', (1, 2))
 def test_no_mismatch_states_what_the_data_rule_out(seed):
     record, _ = make_truth('none', seed, profile='static', duration_s=900.0,
