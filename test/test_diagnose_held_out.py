@@ -228,6 +228,37 @@ def test_a_nonlinearity_is_measured_only_beside_more_than_one_rate_magnitude():
     assert ruled_out.bounds_of('scale_factor_nonlinearity', found, info) == []
 
 
+def test_an_interval_open_at_the_searched_range_bounds_nothing():
+    # a delay still admissible at the grid's end (300 ms): the search stopped there,
+    # the data did not
+    closed = {'delay_s': intervals.Estimate(0.0, 1e-3, (-2e-3, 2e-3), 'profile likelihood')}
+    assert ruled_out.bounds_of('time_delay', closed, {}) == [('delay', 2.0, 'ms')]
+    for low, high in ((False, True), (True, True)):
+        edge = {'delay_s': intervals.Estimate(0.0, 0.1, (-0.05, 0.3), 'profile likelihood',
+                                              low, high)}
+        assert ruled_out.bounds_of('time_delay', edge, {}) == []
+    near_open = {'delay_s': intervals.Estimate(0.0, 0.1, (-0.05, 0.01), 'profile likelihood',
+                                               True, False)}
+    assert ruled_out.bounds_of('time_delay', near_open, {}) == []
+    lag = {'thermal_time_constant_s': intervals.Estimate(0.0, 90.0, (0.0, 181.0), 'profile '
+                                                         'likelihood', True, True)}
+    assert ruled_out.bounds_of('thermal_lag', lag, {}) == []
+
+
+def test_a_record_whose_rate_never_changes_bounds_no_delay():
+    # a delay of the output behind a constant rate changes nothing: 'delay above 300 ms'
+    # (the end of the searched range) was stated as ruled out
+    rng = np.random.default_rng(3)
+    t = np.arange(20_000) * 0.01
+    rate = np.full(len(t), 0.5)
+    gyro = rate + 1e-3 * rng.standard_normal(len(t))
+    doc = to_json(diagnose(MeasuredData(t, rate, np.full(len(t), 25.0), gyro, source='hold'),
+                           effects=('time_delay', 'bias_step')))
+    assert 'time_delay' in doc['residual']['causes_tested']
+    assert 'time_delay' not in {b['effect'] for b in doc['ruled_out']}
+    assert 'delay above' not in doc['residual']['message']
+
+
 def test_a_one_magnitude_record_rules_out_no_nonlinearity_it_holds():
     # 1 % at 0.5 rad/s, rates 0 and 0.5 rad/s only: the bound stated was 0.0002 %
     rng = np.random.default_rng(0)

@@ -40,8 +40,19 @@ _PER_MIN = 60.0
 
 
 def _far(e):
-    """Return the end of an interval farther from zero (None: not measured)."""
-    return None if e.interval is None else max(abs(e.interval[0]), abs(e.interval[1]))
+    """
+    Return the end of an interval farther from zero (None: not measured).
+
+    An end the profile likelihood left open (still admissible at the end of
+    the searched range: a delay on a record whose rate never changes) is
+    where the search stopped, not a bound of the data: None as well.
+    """
+    if e.interval is None:
+        return None
+    lo, hi = abs(e.interval[0]), abs(e.interval[1])
+    if (e.open_low and lo >= hi) or (e.open_high and hi >= lo):
+        return None
+    return max(lo, hi)
 
 
 def _scaled(name, factor):
@@ -100,7 +111,7 @@ def _nonlinearity(found, info):
 
 def _lag(found, info):
     e = found['thermal_time_constant_s']
-    return None if e.interval is None else e.interval[1]
+    return None if e.interval is None or e.open_high else e.interval[1]
 
 
 _DEG = float(rad_s_to_deg_s(1.0))
