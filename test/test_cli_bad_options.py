@@ -303,3 +303,10 @@ def test_diagnose_never_writes_over_its_reference_record(tmp_path, capsys):
                      '--json', reference, '--overwrite'], capsys, f'is the input {reference}')
     assert 'choose another' in line
     assert open(reference, 'rb').read() == before
+
+
+def test_diagnose_names_the_reference_option_when_its_file_is_missing(tmp_path, capsys):
+    record = _static_csv(tmp_path / 'record.csv')
+    missing = str(tmp_path / 'allan_run.csv')
+    _refused(['diagnose', record, '--static', '--axis', 'x', '--reference', missing], capsys,
+             f'--reference {missing}: no such file or directory', 'allowed: a static record')
