@@ -659,3 +659,18 @@ def test_an_ideal_imu_without_acceleration_senses_gravity_and_marks_it_absent():
     assert roll == pytest.approx([0.0, 0.1 * dt * 1e-9, (0.1 + 0.2 * 2) * dt * 1e-9], abs=1e-12)
     shown = driver.ideal_imu(T0_NS + 4 * dt, (0.0, 0.0, 0.0), (0.0, 0.0, 9.0))
     assert shown[0].accel_shown and shown[0].accel.true_specific_force_m_s2 == (0.0, 0.0, 9.0)
+
+
+def test_a_screened_parameter_set_is_said_once_and_changes_nothing():
+    """A refused set on the log and in one report (WARN); a valid one says nothing."""
+    driver, _, log = make()
+    before = dict(driver.values)
+    driver.screen([('command_timeout_s', 0.5)])
+    assert 'refused' not in log.text()
+    driver.screen([('command_timeout_s', -1.0), ('noise_enabled', False)])
+    assert driver.values == before
+    line = 'parameter set refused: command_timeout_s = -1.0 is out of range'
+    assert line in log.text()
+    report = driver.report(1.0, driver.situation(0), check_rate=False)
+    assert report.level == WARN and line in report.message
+    assert 'refused' not in driver.report(1.0, driver.situation(0), check_rate=False).message

@@ -16,7 +16,7 @@ import time
 import types
 
 from conftest import ros_env
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3Stamped
 from gyro_emulator.emulation import profiles
 from gyro_emulator.emulation.driver import parameters
@@ -478,6 +478,25 @@ def test_an_integer_set_at_run_time_for_a_double_is_taken_as_a_double(wall):
         probe.call(client.set_parameters([Parameter('command_timeout_s', value=before)]))
     assert probe.call(client.get_parameters(
         ['command_timeout_s'])).values[0].double_value == before
+    assert wall.node.proc.poll() is None
+
+
+def test_a_refused_set_is_said_on_the_log_and_diagnostics(wall):
+    """A refusal (rclpy's declared range, or the node's own checks), not only to the caller."""
+    probe, client = wall.probe, wall.params
+    diags = wall.topics['diag']
+    for name, value, said in (
+            ('command_timeout_s', -1.0, 'command_timeout_s = -1.0 is out of range'),
+            ('fault.type', 'melt', "fault.type = 'melt' is not allowed")):
+        diags.clear()
+        refused = probe.call(client.set_parameters([Parameter(name, value=value)])).results[0]
+        assert not refused.successful
+        line = f'parameter set refused: {said}'
+        probe.spin_until(lambda: any(line in diag_values(a)[0].message for a in diags), 10.0,
+                         f'/diagnostics to say {line!r}')
+        status = next(diag_values(a)[0] for a in diags if line in diag_values(a)[0].message)
+        assert status.level == DiagnosticStatus.WARN
+        probe.spin_until(lambda: line in wall.node.log(), 10.0, f'the log to say {line!r}')
     assert wall.node.proc.poll() is None
 
 

@@ -125,7 +125,7 @@ class GyroEmulatorNode(Node):
         self._publish_faults(self._driver.start(self._now_ns()))
         self._diagnostics = diagnostics.DiagnosticsThread(
             self, values['diagnostics_period_s'], self._diagnose)
-        self.add_pre_set_parameters_callback(params.integers_as_doubles)
+        self.add_pre_set_parameters_callback(self._screen_parameters)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
         for name in params.unknown_overrides(self):
@@ -149,6 +149,11 @@ class GyroEmulatorNode(Node):
         return self.get_clock().now().nanoseconds
 
     # --- parameters: validate the whole set, then apply it -------------------
+
+    def _screen_parameters(self, parameters):
+        parameters = params.integers_as_doubles(parameters)
+        self._driver.screen((p.name, p.value) for p in parameters)
+        return parameters
 
     def _validate_parameters(self, parameters):
         try:

@@ -217,7 +217,7 @@ class _DaskRun:
     def _on_cluster(self, job, queue, results, bar, finished):
         """Run the queued tasks on the cluster, a few in flight per worker."""
         limit = 2 * max(1, len(self.client.scheduler_info()['workers']))
-        self._pending, self._attempts, self._tasks = None, {}, {}
+        self._pending, self._attempts, self._tasks, self._futures = None, {}, {}, {}
         for _ in range(min(limit, len(queue))):
             self._submit(job, *queue.pop(0))
         for future in self._pending or ():
@@ -243,10 +243,12 @@ class _DaskRun:
         # workers is lost with them, and every later task would then fail.
         future = self.client.submit(engine.run_task, job, blocks, key=key, pure=False)
         self._tasks[future.key] = (index, blocks)
+        self._futures[future.key] = future
         self._pending.add(future)
 
     def _result(self, job, future, done):
         """Return a finished task's result, or None when it was lost and submitted again."""
+        self._futures.pop(future.key, None)     # in flight: the ones a stop cancels
         try:
             return future.result()
         except Exception as exc:   # lost worker, cancelled future, a task's own error
@@ -255,6 +257,9 @@ class _DaskRun:
                 self.resubmitted += 1
                 self._submit(job, index, blocks)
                 return None
+            # Nothing of the run goes on without it: on a shared scheduler its
+            # other tasks would keep workers busy (and lose them) for no one.
+            self.client.cancel(list(self._futures.values()))
             raise FleetIncomplete(
                 f'the cluster lost the task of blocks {blocks[0]}-{blocks[-1]} '
                 f'{TASK_ATTEMPTS} times ({_first_line(exc)}); '

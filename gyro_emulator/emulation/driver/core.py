@@ -226,6 +226,22 @@ class Driver:
     def _limits(self, values, config):
         return parameters.input_limits(values, config, self._stepper.model.temp_range_c)
 
+    def screen(self, changes):
+        """
+        Say a parameter set that :meth:`prepare` refuses, on the log and in the next report.
+
+        Called before the middleware's own checks of a set (a value outside
+        a parameter's declared range is refused there, before :meth:`prepare`
+        sees it): whoever sent the set gets the reason, and the node's log
+        and diagnostics (WARN, once) say it too. Changes nothing.
+        """
+        try:
+            self.prepare(changes)
+        except ValueError as exc:
+            text = f'parameter set refused: {exc}'
+            self._log.warning(text)
+            self.book.event(WARN, text)
+
     def prepare(self, changes):
         """
         Validate a set of parameter changes together; return a :class:`ParameterChange`.
