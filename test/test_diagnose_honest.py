@@ -81,9 +81,15 @@ def test_no_mismatch_says_how_little_could_be_tested():
     assert cov == '2 of 15 causes could be tested (bias_time, bias_step)'
     text = vd.message('no_mismatch', [], _res(slow=0.74, margin=0.0), cov)
     assert text.startswith(cov + '; nothing testable was found')
-    assert 'explains the data' not in text
+    assert 'explains' not in text and text.endswith(vd.NOTHING_BOUNDED)
     assert vd.coverage_text(['a', 'b'], 2) is None
-    assert 'explains the data' in vd.message('no_mismatch', [], _res(slow=0.74), None)
+    # every cause tested, none bounded: said, never that the baseline explains the data
+    text = vd.message('no_mismatch', [], _res(slow=0.74), None)
+    assert 'explains' not in text and text.endswith(vd.NOTHING_BOUNDED)
+    bounded = vd.message('no_mismatch', [], _res(slow=0.74), None,
+                         ruled_out='bias tempco above 0.001 deg/s/K')
+    assert bounded.endswith('The data rule out (95 %), beyond the baseline: bias tempco '
+                            'above 0.001 deg/s/K.')
 
 
 @pytest.mark.parametrize('span', [1.0, 4.9, 5.0, 8.2, 14.9, 15.0, 30.0])
