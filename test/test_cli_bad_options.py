@@ -291,3 +291,22 @@ def test_no_output_replaces_the_sensor_preset_the_run_read(tmp_path, capsys, mon
                     + ['--overwrite'], capsys, words.format(preset=preset))
     assert 'choose another' in line
     assert preset.read_bytes() == before and os.listdir(presets) == ['sensor_paper.yaml']
+
+
+def test_diagnose_never_writes_over_its_reference_record(tmp_path, capsys):
+    # --reference is an input like the record: --json naming it is refused, even with
+    # --overwrite, before any work (it was written over, the reference lost)
+    record = _static_csv(tmp_path / 'record.csv')
+    reference = _static_csv(tmp_path / 'reference.csv', n=3000)
+    before = open(reference, 'rb').read()
+    line = _refused(['diagnose', record, '--static', '--axis', 'x', '--reference', reference,
+                     '--json', reference, '--overwrite'], capsys, f'is the input {reference}')
+    assert 'choose another' in line
+    assert open(reference, 'rb').read() == before
+
+
+def test_diagnose_names_the_reference_option_when_its_file_is_missing(tmp_path, capsys):
+    record = _static_csv(tmp_path / 'record.csv')
+    missing = str(tmp_path / 'allan_run.csv')
+    _refused(['diagnose', record, '--static', '--axis', 'x', '--reference', missing], capsys,
+             f'--reference {missing}: no such file or directory', 'allowed: a static record')

@@ -212,6 +212,66 @@ def test_bounds_are_in_datasheet_units():
         ('share of the Sutherland law', 100 * (0.01 + 2.4 * 0.02), '%'))
 
 
+def test_a_nonlinearity_is_measured_only_beside_more_than_one_rate_magnitude():
+    # a bias and a scale factor are calibrated: on one magnitude the deviation at the
+    # largest rate is a scale factor, and no bound on it holds
+    levels = np.repeat([0.0, 0.5, 0.0, 0.5, 0.0], 100)
+    assert not ruled_out.nonlinearity_measured(levels)              # rate^2 = 0.5 rate
+    assert not ruled_out.nonlinearity_measured(np.r_[levels, -levels])   # rate^3 = 0.25 rate
+    assert not ruled_out.nonlinearity_measured(np.zeros(50))
+    assert ruled_out.nonlinearity_measured(np.r_[levels, -levels, 0.5 * levels])
+    found = _found(nonlinearity_quadratic_s_rad=(0.0, 1e-4),
+                   nonlinearity_cubic_s2_rad2=(0.0, 1e-4))
+    info = {'max_rate_rad_s': 0.5}
+    assert ruled_out.bounds_of('scale_factor_nonlinearity', found, info)
+    info['nonlinearity_measured'] = False
+    assert ruled_out.bounds_of('scale_factor_nonlinearity', found, info) == []
+
+
+def test_an_interval_open_at_the_searched_range_bounds_nothing():
+    # a delay still admissible at the grid's end (300 ms): the search stopped there,
+    # the data did not
+    closed = {'delay_s': intervals.Estimate(0.0, 1e-3, (-2e-3, 2e-3), 'profile likelihood')}
+    assert ruled_out.bounds_of('time_delay', closed, {}) == [('delay', 2.0, 'ms')]
+    for low, high in ((False, True), (True, True)):
+        edge = {'delay_s': intervals.Estimate(0.0, 0.1, (-0.05, 0.3), 'profile likelihood',
+                                              low, high)}
+        assert ruled_out.bounds_of('time_delay', edge, {}) == []
+    near_open = {'delay_s': intervals.Estimate(0.0, 0.1, (-0.05, 0.01), 'profile likelihood',
+                                               True, False)}
+    assert ruled_out.bounds_of('time_delay', near_open, {}) == []
+    lag = {'thermal_time_constant_s': intervals.Estimate(0.0, 90.0, (0.0, 181.0), 'profile '
+                                                         'likelihood', True, True)}
+    assert ruled_out.bounds_of('thermal_lag', lag, {}) == []
+
+
+def test_a_record_whose_rate_never_changes_bounds_no_delay():
+    # a delay of the output behind a constant rate changes nothing: 'delay above 300 ms'
+    # (the end of the searched range) was stated as ruled out
+    rng = np.random.default_rng(3)
+    t = np.arange(20_000) * 0.01
+    rate = np.full(len(t), 0.5)
+    gyro = rate + 1e-3 * rng.standard_normal(len(t))
+    doc = to_json(diagnose(MeasuredData(t, rate, np.full(len(t), 25.0), gyro, source='hold'),
+                           effects=('time_delay', 'bias_step')))
+    assert 'time_delay' in doc['residual']['causes_tested']
+    assert 'time_delay' not in {b['effect'] for b in doc['ruled_out']}
+    assert 'delay above' not in doc['residual']['message']
+
+
+def test_a_one_magnitude_record_rules_out_no_nonlinearity_it_holds():
+    # 1 % at 0.5 rad/s, rates 0 and 0.5 rad/s only: the bound stated was 0.0002 %
+    rng = np.random.default_rng(0)
+    t = np.arange(20_000) * 0.01
+    rate = np.repeat(rng.choice([0.0, 0.5], 20), 1000)
+    gyro = rate * (1.0 + 0.02 * rate) + 1e-3 * rng.standard_normal(len(t))
+    doc = to_json(diagnose(MeasuredData(t, rate, np.full(len(t), 25.0), gyro, source='nl'),
+                           effects=('scale_factor_nonlinearity', 'bias_step')))
+    assert 'scale_factor_nonlinearity' in doc['residual']['causes_tested']
+    assert 'scale_factor_nonlinearity' not in {b['effect'] for b in doc['ruled_out']}
+    assert 'SF nonlinearity' not in doc['residual']['message']
+
+
 @pytest.mark.parametrize('seed', (1, 2))
 def test_no_mismatch_states_what_the_data_rule_out(seed):
     record, _ = make_truth('none', seed, profile='static', duration_s=900.0,
@@ -319,6 +379,68 @@ def test_a_reference_shorter_than_the_record_is_a_one_line_error():
                                          r'record \(900 s\)') as err:
         diagnose(record, reference=short)
     assert '\n' not in str(err.value)
+
+
+def _static_record(n, seed, dt=0.5, source='ref'):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * dt
+    y = np.round(1e-3 * rng.standard_normal(n) / 1e-4) * 1e-4   # quantised, 3.3 LSB rms
+    return MeasuredData(t, np.zeros(n), None, y, source=source)
+
+
+@pytest.mark.parametrize('how', ['itself', 'a copy', 'a log that holds it'])
+def test_a_reference_that_holds_the_record_is_a_one_line_error(how):
+    # its noise would be the record's own wander, effect included: the null too tight
+    long = _static_record(2400, 8, source='long')
+    record = MeasuredData(long.time_s[:1800], long.rate_cmd_rad_s[:1800], None,
+                          long.gyro_rad_s[:1800], source='record')
+    ref = {'itself': record,
+           'a copy': MeasuredData(record.time_s, record.rate_cmd_rad_s, None,
+                                  record.gyro_rad_s.copy(), source='copy'),
+           'a log that holds it': MeasuredData(long.time_s, long.rate_cmd_rad_s, None,
+                                               long.gyro_rad_s - 0.0, source='long')}[how]
+    with pytest.raises(ValueError, match=r'holds 100 % of the record.s output samples .*'
+                                         r'not measured independently') as err:
+        diagnose(record, reference=ref)
+    assert '\n' not in str(err.value)
+
+
+def test_a_separate_reference_of_the_same_part_shares_no_samples():
+    # two quantised static records of one part: far below the 1 % the check allows,
+    # down to an output whose noise is a fifth of its LSB; a copy is found there too
+    rng = np.random.default_rng(2)
+    for sigma_lsb in (3.0, 1.0, 0.5, 0.2):
+        a, b = (np.round(sigma_lsb * rng.standard_normal(100_000)) for _ in range(2))
+        assert reference.shared_share(a, b) < 1e-3 < reference.MAX_SHARED_SHARE
+        assert reference.shared_share(a[500:60_000], np.r_[b[:7], a]) > \
+            reference.MAX_SHARED_SHARE
+    record, ref = _static_record(1800, 8), _static_record(1800, 9)
+    assert reference.shared_share(record.gyro_rad_s, ref.gyro_rad_s) == 0.0
+
+
+def test_a_moving_reference_is_a_one_line_error():
+    # its output holds the motion: the noise held fixed would be far too loose
+    ref = _static_record(1800, 9)
+    moving = MeasuredData(ref.time_s, 0.5 * np.sin(ref.time_s), None,
+                          ref.gyro_rad_s + 0.5 * np.sin(ref.time_s), source='moving')
+    with pytest.raises(ValueError, match=r"reference 'moving' is not static: its applied "
+                                         r'rate is 0.35[0-9] rad/s rms: allowed: below 0.001 '
+                                         r'rad/s rms'):
+        reference.reference_noise(moving)
+
+
+def test_a_reference_with_a_gap_lasts_the_time_it_covers():
+    # two 300 s stretches 1300 s apart measured no slow noise over 1800 s
+    record, _ = make_truth('none', 1, profile='static', duration_s=900.0, sample_rate_hz=2.0)
+    whole = _static_record(3800, 9)
+    keep = (whole.time_s < 300.0) | (whole.time_s >= 1600.0)
+    gappy = MeasuredData(whole.time_s[keep], whole.rate_cmd_rad_s[keep], None,
+                         whole.gyro_rad_s[keep], source='gappy')
+    assert reference.covered_s(gappy.time_s, 0.5) == pytest.approx(600.0)
+    assert reference.covered_s(whole.time_s, 0.5) == 1900.0
+    with pytest.raises(ValueError, match=r"reference 'gappy' lasts 600 s \(its logging gaps "
+                                         r'left out\), shorter than the record \(900 s\)'):
+        diagnose(record, reference=gappy)
 
 
 def test_effective_tests_of_a_grid():

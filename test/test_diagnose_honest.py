@@ -81,9 +81,15 @@ def test_no_mismatch_says_how_little_could_be_tested():
     assert cov == '2 of 15 causes could be tested (bias_time, bias_step)'
     text = vd.message('no_mismatch', [], _res(slow=0.74, margin=0.0), cov)
     assert text.startswith(cov + '; nothing testable was found')
-    assert 'explains the data' not in text
+    assert 'explains' not in text and text.endswith(vd.NOTHING_BOUNDED)
     assert vd.coverage_text(['a', 'b'], 2) is None
-    assert 'explains the data' in vd.message('no_mismatch', [], _res(slow=0.74), None)
+    # every cause tested, none bounded: said, never that the baseline explains the data
+    text = vd.message('no_mismatch', [], _res(slow=0.74), None)
+    assert 'explains' not in text and text.endswith(vd.NOTHING_BOUNDED)
+    bounded = vd.message('no_mismatch', [], _res(slow=0.74), None,
+                         ruled_out='bias tempco above 0.001 deg/s/K')
+    assert bounded.endswith('The data rule out (95 %), beyond the baseline: bias tempco '
+                            'above 0.001 deg/s/K.')
 
 
 @pytest.mark.parametrize('span', [1.0, 4.9, 5.0, 8.2, 14.9, 15.0, 30.0])
@@ -164,3 +170,23 @@ def test_the_bias_twins_pair_both_ways_and_other_causes_have_none():
     steps = [([first, _cand('bias_time')], first), ([second, _cand('bias_time')], second)]
     confound = [{'a': 'temperature', 'b': 'time', 'correlation': 0.97}]
     assert vd.confounded_twins(steps, confound) == [['bias_time'], []]
+
+
+def test_the_terminal_says_when_an_interval_stops_at_the_searched_range():
+    # a delay pinned at the grid's end (-0.05 s): the report and JSON said so, the
+    # terminal printed a 15 us wide interval as if the data gave it
+    from gyro_emulator.analysis.diagnose.diagnosis import Parameter
+    method = ('profile likelihood; its low end at the edge of the searched range: the '
+              'interval may reach beyond it')
+    pinned = Parameter(value=-0.05, sigma=3.9e-6, unit='s', meaning='output delay',
+                       interval=(-0.05, -0.049985), method=method)
+    assert report.parameter_text(pinned) == (
+        '-0.05 [-0.05, -0.049985] s (95 %, profile; its low end at the edge of the searched '
+        'range)')
+    both = Parameter(value=0.0, sigma=1.0, unit='s', meaning='', interval=(-1.0, 1.0),
+                     method=method.replace('its low end', 'its low and high end'))
+    assert report.parameter_text(both).endswith('its low and high end at the edge of the '
+                                                'searched range)')
+    closed = Parameter(value=0.012, sigma=1e-4, unit='s', meaning='', interval=(0.0118, 0.0122),
+                       method='profile likelihood')
+    assert report.parameter_text(closed) == '0.012 [0.0118, 0.0122] s (95 %, profile)'

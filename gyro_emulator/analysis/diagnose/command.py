@@ -14,6 +14,7 @@ caller's console: ``out(line)`` and ``err(line)`` for the terminal and
 import contextlib
 from dataclasses import dataclass
 import math
+import os
 import warnings
 
 from gyro_emulator import outputs
@@ -90,8 +91,11 @@ def execute(request, console):
                    outputs.inside('--report', request.report, ('report.md',) + tuple(
                        f'residuals_{key}.png' for key, _, _ in report.PLOTS)),
                    outputs.file('--write-config', request.write_config)],
-                  inputs=[request.source, config_source(request.config)],
+                  inputs=[request.source, request.reference, config_source(request.config)],
                   overwrite=request.overwrite)
+    if request.reference is not None and not os.path.exists(request.reference):
+        raise ValueError(f'diagnose: --reference {request.reference}: no such file or '
+                         'directory: allowed: a static record of the same part (CSV or bag)')
     record = data.load_measured(request.source, rate_topic=request.rate_topic,
                                 temp_topic=request.temp_topic, gyro_topic=request.gyro_topic,
                                 accel_topic=request.accel_topic, axis=request.axis,

@@ -305,7 +305,8 @@ def _ruled_out(steps, cv, data):
     if not steps:
         return ()
     chosen = {c.effect.effect_id for _, c in steps if c is not None}
-    info = {'max_rate_rad_s': float(np.max(np.abs(data.rate_cmd_rad_s)))}
+    info = {'max_rate_rad_s': float(np.max(np.abs(data.rate_cmd_rad_s))),
+            'nonlinearity_measured': ruled_out.nonlinearity_measured(data.rate_cmd_rad_s)}
     out = []
     for cand in steps[-1][0]:
         if cand.effect.effect_id in chosen or cand.effect.effect_id not in ruled_out.BOUNDS:

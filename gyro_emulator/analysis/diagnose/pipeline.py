@@ -25,7 +25,7 @@ from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, measured, Pre
 from gyro_emulator.analysis.diagnose.diagnosis import ResidualPlots
 from gyro_emulator.analysis.diagnose.effects import Context
 from gyro_emulator.analysis.diagnose.noise_model import SuperBins
-from gyro_emulator.analysis.diagnose.reference import reference_noise
+from gyro_emulator.analysis.diagnose.reference import check_independent, reference_noise
 from gyro_emulator.physics.presets import physics_preset
 from gyro_emulator.units import AXES
 from gyro_emulator.validation import check_range
@@ -133,7 +133,8 @@ def _reference(reference, axis, duration_s):
     """
     ref = reference_noise(measured(reference, axis, True))
     if ref.duration_s < MIN_REFERENCE_SHARE * duration_s:
-        raise ValueError(f'diagnose: reference {ref.source!r} lasts {ref.duration_s:.6g} s, '
+        raise ValueError(f'diagnose: reference {ref.source!r} lasts {ref.duration_s:.6g} s'
+                         f'{"" if ref.gap_free else " (its logging gaps left out)"}, '
                          f'shorter than the record ({duration_s:.6g} s): allowed: a static '
                          'record of the part at least as long as the diagnosed one, so that '
                          'its slow noise is measured at the scales of the record')
@@ -190,6 +191,9 @@ def diagnose(data, preset='paper', ref_temp_c=None, folds=DEFAULT_FOLDS,
     catalogue = generic.CATALOGUE if effects is None else tuple(
         generic.effect(e) for e in effects)
     data = measured(data)
+    if reference is not None:
+        reference = measured(reference, axis, True)
+        check_independent(data, reference)
     if np.ptp(data.gyro_rad_s) == 0.0:
         raise ValueError(
             f'diagnose: gyro_rad_s = {float(data.gyro_rad_s[0])!r} in all {data.rows} samples: '

@@ -32,6 +32,7 @@ part (an Allan run), the noise is measured where no effect is:
 from dataclasses import dataclass
 
 from gyro_emulator.analysis.diagnose import noise_model, statespace
+from gyro_emulator.analysis.diagnose.baseline import MIN_RATE_RMS_RAD_S
 from gyro_emulator.sensor import noise as sensor_noise
 import numpy as np
 from scipy import linalg, stats
@@ -39,7 +40,11 @@ from scipy import linalg, stats
 
 @dataclass(frozen=True)
 class ReferenceNoise:
-    """The noise of a reference record: white density N, bias instability B, random walk K."""
+    """
+    The noise of a reference record: white density N, bias instability B, random walk K.
+
+    ``duration_s`` is the time it covers, its logging gaps (``gaps_s``) left out.
+    """
 
     source: str
     duration_s: float
@@ -47,6 +52,12 @@ class ReferenceNoise:
     bias_instability_rad_s: float
     rrw_rad_s_sqrt_s: float
     allan_tau_max_s: float
+    gaps_s: float = 0.0
+
+    @property
+    def gap_free(self):
+        """Return whether the reference has no logging gap (``duration_s`` is its span)."""
+        return self.gaps_s == 0.0
 
     def as_dict(self):
         """JSON-ready form."""
@@ -71,7 +82,10 @@ def reference_noise(data):
 
     Its output less its mean, fitted as :func:`.noise_model.fit_noise` fits a
     residual. A record too short or gappy for an Allan deviation over three
-    averaging times, or whose output does not vary, is a one-line error.
+    averaging times, whose output does not vary, or whose applied rate is not
+    at rest (rms of at least :data:`.baseline.MIN_RATE_RMS_RAD_S`: its output
+    holds the motion, not only the noise) is a one-line error. Its
+    ``duration_s`` is the time it covers, its logging gaps left out.
     """
     gyro = np.asarray(data.gyro_rad_s, dtype=float)
     t = np.asarray(data.time_s, dtype=float)
@@ -79,19 +93,98 @@ def reference_noise(data):
         raise ValueError(f'diagnose: reference {data.source!r} has {len(t)} samples and an '
                          'output that does not vary: allowed: a static record of the same '
                          'part, long enough for an Allan deviation')
+    rate_rms = float(np.sqrt(np.mean(np.asarray(data.rate_cmd_rad_s, float) ** 2)))
+    if rate_rms >= MIN_RATE_RMS_RAD_S:
+        raise ValueError(f'diagnose: reference {data.source!r} is not static: its applied rate '
+                         f'is {rate_rms:.3g} rad/s rms: allowed: below {MIN_RATE_RMS_RAD_S:g} '
+                         'rad/s rms (a record of the part at rest)')
     dt = np.diff(t)
     dt_s = float(np.median(dt[dt > 0.0]))
-    duration = float(t[-1] - t[0] + dt_s)
-    fit = noise_model.fit_noise(gyro - gyro.mean(), t, dt_s, duration)
+    fit = noise_model.fit_noise(gyro - gyro.mean(), t, dt_s, float(t[-1] - t[0] + dt_s))
     if fit.tau_max_s <= 0.0:
-        raise ValueError(f'diagnose: reference {data.source!r} ({duration:.4g} s) is too short '
-                         'or gappy for an Allan deviation over three averaging times: allowed: '
-                         'a longer static record of the same part')
-    return ReferenceNoise(source=str(data.source), duration_s=duration,
+        raise ValueError(f'diagnose: reference {data.source!r} ({t[-1] - t[0] + dt_s:.4g} s) is '
+                         'too short or gappy for an Allan deviation over three averaging times: '
+                         'allowed: a longer static record of the same part')
+    covered = covered_s(t, dt_s)
+    return ReferenceNoise(source=str(data.source), duration_s=covered,
                           arw_rad_s_sqrt_hz=fit.arw_rad_s_sqrt_hz,
                           bias_instability_rad_s=fit.bias_instability_rad_s,
                           rrw_rad_s_sqrt_s=fit.rrw_rad_s_sqrt_s,
-                          allan_tau_max_s=fit.tau_max_s)
+                          allan_tau_max_s=fit.tau_max_s,
+                          gaps_s=max(float(t[-1] - t[0] + dt_s) - covered, 0.0))
+
+
+def covered_s(time_s, dt_s):
+    """
+    Return the time a record covers, s: its span less its logging gaps.
+
+    A step longer than 3 dt is a gap (as :func:`.noise_model.fit_noise`
+    splits stretches); each stretch counts its samples' span plus one dt.
+    """
+    t = np.asarray(time_s, float)
+    steps = np.diff(t)
+    gaps = steps[steps > 3.0 * dt_s]
+    return float(t[-1] - t[0] - np.sum(gaps) + dt_s * (1 + len(gaps)))
+
+
+#: Consecutive output samples compared between the record and the reference.
+SHARED_WINDOW = 32
+#: Share of the record's windows found in the reference above which they are one record.
+MAX_SHARED_SHARE = 0.01
+
+
+def _window_hashes(values):
+    """Return a 64-bit hash of every :data:`SHARED_WINDOW` consecutive values (bit exact)."""
+    # + 0.0 makes -0.0 and 0.0 one value
+    u = np.ascontiguousarray(np.asarray(values, dtype=np.float64) + 0.0).view(np.uint64)
+    u = u * np.uint64(0x9E3779B97F4A7C15)
+    m = len(u) - SHARED_WINDOW + 1
+    h = np.zeros(max(m, 0), dtype=np.uint64)
+    for j in range(SHARED_WINDOW if m > 0 else 0):
+        h = h * np.uint64(1099511628211) + (u[j:j + m] ^ (u[j:j + m] >> np.uint64(29)))
+    return h
+
+
+def shared_share(record_values, reference_values):
+    """
+    Return the share of the record's windows found in the reference at one offset.
+
+    A copy or an overlap holds the record's windows at one constant offset
+    in the reference; windows that repeat by chance (an output whose noise
+    is below its LSB) fall at scattered offsets and are not counted.
+    """
+    with np.errstate(over='ignore'):
+        mine = _window_hashes(record_values)
+        theirs = _window_hashes(reference_values)
+    if len(mine) == 0 or len(theirs) == 0:
+        return 0.0
+    keys, first = np.unique(theirs, return_index=True)
+    pos = np.minimum(np.searchsorted(keys, mine), len(keys) - 1)
+    hit = keys[pos] == mine
+    if not np.any(hit):
+        return 0.0
+    offsets = first[pos[hit]] - np.flatnonzero(hit)
+    return float(np.max(np.unique(offsets, return_counts=True)[1]) / len(mine))
+
+
+def check_independent(record, reference):
+    """
+    Refuse a reference that holds the record's own samples (one-line ValueError).
+
+    The null holds the reference's noise fixed as measured independently of
+    the record; the record itself (the same file, a link or a copy), or a
+    log that contains it, measures the record's own wander, effect included,
+    and makes the null too tight. Runs of :data:`SHARED_WINDOW` output
+    values equal bit for bit in both, at one offset, are counted
+    (:func:`shared_share`); more than :data:`MAX_SHARED_SHARE` of the
+    record's is refused.
+    """
+    shared = shared_share(record.gyro_rad_s, reference.gyro_rad_s)
+    if shared > MAX_SHARED_SHARE:
+        raise ValueError(f'diagnose: reference {reference.source!r} holds {100 * shared:.3g} % '
+                         f"of the record's output samples ({record.source!r}): its noise is "
+                         'not measured independently of the record; allowed: a separate static '
+                         f'record of the same part (at most {100 * MAX_SHARED_SHARE:g} % shared)')
 
 
 def _band_matrix(band):
@@ -189,4 +282,5 @@ class KnownNoise:
         return statespace.LrResult(lr, q, p, p, 1.0, False, None, None, len(y) - 1)
 
 
-__all__ = ['flicker_covariance', 'KnownNoise', 'reference_noise', 'ReferenceNoise']
+__all__ = ['check_independent', 'covered_s', 'flicker_covariance', 'KnownNoise', 'reference_noise',
+           'ReferenceNoise']

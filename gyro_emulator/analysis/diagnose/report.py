@@ -12,6 +12,7 @@ each selection step.
 """
 
 import os
+import re
 
 from gyro_emulator import atomic, plotting
 from gyro_emulator.analysis.diagnose import ruled_out
@@ -103,6 +104,10 @@ def parameter_text(p):
             p.method.startswith('not measured: ') else '')
     how = next((word for word in ('profile', 'sandwich') if p.method and
                 p.method.startswith(word)), 'jackknife')
+    edge = re.search(r'its (\w+(?: and \w+)?) ends? at the edge of the searched range',
+                     p.method or '')
+    if edge:     # the interval may reach beyond the search: the terminal says so too
+        how += f'; its {edge.group(1)} end at the edge of the searched range'
     return f'{p.value:.5g} {_interval_text(p.interval)} {p.unit} (95 %, {how})'
 
 

@@ -445,6 +445,11 @@ def _failed(res):
             out[0] if out else None)
 
 
+#: What a ``no_mismatch`` says where the data bound no tested cause's size.
+NOTHING_BOUNDED = (' The data bound the size of none of them (95 %): an effect of any '
+                   'size in the searched ranges could still hide.')
+
+
 def message(result, selected, res, coverage=None, suggestive=False, ruled_out=None):
     """
     One paragraph on the verdict, the residual and what remains.
@@ -456,7 +461,8 @@ def message(result, selected, res, coverage=None, suggestive=False, ruled_out=No
     (:func:`suggestive`) no cause is established rather than none explains.
     ``selected``: the chosen causes (:class:`.diagnosis.Cause`). ``ruled_out``:
     what the data rule out (:func:`.ruled_out.text`); a ``no_mismatch``
-    states it rather than that the baseline explains what was tested.
+    states it, or that it bounds none (:data:`NOTHING_BOUNDED`), never that
+    the baseline explains what was tested.
     """
     names = ', '.join(e.effect for e in selected)
     level = (f"the held-out residual is {res['excess']:.3f}x its noise floor "
@@ -470,15 +476,11 @@ def message(result, selected, res, coverage=None, suggestive=False, ruled_out=No
     structure = structure_text(res)
     if result == 'no_mismatch':
         rules = (f' The data rule out (95 %), beyond the baseline: {ruled_out}.'
-                 if ruled_out else None)
+                 if ruled_out else NOTHING_BOUNDED)
         if coverage:
             return (f'{coverage}; nothing testable was found: none of them improves the '
-                    f'held-out fit significantly and {level}.'
-                    + (rules or ' The baseline explains what could be tested.'))
-        if rules:
-            return 'No cause improves the held-out fit significantly and ' + level + '.' + rules
-        return ('No cause improves the held-out fit significantly and ' + level
-                + ': the baseline explains the data.')
+                    f'held-out fit significantly and {level}.' + rules)
+        return 'No cause improves the held-out fit significantly and ' + level + '.' + rules
     if result == 'explained':
         return f'Explained by {names}: ' + level + '.'
     if result == 'partly_explained':
