@@ -859,3 +859,25 @@ def test_a_drawn_extended_term_reaches_the_part_s_sensor_run_and_its_range_is_ch
     out = GyroModel(quiet, 100.0, np.random.default_rng(0)).run(np.zeros((50, 3)),
                                                                 np.full(50, 25.0))
     np.testing.assert_allclose(out.gyro_rad_s[-1], step, rtol=1e-9)
+
+
+def test_a_run_logged_to_a_file_says_its_progress_every_minute():
+    """A log, not a terminal: a line per LOG_PROGRESS_S with the rate of this run only."""
+    import io
+
+    now = [0.0]
+    out = io.StringIO()
+    bar = run.LogProgress(1000, initial=200, clock=lambda: now[0], stream=out)
+    for t, n in ((30.0, 100), (61.0, 100), (90.0, 100), (121.0, 100)):
+        now[0] = t
+        bar.update(n)
+    lines = out.getvalue().splitlines()
+    # 200 devices of this run in 61 s: 3.28/s, 600 left; then 400 in 121 s, 400 left
+    assert lines == ['fleet: 400 of 1000 devices (40.0 %), 3.28 devices/s, '
+                     'time left at that rate 183 s',
+                     'fleet: 600 of 1000 devices (60.0 %), 3.31 devices/s, '
+                     'time left at that rate 121 s']
+    quiet = io.StringIO()
+    short = run.LogProgress(10, clock=lambda: 0.0, stream=quiet)
+    short.update(10)
+    assert quiet.getvalue() == ''

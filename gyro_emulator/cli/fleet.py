@@ -77,7 +77,8 @@ def run(args):
         summary = run_fleet(config, args.devices, args.seed, args.out,
                             scheduler=args.scheduler, workers=args.workers,
                             blocks_per_task=args.blocks_per_task,
-                            progress=sys.stderr.isatty(), overwrite=args.overwrite,
+                            progress=True if sys.stderr.isatty() else 'log',
+                            overwrite=args.overwrite,
                             write=not args.no_parquet, resume=args.resume)
     except FleetIncomplete as exc:
         print(f'gyro-emulator fleet: error: {exc}', file=sys.stderr)

@@ -21,6 +21,7 @@ import functools
 import logging
 import os
 import shutil
+import sys
 import threading
 import time
 
@@ -324,8 +325,9 @@ def run_fleet(config, n_devices, seed, out_dir, scheduler=None, workers=None,
         Blocks of 65 536 devices per task (default in-process: about four
         tasks, at most 16 blocks; on Dask: tasks of at most 16 blocks that
         shrink towards the end of the fleet). It changes no result.
-    progress : bool
-        Show a progress bar (tqdm) on stderr.
+    progress : bool or str
+        Show a progress bar (tqdm) on stderr; ``'log'``: a line every
+        :data:`LOG_PROGRESS_S` s instead (stderr a log, not a terminal).
     overwrite : bool
         Replace an earlier fleet in ``out_dir``.
     write : bool
@@ -369,8 +371,7 @@ def _run(job, tasks, scheduler, workers, progress, overwrite, resume):
     done, todo = _start(job, tasks, overwrite, resume)
     for result in done:
         result['sample'] = engine.sample_blocks(job, result['blocks'])
-    bar = _bar(n_devices) if progress else _NoBar()
-    bar.update(sum(r['counts']['devices'] for r in done))
+    bar = _bar(n_devices, sum(r['counts']['devices'] for r in done), progress)
     start = time.perf_counter()
     dask_run = None if scheduler == 'in-process' or not todo else _DaskRun(scheduler, workers)
     finished = functools.partial(state.save, job.out_dir)
@@ -428,5 +429,49 @@ def _whole(name, value, low, high):
     return int(value)
 
 
-def _bar(total):
-    return tqdm(total=total, unit='dev', unit_scale=True, desc='fleet', smoothing=0.1)
+def _bar(total, initial, progress):
+    """Return the run's progress: a bar (True), lines for a log ('log'), or none (False)."""
+    if progress == 'log':
+        return LogProgress(total, initial)
+    if progress:
+        return tqdm(total=total, initial=initial, unit='dev', unit_scale=True, desc='fleet',
+                    smoothing=0.1)
+    return _NoBar()
+
+
+#: Seconds between two progress lines of :class:`LogProgress`.
+LOG_PROGRESS_S = 60.0
+
+
+class LogProgress:
+    """
+    Progress for a log (stderr not a terminal): one line every ``every_s`` s.
+
+    The devices done (``initial`` of them from an earlier run, kept), their
+    share of ``total``, the rate of this run and the time left at that
+    rate; nothing for a run shorter than ``every_s``. ``clock`` (s) and
+    ``stream`` are injected for tests.
+    """
+
+    def __init__(self, total, initial=0, every_s=LOG_PROGRESS_S, clock=time.monotonic,
+                 stream=None):
+        self.total, self.done, self.initial = total, initial, initial
+        self.every_s, self.clock = every_s, clock
+        self.stream = sys.stderr if stream is None else stream
+        self.start = self.last = clock()
+
+    def update(self, n):
+        """Count ``n`` more devices; print a line when ``every_s`` has passed."""
+        self.done += n
+        now = self.clock()
+        if now - self.last < self.every_s:
+            return
+        self.last = now
+        rate = (self.done - self.initial) / (now - self.start)
+        left = f'{(self.total - self.done) / rate:.0f} s' if rate > 0 else 'unknown'
+        print(f'fleet: {self.done:.4g} of {self.total:.4g} devices '
+              f'({100.0 * self.done / self.total:.1f} %), {rate:.3g} devices/s, '
+              f'time left at that rate {left}', file=self.stream, flush=True)
+
+    def close(self):
+        """Nothing to close."""
