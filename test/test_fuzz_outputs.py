@@ -256,9 +256,11 @@ def _signalled(args, cwd, signum, cpu_s):
     blocked, and the run ends with the command's own status: the caller
     tries again with less).
     """
+    # PYTHONFAULTHANDLER: a crash (once, SIGSEGV after a SIGHUP in a loaded CI run, not
+    # reproduced in 40 runs alone or 6 beside two CPU hogs) leaves its stacks in stderr
     proc = subprocess.Popen([PY, '-m', 'gyro_emulator.cli', *args], cwd=cwd, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            env=dict(os.environ, PYTHONPATH=ROOT))
+                            env=dict(os.environ, PYTHONPATH=ROOT, PYTHONFAULTHANDLER='1'))
     sent = False
     deadline = time.monotonic() + 600
     while proc.poll() is None and time.monotonic() < deadline:
