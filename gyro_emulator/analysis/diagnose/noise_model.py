@@ -78,10 +78,14 @@ class NoiseModel:
                 'allan_tau_max_s': self.tau_max_s}
 
 
+def stretch_starts(time_s, dt_s):
+    """Return the indices where a new stretch starts: after a step longer than 3 dt (a gap)."""
+    return np.flatnonzero(np.diff(time_s) > 3.0 * dt_s) + 1
+
+
 def _segments(time_s, values, dt_s):
-    """Contiguous stretches (a step longer than 3 dt starts a new one) of at least 8 samples."""
-    cuts = np.flatnonzero(np.diff(time_s) > 3.0 * dt_s) + 1
-    parts = np.split(values, cuts)
+    """Contiguous stretches (:func:`stretch_starts`) of at least 8 samples."""
+    parts = np.split(values, stretch_starts(time_s, dt_s))
     return [p for p in parts if len(p) >= 8]
 
 

@@ -100,30 +100,32 @@ def reference_noise(data):
                          'rad/s rms (a record of the part at rest)')
     dt = np.diff(t)
     dt_s = float(np.median(dt[dt > 0.0]))
-    fit = noise_model.fit_noise(gyro - gyro.mean(), t, dt_s, float(t[-1] - t[0] + dt_s))
+    span = float(t[-1] - t[0] + dt_s)
+    fit = noise_model.fit_noise(gyro - gyro.mean(), t, dt_s, span)
     if fit.tau_max_s <= 0.0:
-        raise ValueError(f'diagnose: reference {data.source!r} ({t[-1] - t[0] + dt_s:.4g} s) is '
-                         'too short or gappy for an Allan deviation over three averaging times: '
-                         'allowed: a longer static record of the same part')
+        raise ValueError(f'diagnose: reference {data.source!r} ({span:.4g} s) is too short or '
+                         'gappy for an Allan deviation over three averaging times: allowed: a '
+                         'longer static record of the same part')
     covered = covered_s(t, dt_s)
     return ReferenceNoise(source=str(data.source), duration_s=covered,
                           arw_rad_s_sqrt_hz=fit.arw_rad_s_sqrt_hz,
                           bias_instability_rad_s=fit.bias_instability_rad_s,
                           rrw_rad_s_sqrt_s=fit.rrw_rad_s_sqrt_s,
                           allan_tau_max_s=fit.tau_max_s,
-                          gaps_s=max(float(t[-1] - t[0] + dt_s) - covered, 0.0))
+                          gaps_s=max(span - covered, 0.0))
 
 
 def covered_s(time_s, dt_s):
     """
     Return the time a record covers, s: its span less its logging gaps.
 
-    A step longer than 3 dt is a gap (as :func:`.noise_model.fit_noise`
-    splits stretches); each stretch counts its samples' span plus one dt.
+    A gap ends a stretch as :func:`.noise_model.fit_noise` splits them
+    (:func:`.noise_model.stretch_starts`); each stretch counts its
+    samples' span plus one dt.
     """
     t = np.asarray(time_s, float)
-    steps = np.diff(t)
-    gaps = steps[steps > 3.0 * dt_s]
+    starts = noise_model.stretch_starts(t, dt_s)
+    gaps = t[starts] - t[starts - 1]
     return float(t[-1] - t[0] - np.sum(gaps) + dt_s * (1 + len(gaps)))
 
 
