@@ -37,7 +37,7 @@ import time
 
 from gyro_emulator.recording import bag, topics
 from gyro_emulator.ros import codec, program
-from gyro_emulator.ros.spinning import spin_once
+from gyro_emulator.ros.spinning import first_line, spin_once
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -253,7 +253,7 @@ def resolve_topic(node, name, given, option):
     try:
         return node.resolve_topic_name(name)
     except RuntimeError as exc:
-        reason = str(exc).split(', at /')[0].replace('failed to resolve name: ', '')
+        reason = first_line(exc).replace('failed to resolve name: ', '')
         raise ValueError(f'{option} = {given!r} is not a ROS topic name: {reason}') from None
 
 

@@ -115,7 +115,7 @@ def run_node(make_node, args, program, warm_up=None):
         try:
             node = make_node()
         except INPUT_ERRORS as exc:
-            print(f'{program}: error: {_first_line(exc)}', file=sys.stderr)
+            print(f'{program}: error: {first_line(exc)}', file=sys.stderr)
             return ERROR_STATUS
         except Exception:  # noqa: B902 - a SIGINT/SIGTERM while the node starts up
             if rclpy.ok():
@@ -156,7 +156,7 @@ def _start_ros(args, program, warm_up):
     try:
         rclpy.init(args=args)
     except Exception as exc:  # noqa: B902 - rcl reports bad arguments and params files so
-        print(f'{program}: error: cannot start ROS: {_first_line(exc)}', file=sys.stderr)
+        print(f'{program}: error: cannot start ROS: {first_line(exc)}', file=sys.stderr)
         return ERROR_STATUS
     return None
 
@@ -175,7 +175,7 @@ def _quiet_sigint(signum, frame):
     """Python's SIGINT handler under rclpy's: rclpy already shut the context down."""
 
 
-def _first_line(exc):
+def first_line(exc):
     """Return an exception's message on one line (rcl appends source locations)."""
     text = str(exc).split(', at /')[0]
     return ' '.join(text.split())
