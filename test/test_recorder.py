@@ -214,7 +214,16 @@ def test_node_record_dir_records_inputs_outputs_and_truth(tmp_path):
         assert topic in reader.topics
     imu = reader.read_arrays('/imu/data_raw')
     truth = reader.read_arrays('/gyro_emulator/truth/rate')
-    # Every published sample is in the bag (within the shutdown race of one tick).
-    assert samples - 2 <= imu.log_time_ns.size <= samples
-    assert abs(truth.log_time_ns.size - imu.log_time_ns.size) <= 2
+    # Every published sample is in the bag, the last ones before the stop too: the
+    # node writes what it publishes as it publishes it (a subscription to its own
+    # topics lost those in flight at shutdown, 5 of 1411 once). The one sample the
+    # driver may count but not publish: the signal handler shut the context down
+    # under the callback that was publishing it (imu/data_raw first, then truth).
+    assert samples - 1 <= imu.log_time_ns.size <= samples
+    assert imu.log_time_ns.size - 1 <= truth.log_time_ns.size <= imu.log_time_ns.size
+    assert np.all(np.diff(imu.stamp_ns) > 0)
+    # each output topic is stored with its publisher's QoS (imu/data_raw: sensor data)
+    assert reader.topics['/imu/data_raw'].qos_profiles[0]['reliability'] == 'best_effort'
+    assert reader.topics['/gyro_emulator/truth/fault'].qos_profiles[0]['durability'] == \
+        'transient_local'
     _check_with_rosbags(path, reader)

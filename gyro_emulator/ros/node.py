@@ -113,6 +113,10 @@ class GyroEmulatorNode(Node):
         self._pending = None
         params.check_qos_overrides(self)
         self._out = OutputStage(self, self.frame_id, values['qos_reliability'])
+        # Before the first publish (the fault state at start), so the bag holds all of it.
+        self._self_recorder = None
+        if values['record_dir']:
+            self._self_recorder = SelfRecorder(self, self._out, values['record_dir'])
         self._name = self.get_fully_qualified_name()
         self._hardware_id = f'gyro_emulator/{values["sensor_config"]}'
         self._timer = None
@@ -130,9 +134,6 @@ class GyroEmulatorNode(Node):
         self.add_post_set_parameters_callback(self._apply_parameters)
         for name in params.unknown_overrides(self):
             self.get_logger().warning(f'parameter {name!r} is unknown and ignored')
-        self._self_recorder = None
-        if values['record_dir']:
-            self._self_recorder = SelfRecorder(self, values['record_dir'])
         self._log_start(values)
 
     def _log_start(self, values):

@@ -22,6 +22,11 @@ fault in force has already acted on it, :mod:`gyro_emulator.sensor.faults`):
   (a durable one would always be published).
 * ``~/truth/fault`` (diagnostic_msgs/DiagnosticArray, latched) whenever the
   fault state changes; :func:`fault_message` gives its encoding.
+
+A ``tap`` (the node's self-recording, :mod:`gyro_emulator.ros.self_record`)
+receives every message as it is published, serialized: (publisher, bytes).
+It sees each sample in the process that made it, so none is lost in flight
+when the node stops; with a tap, every truth topic is built.
 """
 
 import copy
@@ -33,6 +38,7 @@ from gyro_emulator.ros.rawmsg import RawMessage
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
+from rclpy.serialization import serialize_message
 from rclpy.time import Time
 
 _LEVELS = {0: DiagnosticStatus.OK, 1: DiagnosticStatus.WARN, 2: DiagnosticStatus.ERROR}
@@ -110,6 +116,8 @@ class OutputStage:
                                        event_callbacks=quiet)
         self.fault_pub = publisher(topics.TRUTH_FAULT, event_callbacks=quiet)
         self.diag_pub = publisher(topics.DIAGNOSTICS, event_callbacks=quiet)
+        #: called with (publisher, serialized message) on each publish; None: no one
+        self.tap = None
         imu = codec.topic_class(topics.IMU_OUT)()
         imu.header.frame_id = frame_id
         imu.orientation_covariance[0] = -1.0
@@ -140,6 +148,22 @@ class OutputStage:
             'stamp': ('header.stamp', 'time'), 'rate': ('angular_velocity', 'vector3'),
             'force': ('linear_acceleration', 'vector3'),
             **{'q' + c: ('orientation.' + c, 'double') for c in 'wxyz'}})
+
+    def sample_publishers(self):
+        """Return (publisher, topic) of every topic this stage publishes samples and faults on."""
+        return ((self.imu_pub, topics.IMU_OUT), (self.temp_pub, topics.DIE_TEMPERATURE_OUT),
+                *zip(self.truth_pubs, topics.TRUTH_TOPICS.values()),
+                (self.truth_imu_pub, topics.TRUTH_IMU), (self.fault_pub, topics.TRUTH_FAULT))
+
+    def _send(self, pub, payload):
+        """Publish a serialized message and hand it to the tap."""
+        pub.publish(payload)
+        if self.tap is not None:
+            self.tap(pub, payload)
+
+    def _wanted(self, pub, kept):
+        """Tell whether a truth topic is built: kept for late joiners, subscribed or tapped."""
+        return kept or self.tap is not None or pub.get_subscription_count() > 0
 
     def set_covariance(self, covariance):
         """Show ``angular_velocity_covariance`` (9 numbers, rad^2/s^2) from now on."""
@@ -189,13 +213,13 @@ class OutputStage:
             imu.put('rate', *gyro.rate_rad_s)
             if shown is not None:
                 imu.put('accel', *accel.accel_m_s2)
-            self.imu_pub.publish(imu.payload())
+            self._send(self.imu_pub, imu.payload())
         if truth:
             self._publish_truth(output)
         if output.temperature_due:
             self.temp_msg.set_stamp_ns('stamp', output.sample_ns)
             self.temp_msg.put('value', output.die_temp_c)
-            self.temp_pub.publish(self.temp_msg.payload())
+            self._send(self.temp_pub, self.temp_msg.payload())
 
     def _publish_truth(self, output):
         """Publish ``~/truth/{rate,bias,scale_factor,imu}`` of one sample, at its instant."""
@@ -204,11 +228,11 @@ class OutputStage:
         for pub, msg, vec, keep in zip(self.truth_pubs, self.truth_msgs,
                                        (gyro.true_rate_rad_s, gyro.bias_rad_s,
                                         gyro.scale_factor), kept):
-            if keep or pub.get_subscription_count():
+            if self._wanted(pub, keep):
                 msg.set_stamp_ns('stamp', output.sample_ns)
                 msg.put('value', *vec.tolist())
-                pub.publish(msg.payload())
-        if not (kept[-1] or self.truth_imu_pub.get_subscription_count()):
+                self._send(pub, msg.payload())
+        if not self._wanted(self.truth_imu_pub, kept[-1]):
             return
         w, x, y, z = output.attitude_wxyz
         msg = self.truth_imu
@@ -217,10 +241,11 @@ class OutputStage:
             msg.put(name, value)
         msg.put('rate', *gyro.true_rate_rad_s.tolist())
         msg.put('force', *output.accel.true_specific_force_m_s2)
-        self.truth_imu_pub.publish(msg.payload())
+        self._send(self.truth_imu_pub, msg.payload())
 
     def publish_fault(self, report, name, hardware_id):
         """Publish a :class:`~gyro_emulator.emulation.driver.records.FaultReport` (a change)."""
         stamp = Time(nanoseconds=int(report.stamp_ns)).to_msg()
-        self.fault_pub.publish(fault_message(stamp, name, hardware_id, report.fault,
-                                             report.state, report.level, report.since_ns))
+        msg = fault_message(stamp, name, hardware_id, report.fault, report.state, report.level,
+                            report.since_ns)
+        self._send(self.fault_pub, serialize_message(msg))

@@ -1,12 +1,21 @@
 """
 The emulator node recording its own inputs, outputs and truth (``record_dir``).
 
-:class:`SelfRecorder` adds raw (still serialised) subscriptions to the node
-for its command inputs, ``imu/data_raw``, ``imu/temperature``, the
-``~/truth/*`` topics and ``/diagnostics``, and writes every message into a
-rosbag2 MCAP bag (:class:`gyro_emulator.recording.bag.BagWriter`): what any subscriber
-receives, with the node clock as log time. Subscriptions are best effort,
-which matches reliable and best-effort publishers alike.
+:class:`SelfRecorder` writes into a rosbag2 MCAP bag
+(:class:`gyro_emulator.recording.bag.BagWriter`), with the node clock as log
+time:
+
+* what the node publishes (``imu/data_raw``, ``imu/temperature``, the
+  ``~/truth/*`` topics) as it publishes it: a tap on the node's output stage
+  (:attr:`gyro_emulator.ros.outputs.OutputStage.tap`) hands over each
+  serialized message, so every published sample is in the bag, also the
+  last ones before a stop (a subscription to its own topics lost those
+  still in flight when the node shut down: 5 of 1411 once); each topic is
+  stored with its publisher's QoS;
+* what it receives (its command inputs) and ``/diagnostics`` (also other
+  nodes' reports) through raw (still serialised) subscriptions: what any
+  subscriber receives. They are best effort, which matches reliable and
+  best-effort publishers alike.
 
 ``record_dir`` names the bag directory; if it exists and is not empty, the bag
 goes into a new ``gyro_emulator_<date>_<time>`` directory inside it. The node owns
@@ -57,6 +66,8 @@ class SelfRecorder:
         ``seed``, ``rate_hz`` and ``frame_id`` are stored in the bag's
         custom_data, and its fully qualified name as ``node``: with ``seed``
         -1 the seed comes from that name, so ``replay`` finds it).
+    outputs : gyro_emulator.ros.outputs.OutputStage
+        The node's output stage, tapped for what the node publishes.
     record_dir : str
         Bag directory (see :func:`bag_path`).
     flush_interval_s : float
@@ -64,7 +75,7 @@ class SelfRecorder:
 
     """
 
-    def __init__(self, node, record_dir, flush_interval_s=bag.DEFAULT_FLUSH_INTERVAL_S):
+    def __init__(self, node, outputs, record_dir, flush_interval_s=bag.DEFAULT_FLUSH_INTERVAL_S):
         self.node = node
         custom = {'generator': 'gyro_emulator node record_dir',
                   'node': node.get_fully_qualified_name(), **topics.ACCEL_CMD_MEANING}
@@ -81,15 +92,21 @@ class SelfRecorder:
         self.finished = False
         self.error = None
         self.counts = {}
+        self._channels = {}
+        for pub, entry in outputs.sample_publishers():
+            self._channels[pub.topic_name] = self.writer.add_topic(
+                pub.topic_name, entry.type_name, qos_profiles=[codec.qos_to_profile(
+                    pub.qos_profile)])
+            self.counts[pub.topic_name] = 0
         rate_source = custom.get('rate_source', 'angular_velocity')
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                          reliability=ReliabilityPolicy.BEST_EFFORT)
         offered = [codec.qos_to_profile(qos)]
         self._subscriptions = []
         rate_input = topics.RATE_INPUTS.get(rate_source, topics.RATE_CMD)
-        recorded = [rate_input] + [t for t in topics.NODE_TOPICS
-                                   if t not in topics.RATE_INPUTS.values()]
-        for entry in recorded:
+        received = [rate_input] + [t for t in topics.NODE_TOPICS
+                                   if t.direction == 'in' and t not in topics.RATE_INPUTS.values()]
+        for entry in received + [topics.DIAGNOSTICS]:
             type_name = entry.type_name
             topic = node.resolve_topic_name(entry.name)
             cid = self.writer.add_topic(topic, type_name, qos_profiles=offered)
@@ -97,6 +114,7 @@ class SelfRecorder:
             self._subscriptions.append(node.create_subscription(
                 codec.message_class(type_name), topic,
                 functools.partial(self._on_message, topic, cid), qos, raw=True))
+        outputs.tap = self._on_published
         self._timer = node.create_timer(0.1, self._flush_if_due)
         atexit.register(self.finish)
         node.get_logger().info(f'recording inputs, outputs and truth to {self.path}')
@@ -110,6 +128,11 @@ class SelfRecorder:
             self._stop(exc)
             return
         self.counts[topic] += 1
+
+    def _on_published(self, pub, data):
+        """The output stage's tap: write what the node just published."""
+        topic = pub.topic_name
+        self._on_message(topic, self._channels[topic], data)
 
     def _flush_if_due(self):
         if self.finished:
