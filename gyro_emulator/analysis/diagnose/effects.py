@@ -292,7 +292,8 @@ class TimeDelay(Effect):
 
     effect_id = 'time_delay'
     cause = ('The output lags the applied rate by a fixed delay (digital '
-             'filtering and sampling latency).')
+             'filtering and sampling latency, or, against a baseline without rate '
+             "dynamics, the sense mode's own response: its group delay).")
     needs = ('rate',)
     params = (Param('delay_s', 's', 'output delay behind the applied rate'),)
     grid = (np.linspace(-0.05, 0.3, 71),)
