@@ -58,18 +58,38 @@ def _yaml():
 
 
 def _shape(yaml, loader, text, where):
-    """Scan the events: refuse deep nesting; return whether the document has aliases."""
-    depth, aliases = 0, False
+    """
+    Scan the events: refuse deep nesting and repeated keys; return whether there are aliases.
+
+    A key given twice in one mapping is refused (line and key named): the
+    YAML loader would keep the last value and drop the first without a word.
+    Keys are compared as written (scalar keys; ``<<`` merges are left to the
+    loader).
+    """
+    aliases, frames = False, []        # per open collection: [keys, next is a key] or None
     for event in yaml.parse(text, Loader=loader):
-        if isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):
-            depth += 1
-            if depth > MAX_YAML_DEPTH:
-                raise ValueError(f'{where}: YAML nested more than {MAX_YAML_DEPTH} levels deep '
-                                 'refused')
-        elif isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
-            depth -= 1
-        elif isinstance(event, yaml.AliasEvent):
+        if isinstance(event, (yaml.MappingEndEvent, yaml.SequenceEndEvent)):
+            frames.pop()
+            continue
+        if isinstance(event, (yaml.ScalarEvent, yaml.AliasEvent, yaml.MappingStartEvent,
+                              yaml.SequenceStartEvent)) and frames and frames[-1] is not None:
+            frame = frames[-1]
+            if frame[1] and isinstance(event, yaml.ScalarEvent) and event.value != '<<':
+                if event.value in frame[0]:
+                    raise ValueError(f'{where}: line {event.start_mark.line + 1}: key '
+                                     f'{event.value!r} is given twice in one mapping (YAML '
+                                     'would keep the last silently): refused')
+                frame[0].add(event.value)
+            frame[1] = not frame[1]
+        if isinstance(event, yaml.AliasEvent):
             aliases = True
+        elif isinstance(event, yaml.MappingStartEvent):
+            frames.append([set(), True])
+        elif isinstance(event, yaml.SequenceStartEvent):
+            frames.append(None)
+        if len(frames) > MAX_YAML_DEPTH:
+            raise ValueError(f'{where}: YAML nested more than {MAX_YAML_DEPTH} levels deep '
+                             'refused')
     return aliases
 
 

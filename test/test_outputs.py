@@ -176,6 +176,28 @@ def test_alias_bombs_deep_nesting_and_recursion_are_refused_fast():
     assert load_yaml_text('a: &a [1, 2]\nb: *a\n', 'ok.yaml') == {'a': [1, 2], 'b': [1, 2]}
 
 
+@pytest.mark.parametrize('text, line, key', [
+    ('a: 1\na: 2\n', 2, 'a'),
+    ('device:\n  preset: paper\n  seed: 1\n  preset: consumer\n', 4, 'preset'),
+    ('parts:\n  - {k: 1, k: 2}\n', 2, 'k'),
+])
+def test_a_key_given_twice_is_refused_not_dropped(text, line, key):
+    # The YAML loader keeps the last value of a repeated key and drops the
+    # first silently: a fleet's tolerance or a sensor field would vanish.
+    with pytest.raises(ValueError, match=f"f.yaml: line {line}: key '{key}' is given twice "
+                                         'in one mapping') as caught:
+        load_yaml_text(text, 'f.yaml')
+    assert '\n' not in str(caught.value)
+
+
+def test_the_same_key_in_different_mappings_is_yaml():
+    text = ('a: {x: 1}\nb: {x: 2}\nl:\n  - {x: 1}\n  - {x: 2}\n'
+            'base: &b {x: 1}\nd:\n  <<: *b\n  y: 2\n')
+    assert load_yaml_text(text, 'ok.yaml') == {
+        'a': {'x': 1}, 'b': {'x': 2}, 'l': [{'x': 1}, {'x': 2}], 'base': {'x': 1},
+        'd': {'x': 1, 'y': 2}}
+
+
 def test_read_yaml_bounds_size_and_names_the_file(tmp_path):
     big = tmp_path / 'big.yaml'
     big.write_text('a: ' + 'x' * 100 + '\n')
