@@ -418,7 +418,8 @@ def test_calibrate_cli(noise_log, thermal_log, tmp_path, capsys):
     assert cli.main(['calibrate', 'noise', noise_log, '--format', 'kalibr', '-o', str(out),
                      '--inflate', '0', '--overwrite']) == 2
     err = capsys.readouterr().err
-    assert 'inflate = 0.0 is out of range' in err and 'Traceback' not in err
+    # named as the option typed, not the field below it
+    assert '--inflate 0.0 is out of range' in err and 'Traceback' not in err
     assert cli.main(['calibrate', 'noise', str(tmp_path / 'nope.csv'), '--format', 'vins',
                      '-o', str(out)]) == 2
     params = tmp_path / 'tc.params'

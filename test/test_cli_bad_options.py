@@ -55,10 +55,10 @@ def _static_csv(path, n=2000, rate_hz=100.0):
 
 
 @pytest.mark.parametrize('option,value,words', [
-    ('--rate-hz', 'inf', ('rate_hz = inf', '(0, 1e6] Hz')),
-    ('--rate-hz', '-200', ('rate_hz = -200.0', '(0, 1e6] Hz')),
-    ('--duration-s', 'nan', ('duration_s = nan', 'allowed > 0 s')),
-    ('--duration-s', 'inf', ('duration_s = inf', 'allowed > 0 s')),
+    ('--rate-hz', 'inf', ('--rate-hz inf', '(0, 1e6] Hz')),
+    ('--rate-hz', '-200', ('--rate-hz -200.0', '(0, 1e6] Hz')),
+    ('--duration-s', 'nan', ('--duration-s nan', 'allowed > 0 s')),
+    ('--duration-s', 'inf', ('--duration-s inf', 'allowed > 0 s')),
     ('--seed', '-1', ('simulate.seed = -1', 'allowed integers >= 0')),
 ])
 @pytest.mark.parametrize('out', ['out.csv', 'bag'])
@@ -310,3 +310,21 @@ def test_diagnose_names_the_reference_option_when_its_file_is_missing(tmp_path, 
     missing = str(tmp_path / 'allan_run.csv')
     _refused(['diagnose', record, '--static', '--axis', 'x', '--reference', missing], capsys,
              f'--reference {missing}: no such file or directory', 'allowed: a static record')
+
+
+def test_an_error_names_the_option_typed_only_for_the_option_s_own_value():
+    args = cli.build_parser().parse_args(['simulate', '--rate-hz', '0', '--out', 'x.csv'])
+    assert cli.as_option(args, 'rate_hz = 0.0 is out of range: allowed (0, 1e6] Hz') == \
+        '--rate-hz 0.0 is out of range: allowed (0, 1e6] Hz'
+    # a field of the same name with another value (a file's, a log's) stays as it is
+    assert cli.as_option(args, 'rate_hz = 50.0 is not the log rate') == \
+        'rate_hz = 50.0 is not the log rate'
+    # a field that is no option, and a dotted field, stay as they are
+    assert cli.as_option(args, 'temp_c = 900.0 is beyond') == 'temp_c = 900.0 is beyond'
+    assert cli.as_option(args, 'simulate.seed = -1 is out of range') == \
+        'simulate.seed = -1 is out of range'
+    # nested commands keep their own options: calibrate noise --inflate
+    args = cli.build_parser().parse_args(['calibrate', 'noise', 'log.csv', '--format', 'kalibr',
+                                          '-o', 'k.yaml', '--inflate', '0.5'])
+    assert cli.as_option(args, 'inflate = 0.5 is out of range: allowed [1, 1000]') == \
+        '--inflate 0.5 is out of range: allowed [1, 1000]'

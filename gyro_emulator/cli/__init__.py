@@ -51,13 +51,52 @@ def plain_text(text):
 
 
 class PlainParser(argparse.ArgumentParser):
-    """An ArgumentParser whose option help is shown without RST markup."""
+    """
+    An ArgumentParser whose option help is shown without RST markup.
+
+    It keeps its options' spellings by destination (``rate_hz`` ->
+    ``--rate-hz``) in the parsed arguments (``option_names``), so that an
+    error about a value names the option the user typed (:func:`as_option`).
+    """
+
+    def __init__(self, *args, **kwargs):
+        self.option_names = {}
+        super().__init__(*args, **kwargs)
+        self.set_defaults(option_names=self.option_names)
 
     def add_argument(self, *args, **kwargs):
         """Add an argument as ArgumentParser does, its ``help`` as :func:`plain_text`."""
         if isinstance(kwargs.get('help'), str):
             kwargs['help'] = plain_text(kwargs['help'])
-        return super().add_argument(*args, **kwargs)
+        action = super().add_argument(*args, **kwargs)
+        if action.option_strings:
+            self.option_names[action.dest] = action.option_strings[-1]
+        return action
+
+
+#: An error that starts with a field: ``rate_hz = 0.0 is out of range ...``.
+_FIELD_FIRST = re.compile(r'([A-Za-z_][A-Za-z0-9_]*) = ')
+
+
+def as_option(args, message):
+    """
+    Return ``message`` with a leading ``field = value`` named as the command's option.
+
+    Checks below the command line name the field they check (``rate_hz =
+    0.0 is out of range``); where that field is an option of the command
+    (its destination) and the value is the option's, the message names the
+    option as typed (``--rate-hz 0.0 is out of range``). Other messages (a
+    log's ``temp_c`` column, a file's field) are returned as they are.
+    """
+    names = getattr(args, 'option_names', None) or {}
+    match = _FIELD_FIRST.match(message)
+    if match is None or match.group(1) not in names:
+        return message
+    rest = message[match.end():]
+    value = getattr(args, match.group(1), None)
+    if value is None or rest.split(' ', 1)[0] not in (repr(value), str(value)):
+        return message             # the same name, another value: not the option's check
+    return f'{names[match.group(1)]} {rest}'
 
 
 def build_parser():
@@ -140,7 +179,7 @@ def _failed(args, exc):
         return 130
     if not isinstance(exc, (ValueError, OSError)):
         raise exc
-    print(f'{_label(args)}: error: {one_line(exc)}', file=sys.stderr)
+    print(f'{_label(args)}: error: {one_line(as_option(args, str(exc)))}', file=sys.stderr)
     return 2
 
 
