@@ -328,3 +328,19 @@ def test_an_error_names_the_option_typed_only_for_the_option_s_own_value():
                                           '-o', 'k.yaml', '--inflate', '0.5'])
     assert cli.as_option(args, 'inflate = 0.5 is out of range: allowed [1, 1000]') == \
         '--inflate 0.5 is out of range: allowed [1, 1000]'
+
+
+@pytest.mark.parametrize('option,value,words', [
+    ('--inflate', '0.5', ('--inflate 0.5', 'allowed [1, 1000]')),
+    ('--inflate', 'nan', ('--inflate nan', 'allowed [1, 1000]')),
+    ('--rate-hz', '-1', ('--rate-hz -1.0', 'allowed (0, 1e6] Hz')),
+])
+def test_calibrate_noise_refuses_a_bad_export_option_before_reading_the_log(
+        tmp_path, capsys, option, value, words):
+    # Before: the log was read and analysed, its figures printed, then refused.
+    log = _static_csv(tmp_path / 'log.csv')
+    status, out, err = _run(['calibrate', 'noise', log, '--format', 'kalibr', '-o',
+                             str(tmp_path / 'k.yaml'), option, value], capsys)
+    assert status == 2 and len(err) == 1 and all(w in err[0] for w in words), err
+    assert out == ''
+    assert sorted(os.listdir(tmp_path)) == ['log.csv']

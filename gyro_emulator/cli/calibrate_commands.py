@@ -173,6 +173,8 @@ def _accel_doc(cal, accel, inflate):
 def run_noise(args):
     """Identify the noise terms and write the chosen format."""
     given = _accel(args)
+    noise.check_inflate(args.inflate)              # before the log is read, as the outputs
+    export_noise.check_rate_hz(args.rate_hz)
     _check_outputs(args, _noise_plots(args))
     cal, accel_cal, record = _calibrate(args)
     topic = _rostopic(args, record)

@@ -664,6 +664,12 @@ WRITERS = {'kalibr': kalibr, 'openvins': openvins, 'vins': vins, 'orbslam3': orb
            'orbslam3-settings': orbslam3_settings, 'gazebo': gazebo, 'preset': preset}
 
 
+def check_rate_hz(rate_hz):
+    """Refuse an exported IMU rate outside (0, 1e6] Hz (ValueError); None: the log's."""
+    if rate_hz is not None and not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
+        raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
+
+
 def write_noise(calibration, fmt, inflate=1.0, rate_hz=None, accel=None, topic=None):
     """
     Return the text of format ``fmt`` (one of :data:`FORMATS`).
@@ -676,6 +682,5 @@ def write_noise(calibration, fmt, inflate=1.0, rate_hz=None, accel=None, topic=N
     """
     if fmt not in WRITERS:
         raise ValueError(f'format = {fmt!r} is not allowed: choose {", ".join(FORMATS)}')
-    if rate_hz is not None and not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
-        raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
+    check_rate_hz(rate_hz)
     return WRITERS[fmt](calibration, inflate, rate_hz, accel, topic)

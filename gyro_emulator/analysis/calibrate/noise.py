@@ -367,10 +367,15 @@ def axis_values(item):
             max(fit.intervals['rrw'].high, fit.rrw_rad_s_sqrt_s), True)
 
 
-def export_noise(calibration, inflate=1.0):
-    """Return the estimator's N and K (module docstring): largest over axes, x ``inflate``."""
+def check_inflate(inflate):
+    """Refuse an inflation factor of the exported figures outside [1, 1000] (ValueError)."""
     if not (np.isfinite(inflate) and 1.0 <= inflate <= 1000.0):
         raise ValueError(f'inflate = {inflate!r} is out of range: allowed [1, 1000]')
+
+
+def export_noise(calibration, inflate=1.0):
+    """Return the estimator's N and K (module docstring): largest over axes, x ``inflate``."""
+    check_inflate(inflate)
     per_axis = {a.axis: axis_values(a) for a in calibration.axes}
     n = max(v[0] for v in per_axis.values())
     b = max(v[1] for v in per_axis.values())
