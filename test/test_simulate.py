@@ -132,7 +132,7 @@ def test_simulate_cli_errors_are_clean(tmp_path, capsys):
     assert 'built-in profile' in capsys.readouterr().err
     assert cli.main(['simulate', '--duration-s', '-1', '--out',
                      str(tmp_path / 'a.csv')]) == 2
-    assert 'duration_s = -1.0 is out of range' in capsys.readouterr().err
+    assert '--duration-s -1.0 is out of range' in capsys.readouterr().err
 
 
 def test_allan_cli_on_our_own_output(tmp_path):

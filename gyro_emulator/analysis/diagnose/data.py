@@ -25,6 +25,7 @@ the temperature by < 0.02 K on a 3 K/min ramp. Samples set aside (outliers,
 :mod:`.screening`) are left out of the bins and of every fit.
 """
 
+import copy
 from dataclasses import dataclass
 
 from gyro_emulator.emulation.recorded_profile import commanded_specific_force
@@ -33,7 +34,12 @@ from gyro_emulator.recording.record import DEFAULT_TOPICS, load_record
 from gyro_emulator.units import AXES
 from gyro_emulator.validation import check_record_values
 import numpy as np
+from scipy.interpolate import CubicSpline, PchipInterpolator
 from scipy.signal import lfilter, lfilter_zi
+
+#: Shapes of the applied rate between its samples (:meth:`Prepared.reshaped`): the
+#: fits' linear interpolation, and the two classical smooth reconstructions.
+RATE_SHAPES = ('linear', 'pchip', 'cubic')
 
 REQUIRED_COLUMNS = ('time_s', 'rate_cmd_rad_s', 'temp_c', 'gyro_rad_s')
 ACCEL_COLUMNS = ('accel_x_m_s2', 'accel_y_m_s2', 'accel_z_m_s2')
@@ -360,11 +366,10 @@ class Frame:
         return np.asarray(values_on_bins)[self.bin_index]
 
     def delayed_rate(self, delay_s):
-        """Return the applied rate delayed by ``delay_s`` (linear interpolation)."""
+        """Return the applied rate delayed by ``delay_s`` (the record's rate shape)."""
         if self.level == 'bins':
             return self.record.delayed_rate(delay_s, 'bins')
-        t = self.record.data.time_s
-        return np.interp(t[self.index] - delay_s, t, self.record.data.rate_cmd_rad_s)
+        return self.record.rate_at(self.record.data.time_s[self.index] - delay_s)
 
     def rate_derivative(self):
         """Return d(rate)/dt, rad/s^2: per sample (central differences), or its bin means."""
@@ -385,6 +390,11 @@ class Prepared:
     """
     A record ready for fitting: samples, bins and shared temperature filters.
 
+    The applied rate between its samples is taken as linear
+    (:attr:`rate_shape`); :meth:`reshaped` gives the record with another
+    shape of :data:`RATE_SHAPES`, for what depends on it (a delay shorter
+    than the rate's changes: :mod:`.intervals`).
+
     Parameters
     ----------
     data : MeasuredData
@@ -397,6 +407,9 @@ class Prepared:
         Temperature assumed when the record has no reading, deg C.
 
     """
+
+    #: the applied rate between its samples: one of :data:`RATE_SHAPES`
+    rate_shape = 'linear'
 
     def __init__(self, data, max_bins=DEFAULT_MAX_BINS, keep=None, fill_temp_c=25.0):
         self.data = data
@@ -462,6 +475,46 @@ class Prepared:
             self._rate_derivative = np.gradient(d.rate_cmd_rad_s, d.time_s) if np.all(
                 np.diff(d.time_s) > 0.0) else np.zeros(d.rows)
         return self._rate_derivative
+
+    def reshaped(self, shape):
+        """
+        Return this record with the applied rate ``shape`` between samples (None: unknown).
+
+        ``shape`` one of :data:`RATE_SHAPES`: ``linear`` (the fits'), ``pchip``
+        (monotone piecewise cubic, Fritsch & Carlson 1980: no overshoot) or
+        ``cubic`` (the not-a-knot cubic spline). The copy shares the samples
+        and bins and keeps its own cache of the quantities that depend on
+        the shape. None where the time stamps do not increase strictly (a
+        smooth interpolant needs them to).
+        """
+        if shape not in RATE_SHAPES:
+            raise ValueError(f'shape = {shape!r} is not allowed: choose one of '
+                             f'{", ".join(RATE_SHAPES)}')
+        if shape == self.rate_shape:
+            return self
+        t = self.data.time_s
+        if shape != 'linear' and not np.all(np.diff(t) > 0.0):
+            return None
+        other = copy.copy(self)
+        other.rate_shape = shape
+        other.__dict__.pop('_effect_cache', None)
+        other.__dict__.pop('_interpolant', None)
+        for name in ('binned', 'samples'):
+            frame = copy.copy(getattr(self, name))
+            frame.record = frame.bins = other
+            setattr(other, name, frame)
+        return other
+
+    def rate_at(self, times_s):
+        """Return the applied rate at ``times_s`` in the rate shape, held past the ends."""
+        t, r = self.data.time_s, self.data.rate_cmd_rad_s
+        if self.rate_shape == 'linear':
+            return np.interp(times_s, t, r)
+        f = self.__dict__.get('_interpolant')
+        if f is None:
+            f = PchipInterpolator(t, r) if self.rate_shape == 'pchip' else CubicSpline(t, r)
+            self._interpolant = f
+        return f(np.clip(times_s, t[0], t[-1]))
 
     def bin_mean(self, values_all):
         """Mean over the kept samples of each bin of a per-sample array (whole record)."""
@@ -529,10 +582,14 @@ class Prepared:
         Samples: linear interpolation in time. Bins: the bin mean of the same
         interpolant over the kept samples, from cumulative sums over the
         whole record (exact for uniform sampling) less the set-aside samples.
+        In another rate shape (:meth:`reshaped`): that interpolant at each
+        sample, averaged over each bin's kept samples.
         """
         r = self.data.rate_cmd_rad_s
         if level == 'samples':
             return self.samples.delayed_rate(delay_s)
+        if self.rate_shape != 'linear':
+            return self.bin_mean(self.rate_at(self.data.time_s - delay_s))
         shift = delay_s / self.dt_s
         m = int(np.floor(shift))
         f = shift - m

@@ -43,7 +43,13 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
   continuous parameter's ends are found by bisection between the grid
   points, a grid-only or two-dimensional one's are the first grid points
   outside. Its sigma is the interval's half width / 1.96. An end at the
-  edge of the searched range is marked (``open``).
+  edge of the searched range is marked (``open``). A delay is also
+  profiled with the applied rate taken as PCHIP and as a cubic spline
+  between its samples (:meth:`.data.Prepared.reshaped`), and its interval
+  is the union of the three (:func:`_shape_union`): where the rate
+  changes within a few samples, its samples do not fix its shape between
+  them, nor a delay shorter than that (a 12 ms delay under 2000 deg/s^2
+  steps sampled at 10 Hz: 8.7 [8.6, 8.8] ms with the linear shape alone).
 
 :func:`clear_of_zero` is the selection's rule that a cause's estimate
 is not within ``z`` sigma of zero: a cause with coefficients needs one of
@@ -63,6 +69,7 @@ from dataclasses import dataclass, replace
 import math
 
 from gyro_emulator.analysis.diagnose import models, noise_model, statespace
+from gyro_emulator.analysis.diagnose.data import RATE_SHAPES
 import numpy as np
 from scipy import optimize
 from scipy.special import stdtrit
@@ -410,6 +417,13 @@ def _crossing(sse_of, thr, inside, outside):
         return outside
 
 
+#: The method of a searched parameter's interval (:func:`nonlinear_estimates`).
+PROFILE = 'profile likelihood'
+#: Said of a delay's interval that the shapes of the applied rate widened.
+SHAPES_NOTE = ("; the union over the applied rate's shapes between its samples "
+               '(linear, PCHIP, cubic spline)')
+
+
 def _profile_1d(evaluated, ctx, frame, n_eff):
     """Profile interval of the last cause's one searched parameter (not a step)."""
     model, full = evaluated.model, evaluated.full
@@ -430,6 +444,62 @@ def _profile_1d(evaluated, ctx, frame, n_eff):
     i = int(np.flatnonzero(points == best)[0])
     lo, hi, olo, ohi = _walk(points, sses, i, thr, sse_of, getattr(eff, 'refine', True))
     return [(min(lo, best), max(hi, best), olo, ohi)]
+
+
+def _profile_in_shape(search, ctx, frame, fixed, grid, n_eff):
+    """
+    Profile interval of a delay with the record's rate in ``frame``'s shape.
+
+    The least SSE on the grid is refined between its neighbours (Brent),
+    then the admissible run around it is walked as :func:`_profile_1d` does.
+    Returns (low, high, open_low, open_high).
+    """
+    def sse_of(v):
+        return _sse_at(search, ctx, frame, fixed + ((float(v),),))
+
+    sses = np.array([sse_of(v) for v in grid])
+    i = int(np.argmin(sses))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    best = float(optimize.minimize_scalar(sse_of, bounds=(a, b), method='bounded',
+                                          options={'xatol': 1e-6 * (b - a) + 1e-12}).x)
+    sse_best = sse_of(best)
+    if sse_best > sses[i]:
+        best, sse_best = float(grid[i]), float(sses[i])
+    points = np.unique(np.r_[grid, best])
+    sses = np.array([sse_best if v == best else sse_of(v) for v in points])
+    j = int(np.flatnonzero(points == best)[0])
+    lo, hi, olo, ohi = _walk(points, sses, j, _threshold(sse_best, n_eff), sse_of, True)
+    return min(lo, best), max(hi, best), olo, ohi
+
+
+def _shape_union(evaluated, ctx, frame, n_eff, ends):
+    """
+    Widen a delay's profile interval ``ends`` to the union over the rate's shapes.
+
+    The applied rate is known at its samples only: between them it is
+    taken as linear by the fits, and here also as PCHIP and as a cubic
+    spline (:data:`.data.RATE_SHAPES`). Each shape's profile interval
+    (:func:`_profile_in_shape`) joins the linear one. Returns the widened
+    (low, high, open_low, open_high) and whether a shape widened it.
+    """
+    model, full = evaluated.model, evaluated.full
+    eff = model.effects[-1]
+    fixed = tuple(full.phis[:-1])
+    grid = np.asarray(eff.grids(ctx)[0], dtype=float)
+    search = models.searched(model)
+    lo, hi, olo, ohi = ends
+    widened = False
+    for shape in RATE_SHAPES[1:]:
+        other = frame.bins.reshaped(shape)
+        if other is None:
+            continue
+        s_lo, s_hi, s_olo, s_ohi = _profile_in_shape(search, ctx, other.binned, fixed, grid,
+                                                     n_eff)
+        if s_lo < lo:
+            lo, olo, widened = s_lo, s_olo, True
+        if s_hi > hi:
+            hi, ohi, widened = s_hi, s_ohi, True
+    return (lo, hi, olo, ohi), widened
 
 
 def _profile_2d(evaluated, ctx, frame, n_eff):
@@ -478,6 +548,10 @@ def nonlinear_estimates(effect, evaluated, ctx, frame, n_eff):
         ends = _profile_1d(evaluated, ctx, frame, n_eff)
     else:
         ends = _profile_2d(evaluated, ctx, frame, n_eff)
+    method = PROFILE
+    if k == 1 and effect.delay_s((1.0,)) != 0.0:        # a delay: every shape of the rate
+        ends[0], widened = _shape_union(evaluated, ctx, frame, n_eff, ends[0])
+        method += SHAPES_NOTE if widened else ''
     fitted = [float(v) for v in evaluated.full.phis[-1]]
     values = evaluated.model.report(evaluated.full.beta, evaluated.full.phis)[-1]
     out = {}
@@ -485,8 +559,7 @@ def nonlinear_estimates(effect, evaluated, ctx, frame, n_eff):
         value = float(values[p.name])
         if value == -v_fit and v_fit != 0.0:       # a report that flips the sign (mode split)
             lo, hi, olo, ohi = -hi, -lo, ohi, olo
-        out[p.name] = Estimate(value, (hi - lo) / (2.0 * Z_LEVEL), (lo, hi),
-                               'profile likelihood', olo, ohi)
+        out[p.name] = Estimate(value, (hi - lo) / (2.0 * Z_LEVEL), (lo, hi), method, olo, ohi)
     return out
 
 
@@ -571,7 +644,7 @@ def clear_of_zero(effect, found, ctx, current_sse, sse, n_eff, z, evaluated=None
 def _measured_names(found):
     """Return the names of the coefficients measured with an interval (not by a profile)."""
     return [name for name, e in found.items()
-            if e.interval is not None and e.method != 'profile likelihood']
+            if e.interval is not None and not e.method.startswith(PROFILE)]
 
 
 def size_joint_p(effect, found, evaluated):
@@ -593,5 +666,5 @@ def interval_clear_of_zero(effect, found, ctx, current_sse, sse, n_eff):
     """Tell whether the cause's 95 % interval excludes zero (the verdict's ``explained`` rule)."""
     if effect.n_columns > 0:
         return any(e.interval is not None and (e.interval[0] > 0.0 or e.interval[1] < 0.0)
-                   for e in found.values() if e.method != 'profile likelihood')
+                   for e in found.values() if not e.method.startswith(PROFILE))
     return _null_excluded(effect, ctx, current_sse, sse, n_eff, LEVEL)

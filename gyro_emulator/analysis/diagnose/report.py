@@ -108,6 +108,8 @@ def parameter_text(p):
                      p.method or '')
     if edge:     # the interval may reach beyond the search: the terminal says so too
         how += f'; its {edge.group(1)} end at the edge of the searched range'
+    if p.method and 'shapes between its samples' in p.method:
+        how += "; over the rate's shapes between samples"
     return f'{p.value:.5g} {_interval_text(p.interval)} {p.unit} (95 %, {how})'
 
 
