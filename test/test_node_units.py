@@ -707,3 +707,22 @@ def test_the_help_says_default_nodes_share_a_turn_on_bias_and_its_figure_is_true
     model = sensor_model.GyroModel(sensor_config.load_sensor_config('consumer'), 200.0, rng)
     bias_z = math.degrees(model.step((0.0, 0.0, 0.0), 25.0, (0.0, 0.0, 9.80665)).bias_rad_s[2])
     assert f'{bias_z:+.2f}' == '-7.92'
+
+
+def test_the_help_shows_each_range_as_the_check_takes_it():
+    """An open bound is shown open: gravity 0 is refused, so the help says (0, 100]."""
+    from gyro_emulator.ros import node_help
+
+    text = ' '.join(node_help.help_text().split())
+    ranged = [s for s in parameters.NODE_SPECS.values()
+              if s.kind == 'double' and s.low is not None and not s.choices]
+    assert any(s.low_open for s in ranged)
+    for spec in ranged:
+        shown = f'{"(" if spec.low_open else "["}{spec.low:g}, {spec.high:g}]'
+        assert shown in text, spec.name
+        if spec.low_open:
+            with pytest.raises(ValueError, match=rf'{spec.name} = .* is out of range'):
+                parameters.check_value(spec, spec.low)
+            assert f'[{spec.low:g}, {spec.high:g}]' not in text, spec.name
+        else:
+            assert parameters.check_value(spec, spec.low) == spec.low
