@@ -726,3 +726,15 @@ def test_the_help_shows_each_range_as_the_check_takes_it():
             assert f'[{spec.low:g}, {spec.high:g}]' not in text, spec.name
         else:
             assert parameters.check_value(spec, spec.low) == spec.low
+
+
+def test_a_rate_the_node_accepts_is_one_every_reader_of_its_bag_takes():
+    """The largest max_abs_rate_rad_s is the record rule's rate: replay reads what it records."""
+    from gyro_emulator.validation import check_record_values
+
+    spec = parameters.NODE_SPECS['max_abs_rate_rad_s']
+    assert parameters.check_value(spec, spec.high) == spec.high
+    rows = np.array([[spec.high, -spec.high, 0.0]])
+    assert check_record_values('/cmd/angular_velocity', 'vector', rows, 'rate') is rows
+    with pytest.raises(ValueError, match=r'max_abs_rate_rad_s = .* is out of range'):
+        parameters.check_value(spec, float(np.nextafter(spec.high, math.inf)))

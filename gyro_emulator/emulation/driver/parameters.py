@@ -38,7 +38,7 @@ from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import faults
 from gyro_emulator.sensor.imu import MAX_APPLIED_ACCEL_M_S2
 from gyro_emulator.units import AXES
-from gyro_emulator.validation import MODEL_TEMP_RANGE_C
+from gyro_emulator.validation import GYRO_LIMIT_RAD_S, MODEL_TEMP_RANGE_C
 
 SENSOR_PREFIX = 'sensor.'
 TERMS_PREFIX = 'sensor.terms.'
@@ -136,7 +136,7 @@ NODE_PARAMS = (
               choices=TEMPERATURE_POLICIES),
     ParamSpec('max_abs_rate_rad_s', 'double', 'Commands with a larger |rate| component '
               'are rejected (the sensor range saturates below this), rad/s', False,
-              1e-3, 1e4),
+              1e-3, GYRO_LIMIT_RAD_S),
     ParamSpec('max_abs_accel_m_s2', 'double', 'Acceleration inputs with a larger |component| '
               '(cmd/linear_acceleration, the applied acceleration; imu/ideal, the specific '
               'force) are rejected, m/s^2', False, 1e-3, MAX_APPLIED_ACCEL_M_S2),
