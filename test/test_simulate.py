@@ -398,7 +398,7 @@ def test_a_simulated_bag_carries_the_nodes_truth_imu_attitude_and_force(tmp_path
 
 
 def test_a_bag_with_the_nodes_truth_imu_is_read_from_its_measured_imu(tmp_path):
-    """allan and calibrate take imu/data_raw, not ~/truth/imu, from a bag that has both."""
+    """Calibrate and allan take imu/data_raw, not ~/truth/imu, from a bag that has both."""
     from gyro_emulator.recording import bag, record, topics
 
     assert topics.is_truth('/gyro_emulator/truth/imu') and topics.is_truth('/a/b/truth/rate')

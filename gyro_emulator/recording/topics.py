@@ -124,7 +124,6 @@ NODE_NAME = 'gyro_emulator'
 TRUTH_NAMESPACE = f'/{NODE_NAME}/truth'
 
 
-
 def is_truth(name):
     """Return whether a bag topic is a node's truth (``.../truth/<what>``), not a measurement."""
     parts = str(name).rstrip('/').split('/')
