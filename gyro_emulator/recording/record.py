@@ -492,12 +492,10 @@ def _from_columns(path, columns):
 
 def _only_imu(reader, path, notes):
     """
-    Return the bag's one sensor_msgs/Imu topic, or the one of several that has messages.
+    Return the bag's one Imu topic (a node's ``~/truth/imu`` only alone), or the one with messages.
 
-    A node's ``~/truth/imu`` (the attitude, true rate and specific force it
-    records beside its output) is not a measurement and is not a candidate
-    while another Imu topic is. Choosing among several is said in ``notes``;
-    ValueError naming the topics when none or more than one has messages.
+    Choosing among several is said in ``notes``; ValueError naming the topics
+    when none or more than one has messages.
     """
     imu = [name for name, info in reader.topics.items() if info.type_name == table.IMU]
     imu = [name for name in imu if not table.is_truth(name)] or imu
