@@ -241,3 +241,27 @@ def test_the_forecast_attitude_is_the_per_sample_integral_bit_for_bit():
             np.array([*want[0], *want[1]]).tobytes(), k
         if k % 40 == 10:
             assert state.forces(50)[0] == got[1]
+
+
+@pytest.mark.parametrize('source', ['default', 'command'])
+def test_every_acceleration_the_node_accepts_keeps_the_model_running(source):
+    """The top of each acceleration range plus the largest gravity is a force the model takes."""
+    top = parameters.NODE_SPECS['default_linear_acceleration_m_s2'].high
+    assert parameters.NODE_SPECS['max_abs_accel_m_s2'].high == top
+    assert parameters.NODE_SPECS['default_linear_acceleration_m_s2'].low == -top
+    gravity = parameters.NODE_SPECS['gravity_m_s2'].high
+    for sign, rpy in ((1.0, [0.0, 0.0, 0.0]), (-1.0, [math.pi, 0.0, 0.0])):
+        # gravity's reading adds to the applied acceleration: level +g on z, upside down -g
+        applied = [0.0, 0.0, sign * top]
+        if source == 'default':
+            driver, _, log = make(default_linear_acceleration_m_s2=applied,
+                                  gravity_m_s2=gravity, initial_attitude_rpy_rad=rpy)
+        else:
+            driver, inbox, log = make(max_abs_accel_m_s2=top, gravity_m_s2=gravity,
+                                      initial_attitude_rpy_rad=rpy)
+            inbox.push('linear_acceleration', 0, tuple(applied))
+        out = ticks(driver, 0, 20)
+        assert len(out) == 20, log
+        force = np.array([o.accel.true_specific_force_m_s2 for o in out])
+        assert np.allclose(force[:, 2], sign * (top + gravity), rtol=1e-12, atol=0.0)
+        assert np.all(np.isfinite([o.accel.accel_m_s2 for o in out]))

@@ -791,8 +791,12 @@ def test_help_prints_parameters_and_topics_without_starting_ros():
      'qos_overrides./imu/data_raw.publisher.depth = -1 is out of range: allowed '
      '[0, 2147483647]'),
     (['-p', "frame_id:=''"], "frame_id = '' is not allowed: a tf2 frame name"),
+    (['-p', 'default_linear_acceleration_m_s2:=[0.0, 0.0, 1000000.0]'],
+     'default_linear_acceleration_m_s2.z = 1000000.0 is out of range: allowed '
+     '[-999900, 999900]'),
 ], ids=['range', 'choice', 'sensor_config', 'sensor_field', 'extended_term',
-        'qos_policy_name', 'qos_subscription_history', 'qos_depth', 'empty_frame_id'])
+        'qos_policy_name', 'qos_subscription_history', 'qos_depth', 'empty_frame_id',
+        'acceleration_the_model_cannot_take'])
 def test_bad_configuration_exits_with_a_clear_message(tmp_path, args, message):
     sensor_yaml = write_sensor_yaml(str(tmp_path))
     bad = tmp_path / 'bad_extended.yaml'

@@ -707,3 +707,34 @@ def test_the_help_says_default_nodes_share_a_turn_on_bias_and_its_figure_is_true
     model = sensor_model.GyroModel(sensor_config.load_sensor_config('consumer'), 200.0, rng)
     bias_z = math.degrees(model.step((0.0, 0.0, 0.0), 25.0, (0.0, 0.0, 9.80665)).bias_rad_s[2])
     assert f'{bias_z:+.2f}' == '-7.92'
+
+
+def test_the_help_shows_each_range_as_the_check_takes_it():
+    """An open bound is shown open: gravity 0 is refused, so the help says (0, 100]."""
+    from gyro_emulator.ros import node_help
+
+    text = ' '.join(node_help.help_text().split())
+    ranged = [s for s in parameters.NODE_SPECS.values()
+              if s.kind == 'double' and s.low is not None and not s.choices]
+    assert any(s.low_open for s in ranged)
+    for spec in ranged:
+        shown = f'{"(" if spec.low_open else "["}{spec.low:g}, {spec.high:g}]'
+        assert shown in text, spec.name
+        if spec.low_open:
+            with pytest.raises(ValueError, match=rf'{spec.name} = .* is out of range'):
+                parameters.check_value(spec, spec.low)
+            assert f'[{spec.low:g}, {spec.high:g}]' not in text, spec.name
+        else:
+            assert parameters.check_value(spec, spec.low) == spec.low
+
+
+def test_a_rate_the_node_accepts_is_one_every_reader_of_its_bag_takes():
+    """The largest max_abs_rate_rad_s is the record rule's rate: replay reads what it records."""
+    from gyro_emulator.validation import check_record_values
+
+    spec = parameters.NODE_SPECS['max_abs_rate_rad_s']
+    assert parameters.check_value(spec, spec.high) == spec.high
+    rows = np.array([[spec.high, -spec.high, 0.0]])
+    assert check_record_values('/cmd/angular_velocity', 'vector', rows, 'rate') is rows
+    with pytest.raises(ValueError, match=r'max_abs_rate_rad_s = .* is out of range'):
+        parameters.check_value(spec, float(np.nextafter(spec.high, math.inf)))

@@ -164,3 +164,30 @@ def test_a_recorded_profile_is_sampled_on_its_own_times():
     assert rec.sample_period_s == pytest.approx(0.1) and rec.duration_s == pytest.approx(1.1)
     s = rec.samples(np.array([0.05, 0.6]))
     np.testing.assert_allclose(s.temp_c, [20.5, 24.5])
+
+
+@pytest.mark.parametrize('key, value, match', [
+    ('rate_deg_s', [1e300, 0, 0], r'Segment.rate_start_rad_s = \(1.74\d*e\+298, 0.0, 0.0\) is out '
+                                  r'of range: allowed 3 numbers in \[-1000, 1000\] rad/s'),
+    ('rate_rad_s', [[0, 0, 0], [0, 0, -1000.5]], r'Segment.rate_end_rad_s = \(0.0, 0.0, '
+                                                 r'-1000.5\) is out of range'),
+    ('linear_accel_m_s2', [0, 0, 1e300], r'Segment.linear_accel_m_s2 = \(0.0, 0.0, 1e\+300\) is '
+                                         r'out of range: allowed 3 numbers in \[-999900, '
+                                         r'999900\] m/s\^2'),
+    ('accel_m_s2', [0, 0, -2e6], r'Segment.accel_m_s2 = \(0.0, 0.0, -2000000.0\) is out of '
+                                 r'range: allowed 3 numbers in \[-1e\+06, 1e\+06\] m/s\^2'),
+])
+def test_a_profile_vector_beyond_what_the_readers_and_the_model_take_is_named(key, value, match):
+    """A profile's rate within the record rule (its bag reads back), a force the model takes."""
+    mapping = {'segments': [{'duration_s': 1.0, 'rate_deg_s': [0, 0, 0], key: value}]}
+    if key == 'rate_rad_s':
+        del mapping['segments'][0]['rate_deg_s']
+    with pytest.raises(ValueError, match=f'profile: segment 1: {match}') as info:
+        profiles.profile_from_mapping(mapping)
+    assert '\n' not in str(info.value)
+    name = 'rate_rad_s' if key.startswith('rate') else key
+    top = {'rate_rad_s': 1000.0, 'linear_accel_m_s2': 999900.0, 'accel_m_s2': 1e6}[name]
+    edge = {'segments': [{'duration_s': 1.0, 'rate_rad_s': [0, 0, 0], name: [0.0, 0.0, -top]}]}
+    profile = profiles.profile_from_mapping(edge)               # the edge itself is taken
+    samples = samples_with_force(profile, np.array([0.0, 0.5]))
+    assert np.all(np.isfinite(samples.rate_rad_s))

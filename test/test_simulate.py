@@ -351,3 +351,68 @@ def test_simulate_applies_a_fault_schedule_as_the_node_does(tmp_path):
     assert reader.topics['/imu/data_raw'].message_count == 275
     assert reader.topics['/gyro_emulator/truth/rate'].message_count == 300
     assert 'dropout on all' in reader.custom_data['faults']
+
+
+def test_a_simulated_bag_carries_the_nodes_truth_imu_attitude_and_force(tmp_path):
+    """The node's ~/truth/imu in simulate's bag: 90 deg about y then x puts gravity on -x."""
+    from pathlib import Path
+
+    from gyro_emulator.physics import kinematics
+    from rosbags.highlevel import AnyReader
+
+    profile = tmp_path / 'turns.yaml'
+    profile.write_text('segments:\n'
+                       '  - {duration_s: 1, rate_deg_s: [0, 0, 0], temp_c: 25}\n'
+                       '  - {duration_s: 1, rate_deg_s: [0, 90, 0]}\n'
+                       '  - {duration_s: 1, rate_deg_s: [90, 0, 0]}\n'
+                       '  - {duration_s: 1, rate_deg_s: [0, 0, 0]}\n')
+    path = str(tmp_path / 'bag')
+    simulate.write_record(path, 'paper', str(profile), 4.0, 200.0, seed=3, start_time_ns=0)
+    with AnyReader([Path(path)]) as reader:
+        def read(topic):
+            conns = [c for c in reader.connections if c.topic == topic]
+            return [reader.deserialize(raw, c.msgtype)
+                    for c, _, raw in reader.messages(connections=conns)]
+        truth = read('/gyro_emulator/truth/imu')
+        rate = read('/cmd/angular_velocity')
+        truth_rate = read('/gyro_emulator/truth/rate')
+        assert {'/gyro_emulator/truth/imu', '/gyro_emulator/truth/rate',
+                '/gyro_emulator/truth/bias', '/gyro_emulator/truth/scale_factor'} <= set(
+                    reader.topics)
+    assert len(truth) == len(rate) == 800
+    assert [m.header.stamp for m in truth] == [m.header.stamp for m in truth_rate]
+    rates = np.array([(m.vector.x, m.vector.y, m.vector.z) for m in rate])
+    want, _ = kinematics.propagate(kinematics.LEVEL_WXYZ, rates, 1.0 / 200.0)
+    got = np.array([(m.orientation.w, m.orientation.x, m.orientation.y, m.orientation.z)
+                    for m in truth])
+    np.testing.assert_allclose(got, want, rtol=0.0, atol=1e-12)
+    force = np.array([(m.linear_acceleration.x, m.linear_acceleration.y,
+                       m.linear_acceleration.z) for m in truth])
+    np.testing.assert_allclose(force, kinematics.specific_force(want), rtol=0.0, atol=1e-12)
+    assert force[0].tolist() == [0.0, 0.0, units.STANDARD_GRAVITY_M_S2]
+    np.testing.assert_allclose(force[-1], (-units.STANDARD_GRAVITY_M_S2, 0.0, 0.0), atol=1e-9)
+    np.testing.assert_allclose([(m.angular_velocity.x, m.angular_velocity.y,
+                                 m.angular_velocity.z) for m in truth], rates, atol=0.0)
+    assert all(not any(m.orientation_covariance) and not any(m.linear_acceleration_covariance)
+               for m in truth)
+
+
+def test_a_bag_with_the_nodes_truth_imu_is_read_from_its_measured_imu(tmp_path):
+    """Calibrate and allan take imu/data_raw, not ~/truth/imu, from a bag that has both."""
+    from gyro_emulator.recording import bag, record, topics
+
+    assert topics.is_truth('/gyro_emulator/truth/imu') and topics.is_truth('/a/b/truth/rate')
+    assert not topics.is_truth('/imu/data_raw') and not topics.is_truth('/truth')
+    path = str(tmp_path / 'bag')
+    simulate.write_record(path, 'consumer', 'static', 30.0, 100.0, seed=2, start_time_ns=0)
+    assert bag.BagReader(path).topics['/gyro_emulator/truth/imu'].message_count == 3000
+    rec = record.load_record(path)
+    csv = str(tmp_path / 'run.csv')
+    simulate.write_record(csv, 'consumer', 'static', 30.0, 100.0, seed=2)
+    from_csv = record.load_record(csv)
+    assert rec.gyro_sources['x'].startswith('/imu/data_raw'), rec.gyro_sources
+    for axis in 'xyz':
+        np.testing.assert_allclose(rec.gyro[axis], from_csv.gyro[axis], rtol=1e-9, atol=0.0)
+    assert cli.main(['calibrate', 'noise', path, '--format', 'kalibr', '-o',
+                     str(tmp_path / 'imu.yaml')]) == 0
+    assert 'rostopic: /imu/data_raw' in (tmp_path / 'imu.yaml').read_text()

@@ -13,7 +13,15 @@ topic                                     type                              cont
 ``/imu/data_raw``                         sensor_msgs/Imu                   gyro, accel output
 ``/imu/temperature``                      sensor_msgs/Temperature           die temperature
 ``/gyro_emulator/truth/{rate,bias,...}``  geometry_msgs/Vector3Stamped      model truth
+``/gyro_emulator/truth/imu``              sensor_msgs/Imu                   true attitude,
+                                                                            rate, force
 ========================================  ================================  ==============
+
+``truth/imu`` is written where the run integrated an attitude (an
+``ImuModel`` run): as the node's, ``orientation`` is the attitude of the
+sample (sensor frame to the ENU world, REP 103), ``angular_velocity`` the
+true rate and ``linear_acceleration`` the true specific force, covariances 0
+(exact).
 
 ``gyro-emulator simulate --out DIR`` writes it with :func:`write_simulation_bag`
 (sample n at ``start_ns + round(t_n 1e9)``, t_n = n ``GyroModel.sample_period_s``;
@@ -39,6 +47,8 @@ white noise at the output (sigma^2: :attr:`ImuModel.white_noise_sigma_rad_s`,
 is -1 (REP 145: no orientation), and so is ``linear_acceleration_covariance[0]``
 when the batch has no accelerometer.
 """
+
+import itertools
 
 from gyro_emulator.recording import bag, cdr, topics
 from gyro_emulator.sensor.imu import ImuModel
@@ -77,6 +87,9 @@ TRUTH_FIELDS = (('rate', 'true_rate_rad_s'), ('bias', 'bias_rad_s'),
                 ('scale_factor', 'scale_factor'))
 
 
+TRUTH_IMU_TOPIC = f'{TRUTH_NAMESPACE}/imu'
+
+
 MEASURED_TOPIC = topics.REPLAY_MEASURED.bag_name
 
 
@@ -99,6 +112,17 @@ def _imu_values(gyro_rad_s, sigma_rad_s, accel_m_s2=None, accel_sigma_m_s2=(0.0,
         values[:, layout.columns('linear_acceleration')] = accel_m_s2
         _diagonal(values, layout.columns('linear_acceleration_covariance').start,
                   accel_sigma_m_s2)
+    return values
+
+
+def _truth_imu_values(attitude_wxyz, rate_rad_s, specific_force_m_s2):
+    """Return the Imu fields of ``truth/imu``: attitude, true rate and force, covariances 0."""
+    layout = cdr.LAYOUTS[IMU]
+    q = np.asarray(attitude_wxyz, dtype=float)
+    values = np.zeros((len(q), len(layout.fields)))
+    values[:, layout.columns('orientation')] = q[:, [1, 2, 3, 0]]      # (x, y, z, w)
+    values[:, layout.columns('angular_velocity')] = rate_rad_s
+    values[:, layout.columns('linear_acceleration')] = specific_force_m_s2
     return values
 
 
@@ -129,17 +153,22 @@ class EmulatorBagWriter:
         Also write the ``truth/*`` topics.
     extra : dict of str to str
         Extra Vector3Stamped topics written by :meth:`write_vectors`.
+    truth_imu : bool
+        With ``truth``, also write ``truth/imu`` (module docstring) from the
+        attitudes given to :meth:`write`.
 
     """
 
     def __init__(self, writer, frame_id=DEFAULT_FRAME_ID, sigma_rad_s=(0.0, 0.0, 0.0),
-                 commands=True, truth=True, extra=(), accel_sigma_m_s2=(0.0, 0.0, 0.0)):
+                 commands=True, truth=True, extra=(), accel_sigma_m_s2=(0.0, 0.0, 0.0),
+                 truth_imu=False):
         self.writer = writer
         self.frame_id = frame_id
         self.sigma_rad_s = np.asarray(sigma_rad_s, dtype=float)
         self.accel_sigma_m_s2 = np.asarray(accel_sigma_m_s2, dtype=float)
         self.commands = commands
         self.truth = truth
+        self.truth_imu = truth and truth_imu
         sensor_qos = [bag.qos_profile('best_effort', depth=5)]
         if commands:
             writer.add_topic(RATE_TOPIC, VECTOR3_STAMPED, qos_profiles=sensor_qos)
@@ -151,10 +180,13 @@ class EmulatorBagWriter:
             for name, _ in TRUTH_FIELDS:
                 writer.add_topic(f'{TRUTH_NAMESPACE}/{name}', VECTOR3_STAMPED,
                                  qos_profiles=sensor_qos)
+        if self.truth_imu:
+            writer.add_topic(TRUTH_IMU_TOPIC, IMU, qos_profiles=sensor_qos)
         for topic in extra:
             writer.add_topic(topic, VECTOR3_STAMPED)
 
-    def write(self, stamp_ns, rate_rad_s, temp_c, linear_accel_m_s2, batch, published=None):
+    def write(self, stamp_ns, rate_rad_s, temp_c, linear_accel_m_s2, batch, published=None,
+              attitude_wxyz=None):
         """
         Write one block of samples.
 
@@ -175,6 +207,9 @@ class EmulatorBagWriter:
         published : numpy.ndarray of bool, shape (N,), optional
             The samples with an ``imu/data_raw`` (a dropout withholds the
             others); None: all.
+        attitude_wxyz : numpy.ndarray, shape (N, 4), optional
+            The attitude of each sample, for ``truth/imu`` (written when the
+            writer has that topic).
 
         """
         stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
@@ -207,6 +242,11 @@ class EmulatorBagWriter:
                 batches.append((f'{TRUTH_NAMESPACE}/{name}',
                                 cdr.encode(VECTOR3_STAMPED, stamp_ns, values, frame),
                                 stamp_ns))
+        if self.truth_imu and attitude_wxyz is not None:
+            truth_imu = _truth_imu_values(attitude_wxyz, batch.true_rate_rad_s,
+                                          batch.true_specific_force_m_s2)
+            batches.append((TRUTH_IMU_TOPIC, cdr.encode(IMU, stamp_ns, truth_imu, frame),
+                            stamp_ns))
         self.writer.write_batches(batches)
 
     def write_vectors(self, topic, stamp_ns, values):
@@ -290,13 +330,17 @@ def write_simulation_bag(path, chunks, progress=None, total=None, config=None,
     if config is not None and rate_hz is not None:
         sigma, accel_sigma = noise_sigmas(config, rate_hz)
     done = 0
+    chunks = iter(chunks)
+    first = next(chunks, None)
     with bag.BagWriter(path, compression=compression, custom_data=_marked(custom_data),
                        flush_interval_s=60.0, name=name) as writer:
-        out = EmulatorBagWriter(writer, frame_id, sigma, accel_sigma_m_s2=accel_sigma)
-        for chunk in chunks:
+        out = EmulatorBagWriter(writer, frame_id, sigma, accel_sigma_m_s2=accel_sigma,
+                                truth_imu=getattr(first, 'attitude_wxyz', None) is not None)
+        for chunk in itertools.chain(() if first is None else (first,), chunks):
             stamp_ns = start_ns + np.round(chunk.time_s * NS_PER_S).astype(np.int64)
             out.write(stamp_ns, chunk.profile.rate_rad_s, chunk.profile.temp_c,
-                      chunk.profile.linear_accel_m_s2, chunk.batch, chunk.published)
+                      chunk.profile.linear_accel_m_s2, chunk.batch, chunk.published,
+                      chunk.attitude_wxyz)
             done += len(chunk.time_s)
             if progress is not None:
                 progress(done, total)

@@ -15,12 +15,24 @@ from dataclasses import dataclass
 from types import MappingProxyType
 import warnings
 
+from gyro_emulator.sensor.imu import MAX_APPLIED_ACCEL_M_S2, MAX_SPECIFIC_FORCE_M_S2
 from gyro_emulator.units import deg_s_to_rad_s, rpm_to_rad_s, STANDARD_GRAVITY_M_S2
-from gyro_emulator.validation import MODEL_TEMP_RANGE_C, quote
+from gyro_emulator.validation import MODEL_TEMP_RANGE_C, quote, RECORD_LIMITS
 import numpy as np
 
 #: Specific force of a gyro at rest, z up (REP 103), m/s^2.
 LEVEL_ACCEL_M_S2 = (0.0, 0.0, STANDARD_GRAVITY_M_S2)
+
+
+#: Largest |component| of each vector of a segment, its unit and why: a rate the
+#: record rule takes (``validation.RECORD_LIMITS``, so that a simulated bag reads back),
+#: a specific force the model takes, an applied acceleration whose specific force it takes.
+_VECTOR_LIMITS = MappingProxyType({
+    'rate_start_rad_s': (RECORD_LIMITS['rate'][1], 'rad/s', RECORD_LIMITS['rate'][3]),
+    'rate_end_rad_s': (RECORD_LIMITS['rate'][1], 'rad/s', RECORD_LIMITS['rate'][3]),
+    'accel_m_s2': (MAX_SPECIFIC_FORCE_M_S2, 'm/s^2', 'the model range'),
+    'linear_accel_m_s2': (MAX_APPLIED_ACCEL_M_S2, 'm/s^2',
+                          'its specific force within the model range at any gravity')})
 
 
 @dataclass(frozen=True)
@@ -70,13 +82,16 @@ class Segment:
             if not (np.isfinite(value) and lo <= value <= hi):
                 raise ValueError(f'Segment.{name} = {quote(value)} is out of range: allowed '
                                  f'[{lo}, {hi}] C')
-        for name in ('rate_start_rad_s', 'rate_end_rad_s', 'accel_m_s2', 'linear_accel_m_s2'):
+        for name, (top, unit, why) in _VECTOR_LIMITS.items():
             if name == 'accel_m_s2' and self.accel_m_s2 is None:
                 continue
             arr = np.asarray(getattr(self, name), dtype=float)
             if arr.shape != (3,) or not np.all(np.isfinite(arr)):
                 raise ValueError(f'Segment.{name} = {quote(getattr(self, name))} is not '
                                  'allowed: expected 3 finite numbers (x, y, z)')
+            if not np.all(np.abs(arr) <= top):
+                raise ValueError(f'Segment.{name} = {quote(getattr(self, name))} is out of '
+                                 f'range: allowed 3 numbers in [{-top:g}, {top:g}] {unit} ({why})')
             object.__setattr__(self, name, tuple(float(v) for v in arr))
         if not (np.isfinite(self.settle_s) and 0.0 <= self.settle_s <= self.duration_s):
             raise ValueError(f'Segment.settle_s = {quote(self.settle_s)} is out of range: allowed '

@@ -492,12 +492,13 @@ def _from_columns(path, columns):
 
 def _only_imu(reader, path, notes):
     """
-    Return the bag's one sensor_msgs/Imu topic, or the one of several that has messages.
+    Return the bag's one Imu topic (a node's ``~/truth/imu`` only alone), or the one with messages.
 
     Choosing among several is said in ``notes``; ValueError naming the topics
     when none or more than one has messages.
     """
     imu = [name for name, info in reader.topics.items() if info.type_name == table.IMU]
+    imu = [name for name in imu if not table.is_truth(name)] or imu
     if len(imu) == 1:
         return imu[0]
     full = [name for name in imu if reader.topics[name].message_count]

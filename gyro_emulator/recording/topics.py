@@ -123,6 +123,13 @@ NODE_NAME = 'gyro_emulator'
 #: Where the truth topics of a node with the default name are, in a bag.
 TRUTH_NAMESPACE = f'/{NODE_NAME}/truth'
 
+
+def is_truth(name):
+    """Return whether a bag topic is a node's truth (``.../truth/<what>``), not a measurement."""
+    parts = str(name).rstrip('/').split('/')
+    return len(parts) >= 3 and parts[-2] == 'truth'
+
+
 #: What ``replay`` adds to its output bag (offline; not topics of the node).
 REPLAY_MEASURED, REPLAY_RESIDUAL = (Topic(*row) for row in (
     ('/replay/measured', VECTOR3_STAMPED, 'reliable', 'out', 'measured gyro output, rad/s'),

@@ -28,6 +28,7 @@ import copy
 from dataclasses import dataclass
 import math
 
+from gyro_emulator.physics.kinematics import MAX_GRAVITY_M_S2
 from gyro_emulator.sensor import kernel
 from gyro_emulator.sensor.channel import new_outputs, NONE_ROWS, SenseChannel
 from gyro_emulator.sensor.model import (GyroModel, kernel_input, NonFiniteOutput, SensorBatch,
@@ -36,11 +37,17 @@ from gyro_emulator.sensor.plan import accel_channel, Plan
 from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 import numpy as np
 
-__all__ = ['ImuBatch', 'ImuModel', 'ImuSample', 'MAX_SPECIFIC_FORCE_M_S2']
+__all__ = ['ImuBatch', 'ImuModel', 'ImuSample', 'MAX_APPLIED_ACCEL_M_S2',
+           'MAX_SPECIFIC_FORCE_M_S2']
 
 #: Largest specific force the model takes, m/s^2 (about 100,000 g: beyond any
 #: shock a part survives; it keeps every output finite).
 MAX_SPECIFIC_FORCE_M_S2 = 1e6
+#: Largest applied linear acceleration per axis (gravity excluded) that every
+#: input takes, m/s^2: with gravity at most MAX_GRAVITY_M_S2 on any axis, the
+#: specific force f = a_body + g R(q)^T e_z stays within MAX_SPECIFIC_FORCE_M_S2
+#: at every attitude, so an accepted acceleration never stops the model.
+MAX_APPLIED_ACCEL_M_S2 = MAX_SPECIFIC_FORCE_M_S2 - MAX_GRAVITY_M_S2
 
 
 @dataclass(frozen=True)

@@ -36,8 +36,9 @@ from gyro_emulator.physics.kinematics import MAX_GRAVITY_M_S2
 from gyro_emulator.recording import topics
 from gyro_emulator.sensor import config as sensor_config
 from gyro_emulator.sensor import faults
+from gyro_emulator.sensor.imu import MAX_APPLIED_ACCEL_M_S2
 from gyro_emulator.units import AXES
-from gyro_emulator.validation import MODEL_TEMP_RANGE_C
+from gyro_emulator.validation import GYRO_LIMIT_RAD_S, MODEL_TEMP_RANGE_C
 
 SENSOR_PREFIX = 'sensor.'
 TERMS_PREFIX = 'sensor.terms.'
@@ -135,9 +136,10 @@ NODE_PARAMS = (
               choices=TEMPERATURE_POLICIES),
     ParamSpec('max_abs_rate_rad_s', 'double', 'Commands with a larger |rate| component '
               'are rejected (the sensor range saturates below this), rad/s', False,
-              1e-3, 1e4),
-    ParamSpec('max_abs_accel_m_s2', 'double', 'Commands with a larger |specific force| '
-              'component are rejected, m/s^2', False, 1e-3, 1e6),
+              1e-3, GYRO_LIMIT_RAD_S),
+    ParamSpec('max_abs_accel_m_s2', 'double', 'Acceleration inputs with a larger |component| '
+              '(cmd/linear_acceleration, the applied acceleration; imu/ideal, the specific '
+              'force) are rejected, m/s^2', False, 1e-3, MAX_APPLIED_ACCEL_M_S2),
     ParamSpec('max_stamp_lead_s', 'double', 'Commands stamped further ahead of the node '
               'clock are rejected, s', False, 1e-3, 1e6),
     ParamSpec('command_queue_size', 'integer', 'Commands per stream waiting for their '
@@ -151,7 +153,7 @@ NODE_PARAMS = (
     ParamSpec('default_linear_acceleration_m_s2', 'double_array', 'Applied linear '
               'acceleration before the first cmd/linear_acceleration, m/s^2, body frame '
               '(gravity is added from the attitude: a level part at rest reads +g on z)', True,
-              -1e6, 1e6),
+              -MAX_APPLIED_ACCEL_M_S2, MAX_APPLIED_ACCEL_M_S2),
     ParamSpec('gravity_m_s2', 'double', 'Magnitude of gravity, m/s^2: the specific force is '
               'the applied acceleration minus gravity rotated into the sensor frame', True,
               0.0, MAX_GRAVITY_M_S2, low_open=True),
