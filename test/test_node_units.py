@@ -707,3 +707,16 @@ def test_the_help_says_default_nodes_share_a_turn_on_bias_and_its_figure_is_true
     model = sensor_model.GyroModel(sensor_config.load_sensor_config('consumer'), 200.0, rng)
     bias_z = math.degrees(model.step((0.0, 0.0, 0.0), 25.0, (0.0, 0.0, 9.80665)).bias_rad_s[2])
     assert f'{bias_z:+.2f}' == '-7.92'
+
+
+def test_the_help_gives_an_open_lower_bound_as_the_node_checks_it():
+    """gyro_emulator node refuses gravity_m_s2 = 0; its --help said [0, 100], now (0, 100]."""
+    from gyro_emulator.ros import node_help
+
+    text = ' '.join(node_help.help_text().split())
+    assert '(default 9.80665; (0, 100], read-only)' in text
+    with pytest.raises(ValueError, match=r'allowed \(0, 100\]'):
+        kinematics.check_gravity(0.0, 'node')
+    for spec in parameters.NODE_PARAMS:
+        if spec.low_open:
+            assert f'({spec.low:g}, {spec.high:g}]' in text, spec.name

@@ -52,7 +52,7 @@ def _constraint(spec):
     if spec.kind == 'integer' and spec.low is not None:
         return f'[{int(spec.low)}, {int(spec.high)}]'
     if spec.low is not None:
-        return f'[{spec.low:g}, {spec.high:g}]'
+        return f'{"(" if spec.low_open else "["}{spec.low:g}, {spec.high:g}]'
     return spec.kind
 
 
