@@ -139,7 +139,7 @@ def test_self_check_two_hours_at_200_hz():
     Over 18 seeds (6 x 3 axes) the per-axis estimates scattered by 0.1 % (N),
     3.5 % (B) and 13 % (K): a 2 h record holds few independent samples of a
     random walk at tau > 50 s, so about 1 axis in 20 misses 25 % on K. This
-    seed's axes give K = 92, 115 and 93; the mean of the three independent
+    seed's axes give K = 93, 117 and 94; the mean of the three independent
     records is also held to 25 % (about 3 standard deviations).
     """
     config = _noise_config(0.3, 10.0, 100.0)

@@ -2,6 +2,7 @@
 
 from dataclasses import replace
 import os
+from types import SimpleNamespace
 import xml.etree.ElementTree as ElementTree
 
 from gyro_emulator import cli, units
@@ -402,6 +403,9 @@ def test_adis16405_round_trip():
     config = load_sensor_config_text(export_noise.write_noise(cal, 'preset'))
     check = twin.check_noise(cal, config, seeds=4)
     assert check.taus_s[-1] == pytest.approx(819.2)
+    # Kalibr's one K is z's, which the log resolves: a value, not an upper bound
+    kalibr = export_noise.write_noise(cal, 'kalibr').splitlines()
+    assert 'gyroscope_random_walk: 1.62126e-05   # rad/s^2/sqrt(Hz), K' in kalibr
     for axis, ratio in check.ratio.items():
         assert check.consistent[axis], (axis, ratio)
         assert np.all(np.abs(ratio[check.taus_s <= 100.0]) <= 0.10), (axis, ratio)
@@ -439,3 +443,31 @@ def test_calibrate_cli(noise_log, thermal_log, tmp_path, capsys):
     lines = [line for line in capsys.readouterr().out.splitlines() if 'twin slope' in line]
     assert len(lines) == 3
     assert all('(FAIL)' in line and 'group means beyond the noise' in line for line in lines)
+
+
+def _axis(name, k_rad_s_sqrt_s, k_high, resolved):
+    """One axis of a calibration as ``export_noise`` reads it: N, B, K and K's interval."""
+    interval = SimpleNamespace(high=k_high)
+    fit = SimpleNamespace(arw_rad_s_sqrt_hz=1e-4, bias_instability_rad_s=1e-5,
+                          rrw_rad_s_sqrt_s=k_rad_s_sqrt_s, intervals={'rrw': interval},
+                          resolved=lambda term: resolved)
+    return SimpleNamespace(axis=name, fit=fit)
+
+
+def test_the_largest_k_is_a_bound_only_when_its_axis_does_not_resolve_it():
+    """
+    Kalibr's one K is the largest over the axes: a value if that axis resolves it.
+
+    The ADIS16405 log resolves K on z (1.62e-5) and bounds it on x (9.8e-6):
+    the file said 'K (upper bound)' of z's value.
+    """
+    value = SimpleNamespace(axes=[_axis('x', 6e-6, 9.8e-6, False),
+                                  _axis('z', 1.62e-5, 2e-5, True)])
+    chosen = noise.export_noise(value)
+    assert chosen.rrw_rad_s_sqrt_s == 1.62e-5 and not chosen.rrw_is_bound
+    assert chosen.note == ('largest of the axes; K not resolved on x: its upper bound is below '
+                           'the K used')
+    bound = SimpleNamespace(axes=[_axis('x', 6e-6, 3e-5, False), _axis('z', 1.62e-5, 2e-5, True)])
+    chosen = noise.export_noise(bound)
+    assert chosen.rrw_rad_s_sqrt_s == 3e-5 and chosen.rrw_is_bound
+    assert chosen.note == 'largest of the axes; K not resolved on x: its upper bound is used'

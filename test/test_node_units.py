@@ -738,3 +738,16 @@ def test_a_rate_the_node_accepts_is_one_every_reader_of_its_bag_takes():
     assert check_record_values('/cmd/angular_velocity', 'vector', rows, 'rate') is rows
     with pytest.raises(ValueError, match=r'max_abs_rate_rad_s = .* is out of range'):
         parameters.check_value(spec, float(np.nextafter(spec.high, math.inf)))
+
+
+def test_the_help_gives_an_open_lower_bound_as_the_node_checks_it():
+    """gyro_emulator node refuses gravity_m_s2 = 0; its --help said [0, 100], now (0, 100]."""
+    from gyro_emulator.ros import node_help
+
+    text = ' '.join(node_help.help_text().split())
+    assert '(default 9.80665; (0, 100], read-only)' in text
+    with pytest.raises(ValueError, match=r'allowed \(0, 100\]'):
+        kinematics.check_gravity(0.0, 'node')
+    for spec in parameters.NODE_PARAMS:
+        if spec.low_open:
+            assert f'({spec.low:g}, {spec.high:g}]' in text, spec.name

@@ -344,8 +344,8 @@ class ExportedNoise:
     The white noise and bias random walk an estimator gets, continuous time.
 
     ``arw_rad_s_sqrt_hz`` (N) and ``rrw_rad_s_sqrt_s`` (K, = rad/s^2/sqrt(Hz))
-    after ``inflate``; ``rrw_is_bound`` when K is an upper bound (not
-    resolved on some axis); ``per_axis`` maps each axis to its own (N, K)
+    after ``inflate``; ``rrw_is_bound`` when K is an upper bound (the
+    axis that gives it does not resolve it); ``per_axis`` maps each axis to its own (N, K)
     before inflation; ``note`` says how the numbers were chosen.
     """
 
@@ -380,13 +380,16 @@ def export_noise(calibration, inflate=1.0):
     n = max(v[0] for v in per_axis.values())
     b = max(v[1] for v in per_axis.values())
     k = max(v[2] for v in per_axis.values())
-    bound = any(v[3] for v in per_axis.values())
+    # K is a bound when the axis that gives it is: a resolved K above every bound is a value
+    bound = any(v[3] and v[2] == k for v in per_axis.values())
+    unresolved = ', '.join(a for a, v in per_axis.items() if v[3])
     parts = []
     if len(per_axis) > 1:
         parts.append('largest of the axes')
     if bound:
-        parts.append('K not resolved on ' + ', '.join(
-            a for a, v in per_axis.items() if v[3]) + ': its upper bound is used')
+        parts.append(f'K not resolved on {unresolved}: its upper bound is used')
+    elif unresolved:
+        parts.append(f'K not resolved on {unresolved}: its upper bound is below the K used')
     if inflate != 1.0:
         parts.append(f'inflated x{inflate:g} on request')
     return ExportedNoise(arw_rad_s_sqrt_hz=n * inflate, rrw_rad_s_sqrt_s=k * inflate,
