@@ -133,6 +133,7 @@ def _write_config(request, diagnosis, record, console):
     else:
         model = export.extended_model(diagnosis, request.config, axis=request.sense_axis,
                                       config_name=request.config)
+    model = model.with_measured_range(record)
     if request.noise:
         with quiet_numerics():
             model = model.with_noise(record_noise.identify(
