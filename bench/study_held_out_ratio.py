@@ -22,7 +22,7 @@ Prints a table (candidate, worst ratio, its bound, the record, records over
 the bound) and writes one line per record and candidate to ``--out``.
 
 Usage: python bench/study_held_out_ratio.py [--seeds N] [--real N] [--effects E,E]
-                                            [--out FILE]
+                                            [--first-seed S] [--out FILE]
 """
 
 import argparse
@@ -84,16 +84,16 @@ def ratios(record, label):
     return rows
 
 
-def truth_records(seeds, effects):
-    """Yield (label, record) of the truth generator's lab records."""
+def truth_records(seeds, effects, first=0):
+    """Yield (label, record) of the truth generator's lab records, seeds ``first`` on."""
     for effect in effects:
-        for seed in range(seeds):
+        for seed in range(first, first + seeds):
             yield f'truth {effect} seed {seed}', make_truth(effect, seed)[0]
 
 
-def real_records(seeds, effects):
+def real_records(seeds, effects, first=0):
     """Yield (label, record) of the real-noise study's records, one per effect and size."""
-    for seed in range(seeds):
+    for seed in range(first, first + seeds):
         rng = np.random.default_rng(2033 + seed)
         jobs = [(e, s) for e in sri.NEEDS for s in (1.0, 1 / 3)] + [(None, 0.0)] * 2
         for effect, scale in jobs:
@@ -126,14 +126,17 @@ def main():
     ap.add_argument('--real', type=int, default=2, help='seeds of real-noise records')
     ap.add_argument('--effects', default=None,
                     help='comma-separated truth effects and real-noise effects to run')
+    ap.add_argument('--first-seed', type=int, default=0,
+                    help='first seed of both kinds of records (held-out draws: past the '
+                         'ones a change was judged on)')
     ap.add_argument('--out', default='out/study_held_out_ratio.jsonl')
     args = ap.parse_args()
     effects = None if args.effects is None else set(args.effects.split(','))
     truths = [e for e in TRUTH_EFFECTS if effects is None or e in effects]
-    sources = [truth_records(args.seeds, truths)]
+    sources = [truth_records(args.seeds, truths, args.first_seed)]
     if args.real > 0:
         if os.path.isdir(benchenv.REAL):
-            sources.append(real_records(args.real, effects))
+            sources.append(real_records(args.real, effects, args.first_seed))
         else:
             print(f'--real: {benchenv.REAL} is absent, skipped')
     rows, start = [], time.perf_counter()

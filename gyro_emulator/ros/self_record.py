@@ -130,7 +130,7 @@ class SelfRecorder:
         self.counts[topic] += 1
 
     def _on_published(self, pub, data):
-        """The output stage's tap: write what the node just published."""
+        """Write what the node just published (the output stage's tap)."""
         topic = pub.topic_name
         self._on_message(topic, self._channels[topic], data)
 
