@@ -98,7 +98,7 @@ def _refuse_own_timing(args):
     for option, value in (('--duration-s', args.duration_s), ('--rate-hz', args.rate_hz)):
         if value is not None:
             raise ValueError(f'simulate: {option} {value:g} is for a scripted --profile: a '
-                             "measured record runs at its own rate and length "
+                             'measured record runs at its own rate and length '
                              f'({args.profile}); drop {option}')
 
 

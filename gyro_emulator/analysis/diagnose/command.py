@@ -67,7 +67,7 @@ class Request:
         check_range('diagnose', 'max_causes', self.max_causes, 1, 20, '', low_open=False)
         if self.config is not None and self.preset != 'paper':
             raise ValueError(f'diagnose: --preset {self.preset} sets the device of the paper '
-                             'baseline; with --config the baseline is that configuration\'s '
+                             "baseline; with --config the baseline is that configuration's "
                              'output, with its own device: drop --preset, or give the '
                              'configuration that device')
         if self.noise and not self.write_config:
