@@ -256,6 +256,26 @@ def test_a_gap_that_splits_the_log_is_said_in_the_output_and_every_file(tmp_path
     assert whole.timing == ()
 
 
+def test_check_noise_on_a_log_split_by_gaps_uses_the_taus_its_segments_hold(tmp_path):
+    """
+    Short bursts far apart (the LSM6DSM chamber log): the octave taus stop at a tenth of a burst.
+
+    Before, they ran to a tenth of the whole span, which the log's Allan
+    deviation has not got: ``operands could not be broadcast together``.
+    """
+    rng = np.random.default_rng(11)
+    t = np.concatenate([k * 300.0 + np.arange(1000) / 50.0 for k in range(4)])
+    path = tmp_path / 'bursts.csv'
+    csvio.write_csv(str(path), {'time_s': t, 'gyro_rad_s': 1e-3 * rng.standard_normal(len(t))})
+    cal = noise.calibrate_noise(load_record(str(path)))
+    assert cal.duration_s > 900.0
+    config = load_sensor_config_text(export_noise.write_noise(cal, 'preset'))
+    check = twin.check_noise(cal, config, seeds=2)
+    np.testing.assert_allclose(check.taus_s, [0.1, 0.2, 0.4, 0.8, 1.6])
+    assert len(check.ratio['x']) == len(check.taus_s)
+    assert check.consistent['x'], check.ratio
+
+
 def test_a_log_stamped_in_milliseconds_is_named_not_exported_silently(tmp_path):
     """
     100 Hz stamped in ms reads as 0.1 Hz, N sqrt(1e3) off: the note names the unit.

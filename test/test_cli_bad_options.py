@@ -344,3 +344,31 @@ def test_calibrate_noise_refuses_a_bad_export_option_before_reading_the_log(
     assert status == 2 and len(err) == 1 and all(w in err[0] for w in words), err
     assert out == ''
     assert sorted(os.listdir(tmp_path)) == ['log.csv']
+
+
+@pytest.mark.parametrize('option,value', [('--rate-hz', '50'), ('--duration-s', '10')])
+def test_simulate_refuses_its_own_timing_over_a_measured_record(tmp_path, capsys, option,
+                                                                value):
+    # a record runs at its own rate and length: a given --rate-hz or --duration-s was
+    # ignored without a word (100 Hz and the record's span were written)
+    record = _static_csv(tmp_path / 'rec.csv')
+    out = tmp_path / 'out.csv'
+    _refused(['simulate', '--profile', record, '--static', option, value, '--out', str(out)],
+             capsys, f'{option} {value}', 'measured record runs at its own rate and length',
+             f'drop {option}')
+    assert not out.exists()
+    status, _, err = _run(['simulate', '--profile', record, '--static', '--out', str(out)],
+                          capsys)
+    assert status == 0 and out.exists(), err
+    assert len(np.genfromtxt(out, delimiter=',', names=True)) == 2000
+
+
+def test_diagnose_refuses_a_preset_beside_a_config(tmp_path, capsys):
+    # with --config the baseline is that configuration's output: --preset was ignored, and
+    # the JSON's device_preset named the preset the baseline did not use
+    record = _static_csv(tmp_path / 'rec.csv')
+    report = tmp_path / 'd.json'
+    _refused(['diagnose', record, '--static', '--axis', 'x', '--config', 'paper', '--preset',
+              'paper_sealed', '--json', str(report)], capsys, '--preset paper_sealed',
+             'with --config', 'drop --preset')
+    assert not report.exists()

@@ -180,3 +180,34 @@ def test_diagnose_config_runs_latency_and_clock_drift_as_simulate_does(tmp_path)
                 str(tmp_path / 'd.json'))
     assert proc.returncode == 0 and proc.stderr == '', proc.stderr
     assert json.loads((tmp_path / 'd.json').read_text())['verdict']
+
+
+def test_a_record_beyond_the_starting_full_scale_widens_the_written_range(tmp_path):
+    # a part that measured 330 deg/s, where the paper preset clips at 300: the written
+    # model must not clip what the record measured, or simulate misses the claim
+    rng = np.random.default_rng(12)
+    t = np.arange(12_000) / 100.0
+    top = np.deg2rad(330.0)
+    rate = np.interp(t, [0, 10, 11, 30, 31, 50, 51, 70, 71, 90, 91, 120],
+                     [0, 0, top, top, 0, 0, -top, -top, 0.5 * top, 0.5 * top, 0, 0])
+    gyro = 1.002 * rate + 0.01 + 1e-3 * rng.standard_normal(len(t))
+    csv = tmp_path / 'wide.csv'
+    write_measured_csv(str(csv), Record.from_arrays(t, gyro, rate, np.full(len(t), 25.0),
+                                                    path='wide'))
+    part = tmp_path / 'part.yaml'
+    proc = _cli('diagnose', str(csv), '--write-config', str(part), '--json',
+                str(tmp_path / 'd.json'))
+    assert proc.returncode == 0 and proc.stderr == '', proc.stderr
+    config = load_sensor_config(str(part))
+    data = load_measured(str(csv))
+    quiet = emulated.emulated_output(config, data, 'z')
+    claim = json.loads((tmp_path / 'd.json').read_text())['baseline']['rmse_interval_rad_s']
+    assert _calibrated_rmse(data.gyro_rad_s, quiet) <= claim[1]
+    assert config.range_rad_s[2] >= np.max(np.abs(gyro)) and config.range_rad_s[:2] == (
+        load_sensor_config('paper').range_rad_s[:2])
+    text = part.read_text()
+    assert 'range_deg_s' not in text and '# Full scale of axis z widened from 5.23599' in text
+    # within the range, the starting range stays as written
+    inside = replace(data, gyro_rad_s=np.clip(data.gyro_rad_s, -5.0, 5.0))
+    model = export.extended_model(diagnose(data), 'paper')
+    assert model.with_measured_range(inside) is model

@@ -25,6 +25,8 @@ HELP = 'simulate the sensor over a scripted profile and write CSV or a rosbag2 b
 
 #: Show progress when a run has at least this many samples.
 PROGRESS_MIN_SAMPLES = 200_000
+#: Duration (s) and output rate (Hz) of a scripted profile when not given.
+DURATION_S, RATE_HZ = 60.0, 200.0
 
 
 def add_arguments(parser):
@@ -46,10 +48,11 @@ def add_arguments(parser):
     parser.add_argument('--static', action='store_true',
                         help='a measured profile without an applied rate: the part was at '
                              'rest (zero rate); without it such a record is refused')
-    parser.add_argument('--duration-s', type=float, default=60.0, metavar='S',
-                        help='duration, s (default: %(default)s)')
-    parser.add_argument('--rate-hz', type=float, default=200.0, metavar='R',
-                        help='output data rate, Hz (default: %(default)s)')
+    # None: not given (a measured profile refuses them; a scripted one takes the defaults)
+    parser.add_argument('--duration-s', type=float, default=None, metavar='S',
+                        help=f'duration, s (default: {DURATION_S})')
+    parser.add_argument('--rate-hz', type=float, default=None, metavar='R',
+                        help=f'output data rate, Hz (default: {RATE_HZ})')
     parser.add_argument('--temp-c', type=float, default=25.0, metavar='C',
                         help='ambient of the static and steps profiles, and of a measured '
                              'profile without a temperature, deg C (default: %(default)s)')
@@ -90,6 +93,15 @@ class Progress:
             self.next_pct = 10 * (int(pct) // 10 + 1)
 
 
+def _refuse_own_timing(args):
+    """Refuse --duration-s and --rate-hz with a measured profile: it runs on the record's."""
+    for option, value in (('--duration-s', args.duration_s), ('--rate-hz', args.rate_hz)):
+        if value is not None:
+            raise ValueError(f'simulate: {option} {value:g} is for a scripted --profile: a '
+                             'measured record runs at its own rate and length '
+                             f'({args.profile}); drop {option}')
+
+
 def run(args):
     """Run the simulation and write the record."""
     # The sensor model (numba: 1.4 s, 2.5 s cold) is imported here, not at the
@@ -104,6 +116,7 @@ def run(args):
                   overwrite=args.overwrite)
     profile, measured = args.profile, recorded_profile.is_record_path(args.profile)
     if measured:
+        _refuse_own_timing(args)
         profile = recorded_profile.recorded_profile(
             args.profile, args.axis, args.static, args.temp_c,
             topics=recorded_profile.default_topics(args.topic))
@@ -115,6 +128,9 @@ def run(args):
     elif args.topic:
         raise ValueError(f'simulate: --topic is for a measured bag --profile; {args.profile!r} '
                          'is not a record')
+    if not measured:
+        args.duration_s = DURATION_S if args.duration_s is None else args.duration_s
+        args.rate_hz = RATE_HZ if args.rate_hz is None else args.rate_hz
     start_ns = simulate.parse_start_time(args.start_time)
     schedule = faults.load_schedule(args.faults) if args.faults else ()
     rows = simulate.write_record(args.out, args.config, profile, args.duration_s,

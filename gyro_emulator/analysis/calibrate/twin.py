@@ -167,6 +167,24 @@ def _verdicts(taus, seeds, measured, simulated):
                       ratio=ratio, passed=passed, consistent=consistent)
 
 
+def _longest_span_s(calibrations):
+    """
+    Return the span every axis's Allan deviation can use, s: its longest stretch without a gap.
+
+    A log split by gaps (or by what screening set aside) gives an axis's
+    Allan deviation only up to taus its longest segment holds; octave taus up
+    to a tenth of the whole span would ask the log for taus it has not got.
+    The shortest such stretch over the axes of ``calibrations`` (the gyro's,
+    and the accelerometer's when checked), never more than the log's span.
+    """
+    span_s = calibrations[0].duration_s
+    for cal in calibrations:
+        for a in cal.axes:
+            if a.segments:
+                span_s = min(span_s, (max(len(s) for s in a.segments) - 1) / cal.rate_hz)
+    return span_s
+
+
 def check_noise(calibration, config, seeds=8, progress=None, accel=None):
     """
     Simulate ``config`` (preset name, YAML path or SensorConfig) and compare with the log.
@@ -179,10 +197,12 @@ def check_noise(calibration, config, seeds=8, progress=None, accel=None):
     """
     if not (isinstance(seeds, int) and 1 <= seeds <= 64):
         raise ValueError(f'seeds = {seeds!r} is out of range: allowed 1 .. 64')
-    taus = octave_taus(calibration.rate_hz, calibration.duration_s)
+    span_s = _longest_span_s([calibration] + ([] if accel is None else [accel]))
+    taus = octave_taus(calibration.rate_hz, span_s)
     if len(taus) < 2:
-        raise ValueError(f'{calibration.source}: {calibration.duration_s:.1f} s is too short '
-                         'for octave taus from 0.1 s to a tenth of the record')
+        raise ValueError(f'{calibration.source}: {span_s:.1f} s (its longest stretch without '
+                         'a gap) is too short for octave taus from 0.1 s to a tenth of it: '
+                         'allowed >= 2 s')
     channels = [(calibration, 'gyro_rad_s')] + ([] if accel is None else [(accel, 'accel_m_s2')])
     measured = [{a.axis: allan.overlapping_adev(list(a.segments), cal.rate_hz, taus=taus)
                  for a in cal.axes} for cal, _ in channels]

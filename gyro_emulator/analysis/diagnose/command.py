@@ -65,6 +65,11 @@ class Request:
             check_range('diagnose', 'outlier_sigma', self.outlier_sigma, 3.0, 1e6, 'sigma',
                         low_open=False)
         check_range('diagnose', 'max_causes', self.max_causes, 1, 20, '', low_open=False)
+        if self.config is not None and self.preset != 'paper':
+            raise ValueError(f'diagnose: --preset {self.preset} sets the device of the paper '
+                             "baseline; with --config the baseline is that configuration's "
+                             'output, with its own device: drop --preset, or give the '
+                             'configuration that device')
         if self.noise and not self.write_config:
             raise ValueError('diagnose: --noise writes noise terms into the --write-config '
                              'file: give --write-config OUT.yaml too')
@@ -133,6 +138,7 @@ def _write_config(request, diagnosis, record, console):
     else:
         model = export.extended_model(diagnosis, request.config, axis=request.sense_axis,
                                       config_name=request.config)
+    model = model.with_measured_range(record)
     if request.noise:
         with quiet_numerics():
             model = model.with_noise(record_noise.identify(

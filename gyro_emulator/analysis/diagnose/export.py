@@ -40,12 +40,14 @@ from dataclasses import dataclass, replace
 import os
 
 from gyro_emulator import atomic, outputs
+from gyro_emulator.analysis.diagnose import emulated
 from gyro_emulator.resources import read_yaml
 from gyro_emulator.sensor.accel import YAML_ALIASES as ACCEL_ALIASES
 from gyro_emulator.sensor.config import (config_from_mapping, config_yaml, PRESET_NAMES,
                                          preset_path, SensorConfig, YAML_ALIASES, YamlKey)
 from gyro_emulator.sensor.extensions import TERM_TYPES
-from gyro_emulator.units import AXES
+from gyro_emulator.units import AXES, rad_s_to_deg_s
+import numpy as np
 
 #: Diagnose parameters of each extended term: 'axis' (per-axis amplitude) or 'scalar'.
 TERMS = {
@@ -115,6 +117,44 @@ class ExtendedModel:
         footer = ''.join(f'  # {c}: {v}   # not active: {why}\n' for c, v, why in self.commented)
         return config_yaml(self.config, self.layout, self.header,
                            _comments(self.axis, self.config, self.noise), footer)
+
+    def with_measured_range(self, data):
+        """
+        Return this model with the diagnosed axis's full scale covering what the record measured.
+
+        Where the record's output on the diagnosed axis lies beyond the
+        configuration's ``range_rad_s`` and the applied rate drives the
+        model's noise-free output beyond it too, the part measured more than
+        the configuration's full scale: the emulator would clip there, and
+        ``simulate --config OUT --profile RECORD`` would miss the record by
+        the clipped share, which diagnose's claim does not hold. The axis's
+        range becomes the larger of the model's unclipped noise-free output
+        over the record and the record's output at those samples; the header
+        says so. A record that stays within the range (or is pinned at it),
+        or a configuration without saturation, changes nothing.
+        """
+        i = AXES.index(self.axis)
+        old = self.config.range_rad_s[i]
+        measured = np.abs(np.asarray(data.gyro_rad_s, dtype=float))
+        if not self.config.terms.saturation or not np.any(measured > old):
+            return self
+        free = replace(self.config, terms=replace(self.config.terms, saturation=False))
+        unclipped = np.abs(emulated.emulated_output(free, data, self.axis))
+        driven = unclipped > old
+        if not np.any(driven & (measured > old)):
+            return self
+        new = float(max(np.max(unclipped), np.max(measured[driven])))
+        ranges = list(self.config.range_rad_s)
+        ranges[i] = new
+        config = _checked(replace, self.config, range_rad_s=tuple(ranges))
+        layout = {key.name: key for key in self.layout}
+        _rewrite(layout, 'range_rad_s')
+        header = self.header + (
+            f'# Full scale of axis {self.axis} widened from {old:.6g} to {new:.6g} rad/s '
+            f'({float(rad_s_to_deg_s(new)):.6g} deg/s): the record measured up to '
+            f'{float(np.max(measured[driven])):.6g} rad/s where the applied rate drives '
+            'the model beyond the starting range, which would clip it.\n')
+        return replace(self, config=config, layout=tuple(layout.values()), header=header)
 
     def with_noise(self, noise):
         """
