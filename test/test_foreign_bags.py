@@ -166,3 +166,35 @@ def test_what_the_stamp_rule_did_is_said(tmp_path, capsys):
     # in order, stamped: nothing to say
     assert not any('stamp' in n and 'step back' in n
                    for n in load_inputs(_write(tmp_path / 'plain')).notes)
+
+
+def test_repairing_one_file_of_a_bag_repairs_the_bag(tmp_path, capsys):
+    """In place, ``bag repair DIR/x.mcap`` never rewrites DIR's metadata.yaml from x alone."""
+    from gyro_emulator.recording.reader import index_file
+    from rosbags.rosbag2 import Reader
+
+    joined = tmp_path / 'joined'
+    joined.mkdir()
+    for part in ('a', 'b'):         # a bag of two files (rosbag2 splits by size or time)
+        written = _write(tmp_path / part)
+        os.rename(os.path.join(written, f'{part}.mcap'), joined / f'{part}.mcap')
+    infos = [index_file(str(joined / f'{part}.mcap'), False) for part in ('a', 'b')]
+    (joined / 'metadata.yaml').write_text(bag.metadata_yaml(str(joined), infos))
+    status, out, err = _cli(['bag', 'repair', str(joined / 'a.mcap')], capsys)
+    assert status == 0, err
+    meta = files.load_metadata(str(joined / 'metadata.yaml'))
+    assert meta['relative_file_paths'] == ['a.mcap', 'b.mcap']
+    with Reader(joined) as reader:                      # what rosbags and ros2 bag see
+        assert reader.message_count == 2 * COUNT
+    # a file the bag beside it does not list: refused, that metadata.yaml left alone
+    stray = joined / 'stray.mcap'
+    stray.write_bytes((joined / 'a.mcap').read_bytes())
+    before = (joined / 'metadata.yaml').read_bytes()
+    status, out, err = _cli(['bag', 'repair', str(stray)], capsys)
+    assert status != 0 and len(err.strip().splitlines()) == 1
+    assert 'is not a file of the bag' in err and 'with --out DIR' in err
+    assert (joined / 'metadata.yaml').read_bytes() == before
+    # a compressed bag's file: refused as the bag is
+    path = _write(tmp_path / 'zipped', compression_mode='message')
+    status, out, err = _cli(['bag', 'repair', os.path.join(path, 'zipped.mcap')], capsys)
+    assert status != 0 and "compression_mode is 'message'" in err
