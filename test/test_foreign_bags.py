@@ -198,3 +198,13 @@ def test_repairing_one_file_of_a_bag_repairs_the_bag(tmp_path, capsys):
     path = _write(tmp_path / 'zipped', compression_mode='message')
     status, out, err = _cli(['bag', 'repair', os.path.join(path, 'zipped.mcap')], capsys)
     assert status != 0 and "compression_mode is 'message'" in err
+
+
+def test_bag_info_of_one_file_does_not_call_the_metadata_missing(tmp_path, capsys):
+    path = _write(tmp_path / 'whole')
+    status, out, _ = _cli(['bag', 'info', os.path.join(path, 'whole.mcap')], capsys)
+    assert status == 0 and 'metadata.yaml is missing' not in out
+    assert 'one file read alone: the metadata.yaml beside it was not read' in out
+    os.remove(os.path.join(path, 'metadata.yaml'))
+    status, out, _ = _cli(['bag', 'info', path], capsys)
+    assert status == 0 and 'metadata.yaml is missing (gyro-emulator bag repair writes it)' in out

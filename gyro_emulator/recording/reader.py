@@ -11,7 +11,7 @@ import zlib
 from gyro_emulator.recording import cdr
 from gyro_emulator.recording.files import resolve_bag
 from gyro_emulator.recording.mcap_writer import MCAP_MAGIC, RECORD_HEAD
-from gyro_emulator.recording.metadata import FileInfo, TopicInfo, topics_from
+from gyro_emulator.recording.metadata import FileInfo, METADATA_FILE, TopicInfo, topics_from
 from gyro_emulator.recording.scan import scan_mcap, ScanReport, summary_crc_problem
 import lz4.frame
 from mcap.data_stream import ReadDataStream
@@ -678,7 +678,10 @@ class BagReader:
             lines.append(f'  {name:<{width}}  {t.type_name:<34} {t.message_count:>9} msgs')
         for note in self.problems:
             lines.append(f'Notice:           {note}')
-        if self.metadata is None:
+        if self.metadata is None and os.path.isfile(os.path.join(self.path, METADATA_FILE)):
+            lines.append('Note:             one file read alone: the metadata.yaml beside it '
+                         'was not read (give the bag directory)')
+        elif self.metadata is None:
             lines.append('Note:             metadata.yaml is missing '
                          '(gyro-emulator bag repair writes it)')
         return '\n'.join(lines)
