@@ -208,3 +208,17 @@ def test_bag_info_of_one_file_does_not_call_the_metadata_missing(tmp_path, capsy
     os.remove(os.path.join(path, 'metadata.yaml'))
     status, out, _ = _cli(['bag', 'info', path], capsys)
     assert status == 0 and 'metadata.yaml is missing (gyro-emulator bag repair writes it)' in out
+
+
+def test_replay_refuses_times_before_zero_before_any_work(tmp_path, capsys):
+    from gyro_emulator.analysis.replay.inputs import load_inputs
+
+    stamps = -5 * 10**9 + np.arange(COUNT, dtype=np.int64) * 5_000_000
+    path = _write(tmp_path / 'early', stamps_ns=stamps)
+    with pytest.raises(ValueError, match=rf'{TOPIC} times start at -5 s: allowed >= 0 .*'
+                                         'try --use-log-time$'):
+        load_inputs(path)
+    assert len(load_inputs(path, use_log_time=True).stamp_ns) == COUNT
+    status, out, err = _cli(['replay', path, '--out', str(tmp_path / 'out')], capsys)
+    assert status != 0 and len(err.strip().splitlines()) == 1 and 'times start at -5 s' in err
+    assert not os.path.exists(tmp_path / 'out')

@@ -271,6 +271,10 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
         if rec.linear_accel is not None:
             linear = hold(rec.linear_accel.stamp_ns, rec.linear_accel.values, stamp, half_ns,
                           before=np.zeros(3))
+    if stamp[0] < 0:        # the emulated bag's log times: MCAP's are unsigned
+        raise ValueError(f'{rec.path}: {rec.topics["rate"]} times start at '
+                         f'{stamp[0] / NS_PER_S:g} s: allowed >= 0 (the emulated bag stores '
+                         'them as its log times); try --use-log-time')
     if rec.temp is not None:
         temp = hold(rec.temp.stamp_ns, rec.temp.values, stamp, half_ns, before=temp_c)
     else:
