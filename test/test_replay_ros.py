@@ -191,3 +191,23 @@ def test_replay_skips_a_topic_whose_type_is_not_installed(tmp_path):
     assert out.stderr.strip().splitlines() == [
         "replay: error: --topics /custom: no .msg definition for 'my_pkg/msg/Thing' under "
         f"share/ of {out.stderr.split('share/ of ')[1].strip()}"]
+
+
+def test_replay_refuses_a_remap_that_gives_a_topic_two_types(tmp_path):
+    source = str(tmp_path / 'two')
+    stamps = T0_NS + np.arange(5, dtype=np.int64) * 10_000_000
+    with bag.BagWriter(source) as writer:
+        writer.add_topic('/imu/data_raw', IMU)
+        writer.add_topic('/temp', 'sensor_msgs/msg/Temperature')
+        writer.write_batches([
+            ('/imu/data_raw', cdr.encode(IMU, stamps, np.zeros((5, 37)), 'imu'), stamps),
+            ('/temp', cdr.encode('sensor_msgs/msg/Temperature', stamps, np.zeros((5, 2)), 't'),
+             stamps)])
+    out = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.replay', source,
+                          '--remap', '/temp:=/imu/data_raw'], env=ros_env(), cwd=str(tmp_path),
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and 'Traceback' not in out.stderr, out.stderr
+    assert out.stderr.strip().splitlines() == [
+        'replay: error: --remap /temp:=/imu/data_raw: /imu/data_raw would carry /imu/data_raw '
+        '(sensor_msgs/msg/Imu) and /temp (sensor_msgs/msg/Temperature): a topic has one type; '
+        'remap one elsewhere or leave it out of --topics']

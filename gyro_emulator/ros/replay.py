@@ -150,6 +150,7 @@ class Player:
         self.rate = rate
         self.clock_period_s = None if clock_hz is None else 1.0 / clock_hz
         self.publishers = {}
+        self._targets = {}
         self.published = 0
         #: Set by SIGINT/SIGTERM; checked between messages, so a signal never
         #: lands between a publish and its count.
@@ -172,6 +173,7 @@ class Player:
             if reliable:
                 qos.reliability = ReliabilityPolicy.RELIABLE
             target = remap.get(name, name)
+            self._check_target(name, target, info.type_name, remap)
             try:
                 self.publishers[name] = node.create_publisher(message_class, target, qos)
             except InvalidTopicNameException as exc:
@@ -183,6 +185,16 @@ class Player:
             self._clock_msg = Clock()
             self.clock_publisher = node.create_publisher(
                 Clock, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+
+    def _check_target(self, name, target, type_name, remap):
+        """Refuse two topics of different types published on one name (a ``--remap``)."""
+        other = self._targets.setdefault(target, name)
+        other_type = self.reader.topics[other].type_name
+        if other_type != type_name:
+            rules = ' and '.join(f'--remap {n}:={remap[n]}' for n in (other, name) if n in remap)
+            raise ValueError(f'{rules}: {target} would carry {other} ({other_type}) and {name} '
+                             f'({type_name}): a topic has one type; remap one elsewhere or '
+                             'leave it out of --topics')
 
     def _message_class(self, name, type_name, skip):
         """
