@@ -253,19 +253,19 @@ def test_one_loader_for_csv_and_bag(tmp_path):
 
 
 def test_stamp_rule_log_time_when_every_stamp_is_zero():
-    from gyro_emulator.recording import record
+    from gyro_emulator.recording import streams
 
     class Arrays:
         stamp_ns = np.zeros(3, dtype=np.int64)
         log_time_ns = np.array([30, 10, 20], dtype=np.int64)
 
-    times, order = record.stream_times_ns(Arrays())
+    times, order = streams.stream_times_ns(Arrays())
     np.testing.assert_array_equal(times, [10, 20, 30])
     np.testing.assert_array_equal(order, [1, 2, 0])
     Arrays.stamp_ns = np.array([5, 0, 7], dtype=np.int64)
-    times, _ = record.stream_times_ns(Arrays())
+    times, _ = streams.stream_times_ns(Arrays())
     np.testing.assert_array_equal(times, [0, 5, 7])
-    times, _ = record.stream_times_ns(Arrays(), use_log_time=True)
+    times, _ = streams.stream_times_ns(Arrays(), use_log_time=True)
     np.testing.assert_array_equal(times, [10, 20, 30])
 
 

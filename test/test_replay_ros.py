@@ -162,3 +162,52 @@ def test_replay_remap_publishes_a_topic_under_its_new_name(tmp_path):
     assert '/imu/data_raw' not in reader.topics
     counter = reader.read_arrays('/imu/remapped').field('angular_velocity.x')
     np.testing.assert_array_equal(counter, np.arange(50))
+
+
+def test_replay_skips_a_topic_whose_type_is_not_installed(tmp_path):
+    """A robot bag with a custom type plays its other topics, as ``ros2 bag play`` does."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import get_typestore, Stores
+
+    source = tmp_path / 'robot'
+    stamps = T0_NS + np.arange(20, dtype=np.int64) * 10_000_000
+    with Writer(source, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        imu = writer.add_connection('/imu/data_raw', IMU,
+                                    typestore=get_typestore(Stores.ROS2_JAZZY))
+        custom = writer.add_connection('/custom', 'my_pkg/msg/Thing', msgdef='float64 x\n',
+                                       rihs01='RIHS01_' + '0' * 64)
+        for stamp, payload in zip(stamps, cdr.encode(IMU, stamps, np.zeros((20, 37)), 'imu')):
+            writer.write(imu, int(stamp), payload)
+            writer.write(custom, int(stamp), b'\x00\x01\x00\x00' + bytes(8))
+    run = [sys.executable, '-m', 'gyro_emulator.ros.replay', str(source), '--rate', '10']
+    out = subprocess.run(run, env=ros_env(), cwd=str(tmp_path), capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert 'published 20 messages' in out.stdout and 'replaying 20 messages' in out.stderr
+    assert "skipping topic /custom: no .msg definition for 'my_pkg/msg/Thing'" in out.stderr
+    out = subprocess.run(run + ['--topics', '/custom'], env=ros_env(), cwd=str(tmp_path),
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and 'Traceback' not in out.stderr
+    assert out.stderr.strip().splitlines() == [
+        "replay: error: --topics /custom: no .msg definition for 'my_pkg/msg/Thing' under "
+        f"share/ of {out.stderr.split('share/ of ')[1].strip()}"]
+
+
+def test_replay_refuses_a_remap_that_gives_a_topic_two_types(tmp_path):
+    source = str(tmp_path / 'two')
+    stamps = T0_NS + np.arange(5, dtype=np.int64) * 10_000_000
+    with bag.BagWriter(source) as writer:
+        writer.add_topic('/imu/data_raw', IMU)
+        writer.add_topic('/temp', 'sensor_msgs/msg/Temperature')
+        writer.write_batches([
+            ('/imu/data_raw', cdr.encode(IMU, stamps, np.zeros((5, 37)), 'imu'), stamps),
+            ('/temp', cdr.encode('sensor_msgs/msg/Temperature', stamps, np.zeros((5, 2)), 't'),
+             stamps)])
+    out = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.replay', source,
+                          '--remap', '/temp:=/imu/data_raw'], env=ros_env(), cwd=str(tmp_path),
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and 'Traceback' not in out.stderr, out.stderr
+    assert out.stderr.strip().splitlines() == [
+        'replay: error: --remap /temp:=/imu/data_raw: /imu/data_raw would carry /imu/data_raw '
+        '(sensor_msgs/msg/Imu) and /temp (sensor_msgs/msg/Temperature): a topic has one type; '
+        'remap one elsewhere or leave it out of --topics']

@@ -20,8 +20,9 @@ commands at a sample) is read message by message with ``struct`` instead,
 into the same columns (the column path's fixed cost is a few tens of numpy
 calls); an irregular message sends it to the column path, which names it.
 Padding bytes are written as zeros. Messages in other encodings
-(big-endian, XCDR2) raise ``ValueError`` so that the caller can fall back
-to a generic decoder.
+(big-endian, XCDR2) raise ``ValueError`` in :func:`decode`; :func:`decode_any`
+(the bag reader's) then decodes them with a generic decoder from the bag's
+schema into the same columns.
 """
 
 from dataclasses import dataclass
@@ -318,6 +319,86 @@ def decode(type_name, payloads):
         if decoded is not None:
             return decoded
     return _decode_columns(layout, payloads)
+
+
+def decode_any(type_name, payloads, schema_text, what):
+    """
+    Decode a batch like :func:`decode`, and what it refuses with the schema.
+
+    Messages in another encoding than plain little-endian CDR (big-endian
+    CDR, XCDR2) are decoded one by one by mcap-ros2-support's generic
+    decoder from ``schema_text`` (the ros2msg schema of the bag) and read into
+    the same columns (:func:`from_messages`).
+
+    Raises
+    ------
+    ValueError
+        One line naming ``what`` (the topic) and the message that is not
+        CDR of its schema either.
+
+    """
+    try:
+        return decode(type_name, payloads)
+    except ValueError as exc:
+        fast_error = exc
+    from mcap.records import Schema         # the generic path only (mcap: 40 ms to import)
+    from mcap_ros2.decoder import DecoderFactory
+
+    schema = Schema(id=1, name=type_name, encoding='ros2msg', data=schema_text.encode('utf-8'))
+    try:
+        decoder = DecoderFactory().decoder_for('cdr', schema)
+    except Exception as exc:  # noqa: B902 - the library's own errors, said in one line
+        raise ValueError(f'{what}: {fast_error}, and its schema does not parse '
+                         f'({type(exc).__name__}: {exc})') from None
+    messages = []
+    for i, payload in enumerate(payloads):
+        try:
+            messages.append(decoder(payload))
+        except Exception as exc:  # noqa: B902 - a payload that is not CDR of the schema
+            raise ValueError(f'{what}: message {i} is not CDR of {type_name} ({fast_error}; '
+                             f'generic decoder: {type(exc).__name__}: {exc})') from None
+    return from_messages(type_name, messages)
+
+
+def from_messages(type_name, messages):
+    """
+    Return the :class:`Decoded` columns of messages a generic decoder gave.
+
+    The path for encodings :func:`decode` refuses (big-endian CDR, XCDR2):
+    ``messages`` are objects with attribute access (mcap-ros2-support's
+    decoder, rclpy messages), read field by field.
+
+    Parameters
+    ----------
+    type_name : str
+        A type of :data:`LAYOUTS`.
+    messages : sequence
+        The decoded messages, in order.
+
+    """
+    layout = layout_of(type_name)
+    count = len(messages)
+    stamp_ns = np.zeros(count, dtype=np.int64)
+    frame_id = np.full(count, '', dtype=object)
+    values = np.empty((count, len(layout.fields)), dtype=np.float64)
+    for i, message in enumerate(messages):
+        if layout.has_header:
+            stamp = message.header.stamp
+            stamp_ns[i] = int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+            frame_id[i] = str(message.header.frame_id)
+        values[i] = [_field_of(message, name) for name in layout.fields]
+    return Decoded(layout, stamp_ns, frame_id, values)
+
+
+def _field_of(message, name):
+    """Return field ``a.b`` or ``a[i]`` of a decoded message as a float."""
+    value = message
+    for part in name.split('.'):
+        attr, _, index = part.partition('[')
+        value = getattr(value, attr)
+        if index:
+            value = value[int(index[:-1])]
+    return float(value)
 
 
 def _decode_columns(layout, payloads):

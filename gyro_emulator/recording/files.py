@@ -22,6 +22,8 @@ MAX_METADATA_BYTES = 8 << 20
 REPAIR_TMP = '.repair-tmp'
 BACKUP = '.orig'
 _SCALARS = (str, int, float, bool)
+#: How to make a bag this package reads from one it refuses (rosbags is a dependency).
+CONVERT = 'convert it with: rosbags-convert --src BAG --dst NEW_BAG --dst-storage mcap'
 
 
 def _yaml_document(text, path):
@@ -61,6 +63,32 @@ def _check_fields(meta, path):
     for name, value in (meta.get('custom_data') or {}).items():
         if not isinstance(name, str) or not isinstance(value, _SCALARS):
             raise _type_error(path, f'{key}.custom_data[{name!r}]', value, 'a string')
+    return meta
+
+
+def check_storage(meta, path):
+    """
+    Refuse a bag this package cannot read as it is, in one line naming the field.
+
+    rosbag2 bags in sqlite3 storage (``storage_identifier``), or compressed
+    as whole files or message by message (``compression_mode`` ``file`` or
+    ``message``), are not MCAP files of CDR messages: reading them as such
+    would hand out compressed bytes as messages, and ``bag repair``
+    regenerating their ``metadata.yaml`` would drop what says so. Uncompressed
+    rosbag2 MCAP bags (``compression_mode`` empty or ``none``) pass; zstd or
+    lz4 chunks inside the MCAP file are read (the MCAP compression).
+    """
+    key = 'rosbag2_bagfile_information'
+    storage = meta.get('storage_identifier')
+    if storage not in (None, '', 'mcap'):
+        raise ValueError(f'{path}: {key}.storage_identifier is {storage!r}: expected "mcap" '
+                         f'(rosbag2 MCAP bags only); {CONVERT}')
+    mode = meta.get('compression_mode')
+    if mode is not None and str(mode).lower() not in ('', 'none'):
+        raise ValueError(f'{path}: {key}.compression_mode is {mode!r} (format '
+                         f'{meta.get("compression_format")!r}): expected "" or "none" '
+                         '(uncompressed rosbag2 files; MCAP chunk compression is read); '
+                         f'{CONVERT}')
     return meta
 
 
@@ -109,13 +137,16 @@ def count_disagreements(meta, message_count, topic_counts):
     if isinstance(count, int) and count != message_count:
         notes.append(f'metadata.yaml counts {count} messages, the files hold {message_count} '
                      "(rosbags and ros2 bag info report metadata.yaml's count)")
+    listed = {}             # a topic listed once per connection (rosbags): their sum
     for entry in meta.get('topics_with_message_count') or ():
         topic = (entry.get('topic_metadata') or {}) if isinstance(entry, dict) else {}
-        name, listed = topic.get('name') if isinstance(topic, dict) else None, \
+        name, count = topic.get('name') if isinstance(topic, dict) else None, \
             entry.get('message_count') if isinstance(entry, dict) else None
-        if isinstance(name, str) and isinstance(listed, int) and \
-                listed != topic_counts.get(name, 0):
-            notes.append(f'metadata.yaml counts {listed} messages on {name}, the files hold '
+        if isinstance(name, str) and isinstance(count, int):
+            listed[name] = listed.get(name, 0) + count
+    for name, count in listed.items():
+        if count != topic_counts.get(name, 0):
+            notes.append(f'metadata.yaml counts {count} messages on {name}, the files hold '
                          f'{topic_counts.get(name, 0)}')
     return notes
 
@@ -233,6 +264,8 @@ def resolve_bag(path, metadata_errors='raise'):
             if metadata_errors == 'raise':
                 raise
             result.notes.append(f'{exc}: ignored, the files were listed from the directory')
+    if result.metadata is not None:
+        check_storage(result.metadata, meta_path)     # never ignored: repair would drop it
     if result.metadata is not None and result.metadata.get('relative_file_paths'):
         _listed(path, result.metadata, meta_path, result)
     else:
@@ -248,6 +281,11 @@ def resolve_bag(path, metadata_errors='raise'):
         result.files.sort()
     if not result.files:
         logs = sorted(n for n in os.listdir(path) if n.endswith(('.csv', '.csv.gz')))
+        other = sorted(n for n in os.listdir(path) if '.db3' in n or n.endswith('.mcap.zstd'))
+        if other:
+            raise FileNotFoundError(
+                f'no .mcap file in bag directory {path}: it holds {other[0]}, a rosbag2 '
+                f'sqlite3 or file-compressed bag (rosbag2 MCAP bags only); {CONVERT}')
         raise FileNotFoundError(f'no .mcap file in bag directory {path}' + (
             f': it holds {", ".join(logs[:3])}{" ..." if len(logs) > 3 else ""}; give the '
             'file itself' if logs else ''))

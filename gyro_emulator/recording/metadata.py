@@ -118,6 +118,34 @@ def topic_from(channel, schema, count):
         type_description_hash=channel.metadata.get('topic_type_hash', ''))
 
 
+def topics_from(channels, schemas, counts):
+    """
+    Return ``{topic: TopicInfo}`` of a file's channels, their counts summed per topic.
+
+    A topic may have several channels (rosbag2 and ``rosbags`` write one per
+    publisher QoS or type hash): its count is that of all of them, as
+    ``ros2 bag info`` gives it; the type and QoS are those of its first channel.
+
+    Parameters
+    ----------
+    channels : dict
+        Channel id -> ``mcap.records.Channel``.
+    schemas : dict
+        Schema id -> ``mcap.records.Schema``.
+    counts : dict
+        Channel id -> number of messages.
+
+    """
+    topics = {}
+    for cid, channel in channels.items():
+        info = topic_from(channel, schemas.get(channel.schema_id), counts.get(cid, 0))
+        if channel.topic in topics:
+            topics[channel.topic].message_count += info.message_count
+        else:
+            topics[channel.topic] = info
+    return topics
+
+
 def file_info_from_writer(writer):
     topics = {}
     for channel, schema, count in writer.topic_records():

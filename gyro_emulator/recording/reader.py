@@ -11,7 +11,7 @@ import zlib
 from gyro_emulator.recording import cdr
 from gyro_emulator.recording.files import resolve_bag
 from gyro_emulator.recording.mcap_writer import MCAP_MAGIC, RECORD_HEAD
-from gyro_emulator.recording.metadata import FileInfo, topic_from, TopicInfo
+from gyro_emulator.recording.metadata import FileInfo, METADATA_FILE, TopicInfo, topics_from
 from gyro_emulator.recording.scan import scan_mcap, ScanReport, summary_crc_problem
 import lz4.frame
 from mcap.data_stream import ReadDataStream
@@ -102,11 +102,8 @@ def index_file(path, tolerant):
             summary, metadata = read_summary(handle)
             if summary is not None and summary.statistics is not None:
                 stats = summary.statistics
-                topics = {}
-                for cid, channel in summary.channels.items():
-                    topics[channel.topic] = topic_from(
-                        channel, summary.schemas.get(channel.schema_id),
-                        stats.channel_message_counts.get(cid, 0))
+                topics = topics_from(summary.channels, summary.schemas,
+                                     stats.channel_message_counts)
                 custom = {}
                 for meta in metadata:
                     if meta.name == 'gyro_emulator':
@@ -139,8 +136,7 @@ def index_file(path, tolerant):
             f'{path} is an incomplete MCAP file ({report.problem or problem}); the '
             'recorder was probably killed. Recover it with: gyro-emulator bag repair '
             f'{os.path.dirname(path)}')
-    topics = {c.topic: topic_from(c, schemas.get(c.schema_id), counts.get(cid, 0))
-              for cid, c in channels.items()}
+    topics = topics_from(channels, schemas, counts)
     return FileInfo(path, topics, sum(counts.values()), start or 0, max(end, start or 0),
                     complete=report.complete and not report.summary_problem,
                     custom_data=custom, scan=report)
@@ -660,8 +656,8 @@ class BagReader:
                 times.append(item.log_time_ns)
                 payloads.append(item.data)
         self._check_count(topic, len(times), start_ns, end_ns)
-        return TopicArrays(topic, np.asarray(times, dtype=np.int64),
-                           cdr.decode(type_name, payloads))
+        decoded = cdr.decode_any(type_name, payloads, self.topics[topic].schema_text, topic)
+        return TopicArrays(topic, np.asarray(times, dtype=np.int64), decoded)
 
     def info_text(self):
         """Return a ``ros2 bag info``-like summary."""
@@ -682,7 +678,10 @@ class BagReader:
             lines.append(f'  {name:<{width}}  {t.type_name:<34} {t.message_count:>9} msgs')
         for note in self.problems:
             lines.append(f'Notice:           {note}')
-        if self.metadata is None:
+        if self.metadata is None and os.path.isfile(os.path.join(self.path, METADATA_FILE)):
+            lines.append('Note:             one file read alone: the metadata.yaml beside it '
+                         'was not read (give the bag directory)')
+        elif self.metadata is None:
             lines.append('Note:             metadata.yaml is missing '
                          '(gyro-emulator bag repair writes it)')
         return '\n'.join(lines)

@@ -21,13 +21,8 @@ message type is :data:`VECTOR_FIELDS` / :data:`SCALAR_FIELDS`. What drives a
 model replaying a bag (the commands, or an Imu as truth) and its topics is
 :func:`drive_topics`.
 
-The stamp rule. A message's time is its ``header.stamp``, the time the
-sensor sampled, unless the stream does not carry one: when every stamp of
-the stream is zero (a publisher that never sets it), the stream uses the
-bag's log (receive) time. A stream that starts at a zero stamp on a sim
-clock keeps its stamps. ``use_log_time=True`` asks for
-log times always. Streams are returned in time order (a stable sort, so
-messages with equal times keep the bag's order).
+The stamp rule (a message's time: its header stamp, else its log time) is
+:mod:`gyro_emulator.recording.streams`'s.
 """
 
 from dataclasses import dataclass, field, replace
@@ -36,6 +31,7 @@ import os
 from types import MappingProxyType
 
 from gyro_emulator.recording import bag, binning, csvio, topics as table
+from gyro_emulator.recording.streams import read_stream
 from gyro_emulator.recording.timing import check_increasing, GAP_FACTOR, timing_of
 from gyro_emulator.units import AXES
 import numpy as np
@@ -94,63 +90,6 @@ def find_topic(reader, role, name=None, default=None, types=None):
                    if (t.lstrip('/') == key or t.endswith('/' + key)) and info.message_count
                    and (types is None or info.type_name in types))
     return found[0] if found else None
-
-
-def stream_times_ns(arrays, use_log_time=False):
-    """
-    Return ``(times_ns, order)``: the stream's message times, sorted, and the sort order.
-
-    ``arrays`` is a :class:`gyro_emulator.recording.reader.TopicArrays`;
-    the times follow the module's stamp rule. Index the decoded columns with
-    ``order`` to put them in time order.
-    """
-    stamps = np.asarray(arrays.stamp_ns, dtype=np.int64)
-    if use_log_time or not np.any(stamps):
-        stamps = np.asarray(arrays.log_time_ns, dtype=np.int64)
-    order = np.argsort(stamps, kind='stable')
-    return stamps[order], order
-
-
-@dataclass(frozen=True)
-class Stream:
-    """
-    One bag topic, decoded and in time order (the module's stamp rule).
-
-    Attributes
-    ----------
-    topic : str
-        Topic name in the bag.
-    type_name : str
-        Message type, ``pkg/msg/Type``.
-    times_ns : numpy.ndarray of int64
-        Message times, ns, sorted.
-    order : numpy.ndarray of int
-        Bag order -> time order: index the decoded columns with it.
-    arrays : gyro_emulator.recording.bag.TopicArrays
-        The decoded columns in bag order.
-
-    """
-
-    topic: str
-    type_name: str
-    times_ns: np.ndarray
-    order: np.ndarray
-    arrays: object
-
-    def __len__(self):
-        """Return the number of messages."""
-        return len(self.times_ns)
-
-    def field(self, name):
-        """Return a float64 column or block in time order, e.g. ``angular_velocity``."""
-        return self.arrays.field(name)[self.order]
-
-
-def read_stream(reader, topic, use_log_time=False):
-    """Return :class:`Stream` ``topic`` of ``reader`` (a BagReader), in time order."""
-    arrays = reader.read_arrays(topic)
-    times_ns, order = stream_times_ns(arrays, use_log_time)
-    return Stream(topic, reader.topics[topic].type_name, times_ns, order, arrays)
 
 
 def is_bag(path):
@@ -657,6 +596,7 @@ def _load_bag(reader, path, roles, use_log_time=False):
             continue
         if topic not in streams:
             streams[topic] = read_stream(reader, topic, use_log_time)
+            notes.extend(streams[topic].notes)
         stream = streams[topic]
         if len(stream) == 0:
             raise ValueError(f'bag {path}: topic {topic} is empty')

@@ -239,7 +239,8 @@ def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
     Parameters
     ----------
     path : str
-        Bag directory (or one .mcap file).
+        Bag directory (or one .mcap file; in place, one of a bag's files
+        repairs that bag).
     out_dir : str, optional
         Write the repaired bag here instead of in place (must not exist).
     backup : bool
@@ -257,6 +258,8 @@ def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
         If a file is not MCAP at all (bad magic).
 
     """
+    if out_dir is None:
+        path = _bag_of(path)
     found = resolve_bag(path, metadata_errors='ignore')
     if out_dir is None:
         return _repair_into(found, found.bag_dir, None, backup, compression)
@@ -272,6 +275,27 @@ def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
     report.bag_dir = out_dir
     report.rewritten = [os.path.join(out_dir, os.path.basename(p)) for p in report.rewritten]
     return report
+
+
+def _bag_of(path):
+    """
+    Return what an in-place repair of ``path`` repairs: a file's bag when it has one.
+
+    The ``metadata.yaml`` beside an ``.mcap`` file is that bag's: a repair
+    regenerating it from the one file would drop the bag's other files and
+    what it says of them. A file it lists is repaired as its bag (every file,
+    one ``metadata.yaml``); a file it does not list is refused in one line.
+    """
+    full = os.path.abspath(path)
+    bag_dir = os.path.dirname(full)
+    if not os.path.isfile(full) or os.path.basename(full) == METADATA_FILE or \
+            not os.path.isfile(os.path.join(bag_dir, METADATA_FILE)):
+        return path
+    if full in resolve_bag(bag_dir, metadata_errors='ignore').files:
+        return bag_dir
+    raise ValueError(f'{path} is not a file of the bag {bag_dir} (its {METADATA_FILE} does '
+                     f'not list it): repairing it in place would replace that '
+                     f'{METADATA_FILE}; repair it with --out DIR')
 
 
 def _repair_into(found, target_dir, out_dir, backup, compression):

@@ -13,7 +13,9 @@ reliable delivery). With ``--clock`` the bag time at the current instant,
 ``--loop`` starts over at the end (the bag clock jumps back, as rosbag2 does).
 
 Bags the recorder could not finish (SIGKILL) are read tolerantly: what was
-recovered is replayed and the loss is reported.
+recovered is replayed and the loss is reported. A topic whose message type is
+not installed is skipped with a warning (as ``ros2 bag play`` does) unless
+``--topics`` names it: then it is a one-line error.
 
 ``cmd/linear_acceleration`` is the applied acceleration (gravity excluded):
 the node adds gravity from its attitude. A bag written when that topic held
@@ -148,6 +150,7 @@ class Player:
         self.rate = rate
         self.clock_period_s = None if clock_hz is None else 1.0 / clock_hz
         self.publishers = {}
+        self._targets = {}
         self.published = 0
         #: Set by SIGINT/SIGTERM; checked between messages, so a signal never
         #: lands between a publish and its count.
@@ -156,20 +159,23 @@ class Player:
         for name in sorted(set(remap) - set(reader.topics)):
             raise ValueError(f'--remap {name}:={remap[name]}: topic {name} is not in bag '
                              f'{reader.path}: topics are {", ".join(sorted(reader.topics))}')
-        for name in self.topics:
+        for name in list(self.topics):
             info = reader.topics.get(name)
             if info is None:
                 raise ValueError(f'topic {name} is not in bag {reader.path}: topics are '
                                  f'{", ".join(sorted(reader.topics))}')
+            message_class = self._message_class(name, info.type_name, topics is None)
+            if message_class is None:
+                continue
             profiles = info.qos_profiles
             qos = codec.profile_to_qos(profiles[0], depth=100) if profiles else \
                 QoSProfile(depth=100)
             if reliable:
                 qos.reliability = ReliabilityPolicy.RELIABLE
             target = remap.get(name, name)
+            self._check_target(name, target, info.type_name, remap)
             try:
-                self.publishers[name] = node.create_publisher(
-                    codec.message_class(info.type_name), target, qos)
+                self.publishers[name] = node.create_publisher(message_class, target, qos)
             except InvalidTopicNameException as exc:
                 reason = str(exc).splitlines()[0].replace('Invalid topic name: ', '')
                 raise ValueError(f'--remap {name}:={target}: {target!r} is not a ROS topic '
@@ -179,6 +185,41 @@ class Player:
             self._clock_msg = Clock()
             self.clock_publisher = node.create_publisher(
                 Clock, '/clock', QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT))
+
+    def _check_target(self, name, target, type_name, remap):
+        """Refuse two topics of different types published on one name (a ``--remap``)."""
+        other = self._targets.setdefault(target, name)
+        other_type = self.reader.topics[other].type_name
+        if other_type != type_name:
+            rules = ' and '.join(f'--remap {n}:={remap[n]}' for n in (other, name) if n in remap)
+            raise ValueError(f'{rules}: {target} would carry {other} ({other_type}) and {name} '
+                             f'({type_name}): a topic has one type; remap one elsewhere or '
+                             'leave it out of --topics')
+
+    def _message_class(self, name, type_name, skip):
+        """
+        Return the class of topic ``name``'s type, or None when it is skipped.
+
+        A type that is not installed skips its topic with a warning when every
+        topic is replayed (``skip``, as ``ros2 bag play`` does), and is a
+        one-line error for a topic the user named with ``--topics``.
+        """
+        try:
+            return codec.message_class(type_name)
+        except ValueError as exc:
+            if not skip:
+                raise ValueError(f'--topics {name}: {exc}') from None
+            self.topics.remove(name)
+            if not self.topics:
+                raise ValueError(f'no topic of bag {self.reader.path} has an installed '
+                                 f'message type ({name}: {exc})') from None
+            self.node.get_logger().warning(
+                f'skipping topic {name}: {exc} (choose the topics with --topics)')
+            return None
+
+    def count(self):
+        """Return the number of messages of the topics replayed (the bag's counts)."""
+        return sum(self.reader.topics[name].message_count for name in self.topics)
 
     def wait_for_subscribers(self, timeout_s):
         """
@@ -272,7 +313,7 @@ def _play(player, opts, reader):
         time.sleep(opts.delay)
     start_ns = reader.start_time_ns + int(round(opts.start_offset * NS_PER_S))
     player.node.get_logger().info(
-        f'replaying {reader.message_count} messages of {opts.bag} at rate {opts.rate}')
+        f'replaying {player.count()} messages of {opts.bag} at rate {opts.rate}')
     while rclpy.ok() and not player.stop.is_set():
         player.play_once(start_ns)
         if not opts.loop:

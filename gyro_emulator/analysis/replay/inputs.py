@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 from gyro_emulator.emulation.emulator_bag import DEFAULT_FRAME_ID
 from gyro_emulator.emulation.profiles import SampledProfile
 from gyro_emulator.emulation.run_profile import MotionForce, OwnSamples, run_over_profile
-from gyro_emulator.recording import record, topics as table
+from gyro_emulator.recording import record
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.imu import ImuBatch, ImuModel
 from gyro_emulator.units import AXES, NS_PER_S
@@ -214,6 +214,9 @@ def load_inputs(bag, source='auto', rate_topic=None, temperature_topic=None,
     source, roles, notes = record.drive_topics(reader, source, rate_topic, temperature_topic,
                                                accel_topic, measured_topic)
     rec = record.load_record(reader, roles, use_log_time=use_log_time)
+    # how the record was read (stamps, older acceleration commands); the bag's damage is
+    # the caller's (reader.problems)
+    notes += [note for note in rec.recovery if note not in reader.problems]
     return replay_inputs(rec, source, notes, rate_hz, temp_c)
 
 
@@ -230,7 +233,8 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
     source : str
         ``command`` or ``imu``.
     notes : sequence of str
-        Notes so far (how the topics were chosen).
+        Notes so far (how the topics were chosen, how the record was read:
+        its stamps, acceleration commands of an older bag).
     rate_hz, temp_c : float, optional
         See :func:`load_inputs`.
 
@@ -264,12 +268,13 @@ def replay_inputs(rec, source, notes=(), rate_hz=None, temp_c=None):
         if rec.accel is not None:
             accel = hold(rec.accel.stamp_ns, rec.accel.values, stamp, half_ns,
                          before=np.zeros(3))
-            note = table.old_accel_note(rec.topics['accel'])
-            if note in rec.recovery:        # acceleration commands of an older bag
-                notes.append(note)
         if rec.linear_accel is not None:
             linear = hold(rec.linear_accel.stamp_ns, rec.linear_accel.values, stamp, half_ns,
                           before=np.zeros(3))
+    if stamp[0] < 0:        # the emulated bag's log times: MCAP's are unsigned
+        raise ValueError(f'{rec.path}: {rec.topics["rate"]} times start at '
+                         f'{stamp[0] / NS_PER_S:g} s: allowed >= 0 (the emulated bag stores '
+                         'them as its log times); try --use-log-time')
     if rec.temp is not None:
         temp = hold(rec.temp.stamp_ns, rec.temp.values, stamp, half_ns, before=temp_c)
     else:
