@@ -470,9 +470,10 @@ def _drive_source(reader, source, rate):
 
 
 def _first_imu(reader, notes):
-    """Return the first Imu topic with messages (noted when there are several)."""
+    """Return the first Imu topic with messages, a node's truth only alone (noted when several)."""
     imus = sorted(n for n, t in reader.topics.items()
                   if t.type_name == table.IMU and t.message_count)
+    imus = [n for n in imus if not table.is_truth(n)] or imus
     if not imus:
         raise ValueError(
             f'bag {reader.path} has neither {table.RATE_CMD.name} '

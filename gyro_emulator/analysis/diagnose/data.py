@@ -512,7 +512,10 @@ class Prepared:
             return np.interp(times_s, t, r)
         f = self.__dict__.get('_interpolant')
         if f is None:
-            f = PchipInterpolator(t, r) if self.rate_shape == 'pchip' else CubicSpline(t, r)
+            # PCHIP's harmonic mean of neighbouring slopes divides by slopes that may be
+            # tiny or 0 (a hold); it takes 0 there itself, the division only warns
+            with np.errstate(divide='ignore', over='ignore', invalid='ignore'):
+                f = PchipInterpolator(t, r) if self.rate_shape == 'pchip' else CubicSpline(t, r)
             self._interpolant = f
         return f(np.clip(times_s, t[0], t[-1]))
 
