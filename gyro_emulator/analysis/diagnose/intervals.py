@@ -446,29 +446,37 @@ def _profile_1d(evaluated, ctx, frame, n_eff):
     return [(min(lo, best), max(hi, best), olo, ohi)]
 
 
-def _profile_in_shape(search, ctx, frame, fixed, grid, n_eff):
+def _profile_in_shape(sse_of, near, within, n_eff):
     """
-    Profile interval of a delay with the record's rate in ``frame``'s shape.
+    Profile interval of a delay with the record's rate in another shape.
 
-    The least SSE on the grid is refined between its neighbours (Brent),
-    then the admissible run around it is walked as :func:`_profile_1d` does.
-    Returns (low, high, open_low, open_high).
+    ``sse_of(v)``: the SSE of the fit at delay v in that shape. A shape
+    moves a delay by less than a sample period (``near``, the linear
+    shape's best delay, +- one period, inside the searched range
+    ``within``): the least SSE is found there (Brent), and each end is
+    stepped out from it in eighths of that window until the SSE exceeds
+    the threshold, then found by bisection (:func:`_crossing`); an end that
+    reaches the searched range is open. Returns (low, high, open_low,
+    open_high).
     """
-    def sse_of(v):
-        return _sse_at(search, ctx, frame, fixed + ((float(v),),))
-
-    sses = np.array([sse_of(v) for v in grid])
-    i = int(np.argmin(sses))
-    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    a, b = near
     best = float(optimize.minimize_scalar(sse_of, bounds=(a, b), method='bounded',
                                           options={'xatol': 1e-6 * (b - a) + 1e-12}).x)
-    sse_best = sse_of(best)
-    if sse_best > sses[i]:
-        best, sse_best = float(grid[i]), float(sses[i])
-    points = np.unique(np.r_[grid, best])
-    sses = np.array([sse_best if v == best else sse_of(v) for v in points])
-    j = int(np.flatnonzero(points == best)[0])
-    lo, hi, olo, ohi = _walk(points, sses, j, _threshold(sse_best, n_eff), sse_of, True)
+    thr = _threshold(sse_of(best), n_eff)
+    step = (b - a) / 8.0
+    out = []
+    for sign, limit in ((-1.0, within[0]), (1.0, within[1])):
+        inside = best
+        while True:
+            nxt = min(max(inside + sign * step, within[0]), within[1])
+            if sse_of(nxt) > thr:
+                out.append((_crossing(sse_of, thr, inside, nxt), False))
+                break
+            if nxt == limit:
+                out.append((limit, True))
+                break
+            inside = nxt
+    (lo, olo), (hi, ohi) = out
     return min(lo, best), max(hi, best), olo, ohi
 
 
@@ -479,13 +487,16 @@ def _shape_union(evaluated, ctx, frame, n_eff, ends):
     The applied rate is known at its samples only: between them it is
     taken as linear by the fits, and here also as PCHIP and as a cubic
     spline (:data:`.data.RATE_SHAPES`). Each shape's profile interval
-    (:func:`_profile_in_shape`) joins the linear one. Returns the widened
+    (:func:`_profile_in_shape`, within a sample period of the linear
+    shape's best delay) joins the linear one. Returns the widened
     (low, high, open_low, open_high) and whether a shape widened it.
     """
     model, full = evaluated.model, evaluated.full
-    eff = model.effects[-1]
     fixed = tuple(full.phis[:-1])
-    grid = np.asarray(eff.grids(ctx)[0], dtype=float)
+    grid = np.asarray(model.effects[-1].grids(ctx)[0], dtype=float)
+    within = (float(grid[0]), float(grid[-1]))
+    best, period = float(full.phis[-1][0]), float(frame.bins.dt_s)
+    near = (max(within[0], best - period), min(within[1], best + period))
     search = models.searched(model)
     lo, hi, olo, ohi = ends
     widened = False
@@ -493,8 +504,9 @@ def _shape_union(evaluated, ctx, frame, n_eff, ends):
         other = frame.bins.reshaped(shape)
         if other is None:
             continue
-        s_lo, s_hi, s_olo, s_ohi = _profile_in_shape(search, ctx, other.binned, fixed, grid,
-                                                     n_eff)
+        s_lo, s_hi, s_olo, s_ohi = _profile_in_shape(
+            lambda v, f=other.binned: _sse_at(search, ctx, f, fixed + ((float(v),),)), near,
+            within, n_eff)
         if s_lo < lo:
             lo, olo, widened = s_lo, s_olo, True
         if s_hi > hi:
