@@ -429,6 +429,11 @@ def _from_columns(path, columns):
         path=path, names=tuple(columns))
 
 
+def _measured_first(names):
+    """Return the topics of ``names`` that are not a node's truth, or all when none is not."""
+    return [name for name in names if not table.is_truth(name)] or list(names)
+
+
 def _only_imu(reader, path, notes):
     """
     Return the bag's one Imu topic (a node's ``~/truth/imu`` only alone), or the one with messages.
@@ -436,8 +441,8 @@ def _only_imu(reader, path, notes):
     Choosing among several is said in ``notes``; ValueError naming the topics
     when none or more than one has messages.
     """
-    imu = [name for name, info in reader.topics.items() if info.type_name == table.IMU]
-    imu = [name for name in imu if not table.is_truth(name)] or imu
+    imu = _measured_first([name for name, info in reader.topics.items()
+                           if info.type_name == table.IMU])
     if len(imu) == 1:
         return imu[0]
     full = [name for name in imu if reader.topics[name].message_count]
@@ -471,9 +476,8 @@ def _drive_source(reader, source, rate):
 
 def _first_imu(reader, notes):
     """Return the first Imu topic with messages, a node's truth only alone (noted when several)."""
-    imus = sorted(n for n, t in reader.topics.items()
-                  if t.type_name == table.IMU and t.message_count)
-    imus = [n for n in imus if not table.is_truth(n)] or imus
+    imus = _measured_first(sorted(n for n, t in reader.topics.items()
+                                  if t.type_name == table.IMU and t.message_count))
     if not imus:
         raise ValueError(
             f'bag {reader.path} has neither {table.RATE_CMD.name} '

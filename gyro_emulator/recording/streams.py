@@ -17,6 +17,11 @@ from dataclasses import dataclass
 import numpy as np
 
 
+def on_log_times(stamps_ns, use_log_time=False):
+    """Tell whether a stream is read on its log times (the stamp rule): asked, or no stamp."""
+    return use_log_time or not np.any(stamps_ns)
+
+
 def stream_times_ns(arrays, use_log_time=False):
     """
     Return ``(times_ns, order)``: the stream's message times, sorted, and the sort order.
@@ -26,7 +31,7 @@ def stream_times_ns(arrays, use_log_time=False):
     ``order`` to put them in time order.
     """
     stamps = np.asarray(arrays.stamp_ns, dtype=np.int64)
-    if use_log_time or not np.any(stamps):
+    if on_log_times(stamps, use_log_time):
         stamps = np.asarray(arrays.log_time_ns, dtype=np.int64)
     order = np.argsort(stamps, kind='stable')
     return stamps[order], order
@@ -83,7 +88,7 @@ def stamp_notes(topic, arrays, use_log_time=False):
     """
     notes = []
     stamps = np.asarray(arrays.stamp_ns, dtype=np.int64)
-    on_log = use_log_time or not np.any(stamps)
+    on_log = on_log_times(stamps, use_log_time)
     if on_log and not use_log_time and stamps.size > 1:
         notes.append(f'{topic}: every header stamp is zero: its log (receive) times are used')
     steps = np.diff(np.asarray(arrays.log_time_ns if on_log else stamps, dtype=np.int64))

@@ -92,12 +92,12 @@ class SelfRecorder:
         self.finished = False
         self.error = None
         self.counts = {}
-        self._channels = {}
+        self._channels = {}             # publisher -> (topic, channel id), for the tap
         for pub, entry in outputs.sample_publishers():
-            self._channels[pub.topic_name] = self.writer.add_topic(
-                pub.topic_name, entry.type_name, qos_profiles=[codec.qos_to_profile(
-                    pub.qos_profile)])
-            self.counts[pub.topic_name] = 0
+            topic = pub.topic_name
+            self._channels[pub] = (topic, self.writer.add_topic(
+                topic, entry.type_name, qos_profiles=[codec.qos_to_profile(pub.qos_profile)]))
+            self.counts[topic] = 0
         rate_source = custom.get('rate_source', 'angular_velocity')
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                          reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -131,8 +131,7 @@ class SelfRecorder:
 
     def _on_published(self, pub, data):
         """Write what the node just published (the output stage's tap)."""
-        topic = pub.topic_name
-        self._on_message(topic, self._channels[topic], data)
+        self._on_message(*self._channels[pub], data)
 
     def _flush_if_due(self):
         if self.finished:

@@ -15,7 +15,7 @@ import os
 import re
 
 from gyro_emulator import atomic, plotting
-from gyro_emulator.analysis.diagnose import ruled_out
+from gyro_emulator.analysis.diagnose import intervals, ruled_out
 import numpy as np
 
 PLOTS = (('temperature', 'temp_c', 'temperature reading (C)'),
@@ -108,7 +108,7 @@ def parameter_text(p):
                      p.method or '')
     if edge:     # the interval may reach beyond the search: the terminal says so too
         how += f'; its {edge.group(1)} end at the edge of the searched range'
-    if p.method and 'shapes between its samples' in p.method:
+    if p.method and p.method.endswith(intervals.SHAPES_NOTE):
         how += "; over the rate's shapes between samples"
     return f'{p.value:.5g} {_interval_text(p.interval)} {p.unit} (95 %, {how})'
 
