@@ -26,7 +26,7 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
-from test_node import NodeProcess, Probe, stamp_ns
+from test_node import HANG_S, NodeProcess, Probe, stamp_ns
 import yaml
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -74,11 +74,11 @@ def played(tmp_path_factory):
            'truth': probe.listen(Vector3Stamped, 'gyro_emulator/truth/rate', EVERY),
            'fault': probe.listen(DiagnosticArray, 'gyro_emulator/truth/fault', LATCHED),
            'diag': probe.listen(DiagnosticArray, '/diagnostics', 100)}
-    probe.spin_until(lambda: len(got['imu']) > 20 and got['fault'], 30.0, 'the node')
+    probe.spin_until(lambda: len(got['imu']) > 20 and got['fault'], HANG_S, 'the node')
     scenario = subprocess.Popen([sys.executable, '-m', 'gyro_emulator.ros.scenario',
                                  str(profile)], env=env, cwd=ROOT, text=True,
                                 stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    probe.spin_until(lambda: scenario.poll() is not None, 60.0, 'the scenario')
+    probe.spin_until(lambda: scenario.poll() is not None, HANG_S, 'the scenario')
     probe.spin_for(0.2)
     yield got, scenario.stdout.read(), node, probe
     probe.close()
@@ -164,11 +164,11 @@ def test_faults_set_at_run_time_and_refused_values(played):
     assert done.results[0].successful
     probe.spin_until(lambda: any(
         {kv.key: kv.value for kv in m.status[0].values}['state'] == 'active'
-        for m in got['fault']), 10.0, 'the dropout to act')
+        for m in got['fault']), HANG_S, 'the dropout to act')
     got['imu'].clear()
     probe.spin_for(0.3)
     assert not got['imu']                       # a dropout stops publishing
     done = probe.call(client.set_parameters([Parameter('fault.type', value='none')]))
     assert done.results[0].successful
-    probe.spin_until(lambda: len(got['imu']) > 5, 10.0, 'the output back')
+    probe.spin_until(lambda: len(got['imu']) > 5, HANG_S, 'the output back')
     assert node.proc.poll() is None

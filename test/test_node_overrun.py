@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu
-from test_node import diag_values, NodeProcess, Probe, stamp_ns
+from test_node import diag_values, HANG_S, NodeProcess, Probe, stamp_ns
 from test_node_sim import DEEP, listen_matched, reliable_links, wait_matched
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -79,7 +79,7 @@ def test_a_coarse_clock_gets_every_sample_stamped_with_its_own_time(tmp_path, st
         diags = probe.listen(DiagnosticArray, '/diagnostics', 50)
         clock = probe.publisher(Clock, '/clock', 10)
         wait_matched(probe, [sub])
-        probe.spin_until(lambda: clock.get_subscription_count() > 0, 30.0, 'the /clock link')
+        probe.spin_until(lambda: clock.get_subscription_count() > 0, HANG_S, 'the /clock link')
         msg = Clock()
         start_ns, steps = 1000 * NS, 2000 // step_ms         # 2 s of sim time
         for k in range(steps + 1):
@@ -98,13 +98,13 @@ def test_a_coarse_clock_gets_every_sample_stamped_with_its_own_time(tmp_path, st
             clock.publish(msg)
             return truth and len(truth) >= want() and len(out) >= want()
 
-        probe.spin_until(held, 60.0, 'every sample up to the last /clock')
+        probe.spin_until(held, HANG_S, 'every sample up to the last /clock')
         # the diagnostics thread reads the sample counters while the executor
         # thread moves them: one message can hold a sample counted due and not
         # yet out, so wait for one that has the last samples out
         probe.spin_until(lambda: diags and float(last_diag(diags)[1]['samples_due']) >=
                          want() and float(last_diag(diags)[1]['emitted_ratio']) == 1.0,
-                         10.0, 'the diagnostics of the last samples, all out')
+                         HANG_S, 'the diagnostics of the last samples, all out')
     finally:
         probe.close()
         code = node.stop()
@@ -150,14 +150,14 @@ def test_under_a_cpu_hog_fifo_loses_nothing_and_drop_counts_what_it_loses(tmp_pa
         out, sub = listen_matched(probe, Imu, 'imu/data_raw')
         diags = probe.listen(DiagnosticArray, '/diagnostics', 200)
         wait_matched(probe, [sub])
-        probe.spin_until(lambda: len(out) > 500, 30.0, 'a steady output')
+        probe.spin_until(lambda: len(out) > 500, HANG_S, 'a steady output')
         hogs = hog(4.0)
-        probe.spin_until(lambda: all(h.poll() is not None for h in hogs), 60.0,
+        probe.spin_until(lambda: all(h.poll() is not None for h in hogs), HANG_S,
                          'the CPU hogs to end')
         # Then until samples stamped 0.5 s after the hogs ended arrive (the node
         # runs on the wall clock: the backlog has drained by then), and a report.
         after_ns = time.time_ns() + NS // 2
-        probe.spin_until(lambda: out and stamp_ns(out[-1].header) > after_ns, 60.0,
+        probe.spin_until(lambda: out and stamp_ns(out[-1].header) > after_ns, HANG_S,
                          'the samples after the hog')
         # A report is made every 0.2 s: the one that counts the last loss comes
         # after it. Wait for a report that counts at least the gaps seen so far
@@ -221,14 +221,14 @@ def test_a_full_disk_stops_the_recording_not_the_node(tmp_path):
         out = probe.listen(Imu, 'imu/data_raw')
         diags = probe.listen(DiagnosticArray, '/diagnostics', 50)
         probe.spin_until(lambda: any(diag_values(d)[1].get('recording_error')
-                                     for d in diags), 60.0, 'the recording error')
+                                     for d in diags), HANG_S, 'the recording error')
         status, values = last_diag(diags)
         out.clear()
-        probe.spin_until(lambda: len(out) > 100, 10.0, 'the output after the error')
+        probe.spin_until(lambda: len(out) > 100, HANG_S, 'the output after the error')
     finally:
         probe.close()
         node.send_signal(signal.SIGINT)
-        code = node.wait(30)
+        code = node.wait(HANG_S)
         node_log.close()
         if recorder.poll() is None:
             recorder.kill()
@@ -258,7 +258,7 @@ def test_the_lowest_rate_starts_with_the_shipped_temperature_rate(tmp_path):
     probe = Probe(env)
     try:
         got = probe.listen(Imu, 'imu/data_raw')
-        probe.spin_until(lambda: len(got) >= 2, 30.0, 'two samples at 1 Hz')
+        probe.spin_until(lambda: len(got) >= 2, HANG_S, 'two samples at 1 Hz')
     finally:
         probe.close()
         code = node.stop()
@@ -284,7 +284,7 @@ def test_the_array_stops_on_a_terminal_ctrl_c_with_status_zero(tmp_path):
         probe = Probe(env)
         try:
             got = {n: probe.listen(Imu, f'/imu_array/gyro_{n}/imu/data_raw') for n in 'abc'}
-            probe.spin_until(lambda: all(len(g) > 10 for g in got.values()), 60.0,
+            probe.spin_until(lambda: all(len(g) > 10 for g in got.values()), HANG_S,
                              'the three nodes')
             children = open(f'/proc/{array.pid}/task/{array.pid}/children').read().split()
             groups = {os.getpgid(int(pid)) for pid in children}
@@ -292,7 +292,7 @@ def test_the_array_stops_on_a_terminal_ctrl_c_with_status_zero(tmp_path):
         finally:
             probe.close()
             os.killpg(array.pid, signal.SIGINT)
-            code = array.wait(60)
+            code = array.wait(HANG_S)
     text = log_path.read_text()
     assert code == 0, text
     assert 'failure' not in text and 'Traceback' not in text

@@ -3,10 +3,15 @@ The node runs the part ``diagnose --write-config`` made of a real log (issue 24)
 
 The LSM6DSM chamber log (static, cooling 23.9 -> 15.6 C over 2 h, in bursts
 of 5 s every 5 min) goes through ``diagnose --write-config part.yaml``; its
-temperature is played from a bag by ``replay --clock --rate`` into the node
-started with ``-p sensor_config:=part.yaml`` and ``use_sim_time`` (one sample
-per record second, the record 200x faster than real time, a /clock message
-every four record seconds). The node's mean
+temperatures are played into the node started with ``-p
+sensor_config:=part.yaml`` and ``use_sim_time`` (one sample per record
+second): the test steps ``/clock`` four record seconds at a time, the
+temperature commands stamped two steps ahead, and takes the next step once
+the node's samples of this one arrived. So the play goes as fast as the
+machine allows and never loses a sample to a loaded machine, which a play
+paced by the wall clock (``replay --clock --rate``, tested in
+test_replay_ros.py and test_accel_commands.py) does: a stall of either
+process coalesces ``/clock`` past the node's 10 s jump rule. The node's mean
 output per 1 K temperature bin must follow the measured one, up to the
 user's bias calibration b0 (the emulator is the calibrated part: one
 constant), within the measured noise.
@@ -23,13 +28,13 @@ import subprocess
 import sys
 
 from conftest import ros_env
-from gyro_emulator.recording import bag, cdr
 from gyro_emulator.sensor import config as sensor_config
 import numpy as np
 import pytest
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import Imu
-from test_node import NodeProcess, Probe, replay_into_node, stamp_ns, vector
+from sensor_msgs.msg import Imu, Temperature
+from test_node import HANG_S, NodeProcess, Probe, set_stamp, stamp_ns, vector
+from test_node_sim import DEEP
 import yaml
 
 pytestmark = pytest.mark.ros
@@ -38,14 +43,12 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LOG = os.path.join(os.path.dirname(ROOT), 'shared', 'data', 'real', 'lsm6dsm_thermal_chamber',
                    'lsm6dsm_tvc_x.csv')
 NS = 1_000_000_000
-#: Bag time of the record's time 0, ns (the node's clock then reads record time + 1000 s).
+#: Clock time of the record's time 0, ns (the node's clock then reads record time + 1000 s).
 BASE_NS = 1000 * NS
-#: Replay speed. rclpy's /clock subscription keeps one message, so a stall of the node
-#: longer than 10 record seconds coalesces /clock past the node's 10 s jump rule and
-#: costs samples: at 1000x a 10 ms stall did (5815 of 7325 arrived once in a loaded
-#: suite; 5629 at 400x under load 7); at 200x a stall must last 50 ms.
-RATE = 200.0
-CLOCK_HZ = 50.0         # /clock: four record seconds per message
+#: One /clock step, ns: four record seconds (below the node's 10 s jump rule).
+STEP_NS = 4 * NS
+#: How far the temperature commands go ahead of the clock, ns (below max_stamp_lead_s).
+LEAD_NS = 2 * STEP_NS
 #: Marker terms on the axes the record does not measure (x, y).
 STEP_S, STEP_RAD_S = 4000.0, 0.02
 TAU_S, WARM_RAD_S, DRIFT_RAD_S_H, ORIGIN_S = 1500.0, 0.03, 0.01, 3662.3
@@ -87,15 +90,6 @@ def part_yaml(record, tmp_path_factory):
     return str(marked)
 
 
-def _write_bag(path, t_s, temp_c):
-    stamps = BASE_NS + np.round(t_s * NS).astype(np.int64)
-    values = np.column_stack([temp_c, np.zeros_like(temp_c)])
-    topic, kind = '/part/cmd/temperature', 'sensor_msgs/msg/Temperature'
-    with bag.BagWriter(path) as writer:
-        writer.add_topic(topic, kind, qos_profiles=[bag.qos_profile('reliable')])
-        writer.write_batches([(topic, cdr.encode(kind, stamps, values), stamps)])
-
-
 def _bins(temp_c, values, edges):
     """Return, per bin of ``edges`` (index, count, mean)."""
     k = np.digitize(temp_c, edges)
@@ -103,24 +97,62 @@ def _bins(temp_c, values, edges):
 
 
 def _play(tmp_path, part_yaml, t_s, temp_c):
-    """Replay the profile into the node; return the Imu stamps (ns) and rates (n, 3)."""
-    source = str(tmp_path / 'profile')
-    _write_bag(source, t_s, temp_c)
+    """Play the profile into the node, /clock step by step; return the Imu stamps and rates."""
     env = ros_env()
     node = NodeProcess(env, str(tmp_path / 'node.log'), '-r', '__ns:=/part', '-p',
                        'use_sim_time:=true', '-p', f'sensor_config:={part_yaml}', '-p',
                        'rate_hz:=1.0', '-p', f'initial_temperature_c:={temp_c[0]}', '-p',
                        'publish_truth:=false', '-p', 'max_stamp_lead_s:=30.0', '-p',
-                       'seed:=5', '-p', f'record_start_clock_s:={BASE_NS / NS}')
-    # the node's /clock subscription is best effort: the last messages (4 record
-    # seconds each) may be lost, so wait for the record up to 12 s before its end
-    end_ns = BASE_NS + int(t_s[-1] * NS) - 12 * NS
-    imu, = replay_into_node(
-        env, node, '/part/imu/data_raw', [(Imu, '/part/imu/data_raw')],
-        [source, '--rate', str(RATE), '--clock', str(CLOCK_HZ), '--wait-for-subscribers', '60',
-         '--reliable'], end_ns, 30.0)
+                       'seed:=5', '-p', f'record_start_clock_s:={BASE_NS / NS}',
+                       '-p', 'qos_reliability:=reliable')
+    probe = Probe(env)
+    try:
+        imu = probe.listen(Imu, '/part/imu/data_raw', DEEP)
+        clock = probe.publisher(Clock, '/clock', 10)
+        temp = probe.publisher(Temperature, '/part/cmd/temperature', 1000)
+        probe.spin_until(lambda: clock.get_subscription_count() > 0 and
+                         temp.get_subscription_count() > 0 and imu_publishers(probe) > 0,
+                         HANG_S, 'the node on the graph')
+        command_ns = BASE_NS + np.round(t_s * NS).astype(np.int64)
+        sent = 0
+        for clock_ns in range(BASE_NS, int(command_ns[-1]) + STEP_NS, STEP_NS):
+            _step(probe, clock, imu, clock_ns)
+            # after the clock: a command stamped too far ahead of it is refused
+            ahead = int(np.searchsorted(command_ns, clock_ns + LEAD_NS, side='right'))
+            for k in range(sent, ahead):
+                msg = Temperature(temperature=float(temp_c[k]))
+                set_stamp(msg.header, int(command_ns[k]))
+                temp.publish(msg)
+            sent = ahead
+        assert node.proc.poll() is None, node.log()
+    finally:
+        probe.close()
+        assert node.stop() == 0
     stamps = np.array([stamp_ns(m.header) for m in imu], dtype=np.int64)
     return stamps, np.array([vector(m.angular_velocity) for m in imu])
+
+
+def imu_publishers(probe):
+    return probe.node.count_publishers('/part/imu/data_raw')
+
+
+def _step(probe, clock, imu, clock_ns):
+    """
+    Set the node's clock to ``clock_ns`` and wait for its samples of this step.
+
+    A sample stamped less than 3.5 s before ``clock_ns`` came due in this step
+    (the step before ended 4 s earlier; the part's delay is far below 0.5 s).
+    The node's /clock subscription is best effort, depth 1 (rclpy's
+    TimeSource): the same time goes out again until the samples come (no
+    extra tick).
+    """
+    msg = Clock()
+    msg.clock.sec, msg.clock.nanosec = divmod(clock_ns, NS)
+
+    def stepped():
+        clock.publish(msg)
+        return imu and stamp_ns(imu[-1].header) > clock_ns - 3_500_000_000
+    probe.spin_until(stepped, HANG_S, f'the samples up to clock {clock_ns / NS:g} s')
 
 
 def test_the_node_runs_the_part_diagnose_wrote_and_follows_the_measured_bias(
@@ -154,12 +186,9 @@ def test_the_node_runs_the_part_diagnose_wrote_and_follows_the_measured_bias(
     assert np.all(np.abs(diff - b0) <= 4.0 * se), (diff - b0) / se
     assert np.ptp([emulated[i][1] for i in shared]) > 10 * se.max()
 
-    # Record time on the node's clock: record_start_clock_s is the bag's start,
-    # so a sample's record time is its bag time - bag start, however late the
-    # node's first sample came (a loaded machine: tens of record seconds).
-    # A loaded machine coalesces /clock messages: a jump over 10 s re-anchors the
-    # node's sample grid (one sample, no catch-up), so samples may be missing
-    # near the step; every sample before it must be low and every one after high.
+    # Record time on the node's clock: record_start_clock_s is the record's start
+    # on the clock, so a sample's record time is its clock time - that start.
+    # Every sample before the step must be low and every one after high.
     before, after = rec_s < STEP_S, rec_s >= STEP_S
     assert STEP_S - rec_s[before].max() < 15.0 and rec_s[after].min() - STEP_S < 15.0
     assert np.all(rates[before, 0] < STEP_RAD_S / 2) and np.all(rates[after, 0] > STEP_RAD_S / 2)
@@ -190,11 +219,11 @@ def test_the_record_time_follows_the_node_clock_across_a_jump(tmp_path):
         clock = probe.publisher(Clock, '/clock', 10)
         imu = probe.listen(Imu, '/jump/imu/data_raw')
         probe.spin_until(lambda: clock.get_subscription_count() > 0 and
-                         probe.node.count_publishers('/jump/imu/data_raw') > 0, 60.0,
+                         probe.node.count_publishers('/jump/imu/data_raw') > 0, HANG_S,
                          'the node on the graph')
 
         def outputs(t0_s, count):
-            """Step the clock by 0.1 s from t0_s; return the x outputs stamped in that span."""
+            """Step the clock by 0.1 s from t0_s; return the span (ns) of those steps."""
             for k in range(count):
                 msg = Clock()
                 msg.clock.sec, msg.clock.nanosec = divmod(int(round((t0_s + 0.1 * k) * NS)), NS)
@@ -204,15 +233,17 @@ def test_the_record_time_follows_the_node_clock_across_a_jump(tmp_path):
                     probe.executor.spin_once(timeout_sec=0.05)
                     if len(imu) > seen:
                         break
-            span = (int(round(t0_s * NS)), int(round((t0_s + 0.1 * count) * NS)))
-            return [m.angular_velocity.x for m in imu if span[0] <= stamp_ns(m.header) < span[1]]
+            return int(round(t0_s * NS)), int(round((t0_s + 0.1 * count) * NS))
 
-        before = outputs(100.0, 5)                  # record time 0 .. 0.4 s
-        ahead = outputs(130.0, 5)                   # 30 .. 30.4 s
-        back = outputs(100.5, 10)                   # 0.5 .. 1.4 s
+        steps = [outputs(100.0, 5),                 # record time 0 .. 0.4 s
+                 outputs(130.0, 5),                 # 30 .. 30.4 s
+                 outputs(100.5, 10)]                # 0.5 .. 1.4 s
     finally:
         probe.close()
         assert node.stop() == 0
+    # Counted now: an output a loaded machine delivered after its step's 0.5 s counts.
+    before, ahead, back = ([m.angular_velocity.x for m in imu if start <= stamp_ns(m.header) < end]
+                           for start, end in steps)
     assert len(before) >= 3 and len(ahead) >= 3 and len(back) >= 3, (before, ahead, back)
     assert set(before) == {0.0} and set(ahead) == {0.5} and set(back) == {0.0}
     assert 'jumped ahead' in node.log() and 'jumped back' in node.log()

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
-from test_node import diag_values, NodeProcess, Probe, stamp_ns
+from test_node import diag_values, HANG_S, NodeProcess, Probe, stamp_ns
 import yaml
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -49,7 +49,7 @@ def listen_matched(probe, msg_type, topic):
 
 def wait_matched(probe, subscriptions):
     """Wait until every subscription matched its publisher (reliable volatile: no loss)."""
-    probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in subscriptions), 30.0,
+    probe.spin_until(lambda: all(s.get_publisher_count() > 0 for s in subscriptions), HANG_S,
                      'the node outputs to match')
 
 
@@ -82,9 +82,9 @@ def test_behind_a_simulator_one_output_per_input_on_sim_time(tmp_path):
         sim = run_simulator(env, tmp_path / 'sent.json', '--subscribers', '1')
         wait_for(sim, probe)
         sent = json.loads((tmp_path / 'sent.json').read_text())
-        probe.spin_until(lambda: len(out) >= len(sent['stamps_ns']), 30.0, 'every output')
+        probe.spin_until(lambda: len(out) >= len(sent['stamps_ns']), HANG_S, 'every output')
         probe.spin_until(lambda: any(diag_values(d)[1].get('input_restarts') == '1'
-                                     for d in diags), 10.0, 'diagnostics after the jump')
+                                     for d in diags), HANG_S, 'diagnostics after the jump')
     finally:
         probe.close()
         code = node.stop()
@@ -177,12 +177,12 @@ def test_redundant_imus_are_independent_unless_seeded_alike(tmp_path):
                             '/sim/imu/ideal', '--fast', '400', '--slow', '0', '--after', '0')
         wait_for(sim, probe)
         count = len(json.loads((tmp_path / 'sent.json').read_text())['stamps_ns'])
-        probe.spin_until(lambda: all(len(o) >= count for o in outs.values()), 30.0,
+        probe.spin_until(lambda: all(len(o) >= count for o in outs.values()), HANG_S,
                          'the outputs of all four')
     finally:
         probe.close()
         array.send_signal(signal.SIGINT)
-        code = array.wait(30)
+        code = array.wait(HANG_S)
         log.close()
     text = (tmp_path / 'array.log').read_text()
     assert code == 0 and 'Traceback' not in text
