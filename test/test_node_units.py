@@ -575,6 +575,27 @@ def test_launch_file_starts_the_node_executable_with_the_shipped_config(monkeypa
     assert set(declared) == {'params_file', 'namespace', 'use_sim_time'}
 
 
+def test_a_main_job_interrupted_with_every_step_sampled_is_still_130(capsys):
+    """A Ctrl-C late in the last step (a loaded machine): not 0, "all steps measured"."""
+    import dataclasses
+
+    from gyro_emulator.cli import main_job
+    from gyro_emulator.emulation import scenario
+    profile = scenario.parse_scenario({'name': 'long', 'grid': {
+        'temps_c': [25.0], 'rates_rpm': [0.0, 40.0], 'hold_s': 4.0, 'settle_s': 0.3}})
+    sampled = [scenario.StepResult(step, 0.0, 0.0, 0.1, 25.0, 1) for step in profile.steps]
+    note = 'interrupted at 7.6 s of 8 s, in step 2 of 2: step 2 was not finished'
+    assert main_job.verdict(sampled, note, 342, 'node.log') == (130,
+                                                                f'the scenario was {note}')
+    assert main_job.verdict(sampled, None, 342, 'node.log') == (
+        0, 'all 2 steps measured (342 Imu samples)')
+    empty = sampled[:1] + [dataclasses.replace(sampled[1], samples=0)]
+    status, why = main_job.verdict(empty, None, 280, 'node.log')
+    assert status == 1 and why.startswith('step 2 (40 RPM at 25 C) got no Imu sample')
+    assert main_job.verdict(empty, note, 280, 'node.log')[0] == 130
+    assert capsys.readouterr().err.count('main: error: step 2 (40 RPM') == 2
+
+
 def test_main_job_physics_column_matches_the_paper_fig6():
     from gyro_emulator.cli import main_job
     from gyro_emulator.physics import paper

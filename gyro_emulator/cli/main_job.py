@@ -209,13 +209,24 @@ def run_scenario(opts):
     atomic.write_json(summary, doc, indent=1)
     print(f'wrote {summary}; node log {node_log}'
           + (f'; bag {os.path.join(opts.out_dir, "bag")}' if recorder else ''))
+    return verdict(results, player.interrupted, len(player.imu), node_log)
+
+
+def verdict(results, interrupted, imu_count, node_log):
+    """
+    Return the scenario's (exit status, why): 130 interrupted, 1 a step without samples, 0.
+
+    An interrupted scenario is 130 even when every step got a sample (a
+    Ctrl-C late in the last step): it did not run to its end.
+    """
     missing = scenario.unmeasured(results)
     if missing:
         print(f'main: error: {missing}', file=sys.stderr)
-        if player.interrupted:
-            return 130, f'the scenario was {player.interrupted}'
+    if interrupted:
+        return 130, f'the scenario was {interrupted}'
+    if missing:
         return 1, f'{missing}; node log {node_log}'
-    return 0, f'all {len(results)} steps measured ({len(player.imu)} Imu samples)'
+    return 0, f'all {len(results)} steps measured ({imu_count} Imu samples)'
 
 
 def _run(opts):
