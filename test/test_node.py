@@ -218,13 +218,17 @@ def wall(tmp_path_factory):
                            BEST_EFFORT_DEEP),
         'diag': probe.listen(DiagnosticArray, '/diagnostics', 10),
     }
-    probe.spin_until(lambda: len(topics['imu']) > 5, HANG_S, 'the first Imu messages')
-    yield types.SimpleNamespace(
-        node=node, probe=probe, topics=topics, started=started,
-        params=AsyncParameterClient(probe.node, 'gyro_emulator'),
-        sensor_yaml=os.path.join(tmp, 'sensor_test.yaml'))
-    probe.close()
-    node.stop()
+    try:
+        probe.spin_until(lambda: len(topics['imu']) > 5, HANG_S, 'the first Imu messages')
+        yield types.SimpleNamespace(
+            node=node, probe=probe, topics=topics, started=started,
+            params=AsyncParameterClient(probe.node, 'gyro_emulator'),
+            sensor_yaml=os.path.join(tmp, 'sensor_test.yaml'))
+    finally:
+        # also when the node never spoke: a node left running answers on this
+        # ROS domain in the tests (and runs) after this one
+        probe.close()
+        node.stop()
 
 
 def fresh(wall):

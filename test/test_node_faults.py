@@ -74,15 +74,29 @@ def played(tmp_path_factory):
            'truth': probe.listen(Vector3Stamped, 'gyro_emulator/truth/rate', EVERY),
            'fault': probe.listen(DiagnosticArray, 'gyro_emulator/truth/fault', LATCHED),
            'diag': probe.listen(DiagnosticArray, '/diagnostics', 100)}
-    probe.spin_until(lambda: len(got['imu']) > 20 and got['fault'], HANG_S, 'the node')
-    scenario = subprocess.Popen([sys.executable, '-m', 'gyro_emulator.ros.scenario',
-                                 str(profile)], env=env, cwd=ROOT, text=True,
-                                stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    probe.spin_until(lambda: scenario.poll() is not None, HANG_S, 'the scenario')
-    probe.spin_for(0.2)
-    yield got, scenario.stdout.read(), node, probe
-    probe.close()
-    node.stop()
+    scenario = None
+    try:
+        probe.spin_until(lambda: len(got['imu']) > 20 and got['fault'], HANG_S, 'the node')
+        scenario = subprocess.Popen([sys.executable, '-m', 'gyro_emulator.ros.scenario',
+                                     str(profile)], env=env, cwd=ROOT, text=True,
+                                    stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+        probe.spin_until(lambda: scenario.poll() is not None, HANG_S, 'the scenario')
+
+        def heard_out():
+            """Every fault's end on ~/truth/fault, and Imu samples after the last one."""
+            found = windows(got['fault'])
+            return len(found) == len(SCHEDULE) and got['imu'] and stamp_ns(
+                got['imu'][-1].header) > max(end for _, end in found.values())
+        # a loaded machine can leave the node behind the scenario's end
+        probe.spin_until(heard_out, HANG_S, 'every fault window and the samples after it')
+        yield got, scenario.stdout.read(), node, probe
+    finally:
+        # also after a failed start: no process is left answering on this ROS domain
+        if scenario is not None and scenario.poll() is None:
+            scenario.kill()
+            scenario.wait()
+        probe.close()
+        node.stop()
 
 
 def series(got, start_ns, end_ns, axis):
