@@ -729,10 +729,14 @@ def test_sim_time_output_is_exactly_the_offline_model_and_reproducible(tmp_path)
             """Warm-up samples before T0 until every node's diagnostics satisfy it."""
             for k in range(first_k, first_k + 150):
                 tick(T0_NS - (300 - k) * PERIOD_NS)
+                # judged on a report of every node received after this tick (a
+                # loaded machine can hold one back longer than any fixed wait)
+                diags.clear()
+                probe.spin_until(lambda: len(latest_diag_values()) == 4, HANG_S,
+                                 'a report from every node')
                 latest = latest_diag_values()
-                if len(latest) == 4 and all(predicate(v) for v in latest.values()):
+                if all(predicate(v) for v in latest.values()):
                     return k + 1
-                probe.spin_for(0.02)
             raise AssertionError(f'{what}: {latest_diag_values()}')
         # Handshake: resend the resting inputs (zero rate, 25 C, level at 1 g:
         # the node's defaults, so its output is unchanged) until every node has
