@@ -179,9 +179,15 @@ def test_faults_set_at_run_time_and_refused_values(played):
     probe.spin_until(lambda: any(
         {kv.key: kv.value for kv in m.status[0].values}['state'] == 'active'
         for m in got['fault']), HANG_S, 'the dropout to act')
-    got['imu'].clear()
-    probe.spin_for(0.3)
-    assert not got['imu']                       # a dropout stops publishing
+    since_ns = max(int({kv.key: kv.value for kv in m.status[0].values}['since_ns'])
+                   for m in got['fault'])
+    # 0.3 s of node time in the dropout, and 0.1 s more (any Imu of those samples
+    # was published long before): the truth says the node sampled on.
+    probe.spin_until(lambda: any(stamp_ns(m.header) >= since_ns + 400_000_000
+                                 for m in got['truth']), HANG_S, '0.4 s of dropout')
+    # a dropout stops publishing (a loaded machine can deliver older Imu late)
+    assert not [m for m in got['imu'] if since_ns <= stamp_ns(m.header) < since_ns + 3 * 10**8]
+    assert series(got, since_ns - 10**8, since_ns, 'x').size > 0     # ... not before it
     done = probe.call(client.set_parameters([Parameter('fault.type', value='none')]))
     assert done.results[0].successful
     probe.spin_until(lambda: len(got['imu']) > 5, HANG_S, 'the output back')
