@@ -954,6 +954,35 @@ def test_a_signal_during_start_up_stops_the_node_without_a_traceback(tmp_path, d
     assert 'Traceback' not in text and 'Error occurred' not in text, text
 
 
+def test_a_sigint_between_the_node_handler_and_rclpys_stops_the_node(tmp_path):
+    """
+    A Ctrl-C after the start-up's own SIGINT handler is set, before rclpy.init sets its own.
+
+    A loaded machine once put the 2.4 s signal of the test above there: the
+    node came up and ran on until a second SIGINT. Here rclpy.init raises it
+    first, so it lands in that gap every time.
+    """
+    script = ('import signal, sys\nimport rclpy\nreal = rclpy.init\n\n'
+              'def init(*args, **kwargs):\n    signal.raise_signal(signal.SIGINT)\n'
+              '    return real(*args, **kwargs)\n\n'
+              'rclpy.init = init\nfrom gyro_emulator.cli.executables import run_node\n'
+              'sys.exit(run_node())\n')
+    log = tmp_path / 'node.log'
+    with open(log, 'w') as handle:
+        proc = subprocess.Popen([sys.executable, '-c', script, '--ros-args', '-p',
+                                 'rate_hz:=100.0'], env=ros_env(), cwd=ROOT, stdout=handle,
+                                stderr=subprocess.STDOUT)
+        try:
+            code = proc.wait(HANG_S)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    text = log.read_text()
+    assert code == 130 and 'Traceback' not in text, text
+    assert 'gyro emulator up' not in text, text
+
+
 def test_main_job_plays_a_profile_against_the_node_and_prints_the_summary(tmp_path):
     profile = tmp_path / 'short.yaml'
     profile.write_text(yaml.safe_dump({

@@ -27,6 +27,9 @@ SHUTDOWN_POLL_S = 0.25
 ERROR_STATUS = 2
 #: Errors of a node's construction that are the user's input, reported as one line.
 INPUT_ERRORS = (ValueError, ParameterException, OSError)
+#: Set by the SIGINT handler under rclpy's (:func:`_quiet_sigint`): a SIGINT that
+#: came before ``rclpy.init`` installed its handler reached only that one.
+_SIGINT_SEEN = threading.Event()
 
 
 def flag_signals(stop):
@@ -152,12 +155,18 @@ def _start_ros(args, program, warm_up):
     # handler it found: with Python's default that raises KeyboardInterrupt
     # inside whatever callback runs, which the events executor logs with its
     # traceback. With this one the spin loop just sees the context go down.
+    _SIGINT_SEEN.clear()
     signal.signal(signal.SIGINT, _quiet_sigint)
     try:
         rclpy.init(args=args)
     except Exception as exc:  # noqa: B902 - rcl reports bad arguments and params files so
         print(f'{program}: error: cannot start ROS: {first_line(exc)}', file=sys.stderr)
         return ERROR_STATUS
+    if _SIGINT_SEEN.is_set():
+        # A Ctrl-C between the two handlers (a loaded machine widens the gap): rclpy
+        # never saw it, and the node would run on until a second one.
+        rclpy.try_shutdown()
+        return INTERRUPTED_STATUS
     return None
 
 
@@ -172,7 +181,13 @@ def _log_shutdown(node):
 
 
 def _quiet_sigint(signum, frame):
-    """Python's SIGINT handler under rclpy's: rclpy already shut the context down."""
+    """
+    Python's SIGINT handler under rclpy's: rclpy already shut the context down.
+
+    Before ``rclpy.init`` installed rclpy's handler, this one alone ran: it
+    notes the signal, which :func:`_start_ros` acts on after the init.
+    """
+    _SIGINT_SEEN.set()
 
 
 def first_line(exc):
