@@ -211,3 +211,74 @@ def test_replay_refuses_a_remap_that_gives_a_topic_two_types(tmp_path):
         'replay: error: --remap /temp:=/imu/data_raw: /imu/data_raw would carry /imu/data_raw '
         '(sensor_msgs/msg/Imu) and /temp (sensor_msgs/msg/Temperature): a topic has one type; '
         'remap one elsewhere or leave it out of --topics']
+
+
+def _replay_run(args, cwd, timeout=120):
+    return subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.replay', *args],
+                          env=ros_env(), cwd=str(cwd), capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def _two_topic_bag(path):
+    """Write /a (10 messages over 0.09 s), /b (100 over 0.99 s) and /empty (none)."""
+    with bag.BagWriter(path) as writer:
+        for name, count in (('/a', 10), ('/b', 100), ('/empty', 0)):
+            writer.add_topic(name, IMU)
+            stamps = T0_NS + np.arange(count, dtype=np.int64) * 10_000_000
+            if count:
+                writer.write_batches([(name, cdr.encode(IMU, stamps, np.zeros((count, 37)),
+                                                        'imu'), stamps)])
+    return path
+
+
+def test_replay_refuses_what_it_would_silently_do_wrong(tmp_path):
+    source = _two_topic_bag(str(tmp_path / 'two'))
+    for args, line in (
+            # a repeated --remap took the last rule without a word
+            (['--remap', '/a:=/x', '/a:=/y'], '--remap /a:=/x and --remap /a:=/y: two names '
+                                              'for /a; give one rule per topic'),
+            # an offset past the end published 0 messages with exit 0
+            (['--start-offset', '5'], f'--start-offset = 5.0 is past the end of bag {source}: '
+                                      'its messages span 0.99 s; allowed [0, 0.99] s'),
+            (['--start-offset', '1e300'], '--start-offset = 1e+300 is past the end of bag'),
+            (['--topics', '/a', '--start-offset', '0.5'],
+             '--start-offset = 0.5 leaves no message of /a to replay: the last comes before it '
+             f'(bag {source} spans 0.99 s)'),
+            (['--topics', '/empty'], f'nothing to replay: bag {source} has no message on /empty'),
+            # inf waited forever, or was a traceback (OverflowError)
+            (['--wait-for-subscribers', 'inf'],
+             '--wait-for-subscribers = inf is out of range: allowed [0, inf) s'),
+            (['--delay', 'inf'], '--delay = inf is out of range: allowed [0, inf) s'),
+            (['--start-offset', 'inf'],
+             '--start-offset = inf is out of range: allowed [0, inf) s'),
+            (['--delay', 'nan'], '--delay = nan is out of range: allowed [0, inf) s')):
+        out = _replay_run([source, *args], tmp_path)
+        assert out.returncode == 2, (args, out.stderr)
+        assert out.stderr.strip().splitlines() == [f'replay: error: {line}'] or (
+            out.stderr.startswith(f'replay: error: {line}')
+            and out.stderr.strip().count('\n') == 0), (args, out.stderr)
+    # the same rule twice is one rule; an offset inside the bag says what it replays
+    out = _replay_run([source, '--remap', '/b:=/x', '/b:=/x', '--topics', '/b', '/a',
+                       '--start-offset', '0.5', '--rate', '10'], tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert 'replay: published 50 messages' in out.stdout
+    assert f'replaying {source} from 0.5 s on (the last 0.490 s of its 0.990 s; 110 messages ' \
+        'in all) at rate 10.0' in out.stderr, out.stderr
+
+
+def test_replay_delay_ends_on_sigint(tmp_path):
+    source = _two_topic_bag(str(tmp_path / 'two'))
+    replay = _start(['gyro_emulator.ros.replay', source, '--wait-for-subscribers', '0.01',
+                     '--delay', '600'], ros_env(), stdout=subprocess.PIPE,
+                    stderr=subprocess.PIPE, text=True)
+    try:
+        for line in replay.stderr:      # the wait for subscribers ends: the delay begins
+            if 'no subscriber on' in line:
+                break
+        replay.send_signal(signal.SIGINT)
+        out, _ = replay.communicate(timeout=60)    # the delay slept on through SIGINT
+    finally:
+        if replay.poll() is None:
+            replay.kill()
+            replay.wait()
+    assert replay.returncode == 0 and 'replay: published 0 messages' in out
