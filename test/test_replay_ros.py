@@ -251,7 +251,13 @@ def test_replay_refuses_what_it_would_silently_do_wrong(tmp_path):
             (['--delay', 'inf'], '--delay = inf is out of range: allowed [0, inf) s'),
             (['--start-offset', 'inf'],
              '--start-offset = inf is out of range: allowed [0, inf) s'),
-            (['--delay', 'nan'], '--delay = nan is out of range: allowed [0, inf) s')):
+            (['--delay', 'nan'], '--delay = nan is out of range: allowed [0, inf) s'),
+            # a loop over one instant published about 12 000 messages a second
+            (['--loop', '--start-offset', '0.99'], f'--loop: the messages to replay of bag '
+                                                   f'{source} are all at one instant: a loop '
+                                                   'would publish them as fast as it can; '
+                                                   'replay them once, without --loop'),
+            (['--loop', '--topics', '/a', '--start-offset', '0.09'], '--loop: the messages')):
         out = _replay_run([source, *args], tmp_path)
         assert out.returncode == 2, (args, out.stderr)
         assert out.stderr.strip().splitlines() == [f'replay: error: {line}'] or (
@@ -264,6 +270,23 @@ def test_replay_refuses_what_it_would_silently_do_wrong(tmp_path):
     assert 'replay: published 50 messages' in out.stdout
     assert f'replaying {source} from 0.5 s on (the last 0.490 s of its 0.990 s; 110 messages ' \
         'in all) at rate 10.0' in out.stderr, out.stderr
+
+
+def test_a_bag_topic_that_is_not_a_ros_name_is_named_as_the_bags(tmp_path):
+    # the error blamed "--remap /1imu:=/1imu", an option the user never gave
+    source = str(tmp_path / 'other')
+    stamps = T0_NS + np.arange(5, dtype=np.int64) * 10_000_000
+    with bag.BagWriter(source) as writer:
+        writer.add_topic('/1imu', IMU)
+        writer.write_batches([('/1imu', cdr.encode(IMU, stamps, np.zeros((5, 37)), 'imu'),
+                               stamps)])
+    out = _replay_run([source], tmp_path)
+    assert out.returncode == 2 and out.stderr.strip().splitlines() == [
+        f"replay: error: topic '/1imu' of bag {source} is not a ROS topic name: topic name "
+        'token must not start with a number; publish it as another with --remap '
+        '/1imu:=NEW_NAME, or choose the topics with --topics'], out.stderr
+    out = _replay_run([source, '--remap', '/1imu:=/imu1', '--rate', '10'], tmp_path)
+    assert out.returncode == 0 and 'replay: published 5 messages' in out.stdout, out.stderr
 
 
 def test_replay_delay_ends_on_sigint(tmp_path):

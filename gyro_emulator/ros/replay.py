@@ -93,7 +93,7 @@ def _check(opts):
     return remap
 
 
-def start_time_ns(reader, topics, offset_s):
+def start_time_ns(reader, topics, offset_s, loop=False):
     """
     Return the bag time replay starts from, refusing a selection without a message.
 
@@ -101,6 +101,8 @@ def start_time_ns(reader, topics, offset_s):
     must hold a message: an offset past the bag's last message, or topics
     without a message from it on, is a one-line ValueError, as every command
     refuses an empty selection (an empty topic, a CSV without data rows).
+    With ``loop``, a bag whose messages are all at one instant is refused:
+    it would be published as fast as the loop turns.
     """
     chosen = sorted(reader.topics) if topics is None else list(topics)
     if any(t not in reader.topics for t in chosen):
@@ -113,12 +115,21 @@ def start_time_ns(reader, topics, offset_s):
         raise ValueError(f'--start-offset = {offset_s} is past the end of bag {reader.path}: '
                          f'its messages span {span_s:.9g} s; allowed [0, {span_s:.9g}] s')
     start_ns = reader.start_time_ns + int(round(offset_s * NS_PER_S))
-    if offset_s > 0 and topics is not None and next(
-            iter(reader.messages(chosen, start_ns=start_ns)), None) is None:
+    if offset_s > 0 and topics is not None and not _any_message(reader, chosen, start_ns):
         raise ValueError(f'--start-offset = {offset_s} leaves no message of {", ".join(chosen)} '
                          f'to replay: the last comes before it (bag {reader.path} spans '
                          f'{span_s:.9g} s)')
+    if loop and not (reader.end_time_ns > start_ns if topics is None
+                     else _any_message(reader, chosen, start_ns + 1)):
+        raise ValueError(f'--loop: the messages to replay of bag {reader.path} are all at one '
+                         'instant: a loop would publish them as fast as it can; replay them '
+                         'once, without --loop')
     return start_ns
+
+
+def _any_message(reader, topics, start_ns):
+    """Return whether ``topics`` of ``reader`` have a message at or after ``start_ns``."""
+    return next(iter(reader.messages(topics, start_ns=start_ns)), None) is not None
 
 
 def check_accel_meaning(reader, topics=None, remap=None):
@@ -207,8 +218,14 @@ class Player:
                 self.publishers[name] = node.create_publisher(message_class, target, qos)
             except InvalidTopicNameException as exc:
                 reason = str(exc).splitlines()[0].replace('Invalid topic name: ', '')
+                reason = reason.rstrip(':')
+                if name not in remap:       # the bag's own name (another tool wrote it)
+                    raise ValueError(f'topic {name!r} of bag {reader.path} is not a ROS topic '
+                                     f'name: {reason}; publish it as another with --remap '
+                                     f'{name}:=NEW_NAME, or choose the topics with '
+                                     '--topics') from None
                 raise ValueError(f'--remap {name}:={target}: {target!r} is not a ROS topic '
-                                 f'name: {reason.rstrip(":")}') from None
+                                 f'name: {reason}') from None
         self.clock_publisher = None
         if self.clock_period_s is not None:
             self._clock_msg = Clock()
@@ -318,7 +335,7 @@ def main(args=None):
         remap = _check(opts)
         reader = bag.BagReader(opts.bag, tolerant=True)
         check_accel_meaning(reader, opts.topics, remap)
-        start_ns = start_time_ns(reader, opts.topics, opts.start_offset)
+        start_ns = start_time_ns(reader, opts.topics, opts.start_offset, opts.loop)
         for note in reader.problems:
             print(f'replay: warning: incomplete bag, {note}', file=sys.stderr)
         # Signals only set a flag: the loop stops between messages and the final
