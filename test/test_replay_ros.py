@@ -231,9 +231,25 @@ def _two_topic_bag(path):
     return path
 
 
+#: Runs ``replay``'s main on each argument list in one process (these are refused
+#: before ROS starts): prints {repr(args): [exit status, stderr]} as JSON.
+REFUSALS = r"""
+import contextlib, io, json, sys
+from gyro_emulator.ros import replay
+out = {}
+for args in json.loads(sys.argv[1]):
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        status = replay.main(args)
+    out[repr(args)] = [status, err.getvalue()]
+print(json.dumps(out))
+"""
+
+
 def test_replay_refuses_what_it_would_silently_do_wrong(tmp_path):
+    import json
     source = _two_topic_bag(str(tmp_path / 'two'))
-    for args, line in (
+    cases = (
             # a repeated --remap took the last rule without a word
             (['--remap', '/a:=/x', '/a:=/y'], '--remap /a:=/x and --remap /a:=/y: two names '
                                               'for /a; give one rule per topic'),
@@ -257,14 +273,19 @@ def test_replay_refuses_what_it_would_silently_do_wrong(tmp_path):
                                                    f'{source} are all at one instant: a loop '
                                                    'would publish them as fast as it can; '
                                                    'replay them once, without --loop'),
-            (['--loop', '--topics', '/a', '--start-offset', '0.09'], '--loop: the messages')):
-        out = _replay_run([source, *args], tmp_path)
-        assert out.returncode == 2, (args, out.stderr)
-        assert out.stderr.strip().splitlines() == [f'replay: error: {line}'] or (
-            out.stderr.startswith(f'replay: error: {line}')
-            and out.stderr.strip().count('\n') == 0), (args, out.stderr)
+            (['--loop', '--topics', '/a', '--start-offset', '0.09'], '--loop: the messages'))
+    run = subprocess.run([sys.executable, '-c', REFUSALS, json.dumps(
+        [[source, *args] for args, _ in cases])], env=ros_env(), cwd=ROOT,
+        capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    refusals = json.loads(run.stdout)
+    for args, line in cases:
+        status, err = refusals[repr([source, *args])]
+        assert status == 2, (args, err)
+        assert err.startswith(f'replay: error: {line}') and err.strip().count('\n') == 0, \
+            (args, err)
     # the same rule twice is one rule; an offset inside the bag says what it replays
-    out = _replay_run([source, '--remap', '/b:=/x', '/b:=/x', '--topics', '/b', '/a',
+    out = _replay_run([source, '--remap', '/b:=/x', '/b:=/x', '--topics', '/b', '/a', '/b',
                        '--start-offset', '0.5', '--rate', '10'], tmp_path)
     assert out.returncode == 0, out.stderr
     assert 'replay: published 50 messages' in out.stdout

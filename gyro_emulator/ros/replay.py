@@ -81,6 +81,8 @@ def _check(opts):
         raise ValueError(f'--clock = {opts.clock} is out of range: allowed (0, 10000] Hz')
     for flag in SECONDS_OPTIONS:
         program.check_seconds(flag, getattr(opts, flag[2:].replace('-', '_')))
+    if opts.topics is not None:     # a topic named twice is replayed (and counted) once
+        opts.topics = list(dict.fromkeys(opts.topics))
     remap = {}
     for rule in opts.remap:
         source, sep, target = rule.partition(':=')
