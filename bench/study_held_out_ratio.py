@@ -11,7 +11,12 @@ of its held-out RMSE to that of the model it extends over a set of records,
 against the rule the fits are held to: no candidate's held-out RMSE above
 the upper end of the 95 % jackknife interval of the held-out RMSE of the
 model it extends (``cv.CrossValidation.interval``: how far the record's own
-blocks move that RMSE, the spread of an RMSE the noise can make).
+blocks move that RMSE, the spread of an RMSE the noise can make). Beside it,
+the selection's own fold test run the other way (``cv.fold_test`` with the
+candidate as the reference: a one-sided corrected resampled t-test that the
+candidate's held-out SSE is higher, fold by fold, with no allowance for the
+cost of fitting noise): the scores significantly worse than the model they
+extend at 5 % and 1 %.
 
 The records: the truth generator's lab records (25 Hz, the ``gyro-emulator
 truth`` defaults) for every effect it can hide and ``--seeds`` seeds; the
@@ -33,7 +38,7 @@ import time
 import benchenv  # one core: pins the BLAS thread pools before numpy loads
 
 from gyro_emulator.analysis.diagnose import diagnose, pipeline  # noqa: E402
-from gyro_emulator.analysis.diagnose.cv import CrossValidation  # noqa: E402
+from gyro_emulator.analysis.diagnose.cv import CrossValidation, fold_test  # noqa: E402
 from gyro_emulator.emulation.truth.effects import TRUTH_EFFECTS  # noqa: E402
 from gyro_emulator.emulation.truth.generator import make_truth  # noqa: E402
 import numpy as np  # noqa: E402
@@ -80,6 +85,7 @@ def ratios(record, label):
             rows.append({'record': label, 'effect': cand.effect, 'model': list(key[:-1]),
                          'ratio': ev.rmse / ref.rmse, 'bound': high / ref.rmse,
                          'ratio_to_baseline': ev.rmse / result.baseline.rmse_rad_s,
+                         'p_worse': fold_test(ev.sse_fold, ref.sse_fold),
                          'significant': cand.significant})
     return rows
 
@@ -106,17 +112,24 @@ def real_records(seeds, effects, first=0):
 
 def table(rows):
     """Print the worst ratio per candidate against its bound."""
-    print(f'{"candidate":26s} {"worst ratio":>12s} {"its bound":>10s} {"over bound":>11s}  '
-          'record (model extended)')
+    print(f'{"candidate":26s} {"worst ratio":>12s} {"its bound":>10s} {"over bound":>11s} '
+          f'{"worse 5 %":>10s}  record (model extended)')
     for effect in sorted({r['effect'] for r in rows}):
         at = [r for r in rows if r['effect'] == effect]
         worst = max(at, key=lambda r: r['ratio'])
         over = sum(r['ratio'] > r['bound'] for r in at)
+        worse = sum(r['p_worse'] < 0.05 for r in at)
         print(f'{effect:26s} {worst["ratio"]:12.4g} {worst["bound"]:10.4g} '
-              f'{over:4d}/{len(at):<6d}  {worst["record"]} ({" + ".join(worst["model"])})')
+              f'{over:4d}/{len(at):<6d} {worse:4d}/{len(at):<5d}  {worst["record"]} '
+              f'({" + ".join(worst["model"])})')
     over = [r for r in rows if r['ratio'] > r['bound']]
     print(f'{len(over)} of {len(rows)} candidate scores over the bound; worst excess '
           f'{max((r["ratio"] / r["bound"] for r in rows), default=1.0):.4g}x the bound')
+    for level in (0.05, 0.01):
+        worse = [r for r in rows if r['p_worse'] < level]
+        print(f'{len(worse)} of {len(rows)} significantly worse than the model they extend at '
+              f'{level:.0%} (fold test reversed; {sum(r["significant"] for r in worse)} of '
+              f'them significant as causes)')
 
 
 def main():

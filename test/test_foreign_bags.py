@@ -78,9 +78,10 @@ def test_a_topic_on_two_connections_counts_both(tmp_path, capsys):
     status, out, _ = _cli(['bag', 'info', path], capsys)
     assert status == 0
     assert f'{COUNT} msgs' in out and 'Notice' not in out and 'repair' not in out
-    assert bag.repair_bag(path).describe()
+    assert 'the bag is sound' in bag.repair_bag(path).describe()
+    # repair keeps rosbags' entry per connection, which counts the topic's messages whole
     meta = files.load_metadata(os.path.join(path, 'metadata.yaml'))
-    assert [t['message_count'] for t in meta['topics_with_message_count']] == [COUNT]
+    assert [t['message_count'] for t in meta['topics_with_message_count']] == [COUNT // 2] * 2
 
 
 def test_big_endian_cdr_reads_as_little_endian(tmp_path):
@@ -121,6 +122,59 @@ def test_compressed_rosbag2_files_are_refused_and_left_alone(tmp_path, capsys, m
     assert {name: open(os.path.join(path, name), 'rb').read()
             for name in os.listdir(path)} == before
     assert files.load_metadata(meta_path)['compression_mode'] == mode
+
+
+def _contents(path):
+    """Return {name: (bytes, mtime ns)} of the files in ``path``."""
+    return {name: (open(os.path.join(path, name), 'rb').read(),
+                   os.stat(os.path.join(path, name)).st_mtime_ns) for name in os.listdir(path)}
+
+
+def test_repairing_a_sound_bag_changes_no_byte(tmp_path, capsys):
+    # a rosbags bag lists a topic once per connection, with each one's QoS and
+    # the type hash, and ros_distro: rosbags; repair rewrote it as one entry
+    # without them, version 9 and jazzy, though nothing was wrong
+    path = _write(tmp_path / 'sound', connections=2)
+    before = _contents(path)
+    status, out, err = _cli(['bag', 'repair', path], capsys)
+    assert status == 0 and err == ''
+    assert 'the bag is sound' in out and 'kept byte for byte' in out and 'rewrote' not in out
+    assert _contents(path) == before
+    copy = str(tmp_path / 'copy')
+    status, out, err = _cli(['bag', 'repair', path, '--out', copy], capsys)
+    assert status == 0 and 'the bag is sound' in out
+    assert {n: b for n, (b, _) in _contents(copy).items()} == \
+        {n: b for n, (b, _) in before.items()}
+
+
+@pytest.mark.parametrize('field,value,said', [
+    ('message_count', 399, 'metadata.yaml counts 399 messages, the files hold 400'),
+    ('starting_time', {'nanoseconds_since_epoch': T0_NS - 7},
+     f'metadata.yaml gives starting_time {T0_NS - 7} ns, the files {T0_NS} ns'),
+    ('duration', {'nanoseconds': 5}, 'metadata.yaml gives duration 5 ns, the files 1995000000 ns'),
+])
+def test_a_metadata_yaml_that_disagrees_is_said_and_rewritten(tmp_path, capsys, field,
+                                                              value, said):
+    import yaml
+    path = _write(tmp_path / 'off', connections=1)
+    meta_path = os.path.join(path, 'metadata.yaml')
+    with open(meta_path, encoding='utf-8') as handle:
+        doc = yaml.safe_load(handle)
+    doc['rosbag2_bagfile_information'][field] = value
+    with open(meta_path, 'w', encoding='utf-8') as handle:
+        yaml.safe_dump(doc, handle)
+    status, out, _ = _cli(['bag', 'info', path], capsys)
+    assert status == 0 and f'Notice:           {said}' in out
+    assert 'run: gyro-emulator bag repair' in out
+    mcap_before = _contents(path)['off.mcap']
+    status, out, _ = _cli(['bag', 'repair', path], capsys)
+    line = next(n for n in out.splitlines() if said in n)
+    assert status == 0 and line.endswith(': rewrote metadata.yaml')
+    assert _contents(path)['off.mcap'] == mcap_before
+    status, out, _ = _cli(['bag', 'info', path], capsys)
+    assert 'Notice' not in out and 'repair' not in out
+    status, out, _ = _cli(['bag', 'repair', path], capsys)
+    assert 'the bag is sound' in out
 
 
 def test_a_sqlite3_bag_is_refused_naming_its_storage(tmp_path, capsys):

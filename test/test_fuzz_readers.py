@@ -191,3 +191,54 @@ def test_bag_info_and_repair_report_a_corrupt_chunk_of_a_complete_bag(tmp_path):
     repaired = bag.BagReader(path)
     assert repaired.message_count == reader.message_count - lost
     assert repaired.verify() == ([], 0)
+
+
+def _quoted(path, names, rows, quoting):
+    """Write ``rows`` under ``names`` with Python's csv module (pandas' quoting options)."""
+    import csv
+    with open(path, 'w', newline='', encoding='utf-8') as handle:
+        writer = csv.writer(handle, quoting=quoting)
+        writer.writerow(names)
+        writer.writerows(rows)
+    return str(path)
+
+
+@pytest.mark.parametrize('quoting', ['QUOTE_NONNUMERIC', 'QUOTE_ALL'])
+def test_standard_csv_quoting_reads_as_the_plain_file(tmp_path, capsys, quoting):
+    import csv
+    names = ['time_s', 'gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s', 'temp_c']
+    rng = np.random.default_rng(7)
+    rows = np.column_stack([np.arange(2000) / 100.0, rng.normal(0.0, 1e-3, (2000, 3)),
+                            np.full(2000, 25.0)]).tolist()
+    plain = str(tmp_path / 'plain.csv')
+    csvio.write_csv(plain, {n: np.array([r[i] for r in rows]) for i, n in enumerate(names)},
+                    '%r')
+    path = _quoted(tmp_path / 'quoted.csv', names, rows, getattr(csv, quoting))
+    assert open(path).readline().startswith('"time_s","gyro_x_rad_s"')
+    want = csvio.read_csv(plain, required=('time_s',))
+    got = csvio.read_csv(path, required=('time_s',))
+    assert list(got) == names
+    for name in names:
+        np.testing.assert_array_equal(got[name], want[name])
+    blocks = list(csvio.iter_csv_blocks(path, required=('time_s',), block_rows=700))
+    np.testing.assert_array_equal(np.concatenate([b[1]['time_s'] for b in blocks]),
+                                  want['time_s'])
+    from gyro_emulator import cli
+    assert cli.main(['allan', path, '--axis', 'y']) == 0, capsys.readouterr().err
+
+
+@pytest.mark.parametrize('text,message', [
+    ('"time_s,gyro_rad_s\n0,1\n', r'row 1 \'"time_s,gyro_rad_s\' is not valid CSV \(unexpected '
+                                  r'end of data\)'),
+    ('"time_s"x,gyro_rad_s\n0,1\n', r'row 1 .* is not valid CSV'),
+    ('"time_s","gyro_rad_s",""\n0,1,2\n', r'header row 1 has an empty column name'),
+    ('"time_s","gyro_rad_s",gyro_rad_s\n0,1,2\n', r'duplicate column\(s\) gyro_rad_s'),
+    ('"time_s","gyro_rad_s"\n"0","1"\n"0.01","1,5"\n', r'row 3, column gyro_rad_s: \'1,5\' is '
+                                                       r'not a number'),
+])
+def test_bad_quoting_is_one_line_naming_the_row(tmp_path, text, message):
+    path = tmp_path / 'bad.csv'
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message) as caught:
+        csvio.read_csv(str(path), required=('time_s',))
+    assert _one_line(caught.value)

@@ -113,7 +113,11 @@ def _check_with_rosbags(path, reader):
     (['--topics', '/a//b'], "--topics = '/a//b' is not a ROS topic name: topic name must "
      "not contain repeated '/'"),
     (['-x', 'bad name!'], "--exclude = 'bad name!' is not a ROS topic name"),
-], ids=['regex', 'topic', 'topic_slashes', 'exclude'])
+    # the API's words (BagWriter.flush_interval_s) and an empty bag directory left behind
+    (['--flush-interval', '0'], '--flush-interval = 0.0 is out of range: allowed (0, 3600] s'),
+    (['--flush-interval', 'inf'], '--flush-interval = inf is out of range: allowed (0, 3600] s'),
+    (['--duration', 'inf'], '--duration = inf is out of range: allowed (0, inf) s'),
+], ids=['regex', 'topic', 'topic_slashes', 'exclude', 'flush_0', 'flush_inf', 'duration_inf'])
 def test_a_bad_topic_or_pattern_is_one_line_and_leaves_no_bag(tmp_path, args, message):
     path = tmp_path / 'rec'
     out = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.recorder', '-o', str(path),
@@ -124,6 +128,24 @@ def test_a_bad_topic_or_pattern_is_one_line_and_leaves_no_bag(tmp_path, args, me
     assert message in out.stderr and 'Traceback' not in out.stderr, out.stderr
     assert out.stderr.strip().count('\n') == 0, out.stderr
     assert not path.exists()
+
+
+def test_an_existing_output_is_refused_with_the_option_to_use(tmp_path):
+    # BagWriter's "pass overwrite" is the API's word: the recorder says --overwrite
+    full = tmp_path / 'full'
+    full.mkdir()
+    (full / 'notes.txt').write_text('mine')
+    for path, message in ((full, f'recorder: error: --output {full} exists: pass --overwrite '
+                                 'to replace it'),
+                          (full / 'notes.txt', f'recorder: error: --output {full}/notes.txt is '
+                                               'a file: give a directory name')):
+        out = subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.recorder', '-o',
+                              str(path)], env=ros_env(), cwd=ROOT, capture_output=True,
+                             text=True, timeout=60)
+        assert out.returncode == 2 and out.stderr.strip() == message, out.stderr
+    assert os.listdir(full) == ['notes.txt']
+    with pytest.raises(FileExistsError, match=r'pass overwrite=True\)$'):
+        bag.BagWriter(str(full))
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])

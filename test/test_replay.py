@@ -192,6 +192,24 @@ def test_replay_bad_options_are_clean_messages(tmp_path, args, message):
     assert 'Traceback' not in out.stderr
 
 
+@pytest.mark.parametrize('args,message', [
+    # named as the model's fields (GyroModel: ambient_temp_c, replay.rate_hz,
+    # replay.seed), after the bag was read; an unused --temp-c nan passed
+    (['--rate-hz', 'inf'], '--rate-hz inf is out of range: allowed (0, 1e6] Hz'),
+    (['--temp-c', 'nan'], '--temp-c nan is out of range: allowed [-60, 200] C'),
+    (['--temp-c', '1e9'], '--temp-c 1000000000.0 is out of range: allowed [-60, 200] C'),
+    (['--seed', '-1'], '--seed -1 is out of range: allowed >= 0'),
+])
+def test_replay_options_are_refused_in_their_own_words_before_the_work(tmp_path, args,
+                                                                       message):
+    path = str(tmp_path / 'robot')
+    _robot_bag(path, seconds=1.0)
+    out = _cli('replay', path, '--out', str(tmp_path / 'out'), *args)
+    assert out.returncode == 2 and out.stderr.startswith(f'gyro-emulator replay: error: '
+                                                         f'{message}'), out.stderr
+    assert out.stderr.count('\n') == 1 and not os.path.exists(tmp_path / 'out')
+
+
 @pytest.mark.parametrize('topic, column, value, message', [
     ('/robot/imu', 14, np.nan, r'/robot/imu angular_velocity is not finite at message 7 '
                                r'\(1 of 100 messages\)'),

@@ -211,3 +211,118 @@ def test_replay_refuses_a_remap_that_gives_a_topic_two_types(tmp_path):
         'replay: error: --remap /temp:=/imu/data_raw: /imu/data_raw would carry /imu/data_raw '
         '(sensor_msgs/msg/Imu) and /temp (sensor_msgs/msg/Temperature): a topic has one type; '
         'remap one elsewhere or leave it out of --topics']
+
+
+def _replay_run(args, cwd, timeout=120):
+    return subprocess.run([sys.executable, '-m', 'gyro_emulator.ros.replay', *args],
+                          env=ros_env(), cwd=str(cwd), capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def _two_topic_bag(path):
+    """Write /a (10 messages over 0.09 s), /b (100 over 0.99 s) and /empty (none)."""
+    with bag.BagWriter(path) as writer:
+        for name, count in (('/a', 10), ('/b', 100), ('/empty', 0)):
+            writer.add_topic(name, IMU)
+            stamps = T0_NS + np.arange(count, dtype=np.int64) * 10_000_000
+            if count:
+                writer.write_batches([(name, cdr.encode(IMU, stamps, np.zeros((count, 37)),
+                                                        'imu'), stamps)])
+    return path
+
+
+#: Runs ``replay``'s main on each argument list in one process (these are refused
+#: before ROS starts): prints {repr(args): [exit status, stderr]} as JSON.
+REFUSALS = r"""
+import contextlib, io, json, sys
+from gyro_emulator.ros import replay
+out = {}
+for args in json.loads(sys.argv[1]):
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        status = replay.main(args)
+    out[repr(args)] = [status, err.getvalue()]
+print(json.dumps(out))
+"""
+
+
+def test_replay_refuses_what_it_would_silently_do_wrong(tmp_path):
+    import json
+    source = _two_topic_bag(str(tmp_path / 'two'))
+    cases = (
+            # a repeated --remap took the last rule without a word
+            (['--remap', '/a:=/x', '/a:=/y'], '--remap /a:=/x and --remap /a:=/y: two names '
+                                              'for /a; give one rule per topic'),
+            # an offset past the end published 0 messages with exit 0
+            (['--start-offset', '5'], f'--start-offset = 5.0 is past the end of bag {source}: '
+                                      'its messages span 0.99 s; allowed [0, 0.99] s'),
+            (['--start-offset', '1e300'], '--start-offset = 1e+300 is past the end of bag'),
+            (['--topics', '/a', '--start-offset', '0.5'],
+             '--start-offset = 0.5 leaves no message of /a to replay: the last comes before it '
+             f'(bag {source} spans 0.99 s)'),
+            (['--topics', '/empty'], f'nothing to replay: bag {source} has no message on /empty'),
+            # inf waited forever, or was a traceback (OverflowError)
+            (['--wait-for-subscribers', 'inf'],
+             '--wait-for-subscribers = inf is out of range: allowed [0, inf) s'),
+            (['--delay', 'inf'], '--delay = inf is out of range: allowed [0, inf) s'),
+            (['--start-offset', 'inf'],
+             '--start-offset = inf is out of range: allowed [0, inf) s'),
+            (['--delay', 'nan'], '--delay = nan is out of range: allowed [0, inf) s'),
+            # a loop over one instant published about 12 000 messages a second
+            (['--loop', '--start-offset', '0.99'], f'--loop: the messages to replay of bag '
+                                                   f'{source} are all at one instant: a loop '
+                                                   'would publish them as fast as it can; '
+                                                   'replay them once, without --loop'),
+            (['--loop', '--topics', '/a', '--start-offset', '0.09'], '--loop: the messages'))
+    run = subprocess.run([sys.executable, '-c', REFUSALS, json.dumps(
+        [[source, *args] for args, _ in cases])], env=ros_env(), cwd=ROOT,
+        capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    refusals = json.loads(run.stdout)
+    for args, line in cases:
+        status, err = refusals[repr([source, *args])]
+        assert status == 2, (args, err)
+        assert err.startswith(f'replay: error: {line}') and err.strip().count('\n') == 0, \
+            (args, err)
+    # the same rule twice is one rule; an offset inside the bag says what it replays
+    out = _replay_run([source, '--remap', '/b:=/x', '/b:=/x', '--topics', '/b', '/a', '/b',
+                       '--start-offset', '0.5', '--rate', '10'], tmp_path)
+    assert out.returncode == 0, out.stderr
+    assert 'replay: published 50 messages' in out.stdout
+    assert f'replaying {source} from 0.5 s on (the last 0.490 s of its 0.990 s; 110 messages ' \
+        'in all) at rate 10.0' in out.stderr, out.stderr
+
+
+def test_a_bag_topic_that_is_not_a_ros_name_is_named_as_the_bags(tmp_path):
+    # the error blamed "--remap /1imu:=/1imu", an option the user never gave
+    source = str(tmp_path / 'other')
+    stamps = T0_NS + np.arange(5, dtype=np.int64) * 10_000_000
+    with bag.BagWriter(source) as writer:
+        writer.add_topic('/1imu', IMU)
+        writer.write_batches([('/1imu', cdr.encode(IMU, stamps, np.zeros((5, 37)), 'imu'),
+                               stamps)])
+    out = _replay_run([source], tmp_path)
+    assert out.returncode == 2 and out.stderr.strip().splitlines() == [
+        f"replay: error: topic '/1imu' of bag {source} is not a ROS topic name: topic name "
+        'token must not start with a number; publish it as another with --remap '
+        '/1imu:=NEW_NAME, or choose the topics with --topics'], out.stderr
+    out = _replay_run([source, '--remap', '/1imu:=/imu1', '--rate', '10'], tmp_path)
+    assert out.returncode == 0 and 'replay: published 5 messages' in out.stdout, out.stderr
+
+
+def test_replay_delay_ends_on_sigint(tmp_path):
+    source = _two_topic_bag(str(tmp_path / 'two'))
+    replay = _start(['gyro_emulator.ros.replay', source, '--wait-for-subscribers', '0.01',
+                     '--delay', '600'], ros_env(), stdout=subprocess.PIPE,
+                    stderr=subprocess.PIPE, text=True)
+    try:
+        for line in replay.stderr:      # the wait for subscribers ends: the delay begins
+            if 'no subscriber on' in line:
+                break
+        replay.send_signal(signal.SIGINT)
+        out, _ = replay.communicate(timeout=60)    # the delay slept on through SIGINT
+    finally:
+        if replay.poll() is None:
+            replay.kill()
+            replay.wait()
+    assert replay.returncode == 0 and 'replay: published 0 messages' in out

@@ -9,8 +9,9 @@ chunks with their message counts, messages the summary counts that no
 intact chunk holds, a summary failing its CRC, repeated chunks.
 ``repair`` rewrites every .mcap file that lacks a trustworthy summary or
 footer with all the messages it can recover (the original is kept as
-``<file>.orig`` unless ``--no-backup``) and regenerates ``metadata.yaml``.
-Both report what was recovered and what was lost.
+``<file>.orig`` unless ``--no-backup``) and regenerates ``metadata.yaml``
+when it is missing, malformed or disagrees with the files: a sound bag is
+left byte for byte as it was. Both report what was recovered and what was lost.
 """
 
 from gyro_emulator import outputs
@@ -54,9 +55,10 @@ def run(args):
         if lost:
             print(f'Messages lost:    {lost} of {reader.message_count} (counted, but in no '
                   'intact chunk)')
-        disagree = files.count_disagreements(
+        disagree = files.metadata_disagreements(
             reader.metadata, reader.message_count,
-            {name: topic.message_count for name, topic in reader.topics.items()})
+            {name: topic.message_count for name, topic in reader.topics.items()},
+            (reader.start_time_ns, reader.end_time_ns) if reader.message_count else None)
         for note in disagree:
             print(f'Notice:           {note}')
         if reader.problems or corrupt or lost or disagree:

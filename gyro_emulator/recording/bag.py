@@ -20,7 +20,8 @@ All times are integer nanoseconds (``log_time`` is the receive time,
 """
 
 from gyro_emulator.recording.mcap_writer import (COMPRESSIONS, DEFAULT_CHUNK_SIZE,
-                                                 DEFAULT_FLUSH_INTERVAL_S, McapFileWriter)
+                                                 DEFAULT_FLUSH_INTERVAL_S, MAX_FLUSH_INTERVAL_S,
+                                                 McapFileWriter)
 from gyro_emulator.recording.metadata import (FileInfo, METADATA_FILE, metadata_yaml,
                                               qos_profile, ROS_DISTRO, ROSBAG2_VERSION,
                                               TopicInfo)
@@ -32,7 +33,7 @@ from gyro_emulator.recording.writer import BagWriter
 
 __all__ = [
     'BagMessage', 'BagReader', 'BagWriter', 'COMPRESSIONS', 'DEFAULT_CHUNK_SIZE',
-    'DEFAULT_FLUSH_INTERVAL_S', 'FileInfo', 'McapFileWriter', 'message_definition',
-    'METADATA_FILE', 'metadata_yaml', 'qos_profile', 'repair_bag', 'RepairReport',
-    'ROS_DISTRO', 'ROSBAG2_VERSION', 'scan_mcap', 'ScanReport', 'TopicArrays', 'TopicInfo',
-    'type_hash']
+    'DEFAULT_FLUSH_INTERVAL_S', 'FileInfo', 'MAX_FLUSH_INTERVAL_S', 'McapFileWriter',
+    'message_definition', 'METADATA_FILE', 'metadata_yaml', 'qos_profile', 'repair_bag',
+    'RepairReport', 'ROS_DISTRO', 'ROSBAG2_VERSION', 'scan_mcap', 'ScanReport', 'TopicArrays',
+    'TopicInfo', 'type_hash']

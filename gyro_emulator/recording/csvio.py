@@ -4,6 +4,9 @@ CSV input and output for gyro records, with clear errors.
 Files are plain comma-separated text with one header row (``#`` comment lines
 before it are skipped), optionally gzip-compressed (``.gz``). Values are SI;
 column names carry their units (``time_s``, ``gyro_x_rad_s``, ``temp_c``).
+Standard CSV quoting is read (:data:`QUOTE`): a quoted header
+(``"time_s","gyro_x_rad_s"``, as pandas with quoting or a spreadsheet
+writes it) and quoted numbers (``"0.01"``).
 
 Errors name the file, the column, the row (1-based line number in the file)
 and the offending value: a missing column, a value that is not a number, a
@@ -12,6 +15,7 @@ not in seconds (:func:`gyro_emulator.recording.timing.check_time_base`). A trunc
 or corrupt ``.gz`` file is one line too, never a traceback.
 """
 
+import csv
 import gzip
 import io
 import itertools
@@ -22,6 +26,7 @@ import zlib
 from gyro_emulator import atomic
 from gyro_emulator.recording.timing import check_increasing, check_time_base
 from gyro_emulator.units import AXES
+from gyro_emulator.validation import quote
 import numpy as np
 
 #: Gyro column layouts accepted by :func:`read_gyro_csv`.
@@ -31,6 +36,25 @@ GYRO_AXES = ('gyro_x_rad_s', 'gyro_y_rad_s', 'gyro_z_rad_s')
 
 #: How a CSV is read: UTF-8, a leading byte-order mark (Excel's "CSV UTF-8") skipped.
 READ_ENCODING = 'utf-8-sig'
+#: The quote character of standard CSV (RFC 4180; Python's ``csv``, pandas, spreadsheets).
+QUOTE = '"'
+
+
+def _cells(text, path, lineno, header=False):
+    """
+    Return the cells of one CSV line, standard quoting read, each stripped of spaces.
+
+    A header's cells may start with spaces before their quote (``time_s,
+    "temp_c"``); a data cell is read as ``numpy.loadtxt`` reads it. A quote
+    left open, or text after a closing quote, is refused in one line naming
+    the file and the row.
+    """
+    try:
+        return [cell.strip() for cell in next(csv.reader(
+            [text], quotechar=QUOTE, strict=True, skipinitialspace=header))]
+    except csv.Error as exc:
+        raise ValueError(f'{path}: row {lineno} {quote(text, 80)} is not valid CSV ({exc}): '
+                         'allowed plain cells or cells quoted whole with "') from None
 
 
 def _open_text(path, mode):
@@ -68,7 +92,7 @@ def _header(path):
             text = line.strip()
             if not text or text.startswith('#'):
                 continue
-            names = [n.strip() for n in text.split(',')]
+            names = _cells(text, path, skipped, header=True)
             if any(not n for n in names):
                 raise ValueError(f'{path}: header row {skipped} has an empty column name')
             if len(set(names)) != len(names):
@@ -88,7 +112,10 @@ def _find_bad_cell(path, names, skip, wanted=None):
             text = line.strip()
             if not text or text.startswith('#'):
                 continue
-            cells = text.split(',')
+            try:
+                cells = _cells(text, path, lineno)
+            except ValueError as exc:
+                return str(exc)
             if len(cells) != len(names):
                 return (f'{path}: row {lineno} has {len(cells)} values, the header has '
                         f'{len(names)} ({", ".join(names)})')
@@ -98,8 +125,7 @@ def _find_bad_cell(path, names, skip, wanted=None):
                 try:
                     float(cell)
                 except ValueError:
-                    return (f'{path}: row {lineno}, column {name}: {cell.strip()!r} is '
-                            'not a number')
+                    return f'{path}: row {lineno}, column {name}: {cell!r} is not a number'
     return f'{path}: could not parse the data rows'
 
 
@@ -168,8 +194,8 @@ def _loadtxt(source, **options):
     """
     with warnings.catch_warnings():
         warnings.filterwarnings('ignore', 'loadtxt: input contained no data', UserWarning)
-        return np.loadtxt(source, delimiter=',', comments='#', ndmin=2, dtype=float,
-                          **options)
+        return np.loadtxt(source, delimiter=',', comments='#', quotechar=QUOTE, ndmin=2,
+                          dtype=float, **options)
 
 
 def _read_columns(path, required, time_order, only):

@@ -121,18 +121,34 @@ def load_metadata(path):
     return meta
 
 
-def count_disagreements(meta, message_count, topic_counts):
+def _span_disagreements(meta, span_ns):
+    """Return notes where ``metadata.yaml``'s starting time or duration is not the files' span."""
+    start, end = span_ns
+    notes = []
+    for name, key, value in (('starting_time', 'nanoseconds_since_epoch', start),
+                             ('duration', 'nanoseconds', end - start)):
+        given = meta.get(name)
+        given = given.get(key) if isinstance(given, dict) else None
+        if isinstance(given, int) and not isinstance(given, bool) and given != value:
+            notes.append(f'metadata.yaml gives {name} {given} ns, the files {value} ns')
+    return notes
+
+
+def metadata_disagreements(meta, message_count, topic_counts, span_ns=None):
     """
-    Return where ``metadata.yaml``'s message counts disagree with the files', one note each.
+    Return where ``metadata.yaml`` disagrees with the files, one note each.
 
     ``rosbags`` and ``ros2 bag info`` report ``metadata.yaml``'s counts, this
     package the files' (their summaries, or a scan): a difference means a
     reader of the bag is told something else than what it holds.
-    ``topic_counts`` maps each topic in the files to its count.
+    ``topic_counts`` maps each topic in the files to its count; ``span_ns``
+    (first and last log time of the files' messages, ns) also checks the
+    ``starting_time`` and ``duration`` it gives. ``bag info`` says these
+    notes, and ``bag repair`` rewrites a ``metadata.yaml`` only when there is one.
     """
     if not meta:
         return []
-    notes = []
+    notes = [] if span_ns is None else _span_disagreements(meta, span_ns)
     count = meta.get('message_count')
     if isinstance(count, int) and count != message_count:
         notes.append(f'metadata.yaml counts {count} messages, the files hold {message_count} '

@@ -46,6 +46,8 @@ DEFAULT_CHUNK_SIZE = 64 * 1024
 
 #: Default wall-time bound on the age of unflushed messages, s.
 DEFAULT_FLUSH_INTERVAL_S = 0.5
+#: Longest flush interval allowed, s (the range is (0, this]).
+MAX_FLUSH_INTERVAL_S = 3600.0
 
 
 MESSAGE_HEAD = struct.Struct('<BQHIQQ')
@@ -87,7 +89,8 @@ class McapFileWriter:
                  flush_interval_s=DEFAULT_FLUSH_INTERVAL_S, fsync=False):
         check_choice('BagWriter', 'compression', compression, COMPRESSIONS)
         check_range('BagWriter', 'chunk_size', chunk_size, 0, 1 << 30, 'bytes')
-        check_range('BagWriter', 'flush_interval_s', flush_interval_s, 0.0, 3600.0, 's')
+        check_range('BagWriter', 'flush_interval_s', flush_interval_s, 0.0, MAX_FLUSH_INTERVAL_S,
+                    's')
         if compression == 'lz4':
             self._compress = lz4.frame.compress
         elif compression == 'zstd':

@@ -18,7 +18,8 @@ import os
 import shutil
 
 from gyro_emulator import atomic
-from gyro_emulator.recording.files import BACKUP, REPAIR_TMP, resolve_bag
+from gyro_emulator.recording.files import (BACKUP, metadata_disagreements, REPAIR_TMP,
+                                           resolve_bag)
 from gyro_emulator.recording.mcap_writer import McapFileWriter
 from gyro_emulator.recording.metadata import file_info_from_writer, METADATA_FILE, metadata_yaml
 from gyro_emulator.recording.reader import BagReader, index_file
@@ -56,6 +57,10 @@ class RepairReport:
     notes : list of str
         What else was found and done (a file listed twice, a malformed
         ``metadata.yaml`` replaced, a file restored after an interrupted repair).
+    metadata_kept : bool
+        The bag was sound (no file rewritten, ``metadata.yaml`` agreeing with
+        the files): its ``metadata.yaml`` was left as it was (``out_dir``:
+        copied byte for byte).
 
     """
 
@@ -69,6 +74,7 @@ class RepairReport:
     corrupt: list = field(default_factory=list)
     lost_messages: int = 0
     notes: list = field(default_factory=list)
+    metadata_kept: bool = False
 
     @property
     def message_count(self):
@@ -93,8 +99,10 @@ class RepairReport:
         for name in sorted(self.topics):
             lines.append(f'  {name}: {self.topics[name]} messages')
         span = (self.end_time_ns - self.start_time_ns) / 1e9
-        lines.append(f'{self.message_count} messages over {span:.3f} s; wrote '
-                     f'{os.path.join(self.bag_dir, METADATA_FILE)}')
+        meta = os.path.join(self.bag_dir, METADATA_FILE)
+        lines.append(f'{self.message_count} messages over {span:.3f} s; ' + (
+            f'the bag is sound: {meta} agrees with the files, kept byte for byte'
+            if self.metadata_kept else f'wrote {meta}'))
         return '\n'.join(lines)
 
 
@@ -226,8 +234,9 @@ def repair_bag(path, out_dir=None, backup=True, compression='zstd'):
     failing its CRC, or counting messages no intact chunk holds) is scanned
     (:func:`scan_mcap`: corrupt chunks skipped, repeated chunks dropped) and
     rewritten with all recovered messages; then ``metadata.yaml`` is
-    regenerated from the files (a malformed one is replaced). A sound bag
-    only gets its ``metadata.yaml`` rewritten.
+    regenerated from the files when it is missing, malformed or disagrees
+    with them (:func:`_stale_metadata`). A sound bag is left byte for byte as
+    it was (``out_dir``: copied as it is).
 
     The bag always has each of its files: the original is kept as
     ``<file>.orig`` by a hard link before the finished ``<file>.repair-tmp``
@@ -323,6 +332,38 @@ def _repair_into(found, target_dir, out_dir, backup, compression):
     counted = [i for i in infos if i.message_count]
     report.start_time_ns = min((i.start_time_ns for i in counted), default=0)
     report.end_time_ns = max((i.end_time_ns for i in counted), default=0)
-    atomic.write_text(os.path.join(target_dir, METADATA_FILE),
-                      metadata_yaml(target_dir, infos, custom))
+    stale = _stale_metadata(found, report, infos, target_dir, bool(counted))
+    target = os.path.join(target_dir, METADATA_FILE)
+    if stale is None:
+        report.metadata_kept = True
+        if out_dir is not None:
+            with atomic.staged(target) as tmp:
+                shutil.copyfile(os.path.join(bag_dir, METADATA_FILE), tmp)
+        return report
+    report.notes.extend(f'{note}: rewrote {METADATA_FILE}' for note in stale)
+    atomic.write_text(target, metadata_yaml(target_dir, infos, custom))
     return report
+
+
+def _stale_metadata(found, report, infos, target_dir, any_messages):
+    """
+    Return None to keep ``metadata.yaml`` as it is, else why it is regenerated (notes).
+
+    It is kept only when no file was rewritten or restored, it was read
+    without a note (not missing, malformed, or listing a file twice), lists
+    the repaired files as they are named, and its counts, starting time and
+    duration are the files' (:func:`gyro_emulator.recording.files.metadata_disagreements`).
+    The notes are those not said otherwise (a rewritten file and a
+    malformed ``metadata.yaml`` are).
+    """
+    meta = found.metadata
+    if report.rewritten or found.leftovers or found.notes:
+        return []
+    if meta is None:
+        return [f'{METADATA_FILE} is missing']
+    names = [os.path.relpath(info.path, target_dir) for info in infos]
+    if list(meta.get('relative_file_paths') or ()) != names:
+        return [f'{METADATA_FILE} lists {meta.get("relative_file_paths")}, the bag has {names}']
+    return metadata_disagreements(
+        meta, report.message_count, report.topics,
+        (report.start_time_ns, report.end_time_ns) if any_messages else None) or None

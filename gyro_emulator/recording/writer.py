@@ -71,17 +71,23 @@ class BagWriter:
             if not overwrite:
                 raise FileExistsError(
                     f'bag directory {path} already exists and is not empty '
-                    '(choose a new directory or pass overwrite)')
+                    '(choose a new directory or pass overwrite=True)')
             for name in os.listdir(path):
                 if name.endswith('.mcap') or name == METADATA_FILE:
                     os.remove(os.path.join(path, name))
+        made = not os.path.isdir(path)
         os.makedirs(path, exist_ok=True)
         self.path = path
         self.custom_data = {str(k): str(v) for k, v in (custom_data or {}).items()}
         name = os.path.basename(str(name or path).rstrip(os.sep)) or 'bag'
         self.file_name = f'{name}_0.mcap'
-        self._file = McapFileWriter(os.path.join(path, self.file_name), compression,
-                                    chunk_size, flush_interval_s, fsync)
+        try:
+            self._file = McapFileWriter(os.path.join(path, self.file_name), compression,
+                                        chunk_size, flush_interval_s, fsync)
+        except ValueError:
+            if made:                    # a refused option leaves no empty bag directory
+                os.rmdir(path)
+            raise
         if self.custom_data:
             self._file.add_metadata('gyro_emulator', self.custom_data)
             self._file.flush()

@@ -8,6 +8,7 @@ SIGTERM, and however the run ends cleans up, destroys its node and shuts
 rclpy down (:class:`Run`).
 """
 
+import math
 import sys
 
 from gyro_emulator.ros.spinning import close, ERROR_STATUS
@@ -70,6 +71,23 @@ def add_seconds_options(parser, options):
     """Add options that take a duration in seconds: ``{flag: (default, help)}``."""
     for flag, (default, text) in options.items():
         parser.add_argument(flag, type=float, default=default, metavar='S', help=text)
+
+
+def check_seconds(flag, value, low_open=False, high=math.inf):
+    """
+    Refuse a duration option in one line unless it is finite and in range (None passes).
+
+    The range is ``[0, high]`` (``(0, high]`` with ``low_open``), ``high``
+    infinite by default, itself never allowed: a wait or a duration of
+    ``inf`` or ``nan`` is refused, as ``scenario --wait`` refuses it.
+    """
+    if value is None:
+        return
+    low_ok = value > 0 if low_open else value >= 0
+    if not (math.isfinite(value) and low_ok and value <= high):
+        top = f'{high:g}]' if math.isfinite(high) else 'inf)'
+        raise ValueError(f'{flag} = {value} is out of range: allowed {"(" if low_open else "["}0, '
+                         f'{top} s')
 
 
 class Run:

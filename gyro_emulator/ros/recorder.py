@@ -30,11 +30,13 @@ before it stays in the bag, which ``gyro-emulator bag repair`` finishes.
 import argparse
 import datetime
 import functools
+import os
 import re
 import signal
 import sys
 import time
 
+from gyro_emulator import outputs
 from gyro_emulator.recording import bag, topics
 from gyro_emulator.ros import codec, program
 from gyro_emulator.ros.spinning import first_line, spin_once
@@ -197,6 +199,19 @@ def default_output():
     return datetime.datetime.now().strftime('rosbag2_%Y_%m_%d-%H_%M_%S')
 
 
+def check_output(path, overwrite):
+    """
+    Return ``path`` once it can take the bag; refuse it in one line with the options' words.
+
+    An existing empty directory takes it; a non-empty one only with
+    ``--overwrite`` (which replaces the bag's files in it), a file never
+    (:func:`gyro_emulator.outputs.check`).
+    """
+    empty = os.path.isdir(path) and not os.listdir(path)
+    outputs.check([outputs.directory('--output', path)], overwrite=overwrite or empty)
+    return path
+
+
 def build_parser():
     """Return the ``recorder`` argument parser."""
     parser = argparse.ArgumentParser(
@@ -292,10 +307,11 @@ def main(args=None):
     """Run the recorder until SIGINT/SIGTERM or ``--duration``; finish the bag."""
     argv, opts = program.parse_arguments(build_parser(), 'recorder', args)
     with program.Run('recorder') as run:
-        if opts.duration is not None and not opts.duration > 0:
-            raise ValueError(f'--duration = {opts.duration} is out of range: '
-                             'allowed (0, inf) s')
+        program.check_seconds('--duration', opts.duration, low_open=True)
+        program.check_seconds('--flush-interval', opts.flush_interval, low_open=True,
+                              high=bag.MAX_FLUSH_INTERVAL_S)
         check_regexes(opts.regex)
+        output = check_output(opts.output or default_output(), opts.overwrite)
         rclpy.init(args=argv)
         writer = recorder = None
         run.on_exit(lambda: _finish(writer, recorder))
@@ -303,7 +319,7 @@ def main(args=None):
         # Every name is checked before the bag exists: a refused one leaves no bag behind.
         names, regexes = requested_topics(node, opts)
         excluded = [resolve_topic(node, t, t, '--exclude') for t in opts.exclude]
-        writer = bag.BagWriter(opts.output or default_output(), compression=opts.compression,
+        writer = bag.BagWriter(output, compression=opts.compression,
                                flush_interval_s=opts.flush_interval, overwrite=opts.overwrite,
                                custom_data={'recorder': 'gyro_emulator recorder',
                                             **topics.ACCEL_CMD_MEANING})

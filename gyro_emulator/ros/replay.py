@@ -80,16 +80,58 @@ def _check(opts):
     if opts.clock is not None and not 0 < opts.clock <= 10000:
         raise ValueError(f'--clock = {opts.clock} is out of range: allowed (0, 10000] Hz')
     for flag in SECONDS_OPTIONS:
-        value = getattr(opts, flag[2:].replace('-', '_'))
-        if not value >= 0:
-            raise ValueError(f'{flag} = {value} is out of range: allowed [0, inf) s')
+        program.check_seconds(flag, getattr(opts, flag[2:].replace('-', '_')))
+    if opts.topics is not None:     # a topic named twice is replayed (and counted) once
+        opts.topics = list(dict.fromkeys(opts.topics))
     remap = {}
     for rule in opts.remap:
         source, sep, target = rule.partition(':=')
         if not sep or not source or not target:
             raise ValueError(f'--remap {rule!r} is not FROM:=TO')
+        if remap.get(source, target) != target:
+            raise ValueError(f'--remap {source}:={remap[source]} and --remap {rule}: two names '
+                             f'for {source}; give one rule per topic')
         remap[source] = target
     return remap
+
+
+def start_time_ns(reader, topics, offset_s, loop=False):
+    """
+    Return the bag time replay starts from, refusing a selection without a message.
+
+    ``topics`` (None: all) from ``offset_s`` after the bag's first message
+    must hold a message: an offset past the bag's last message, or topics
+    without a message from it on, is a one-line ValueError, as every command
+    refuses an empty selection (an empty topic, a CSV without data rows).
+    With ``loop``, a bag whose messages are all at one instant is refused:
+    it would be published as fast as the loop turns.
+    """
+    chosen = sorted(reader.topics) if topics is None else list(topics)
+    if any(t not in reader.topics for t in chosen):
+        return reader.start_time_ns     # refused by the Player, naming the bag's topics
+    if not sum(reader.topics[t].message_count for t in chosen):
+        raise ValueError(f'nothing to replay: bag {reader.path} has no message on '
+                         f'{", ".join(chosen) or "any topic"}')
+    span_s = reader.duration_ns / NS_PER_S
+    if offset_s > span_s:
+        raise ValueError(f'--start-offset = {offset_s} is past the end of bag {reader.path}: '
+                         f'its messages span {span_s:.9g} s; allowed [0, {span_s:.9g}] s')
+    start_ns = reader.start_time_ns + int(round(offset_s * NS_PER_S))
+    if offset_s > 0 and topics is not None and not _any_message(reader, chosen, start_ns):
+        raise ValueError(f'--start-offset = {offset_s} leaves no message of {", ".join(chosen)} '
+                         f'to replay: the last comes before it (bag {reader.path} spans '
+                         f'{span_s:.9g} s)')
+    if loop and not (reader.end_time_ns > start_ns if topics is None
+                     else _any_message(reader, chosen, start_ns + 1)):
+        raise ValueError(f'--loop: the messages to replay of bag {reader.path} are all at one '
+                         'instant: a loop would publish them as fast as it can; replay them '
+                         'once, without --loop')
+    return start_ns
+
+
+def _any_message(reader, topics, start_ns):
+    """Return whether ``topics`` of ``reader`` have a message at or after ``start_ns``."""
+    return next(iter(reader.messages(topics, start_ns=start_ns)), None) is not None
 
 
 def check_accel_meaning(reader, topics=None, remap=None):
@@ -178,8 +220,14 @@ class Player:
                 self.publishers[name] = node.create_publisher(message_class, target, qos)
             except InvalidTopicNameException as exc:
                 reason = str(exc).splitlines()[0].replace('Invalid topic name: ', '')
+                reason = reason.rstrip(':')
+                if name not in remap:       # the bag's own name (another tool wrote it)
+                    raise ValueError(f'topic {name!r} of bag {reader.path} is not a ROS topic '
+                                     f'name: {reason}; publish it as another with --remap '
+                                     f'{name}:=NEW_NAME, or choose the topics with '
+                                     '--topics') from None
                 raise ValueError(f'--remap {name}:={target}: {target!r} is not a ROS topic '
-                                 f'name: {reason.rstrip(":")}') from None
+                                 f'name: {reason}') from None
         self.clock_publisher = None
         if self.clock_period_s is not None:
             self._clock_msg = Clock()
@@ -289,6 +337,7 @@ def main(args=None):
         remap = _check(opts)
         reader = bag.BagReader(opts.bag, tolerant=True)
         check_accel_meaning(reader, opts.topics, remap)
+        start_ns = start_time_ns(reader, opts.topics, opts.start_offset, opts.loop)
         for note in reader.problems:
             print(f'replay: warning: incomplete bag, {note}', file=sys.stderr)
         # Signals only set a flag: the loop stops between messages and the final
@@ -301,19 +350,25 @@ def main(args=None):
                         opts.reliable, stop)
         run.on_exit(lambda: print(f'replay: published {player.published} messages',
                                   flush=True))
-        _play(player, opts, reader)
+        _play(player, opts, reader, start_ns)
     return run.status
 
 
-def _play(player, opts, reader):
-    """Wait as asked, then replay once (or until stopped with ``--loop``)."""
+def _play(player, opts, reader, start_ns):
+    """Wait as asked, then replay from ``start_ns`` once (or until stopped with ``--loop``)."""
     if opts.wait_for_subscribers > 0:
         player.wait_for_subscribers(opts.wait_for_subscribers)
-    if opts.delay > 0:
-        time.sleep(opts.delay)
-    start_ns = reader.start_time_ns + int(round(opts.start_offset * NS_PER_S))
-    player.node.get_logger().info(
-        f'replaying {player.count()} messages of {opts.bag} at rate {opts.rate}')
+    if opts.delay > 0:              # SIGINT or SIGTERM ends the wait (they set stop)
+        player.stop.wait(min(opts.delay, threading.TIMEOUT_MAX))
+    if start_ns > reader.start_time_ns:
+        left_s = (reader.end_time_ns - start_ns) / NS_PER_S
+        player.node.get_logger().info(
+            f'replaying {opts.bag} from {opts.start_offset:g} s on (the last {left_s:.3f} s of '
+            f'its {reader.duration_ns / NS_PER_S:.3f} s; {player.count()} messages in all) '
+            f'at rate {opts.rate}')
+    else:
+        player.node.get_logger().info(
+            f'replaying {player.count()} messages of {opts.bag} at rate {opts.rate}')
     while rclpy.ok() and not player.stop.is_set():
         player.play_once(start_ns)
         if not opts.loop:

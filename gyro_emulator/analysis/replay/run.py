@@ -11,7 +11,7 @@ emulate, compare, and write ``DIR/emulated``, the report and the plots.
 from dataclasses import dataclass
 import os
 
-from gyro_emulator.analysis.replay.inputs import emulate, load_inputs
+from gyro_emulator.analysis.replay.inputs import check_rate_hz, emulate, load_inputs
 from gyro_emulator.analysis.replay.report import compare, report_text, write_report
 from gyro_emulator.emulation.emulator_bag import noise_sigmas, write_output_bag
 from gyro_emulator.emulation.simulate import staged_output
@@ -19,6 +19,7 @@ from gyro_emulator.recording import record
 from gyro_emulator.recording.files import inside_bag
 from gyro_emulator.sensor.config import load_sensor_config, PRESET_NAMES
 from gyro_emulator.sensor.streams import seed_from_name
+from gyro_emulator.validation import MODEL_TEMP_RANGE_C
 
 #: Sensor configuration when neither the caller nor the bag names one.
 DEFAULT_CONFIG = 'paper'
@@ -91,6 +92,24 @@ def _ignore(note):
     """Drop a warning."""
 
 
+def check_options(seed, rate_hz, temp_c):
+    """
+    Refuse a seed, model rate or ambient the replay cannot use, before the bag is read.
+
+    One line each, ``field = value is out of range: allowed ...``: the
+    command line names the option as typed (``--temp-c nan is out of
+    range``), not the model field that would have refused it after the work.
+    """
+    if seed is not None and seed < 0:
+        raise ValueError(f'seed = {seed} is out of range: allowed >= 0')
+    if rate_hz is not None:
+        check_rate_hz(rate_hz)
+    low, high = MODEL_TEMP_RANGE_C
+    if temp_c is not None and not low <= temp_c <= high:
+        raise ValueError(f'temp_c = {temp_c!r} is out of range: allowed [{low:g}, {high:g}] C '
+                         '(the physics model range)')
+
+
 def replay_bag(bag_path, out_dir, config=None, seed=None, plots=True, overwrite=False,
                warn=_ignore, **input_options):
     """
@@ -130,14 +149,13 @@ def replay_bag(bag_path, out_dir, config=None, seed=None, plots=True, overwrite=
     """
     if not record.is_bag(bag_path):
         raise ValueError(f'{bag_path} is not a bag (a directory or an .mcap file)')
+    check_options(seed, input_options.get('rate_hz'), input_options.get('temp_c'))
     reader = record.open_bag(bag_path)
     for note in reader.problems:
         warn(f'incomplete bag, {note}')
     bag_dir = os.path.join(out_dir, 'emulated')
     if os.path.isdir(bag_dir) and os.listdir(bag_dir) and not overwrite:
         raise FileExistsError(f'{bag_dir} exists and is not empty (pass --overwrite)')
-    if seed is not None and seed < 0:
-        raise ValueError(f'replay.seed = {seed} is out of range: allowed >= 0')
     config_name = config or bag_config(reader)
     seed = seed if seed is not None else _bag_seed(reader)
     sensor_config = load_sensor_config(config_name)
