@@ -83,11 +83,16 @@ def test_replay_keeps_timing_scaled_by_rate_and_publishes_clock(tmp_path):
     # Reliable QoS: every message, in order, payload untouched.
     np.testing.assert_array_equal(imu.field('angular_velocity.x'), np.arange(200))
     np.testing.assert_array_equal(imu.stamp_ns, stamps)
-    # Timing: the 1.99 s bag plays in about 1.99 / 2 s; never faster than scheduled.
-    span_s = (imu.log_time_ns[-1] - imu.log_time_ns[0]) / 1e9
-    assert 0.95 * 0.995 <= span_s < 0.9 * 1.99
-    median_gap_ms = np.median(np.diff(imu.log_time_ns)) / 1e6
-    assert 3.0 < median_gap_ms < 7.0                  # 10 ms / rate 2
+    # Timing: message i is published (stamp_i - stamp_0) / 2 after the first. The
+    # recorder's receive times lag the publishes by a delivery delay that is never
+    # negative and, on a loaded machine, comes in bursts (a median gap of 0.07 ms
+    # once), so the pace is read from the least lag of each quarter of the bag: the
+    # lower envelope of receive time minus schedule. At the right rate it is flat;
+    # a rate of 1.8 or 2.2 instead of 2 moves it by 70-80 ms over the 0.75 s
+    # between the first quarter and the last.
+    lag_ms = ((imu.log_time_ns - imu.log_time_ns[0]) - (imu.stamp_ns - imu.stamp_ns[0]) / 2) / 1e6
+    quarter = lag_ms.size // 4
+    assert abs(np.min(lag_ms[-quarter:]) - np.min(lag_ms[:quarter])) < 40.0
     clock_values = [msg.clock.sec * 10**9 + msg.clock.nanosec
                     for _, msg in reader.decoded_messages('/clock')]
     assert len(clock_values) >= 10
