@@ -1,5 +1,9 @@
 """The sensor's sample clock under the node's timer (emulation.driver.sample_clock), no ROS."""
 
+import subprocess
+import sys
+import threading
+
 from gyro_emulator.emulation.driver.block_stepper import BlockStepper
 from gyro_emulator.emulation.driver.sample_clock import MAX_GAP_S, SampleClock
 from gyro_emulator.ros import gyro_array
@@ -141,3 +145,20 @@ def test_stamp_jitter_is_bounded_by_the_period_so_stamps_increase():
     ([0, 2, 0], True, 2), ([0, 1], False, 1), ([-9, 0], True, 137), ([130], False, 130)])
 def test_the_array_status_after_a_stop_is_zero_unless_a_node_failed(codes, stopped, status):
     assert gyro_array.exit_status(codes, stopped) == status
+
+
+def _child(code):
+    """Start a Python child running ``code`` (SIGINT ignored: a node slow to end)."""
+    return subprocess.Popen([sys.executable, '-c',
+                             'import signal, time\n'
+                             'signal.signal(signal.SIGINT, signal.SIG_IGN)\n' + code])
+
+
+def test_the_array_waits_for_a_node_slow_to_end_and_a_second_stop_ends_it():
+    """A node that ends on its own is waited for; a second Ctrl-C kills one that hangs."""
+    slow = _child('time.sleep(2.0)')              # ends cleanly, on its own time
+    assert gyro_array._wait_for_nodes([slow], stop=[2]) == [0]
+    hung = _child('time.sleep(600)')
+    stop = [2]
+    threading.Timer(0.5, stop.append, args=(2,)).start()
+    assert gyro_array._wait_for_nodes([hung], stop) == [-9]

@@ -58,6 +58,8 @@ import yaml
 DEFAULT_SPEC = 'gyro_array.yaml'
 #: The frame every instance's own frame_id ends with, unless the spec names one.
 DEFAULT_FRAME = 'imu_link'
+#: Seconds the array waits for its nodes to end after passing a stop on (then SIGKILL).
+STOP_TIMEOUT_S = 120.0
 #: prctl option: the signal a child gets when its parent dies (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
 #: Node exit statuses that mean "stopped by the signal the array passed on".
@@ -244,14 +246,29 @@ def main(args=None):
         for p in procs:
             if p.poll() is None:
                 p.send_signal(stop[0] if stop else signal.SIGINT)
-        codes = []
-        for p in procs:
-            try:
-                codes.append(p.wait(15))
-            except subprocess.TimeoutExpired:
-                p.kill()
-                codes.append(p.wait())
+        codes = _wait_for_nodes(procs, stop)
     return exit_status(codes, stopped=bool(stop))
+
+
+def _wait_for_nodes(procs, stop):
+    """
+    Wait for the nodes to end after the signal passed on; return their statuses.
+
+    A node that is shutting down (closing its bag, ending rclpy) is not cut
+    short: on a loaded machine that took over 15 s once, and a SIGKILL then
+    would lose what it was writing. A second Ctrl-C or SIGTERM to the array
+    (``stop`` grows) ends the nodes still running at once (SIGKILL), and
+    so does :data:`STOP_TIMEOUT_S` without one.
+    """
+    signals_seen = len(stop)
+    deadline = time.monotonic() + STOP_TIMEOUT_S
+    while (any(p.poll() is None for p in procs) and len(stop) == signals_seen
+           and time.monotonic() < deadline):
+        time.sleep(0.1)
+    for p in procs:
+        if p.poll() is None:
+            p.kill()
+    return [p.wait() for p in procs]
 
 
 def exit_status(codes, stopped):
