@@ -176,6 +176,23 @@ def _all_inside(arr, low, high, low_open, high_open):
     return not np.any(outside(ends, low, high, low_open, high_open))
 
 
+def check_rate_hz(rate_hz):
+    """
+    Return a sample rate as a float (None as None); ValueError unless in (0, 1e6] Hz.
+
+    The one check of a rate a command takes as ``--rate-hz`` (a replay's
+    model rate, given or from the stamps; an export's IMU rate). The message
+    names the field alone (``rate_hz = 0.0 is out of range``), which the
+    command line names as the option typed.
+    """
+    if rate_hz is None:
+        return None
+    rate_hz = float(rate_hz)
+    if not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
+        raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
+    return rate_hz
+
+
 def check_seed(owner, seed):
     """
     Return ``seed``, a seed of ``numpy.random.default_rng``; ValueError unless an integer >= 0.

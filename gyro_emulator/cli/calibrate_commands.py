@@ -21,6 +21,7 @@ from gyro_emulator.cli.allan import outlier_threshold, print_terms
 from gyro_emulator.cli.jsonout import write_json
 from gyro_emulator.recording.record import load_record
 from gyro_emulator.sensor.config import config_source, load_sensor_config
+from gyro_emulator.validation import check_rate_hz
 import numpy as np
 from tqdm import tqdm
 
@@ -174,7 +175,7 @@ def run_noise(args):
     """Identify the noise terms and write the chosen format."""
     given = _accel(args)
     noise.check_inflate(args.inflate)              # before the log is read, as the outputs
-    export_noise.check_rate_hz(args.rate_hz)
+    check_rate_hz(args.rate_hz)
     _check_outputs(args, _noise_plots(args))
     cal, accel_cal, record = _calibrate(args)
     topic = _rostopic(args, record)

@@ -65,6 +65,7 @@ from gyro_emulator.analysis.calibrate.twin import emulator_fit, PER_DECADE
 from gyro_emulator.sensor.accel import accel_from_mapping, AccelTerms
 from gyro_emulator.sensor.config import config_from_mapping, config_yaml, ErrorTerms, YamlKey
 from gyro_emulator.units import AXES
+from gyro_emulator.validation import check_rate_hz
 from gyro_emulator.yaml_text import as_written, dump as dump_yaml, Figure, float_text, Flow, Quoted
 import numpy as np
 
@@ -662,12 +663,6 @@ def accel_twin_lines(accel, fields):
 
 WRITERS = {'kalibr': kalibr, 'openvins': openvins, 'vins': vins, 'orbslam3': orbslam3,
            'orbslam3-settings': orbslam3_settings, 'gazebo': gazebo, 'preset': preset}
-
-
-def check_rate_hz(rate_hz):
-    """Refuse an exported IMU rate outside (0, 1e6] Hz (ValueError); None: the log's."""
-    if rate_hz is not None and not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
-        raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
 
 
 def write_noise(calibration, fmt, inflate=1.0, rate_hz=None, accel=None, topic=None):

@@ -41,7 +41,7 @@ from gyro_emulator.recording import record
 from gyro_emulator.sensor.config import load_sensor_config, SensorConfig
 from gyro_emulator.sensor.imu import ImuBatch, ImuModel
 from gyro_emulator.units import AXES, NS_PER_S
-from gyro_emulator.validation import check_choice, check_record_values
+from gyro_emulator.validation import check_choice, check_rate_hz, check_record_values
 import numpy as np
 
 SOURCES = record.DRIVE_SOURCES
@@ -336,14 +336,6 @@ def _sample_rate_hz(metadata, rate_hz, measured_stamp, rate_stamp, notes):
         rate_hz = estimate_rate_hz(basis)
         notes.append(f'sample rate {rate_hz:g} Hz from the mean stamp interval')
     return check_rate_hz(rate_hz)
-
-
-def check_rate_hz(rate_hz):
-    """Return ``rate_hz`` as a float, refused in one line unless in (0, 1e6] Hz."""
-    rate_hz = float(rate_hz)
-    if not (np.isfinite(rate_hz) and 0.0 < rate_hz <= 1e6):
-        raise ValueError(f'rate_hz = {rate_hz!r} is out of range: allowed (0, 1e6] Hz')
-    return rate_hz
 
 
 def _command_grid(rate_stamp, rate_values, rate_hz, notes):

@@ -11,7 +11,7 @@ emulate, compare, and write ``DIR/emulated``, the report and the plots.
 from dataclasses import dataclass
 import os
 
-from gyro_emulator.analysis.replay.inputs import check_rate_hz, emulate, load_inputs
+from gyro_emulator.analysis.replay.inputs import emulate, load_inputs
 from gyro_emulator.analysis.replay.report import compare, report_text, write_report
 from gyro_emulator.emulation.emulator_bag import noise_sigmas, write_output_bag
 from gyro_emulator.emulation.simulate import staged_output
@@ -19,7 +19,7 @@ from gyro_emulator.recording import record
 from gyro_emulator.recording.files import inside_bag
 from gyro_emulator.sensor.config import load_sensor_config, PRESET_NAMES
 from gyro_emulator.sensor.streams import seed_from_name
-from gyro_emulator.validation import MODEL_TEMP_RANGE_C
+from gyro_emulator.validation import check_rate_hz, MODEL_TEMP_RANGE_C
 
 #: Sensor configuration when neither the caller nor the bag names one.
 DEFAULT_CONFIG = 'paper'
@@ -102,8 +102,7 @@ def check_options(seed, rate_hz, temp_c):
     """
     if seed is not None and seed < 0:
         raise ValueError(f'seed = {seed} is out of range: allowed >= 0')
-    if rate_hz is not None:
-        check_rate_hz(rate_hz)
+    check_rate_hz(rate_hz)
     low, high = MODEL_TEMP_RANGE_C
     if temp_c is not None and not low <= temp_c <= high:
         raise ValueError(f'temp_c = {temp_c!r} is out of range: allowed [{low:g}, {high:g}] C '
