@@ -1012,6 +1012,63 @@ def test_main_job_plays_a_profile_against_the_node_and_prints_the_summary(tmp_pa
     assert 'interrupted' not in proc.stdout and 'interrupted' not in doc
 
 
+def test_the_player_keeps_every_sample_of_a_stalled_node_and_of_its_own_stall(
+        tmp_path, monkeypatch):
+    """
+    The scenario player measures every sample, however late it comes.
+
+    A CI run on a loaded machine measured 50 or fewer of 100 samples in a step:
+    the player's sensor-data history (the last 5) lost the node's catch-up
+    bursts and what came while the player itself was held back, and the player
+    stopped listening at the profile's end, before a late node's last samples.
+    Here the node is stopped (SIGSTOP) for 0.6 s in step 0, the player holds
+    its own loop for 0.6 s in step 1, and the node again for 0.6 s at the end
+    of step 2, so its last samples come after the profile's end. The node
+    publishes at 200 Hz, so each 0.5 s window holds 100 samples (the old
+    player kept 44-50).
+    """
+    from gyro_emulator.emulation.scenario import load_scenario
+    from gyro_emulator.ros.scenario import play
+    import threading
+    env = ros_env()
+    for name in ('ROS_DOMAIN_ID', 'ROS_AUTOMATIC_DISCOVERY_RANGE'):
+        monkeypatch.setenv(name, env[name])
+    profile_path = tmp_path / 'short.yaml'
+    profile_path.write_text(yaml.safe_dump({
+        'name': 'short', 'grid': {'temps_c': [25.0], 'rates_rpm': [0.0, 10.0, 40.0],
+                                  'hold_s': 0.8, 'settle_s': 0.3}}))
+    profile = load_scenario(str(profile_path))
+    node = NodeProcess(env, tmp_path / 'node.log')
+    stalls = []
+
+    def stop_node(after_s):
+        def run():
+            time.sleep(after_s)
+            node.proc.send_signal(signal.SIGSTOP)
+            time.sleep(0.6)
+            stalls.append(after_s)
+            node.proc.send_signal(signal.SIGCONT)
+        threading.Thread(target=run, daemon=True).start()
+
+    def progress(index, step):
+        if index == 0:
+            stop_node(0.05)
+        elif index == 1:
+            time.sleep(0.6)                 # the player held back (a loaded machine)
+        elif index == 2:
+            stop_node(0.5)                  # the node stopped across the profile's end
+
+    try:
+        player = play(profile, collect=True, wait_s=HANG_S, progress=progress)
+    finally:
+        node.proc.send_signal(signal.SIGCONT)
+        assert node.stop() == 0, node.log()
+    assert len(stalls) == 2, stalls
+    samples = [result.samples for result in player.results()]
+    assert all(count >= 99 for count in samples), samples
+    assert player.interrupted is None
+
+
 @pytest.mark.parametrize('delay_s', [0.0, 3.0], ids=['at-once', 'with-samples'])
 def test_a_main_job_stopped_by_ctrl_c_says_the_scenario_was_interrupted(tmp_path, delay_s):
     """

@@ -9,7 +9,10 @@ along ``axis``) and its ambient temperature on ``cmd/temperature``
 (sensor_msgs/Temperature) at ``publish_rate_hz``, so a lost message is
 repaired at the next period. With ``--summary`` it also listens to
 ``imu/data_raw`` and ``imu/temperature`` and prints, per step, the commanded
-and measured rate and the error in deg/s, averaged after ``settle_s``.
+and measured rate and the error in deg/s, averaged after ``settle_s``. It keeps every sample
+(:data:`COLLECT_DEPTH`: a late node's catch-up bursts, and what comes while a
+loaded machine holds the player back) and, after the last step, waits up to
+:data:`DRAIN_S` for the node's samples of it.
 
 Before the first step the player waits for the emulator itself: a node that
 subscribes to both commands and publishes ``imu/data_raw`` (a recorder that
@@ -47,6 +50,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.utilities import remove_ros_args
 
@@ -58,6 +62,16 @@ FAULT_MARGIN_S = 0.1
 WAITING_REPORT_S = 1.0
 #: How often the ``scenario`` command prints that it still waits, s.
 WAITING_LINE_S = 5.0
+#: History of the player's output subscriptions (best effort, which either
+#: reliability the node offers serves). The sensor-data profile's 5 lost the
+#: node's catch-up bursts (up to ``max_burst_samples``, 32, per tick) and
+#: whatever came while a loaded machine held the player back: a node or a player
+#: stopped for 0.6 s kept 44-50 of a step's 100 samples. 1000 is the node's own
+#: FIFO depth (``fifo_depth_samples``).
+COLLECT_DEPTH = 1000
+#: Longest wait after the profile's end for the node's samples of its last step, s
+#: (a node behind a loaded machine publishes them late, each with its own stamp).
+DRAIN_S = 10.0
 
 
 # --- the ROS side ----------------------------------------------------------
@@ -96,13 +110,14 @@ class ScenarioPlayer:
         self._temp_msg = topic_class(topics.TEMPERATURE_CMD)()
         self.imu, self.temps = [], []
         self.imu_received = 0
+        self.newest_imu_ns = None
         self._collect = collect
+        deep = QoSProfile(depth=COLLECT_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
         node.create_subscription(topic_class(topics.IMU_OUT), topics.IMU_OUT.name,
-                                 self._on_imu, topic_qos(topics.IMU_OUT))
+                                 self._on_imu, deep)
         if collect:
             node.create_subscription(topic_class(topics.DIE_TEMPERATURE_OUT),
-                                     topics.DIE_TEMPERATURE_OUT.name, self._on_temp,
-                                     topic_qos(topics.DIE_TEMPERATURE_OUT))
+                                     topics.DIE_TEMPERATURE_OUT.name, self._on_temp, deep)
         self.start_ns = None
         self.done = False
         self.stop_ns = None          # set when interrupted (SIGINT, SIGTERM, shutdown)
@@ -126,7 +141,10 @@ class ScenarioPlayer:
             return
         v = msg.angular_velocity
         s = msg.header.stamp
-        self.imu.append((s.sec * NS_PER_S + s.nanosec, (v.x, v.y, v.z)))
+        stamp_ns = s.sec * NS_PER_S + s.nanosec
+        self.imu.append((stamp_ns, (v.x, v.y, v.z)))
+        if self.newest_imu_ns is None or stamp_ns > self.newest_imu_ns:
+            self.newest_imu_ns = stamp_ns
 
     def _on_temp(self, msg):
         s = msg.header.stamp
@@ -168,6 +186,11 @@ class ScenarioPlayer:
     def connected(self):
         """Return True once the emulator runs: on the graph, serving, its first sample in."""
         return self.missing() is None
+
+    def last_step_in(self):
+        """Return True once a collected Imu is stamped at or after the profile's end."""
+        end_ns = self.start_ns + self._ends[-1]
+        return self.newest_imu_ns is not None and self.newest_imu_ns >= end_ns
 
     def faults_settled(self):
         """Return True once the node has answered every fault sent."""
@@ -308,6 +331,8 @@ def play(profile, collect=True, wait_s=120.0, loop=False, progress=None, args=No
             if progress is not None and index is not None and index != shown:
                 shown = index
                 progress(index, profile.steps[index])
+        if collect:
+            _drain(player, executor, stop)
         deadline = time.monotonic() + 2.0
         while not player.faults_settled() and time.monotonic() < deadline:
             if stop.is_set() or not spin_once(executor, 0.05):
@@ -342,6 +367,13 @@ def _wait_for_emulator(player, executor, stop, wait_s, waiting):
         if waiting is not None and now >= next_report:
             next_report += WAITING_REPORT_S
             waiting(now - began, missing)
+        _spin(executor, stop)
+
+
+def _drain(player, executor, stop):
+    """Spin until the last step's samples are in (``last_step_in``), at most DRAIN_S."""
+    deadline = time.monotonic() + DRAIN_S
+    while not player.last_step_in() and time.monotonic() < deadline:
         _spin(executor, stop)
 
 
