@@ -193,6 +193,26 @@ def check_rate_hz(rate_hz):
     return rate_hz
 
 
+def check_ambient_c(temp_c):
+    """
+    Return an ambient temperature as a float (None as None); ValueError outside the model's.
+
+    The one check of an ambient a command takes as ``--temp-c`` (simulate's
+    scripted profiles, a replay's model ambient), before any work: the
+    message names the field alone (``temp_c = nan is out of range``), which
+    the command line names as the option typed, not the model field that
+    would have refused it later (``Segment.temp_start_c``).
+    """
+    if temp_c is None:
+        return None
+    temp_c = float(temp_c)
+    low, high = MODEL_TEMP_RANGE_C
+    if not low <= temp_c <= high:
+        raise ValueError(f'temp_c = {temp_c!r} is out of range: allowed [{low:g}, {high:g}] C '
+                         '(the physics model range)')
+    return temp_c
+
+
 def check_seed(owner, seed):
     """
     Return ``seed``, a seed of ``numpy.random.default_rng``; ValueError unless an integer >= 0.

@@ -60,6 +60,9 @@ def _static_csv(path, n=2000, rate_hz=100.0):
     ('--duration-s', 'nan', ('--duration-s nan', 'allowed > 0 s')),
     ('--duration-s', 'inf', ('--duration-s inf', 'allowed > 0 s')),
     ('--seed', '-1', ('simulate.seed = -1', 'allowed integers >= 0')),
+    # named the model's field (Segment.temp_start_c = nan) instead of the option
+    ('--temp-c', 'nan', ('--temp-c nan', 'allowed [-60, 200] C')),
+    ('--temp-c', '-300', ('--temp-c -300.0', 'allowed [-60, 200] C')),
 ])
 @pytest.mark.parametrize('out', ['out.csv', 'bag'])
 def test_simulate_names_a_bad_duration_rate_or_seed_and_writes_nothing(

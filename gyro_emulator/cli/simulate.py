@@ -18,7 +18,7 @@ with the node's topics (see ``gyro_emulator.analysis.replay``), stamped from
 import sys
 import time
 
-from gyro_emulator import outputs
+from gyro_emulator import outputs, validation
 from gyro_emulator.units import AXES
 
 HELP = 'simulate the sensor over a scripted profile and write CSV or a rosbag2 bag'
@@ -111,6 +111,7 @@ def run(args):
     from gyro_emulator.sensor.config import config_source
 
     started = time.monotonic()
+    validation.check_ambient_c(args.temp_c)
     outputs.check([simulate.output(args.out)],
                   inputs=[config_source(args.config), args.profile, args.faults],
                   overwrite=args.overwrite)

@@ -19,7 +19,7 @@ from gyro_emulator.recording import record
 from gyro_emulator.recording.files import inside_bag
 from gyro_emulator.sensor.config import load_sensor_config, PRESET_NAMES
 from gyro_emulator.sensor.streams import seed_from_name
-from gyro_emulator.validation import check_rate_hz, MODEL_TEMP_RANGE_C
+from gyro_emulator.validation import check_ambient_c, check_rate_hz
 
 #: Sensor configuration when neither the caller nor the bag names one.
 DEFAULT_CONFIG = 'paper'
@@ -103,10 +103,7 @@ def check_options(seed, rate_hz, temp_c):
     if seed is not None and seed < 0:
         raise ValueError(f'seed = {seed} is out of range: allowed >= 0')
     check_rate_hz(rate_hz)
-    low, high = MODEL_TEMP_RANGE_C
-    if temp_c is not None and not low <= temp_c <= high:
-        raise ValueError(f'temp_c = {temp_c!r} is out of range: allowed [{low:g}, {high:g}] C '
-                         '(the physics model range)')
+    check_ambient_c(temp_c)
 
 
 def replay_bag(bag_path, out_dir, config=None, seed=None, plots=True, overwrite=False,
