@@ -258,6 +258,10 @@ def test_replay_refuses_what_it_would_silently_do_wrong(tmp_path):
             # a repeated --remap took the last rule without a word
             (['--remap', '/a:=/x', '/a:=/y'], '--remap /a:=/x and --remap /a:=/y: two names '
                                               'for /a; give one rule per topic'),
+            # a rule for a topic left out of --topics was ignored without a word
+            (['--topics', '/a', '--remap', '/b:=/x'], '--remap /b:=/x: /b is not replayed '
+                                                      '(--topics /a); add it to --topics or '
+                                                      'drop the rule'),
             # an offset past the end published 0 messages with exit 0
             (['--start-offset', '5'], f'--start-offset = 5.0 is past the end of bag {source}: '
                                       'its messages span 0.99 s; allowed [0, 0.99] s'),

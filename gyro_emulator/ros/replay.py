@@ -92,6 +92,11 @@ def _check(opts):
             raise ValueError(f'--remap {source}:={remap[source]} and --remap {rule}: two names '
                              f'for {source}; give one rule per topic')
         remap[source] = target
+    for source in remap:            # it was ignored without a word
+        if opts.topics is not None and source not in opts.topics:
+            raise ValueError(f'--remap {source}:={remap[source]}: {source} is not replayed '
+                             f'(--topics {" ".join(opts.topics)}); add it to --topics or '
+                             'drop the rule')
     return remap
 
 
