@@ -131,9 +131,9 @@ case "$cmd" in
         # suite runs on three pytest-xdist workers, a test file per worker: most
         # of its time is spent waiting (ROS discovery, child processes), so a
         # third worker on two cores halves the wall time (GYRO_TEST_WORKERS=0
-        # runs it in one process); named tests run as given.
+        # runs it in one process), and names its 15 slowest tests; named tests run as given.
         if [ $# -eq 0 ]; then
-            set -- -n "${GYRO_TEST_WORKERS:-3}" --dist loadfile
+            set -- -n "${GYRO_TEST_WORKERS:-3}" --dist loadfile --durations=15
         fi
         exec "$VENV/bin/python" -m pytest "$@" ;;
     shell)
