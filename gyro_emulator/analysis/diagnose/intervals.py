@@ -54,7 +54,7 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
   widened as a coefficient is: the union of its profile interval and phi
   +- t_{K-1} sigma, sigma the larger of the jackknife over the folds and
   the sandwich under the record's noise law, linearised in phi
-  (:func:`_noise_law_union`): a warm-up's time constant trades with a
+  (:func:`.searched.widen`): a warm-up's time constant trades with a
   random walk that the profile's effective bins do not see.
 
 :func:`clear_of_zero` is the selection's rule that a cause's estimate
@@ -74,15 +74,15 @@ minimum by z^2 SSE_min / n_eff.
 from dataclasses import dataclass, replace
 import math
 
-from gyro_emulator.analysis.diagnose import models, noise_model, statespace
+from gyro_emulator.analysis.diagnose import models, searched
 from gyro_emulator.analysis.diagnose.data import RATE_SHAPES
+from gyro_emulator.analysis.diagnose.sandwich import LEVEL, linear_variance, measured, Wander, \
+    wander_law  # noqa: F401 (Wander and wander_law: the intervals' API)
 import numpy as np
 from scipy import optimize
 from scipy.special import stdtrit
 from scipy.stats import chi2, f as f_dist, t as t_dist
 
-#: Two-sided level of every parameter interval.
-LEVEL = 0.95
 #: Profile likelihood threshold in units of SSE_min / n_eff (chi^2_1 at LEVEL).
 PROFILE_CHI2 = float(chi2.ppf(LEVEL, 1))
 #: The same for a step time (module docstring): 2 (-ln(1 - sqrt(LEVEL))).
@@ -183,86 +183,6 @@ def _cause_columns(evaluated, ctx, frame):
     return cols[start:]
 
 
-def _measured(column, weight):
-    """Tell whether a column varies over the record (a coefficient the record can measure)."""
-    c = np.broadcast_to(np.asarray(column, float), weight.shape)
-    mean = float(np.sum(weight * c) / np.sum(weight))
-    spread = math.sqrt(float(np.sum(weight * (c - mean) ** 2) / np.sum(weight)))
-    return spread > 1e-12 * max(abs(mean), 1e-300) and spread > 0.0
-
-
-@dataclass(frozen=True)
-class Wander:
-    """
-    What a coefficient's sandwich needs: the noise and the super-bins it acts on.
-
-    ``noise`` (:class:`.noise_model.NoiseModel`) gives the white density;
-    with ``groups`` (:class:`.statespace.Groups` of the super-bins) and
-    ``y_groups`` (the output's group means) the walk is fitted for each
-    model the sandwich is taken of (:func:`wander_law`, at most ``rw_cap``);
-    without them (a record of fewer than 8 groups) ``noise`` is the law as
-    it is.
-    """
-
-    noise: object
-    superbins: object
-    groups: object = None
-    y_groups: object = None
-    rw_cap: float = math.inf
-
-    def law(self, model, ctx, frame, phis):
-        """Return the noise law under ``model`` with the searched parameters ``phis``."""
-        if self.groups is None:
-            return self.noise
-        sb = self.superbins
-        x = np.column_stack([sb.aggregate(c) for c in model.columns(ctx, frame, phis)])
-        return wander_law(self.noise, self.y_groups, x, self.groups, self.rw_cap)
-
-
-def wander_law(noise, y_groups, x_groups, groups, rw_cap=math.inf):
-    """
-    Return the noise law of a model's intervals: white noise and the walk of the record.
-
-    ``noise`` is the residual's (:func:`.noise_model.fit_noise`); its white
-    density is kept. Its flicker and walk come from an Allan fit up to a
-    tenth of the record, which misses a wander slower than that (a warm-up
-    trend, the walk over the whole record: what biases a step or a tempco)
-    and, on white noise, often reports a spurious term. The walk is the
-    maximum-likelihood local level's instead (:func:`.statespace.fit_level`)
-    of the group means ``y_groups`` on the model's columns ``x_groups``: it
-    measures the wander over the whole record, jointly with the model, and
-    is 0 where the record shows none. ``rw_cap`` (rad^2/s^3) is the walk
-    the model's residual allows at every averaging time up to a quarter of
-    its longest segment (:func:`.noise_model.random_walk_cap` with
-    ``tau_max_s``): a misfit of the rate within the groups is not a walk.
-    """
-    try:
-        walk = statespace.fit_level(y_groups, x_groups, groups, rw_cap).rw_var_rad2_s3
-    except ValueError:
-        return noise
-    return replace(noise, bias_instability_rad_s=0.0, rrw_rad_s_sqrt_s=math.sqrt(max(walk, 0.0)))
-
-
-def _linear_variance(u, weight, noise, superbins):
-    """
-    Return the variance of estimates u @ ybar under white noise and the wander of ``noise``.
-
-    ``u`` (k, bins): each estimate's weights on the bin means ybar, whose
-    sample counts are ``weight``. White noise of density N gives a bin mean
-    of n samples the variance N^2 / (n dt); the wander
-    (:func:`.noise_model.wander_covariance`) is taken at the super-bins,
-    within which it barely moves: u summed over each super-bin.
-    """
-    sb = superbins
-    if len(u) == 0:
-        return np.zeros(0)
-    white = noise.arw_rad_s_sqrt_hz ** 2 / sb.dt_s
-    inv_w = 1.0 / np.maximum(weight, 1e-300)
-    h = np.stack([np.bincount(sb.group, weights=row, minlength=len(sb)) for row in u])
-    return white * np.einsum('ij,ij,j->i', u, u, inv_w) + np.einsum(
-        'ij,ij->i', h @ noise_model.wander_covariance(noise, sb), h)
-
-
 def _cause_weights(model, ctx, frame, phis):
     """Return the last cause's coefficients' weights on the bin means, (k, bins), and x."""
     n = len(frame)
@@ -291,7 +211,7 @@ def wander_sigmas(evaluated, ctx, frame, wander, law=None):
     model, full = evaluated.model, evaluated.full
     u, _ = _cause_weights(model, ctx, frame, full.phis)
     noise = wander.law(model, ctx, frame, full.phis) if law is None else law
-    var = _linear_variance(u, frame.weight, noise, wander.superbins)
+    var = linear_variance(u, frame.weight, noise, wander.superbins)
     return np.sqrt(np.maximum(var, 0.0)) * _report_factors(model.effects[-1], full)
 
 
@@ -327,7 +247,7 @@ def drift_variance(evaluated, ctx, frame, law, superbins):
         return np.zeros(len(u))
     resid = frame.gyro - models.predict(model, ctx, frame, full)
     slope = float(np.sum(w * perp * resid)) / norm
-    v = float(_linear_variance((w * perp / norm)[None, :], w, law, superbins)[0])
+    v = float(linear_variance((w * perp / norm)[None, :], w, law, superbins)[0])
     lever = (u @ tc) * _report_factors(model.effects[-1], full)
     return max(slope * slope - v, 0.0) * lever * lever
 
@@ -375,7 +295,7 @@ def linear_estimates(effect, evaluated, ctx, frame, wander=None):
     for i, p in enumerate(effect.params[skip:]):
         value, sigma, kf = jack[p.name]
         col = cols[i] if i < len(cols) else None
-        if col is None or not _measured(col, frame.weight) or not sigma > 0.0:
+        if col is None or not measured(col, frame.weight) or not sigma > 0.0:
             # sigma 0 and no interval: nothing was measured, not a zero-width interval
             out[p.name] = Estimate(value, 0.0, None, 'not measured: the record does not '
                                    'vary what this coefficient multiplies')
@@ -428,11 +348,6 @@ PROFILE = 'profile likelihood'
 #: Said of a delay's interval that the shapes of the applied rate widened.
 SHAPES_NOTE = ("; the union over the applied rate's shapes between its samples "
                '(linear, PCHIP, cubic spline)')
-#: Said of a searched parameter's interval that was widened (:func:`_noise_law_union`).
-NOISE_LAW_NOTE = ('; widened to the larger of the jackknife over the folds and the '
-                  "linearised sandwich under the record's noise law")
-#: Relative step of the derivative of a prediction in a searched parameter.
-JACOBIAN_STEP = 1e-3
 
 
 def _profile_1d(evaluated, ctx, frame, n_eff):
@@ -560,84 +475,12 @@ def _profile_step(evaluated, ctx, frame, n_eff):
              last >= len(starts) - 1)]
 
 
-def searched_sigma(evaluated, ctx, frame, wander):
-    """
-    Return the sandwich 1-sigma of the last cause's one searched parameter, linearised.
-
-    Near the fit the prediction is linear in (beta, phi) (Gauss-Newton;
-    Seber & Wild 1989, ch. 5): phi's column is the derivative of the
-    prediction, J = d pred / d phi (central difference, relative step
-    :data:`JACOBIAN_STEP`, the coefficients held), and phi's weights on the
-    bin means are the last row of the regularised normal matrix's inverse of
-    [X, J] times [X, J]' W (the causes' ridge on X, none on J). Its variance
-    under the record's noise law (white noise and the walk the local level
-    sees, :meth:`Wander.law`) is then that of a coefficient
-    (:func:`_linear_variance`). 0 where the prediction does not depend on phi.
-    """
-    model, full = evaluated.model, evaluated.full
-    phi = float(full.phis[-1][0])
-    step = JACOBIAN_STEP * abs(phi) if phi else JACOBIAN_STEP
-    head = tuple(full.phis[:-1])
-
-    def predict_at(value):
-        return models.predict(model, ctx, frame, replace(full, phis=head + ((value,),)))
-
-    jac = (predict_at(phi + step) - predict_at(phi - step)) / (2.0 * step)
-    n, w = len(frame), frame.weight
-    if not _measured(jac, w):
-        return 0.0
-    x = np.column_stack([np.broadcast_to(c, (n,)) for c in model.columns(ctx, frame, full.phis)]
-                        + [jac])
-    rows = models.coefficient_map(x, w, np.r_[model.penalty(ctx), 0.0])[-1:]
-    u = rows @ (x * w[:, None]).T
-    var = _linear_variance(u, w, wander.law(model, ctx, frame, full.phis), wander.superbins)
-    return math.sqrt(max(float(var[0]), 0.0))
-
-
-def _fold_sigma(evaluated):
-    """Return the delete-a-fold jackknife sigma of the last cause's one searched parameter."""
-    theta = np.array([float(fit.phis[-1][0]) for fit in evaluated.fits.values()])
-    k = len(theta)
-    return math.sqrt((k - 1) / k * float(np.sum((theta - theta.mean()) ** 2)))
-
-
-def _noise_law_union(effect, evaluated, ctx, frame, wander, ends):
-    """
-    Widen a continuous searched parameter's profile interval as a coefficient's, t_{K-1}.
-
-    The profile's threshold scales the SSE by the residual's effective bins,
-    which a wander as slow as the cause itself does not reach: a warm-up's
-    time constant trades with the record's random walk. On seeded 1200 s
-    records with a warm-up (tau 300 s, 2e-2 rad/s) beside a walk of 2e-5
-    and 5e-5 rad/s/sqrt(s) the profile interval held the truth on 44 and
-    25 of 60. The interval is the union of the profile's and phi +- t_{K-1}
-    sigma, sigma the larger of the jackknife over the folds
-    (:func:`_fold_sigma`) and the linearised sandwich under the record's
-    noise law (:func:`searched_sigma`), as a coefficient's
-    (:func:`linear_estimates`): 59 and 55 of 60. The law's walk is often 0
-    on such a record (the warm-up and drift columns take up what the local
-    level would see), and the sandwich alone held 50 and 38; with the true
-    walk in the law it held 59 and 56. The interval is kept inside the
-    searched range (an end there is open). Returns (ends, widened).
-    """
-    lo, hi, olo, ohi = ends
-    sigma = max(searched_sigma(evaluated, ctx, frame, wander), _fold_sigma(evaluated))
-    phi = float(evaluated.full.phis[-1][0])
-    half = float(stdtrit(len(evaluated.fits) - 1, 0.5 + LEVEL / 2.0)) * sigma
-    grid = np.asarray(effect.grids(ctx)[0], dtype=float)
-    first, last = float(grid.min()), float(grid.max())
-    new_lo, new_hi = max(min(lo, phi - half), first), min(max(hi, phi + half), last)
-    widened = (new_lo, new_hi) != (lo, hi)
-    return (new_lo, new_hi, olo or (widened and new_lo <= first),
-            ohi or (widened and new_hi >= last)), widened
-
-
 def nonlinear_estimates(effect, evaluated, ctx, frame, n_eff, wander=None):
     """
     Return {name: Estimate} of the cause's searched parameters (profile likelihood).
 
     With ``wander`` a continuous one-dimensional one is widened to the
-    sandwich under the record's noise law (:func:`_noise_law_union`).
+    sandwich under the record's noise law (:func:`.searched.widen`).
     """
     k = n_nonlinear(effect, ctx)
     if k == 0:
@@ -654,8 +497,8 @@ def nonlinear_estimates(effect, evaluated, ctx, frame, n_eff, wander=None):
         method += SHAPES_NOTE if widened else ''
     if (wander is not None and k == 1 and getattr(effect, 'refine', True)
             and not getattr(effect, 'change_point', False)):
-        ends[0], widened = _noise_law_union(effect, evaluated, ctx, frame, wander, ends[0])
-        method += f'{NOISE_LAW_NOTE}, t_{len(evaluated.fits) - 1}' if widened else ''
+        ends[0], widened = searched.widen(effect, evaluated, ctx, frame, wander, ends[0])
+        method += f'{searched.NOTE}, t_{len(evaluated.fits) - 1}' if widened else ''
     fitted = [float(v) for v in evaluated.full.phis[-1]]
     values = evaluated.model.report(evaluated.full.beta, evaluated.full.phis)[-1]
     out = {}
