@@ -10,7 +10,7 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
   is the sandwich of the linear estimator under the record's noise law
   (:func:`wander_sigmas`): white noise plus the random walk the
   maximum-likelihood local level sees over the whole record
-  (:func:`wander_law`). The
+  (:func:`.sandwich.wander_law`). The
   jackknife alone misses a wander slower than a fold: every fold is
   biased alike (a drift beside a bias step, a walk beside a staircase of
   soaks), and its spread does not show it. The t_{K-1} quantile of both
@@ -60,7 +60,7 @@ Every parameter a cause reports gets a 95 % interval and a 1-sigma:
 :func:`clear_of_zero` is the selection's rule that a cause's estimate
 is not within ``z`` sigma of zero: a cause with coefficients needs one of
 them beyond z sigma of the estimates it is given (the selection gives the
-jackknife's, :func:`linear_estimates` without a :class:`Wander`, so that
+jackknife's, :func:`linear_estimates` without a :class:`.sandwich.Wander`, so that
 detection keeps its calibration), or all of them together beyond the same
 level on the folds' joint spread (Hotelling's T^2, :func:`hotelling_p`:
 the columns of a temperature polynomial are correlated through cycles);
@@ -76,8 +76,7 @@ import math
 
 from gyro_emulator.analysis.diagnose import models, searched
 from gyro_emulator.analysis.diagnose.data import RATE_SHAPES
-from gyro_emulator.analysis.diagnose.sandwich import LEVEL, linear_variance, measured, Wander, \
-    wander_law  # noqa: F401 (Wander and wander_law: the intervals' API)
+from gyro_emulator.analysis.diagnose.sandwich import LEVEL, linear_variance, measured
 import numpy as np
 from scipy import optimize
 from scipy.special import stdtrit
@@ -206,7 +205,7 @@ def wander_sigmas(evaluated, ctx, frame, wander, law=None):
     from the fitted noise model, not from the residuals' own lags, which a
     few blocks of a slow walk cannot give): :func:`_linear_variance` of the
     weights M^-1 X' W (:func:`_cause_weights`). ``law``: the model's noise
-    law when already fitted (:meth:`Wander.law`).
+    law when already fitted (:meth:`.sandwich.Wander.law`).
     """
     model, full = evaluated.model, evaluated.full
     u, _ = _cause_weights(model, ctx, frame, full.phis)
@@ -281,7 +280,7 @@ def linear_estimates(effect, evaluated, ctx, frame, wander=None):
     """
     Return {name: Estimate} of the cause's coefficients (module docstring).
 
-    The jackknife over the folds and, given ``wander`` (a :class:`Wander`),
+    The jackknife over the folds and, given ``wander`` (a :class:`.sandwich.Wander`),
     the sandwich under the record's noise law (:func:`wander_sigmas`): the
     larger sigma is the one stated, its name the ``method``, the interval
     +- t_{K-1} sigma.

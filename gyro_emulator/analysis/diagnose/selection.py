@@ -50,7 +50,7 @@ import math
 import zlib
 
 from gyro_emulator.analysis.diagnose import cv as cvmod
-from gyro_emulator.analysis.diagnose import intervals, models, noise_model, statespace
+from gyro_emulator.analysis.diagnose import intervals, models, noise_model, sandwich, statespace
 from gyro_emulator.analysis.diagnose import reference as reference_mod
 from gyro_emulator.analysis.diagnose.effects import Effect
 import numpy as np
@@ -107,7 +107,7 @@ class Candidate:
     #: supported, or it is significant): no held-out gain, or a size within
     #: SIZE_Z sigma of zero.
     in_sample_only: str = None
-    #: Returns what its intervals need (:class:`.intervals.Wander`), made on
+    #: Returns what its intervals need (:class:`.sandwich.Wander`), made on
     #: demand: only the causes reported need it.
     wander: object = None
 
@@ -192,22 +192,22 @@ class Selector:
 
     def wander_of(self, evaluated):
         """
-        Return what the intervals of a fitted model need (:class:`.intervals.Wander`).
+        Return what the intervals of a fitted model need (:class:`.sandwich.Wander`).
 
         The white density of its residual's noise (with a reference, the
         reference's) and the walk fitted per model on the super-bins of this
-        record (:func:`.intervals.wander_law`).
+        record (:func:`.sandwich.wander_law`).
         """
         noise, sb, prep = self.noise_of(evaluated), self.superbins, self.cv.prep
         try:
             groups = statespace.Groups(sb.weight, sb.weight * prep.dt_s, sb.time_s)
         except ValueError:
-            return intervals.Wander(noise, sb)
+            return sandwich.Wander(noise, sb)
         s = prep.samples
         resid = s.gyro - models.predict(evaluated.model, self.ctx, s, evaluated.full)
         cap = noise_model.random_walk_cap(resid, s.time_s, prep.dt_s, prep.duration_s,
                                           tau_max_s=math.inf)
-        return intervals.Wander(noise, sb, groups, sb.aggregate(prep.binned.gyro), cap)
+        return sandwich.Wander(noise, sb, groups, sb.aggregate(prep.binned.gyro), cap)
 
     def sims_of(self, noise):
         """Noise records at the super-bins (the same random numbers for every noise model)."""
