@@ -65,8 +65,8 @@ def _record(effect, walk, seed, drift=0.0):
                         gyro_rad_s=gyro), size
 
 
-def _interval(data, effect):
-    """Return the stated 95 % interval of the planted coefficient (the pipeline's path)."""
+def _estimates(data, effect):
+    """Return {name: Estimate} of cause ``effect`` fitted to ``data`` (the pipeline's path)."""
     prep = Prepared(data, max_bins=N // 4)
     ctx = Context(phys=DevicePhysics(physics_preset('paper'), 25.0, 25.0, 25.0),
                   ref_temp_c=25.0, time_span_s=(0.0, float(N - 1)),
@@ -77,8 +77,12 @@ def _interval(data, effect):
     ev = cv.evaluate(models.Model((eff,)))
     resid = prep.binned.gyro - models.predict(ev.model, ctx, prep.binned, ev.full)
     n_eff = cvmod.effective_bins(resid, prep.binned.weight)
-    found = intervals.estimates(eff, ev, ctx, prep.binned, n_eff, selector.wander_of(ev))
-    return found[PLANTED[effect][0]].interval
+    return intervals.estimates(eff, ev, ctx, prep.binned, n_eff, selector.wander_of(ev))
+
+
+def _interval(data, effect):
+    """Return the stated 95 % interval of the planted coefficient."""
+    return _estimates(data, effect)[PLANTED[effect][0]].interval
 
 
 def _coverage(effect, walk, drift=0.0):
@@ -111,18 +115,7 @@ def _warmup_tau_interval(seed):
             + WARMUP_RAD_S * rng.choice((-1.0, 1.0)) * np.exp(-t / WARMUP_TAU_S))
     data = MeasuredData(time_s=t, rate_cmd_rad_s=np.zeros(N), temp_c=np.full(N, 25.0),
                         gyro_rad_s=gyro)
-    prep = Prepared(data, max_bins=N // 4)
-    ctx = Context(phys=DevicePhysics(physics_preset('paper'), 25.0, 25.0, 25.0),
-                  ref_temp_c=25.0, time_span_s=(0.0, float(N - 1)),
-                  duration_s=prep.duration_s, noise_var_rad2_s2=WHITE ** 2)
-    cv = cvmod.CrossValidation(prep, ctx, 8)
-    selector = selection.Selector(cv, SuperBins(prep.binned, cv.fold_of_bin, prep.dt_s))
-    eff = generic.effect('bias_time')
-    ev = cv.evaluate(models.Model((eff,)))
-    resid = prep.binned.gyro - models.predict(ev.model, ctx, prep.binned, ev.full)
-    n_eff = cvmod.effective_bins(resid, prep.binned.weight)
-    found = intervals.estimates(eff, ev, ctx, prep.binned, n_eff, selector.wander_of(ev))
-    return found['warmup_time_constant_s'], WARMUP_TAU_S
+    return _estimates(data, 'bias_time')['warmup_time_constant_s'], WARMUP_TAU_S
 
 
 def test_a_warm_up_time_constant_beside_a_walk_is_in_its_interval():
