@@ -34,6 +34,24 @@ def pytest_configure(config):
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
+@pytest.fixture(autouse=True)
+def _signal_mask_is_left_as_found():
+    """
+    Fail the test that leaves signals blocked in the test process (then unblock them).
+
+    Every child a later test starts inherits the mask: a blocked SIGTERM
+    cannot stop it (``test_atomic``'s writer once outlived a SIGTERM by
+    60 s in a full run; the cause was not found, and no code path known
+    blocks the mask in-process). This turns such a leak into a failure of
+    the test that caused it.
+    """
+    before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    yield
+    after = signal.pthread_sigmask(signal.SIG_SETMASK, before)
+    if after != before:
+        pytest.fail(f'the test left signals blocked: {sorted(after - before)}')
+
+
 def _next_domain():
     """
     Return the ROS_DOMAIN_ID of the next ROS test of this process.
