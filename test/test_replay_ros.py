@@ -1,5 +1,6 @@
 """``replay`` republishes a bag with its timing, /clock, rate scaling and looping."""
 
+import ctypes
 import os
 import signal
 import subprocess
@@ -319,7 +320,25 @@ def test_a_bag_topic_that_is_not_a_ros_name_is_named_as_the_bags(tmp_path):
     assert out.returncode == 0 and 'replay: published 5 messages' in out.stdout, out.stderr
 
 
-def test_replay_delay_ends_on_sigint(tmp_path):
+def _signal_another_thread(pid, signum):
+    """
+    Send ``signum`` to a thread of ``pid`` other than its main one (tgkill).
+
+    The kernel delivers a process's signal to any thread that does not block
+    it; this makes the case that is rare on an idle machine happen every time.
+    """
+    for tid in sorted(int(t) for t in os.listdir(f'/proc/{pid}/task') if int(t) != pid):
+        with open(f'/proc/{pid}/task/{tid}/status') as handle:
+            blocked = next(int(line.split()[1], 16) for line in handle
+                           if line.startswith('SigBlk:'))
+        if not blocked & (1 << (signum - 1)):
+            assert ctypes.CDLL(None, use_errno=True).tgkill(pid, tid, signum) == 0
+            return
+    raise AssertionError(f'every thread of {pid} but the main one blocks {signum}')
+
+
+@pytest.mark.parametrize('to_thread', [False, True], ids=['process', 'another-thread'])
+def test_replay_delay_ends_on_sigint(tmp_path, to_thread):
     source = _two_topic_bag(str(tmp_path / 'two'))
     replay = _start(['gyro_emulator.ros.replay', source, '--wait-for-subscribers', '0.01',
                      '--delay', '600'], ros_env(), stdout=subprocess.PIPE,
@@ -328,8 +347,13 @@ def test_replay_delay_ends_on_sigint(tmp_path):
         for line in replay.stderr:      # the wait for subscribers ends: the delay begins
             if 'no subscriber on' in line:
                 break
-        replay.send_signal(signal.SIGINT)
-        out, _ = replay.communicate(timeout=60)    # the delay slept on through SIGINT
+        if to_thread:
+            _signal_another_thread(replay.pid, signal.SIGINT)
+        else:
+            replay.send_signal(signal.SIGINT)
+        # the delay slept on through SIGINT (one Event.wait: not woken by a
+        # signal that another thread took)
+        out, _ = replay.communicate(timeout=60)
     finally:
         if replay.poll() is None:
             replay.kill()

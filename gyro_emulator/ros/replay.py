@@ -364,7 +364,7 @@ def _play(player, opts, reader, start_ns):
     if opts.wait_for_subscribers > 0:
         player.wait_for_subscribers(opts.wait_for_subscribers)
     if opts.delay > 0:              # SIGINT or SIGTERM ends the wait (they set stop)
-        player.stop.wait(min(opts.delay, threading.TIMEOUT_MAX))
+        spinning.wait_until_set(player.stop, opts.delay)
     if start_ns > reader.start_time_ns:
         left_s = (reader.end_time_ns - start_ns) / NS_PER_S
         player.node.get_logger().info(

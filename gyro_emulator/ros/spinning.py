@@ -8,12 +8,14 @@ compiled code loads is deferred, a signal while the node is built ends the
 run quietly, and the spin loop sees the context go down instead of a
 traceback. Its parts :func:`spin_once` and :func:`close` also serve the
 recorder, the replay and the scenario player; :func:`flag_signals` serves
-the two players, whose loops read a flag between steps.
+the two players, whose loops read a flag between steps, and
+:func:`wait_until_set` waits for that flag.
 """
 
 import signal
 import sys
 import threading
+import time
 
 from gyro_emulator.interrupts import INTERRUPTED_STATUS, StartupInterrupt
 import rclpy
@@ -46,6 +48,29 @@ def flag_signals(stop):
         return {}
     return {signum: signal.signal(signum, lambda *_: stop.set())
             for signum in (signal.SIGINT, signal.SIGTERM)}
+
+
+#: Longest blocking wait of a main thread between two looks at pending signals, s.
+SIGNAL_POLL_S = 0.1
+
+
+def wait_until_set(stop, timeout_s):
+    """
+    Wait up to ``timeout_s`` for ``stop`` (a threading.Event); return whether it is set.
+
+    In slices of :data:`SIGNAL_POLL_S`: a signal the kernel delivers to
+    another thread of the process (DDS starts several) only marks the
+    Python handler pending and does not wake a main thread blocked in one
+    long ``Event.wait``, so the handler that sets ``stop`` would run only
+    at its timeout (a ``replay --delay 600`` once slept on through SIGINT).
+    """
+    deadline = time.monotonic() + timeout_s
+    while not stop.is_set():
+        left = deadline - time.monotonic()
+        if left <= 0.0:
+            return False
+        stop.wait(min(left, SIGNAL_POLL_S))
+    return True
 
 
 def spin_once(executor, timeout_sec):
