@@ -221,7 +221,9 @@ def _complete(path, reference):
 
 
 def _check_outcome(name, out, reference, proc, status):
-    assert proc.returncode == status, (name, proc.returncode, proc.stderr[-2000:])
+    # a crash's report (faulthandler: the threads' stacks) before its module list
+    fatal = max(proc.stderr.find('Fatal Python error'), 0)
+    assert proc.returncode == status, (name, proc.returncode, proc.stderr[fatal:fatal + 4000])
     last = proc.stderr.strip().splitlines()[-1]
     assert last.startswith('gyro-emulator ') and 'Traceback' not in proc.stderr, proc.stderr
     for rel in COMMANDS[name][1]:
