@@ -124,17 +124,22 @@ class TerminateOnSignal:
 
     def close(self):
         """
-        End the work: the signals stay blocked until the process exits.
+        End the work: the signals are ignored until the process exits.
 
-        A signal that came before is raised here (its handler runs at once,
-        in this thread); one that comes later waits, blocked, and ends with
-        the process, whose outputs are then complete. Without this, a
-        signal during the interpreter's exit either killed the process
-        (the default handler back) or ran this handler while Python was
-        finalizing (a crash, not one line).
+        A signal that came before is raised here; one that comes later is
+        ignored, and the process, whose outputs are then complete, ends
+        with the command's status. Without this, a signal during the
+        interpreter's exit either killed the process (the default handler
+        back) or ran this handler while Python was finalizing (a crash, not
+        one line). Ignored, not blocked: a mask is one thread's, and the
+        kernel hands a process's signal to any thread that does not block
+        it (a Dask thread of ``fleet``: SIGSEGV in CI, SIGHUP at the end of
+        the run). The previous handlers are not restored on leaving.
         """
         if self.signals:
-            signal.pthread_sigmask(signal.SIG_BLOCK, self.signals)
+            self.restore()
+            for sig in self.signals:
+                signal.signal(sig, signal.SIG_IGN)
         if self.received is not None and not self._deferring:
             raise self.received
 

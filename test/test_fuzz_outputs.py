@@ -254,12 +254,13 @@ def _signalled(args, cwd, signum, cpu_s):
     Run ``args``; send ``signum`` once the process has used ``cpu_s`` of CPU; wait.
 
     Returns the finished process, or None when it ended before it used that
-    much, or had finished its work when the signal came (it then waits,
-    blocked, and the run ends with the command's own status: the caller
+    much, or had finished its work when the signal came (it is then
+    ignored, and the run ends with the command's own status: the caller
     tries again with less).
     """
-    # PYTHONFAULTHANDLER: a crash (once, SIGSEGV after a SIGHUP in a loaded CI run, not
-    # reproduced in 40 runs alone or 6 beside two CPU hogs) leaves its stacks in stderr
+    # PYTHONFAULTHANDLER: a crash leaves its stacks in stderr (fleet died of SIGSEGV
+    # after a SIGHUP in loaded CI runs: a Dask thread took the signal the main thread
+    # had blocked once the work was done; it is ignored process-wide since)
     proc = subprocess.Popen([PY, '-m', 'gyro_emulator.cli', *args], cwd=cwd, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             env=dict(os.environ, PYTHONPATH=ROOT, PYTHONFAULTHANDLER='1'))
@@ -274,7 +275,7 @@ def _signalled(args, cwd, signum, cpu_s):
         time.sleep(0.01)
     out, err = proc.communicate(timeout=600)
     if sent and proc.returncode in (0, 1) and 'stopped by' not in err:
-        sent = False                                # the work was done: the signal waited
+        sent = False                                # the work was done: the signal was ignored
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err) if sent else None
 
 

@@ -330,6 +330,30 @@ def test_after_close_a_signal_waits_for_the_exit_and_the_status_is_the_command_s
     assert (proc.returncode, proc.stdout, proc.stderr) == (3, 'finished None\n', '')
 
 
+def test_after_close_a_signal_another_thread_takes_is_ignored_too():
+    """A signal mask is one thread's: one that a library's thread takes must not end the run."""
+    script = (
+        'import signal, threading\n'
+        'from gyro_emulator.interrupts import TerminateOnSignal\n'
+        'done, go = threading.Event(), threading.Event()\n'
+        'def other():\n'
+        '    go.wait()\n'
+        '    for sig in (signal.SIGTERM, signal.SIGHUP):\n'
+        '        signal.pthread_kill(threading.get_ident(), sig)\n'
+        '    done.set()\n'
+        'thread = threading.Thread(target=other)\n'
+        'thread.start()\n'
+        'with TerminateOnSignal() as guard:\n'
+        '    guard.close()\n'
+        'go.set()\n'
+        'done.wait()\n'
+        'thread.join()\n'
+        'print("finished", guard.received)\n'
+        'raise SystemExit(3)\n')
+    proc = _python(script)
+    assert (proc.returncode, proc.stdout, proc.stderr) == (3, 'finished None\n', '')
+
+
 def test_a_signal_raised_inside_a_callback_is_kept_without_a_traceback():
     """A weakref callback cannot pass the exception on: no 'Exception ignored', it is kept."""
     script = (

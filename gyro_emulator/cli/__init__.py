@@ -136,7 +136,7 @@ def main(argv=None, signals=False):
     With ``signals`` (the ``gyro-emulator`` entry point), SIGTERM and SIGHUP
     stop a command as Ctrl-C does: its unfinished outputs are removed
     (:class:`gyro_emulator.interrupts.Terminated`), and the status is 143 or
-    129; once the command's work is done they are blocked until the process
+    129; once the command's work is done they are ignored until the process
     exits (the outputs are complete by then). ``gyro-emulator ros`` keeps the
     ROS programs' own handling.
     """
