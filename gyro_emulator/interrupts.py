@@ -133,8 +133,8 @@ class TerminateOnSignal:
         back) or ran this handler while Python was finalizing (a crash, not
         one line). Ignored, not blocked: a mask is one thread's, and the
         kernel hands a process's signal to any thread that does not block
-        it (a Dask thread of ``fleet``: SIGSEGV in CI, SIGHUP at the end of
-        the run). The previous handlers are not restored on leaving.
+        it (a Dask thread of ``fleet``: the likely cause of a SIGSEGV in CI
+        on a SIGHUP late in the run). The previous handlers are not restored on leaving.
         """
         if self.signals:
             self.restore()

@@ -259,8 +259,8 @@ def _signalled(args, cwd, signum, cpu_s):
     tries again with less).
     """
     # PYTHONFAULTHANDLER: a crash leaves its stacks in stderr (fleet died of SIGSEGV
-    # after a SIGHUP in loaded CI runs: a Dask thread took the signal the main thread
-    # had blocked once the work was done; it is ignored process-wide since)
+    # after a late SIGHUP in loaded CI runs; likely a Dask thread took the signal the
+    # main thread had blocked once the work was done: it is ignored process-wide since)
     proc = subprocess.Popen([PY, '-m', 'gyro_emulator.cli', *args], cwd=cwd, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             env=dict(os.environ, PYTHONPATH=ROOT, PYTHONFAULTHANDLER='1'))
