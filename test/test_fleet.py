@@ -4,6 +4,7 @@ from dataclasses import replace
 import glob
 import json
 import os
+import time
 
 from conftest import ROOT
 from distributed.diagnostics.plugin import WorkerPlugin
@@ -717,9 +718,30 @@ class _KillFleetTasks(WorkerPlugin):
 WORKERS_BACK_S = 300.0
 
 
-def _unregister_when_settled(client, timeout_s=WORKERS_BACK_S):
+def _wait_settled(client, cluster, timeout_s=WORKERS_BACK_S):
     """
-    Remove the killing plugin once both workers are up.
+    Wait until every nanny still open has its worker running.
+
+    A nanny can close itself under the killing (CI: "Closing Nanny ...
+    Reason: nanny-close" after a fourth kill in a few seconds), and a wait
+    for both workers then waited 300 s for one that never came.
+    """
+    from distributed.core import Status
+
+    def settled():
+        nannies = sum(n.status == Status.running for n in cluster.workers.values())
+        workers = client.scheduler_info()['workers'].values()
+        return nannies >= 1 and sum(w.get('status') == 'running' for w in workers) >= nannies
+
+    deadline = time.monotonic() + timeout_s
+    while not settled():
+        assert time.monotonic() < deadline, f'the workers did not settle in {timeout_s} s'
+        time.sleep(0.1)
+
+
+def _unregister_when_settled(client, cluster):
+    """
+    Remove the killing plugin once the workers are up (:func:`_wait_settled`).
 
     A killed worker's nanny restarts it, and a plugin change broadcast to a
     worker still dying or starting fails in distributed ("Stream is
@@ -729,7 +751,7 @@ def _unregister_when_settled(client, timeout_s=WORKERS_BACK_S):
     """
     from distributed.comm import CommClosedError
 
-    client.wait_for_workers(2, timeout=timeout_s)
+    _wait_settled(client, cluster)
     try:
         client.unregister_worker_plugin(_KillFleetTasks.name)
     except CommClosedError:
@@ -768,17 +790,17 @@ def test_lost_tasks_are_submitted_again_then_the_run_stops_in_one_line_and_resum
         assert once['run']['tasks_resubmitted'] >= 1
         assert _without_run(once) == _without_run(whole)
         assert _rows(tmp_path / 'once').equals(_rows(tmp_path / 'whole'))
-        _unregister_when_settled(client)
+        _unregister_when_settled(client, cluster)
         client.register_plugin(_KillFleetTasks(str(tmp_path / 'always'), 10 ** 6))
         with pytest.raises(run.FleetIncomplete, match=r'the cluster lost the task of blocks '
                                                       r'\d+-\d+ 3 times \(KilledWorker') as info:
             run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'),
                           scheduler=cluster.scheduler_address, blocks_per_task=1)
-        _unregister_when_settled(client)
+        _unregister_when_settled(client, cluster)
         # let the nannies finish restarting the killed workers before the cluster
         # closes: closing a nanny whose new process has not started yet fails in
         # distributed's own teardown ("can only join a started process")
-        client.wait_for_workers(2, timeout=WORKERS_BACK_S)
+        _wait_settled(client, cluster)
     assert '\n' not in str(info.value) and 'run again with --resume' in str(info.value)
     resumed = run.run_fleet(cfg, n, 3, str(tmp_path / 'kept'), scheduler='in-process',
                             resume=True)

@@ -141,7 +141,7 @@ JITTER_CUT_NS = 1_500_000
 
 
 def _from(messages, t_ns):
-    """The messages stamped at or after ``t_ns`` (without the pre-roll's)."""
+    """Return the messages stamped at or after ``t_ns`` (without the pre-roll's)."""
     return [m for m in messages if stamp_ns(m.header) >= t_ns]
 
 
