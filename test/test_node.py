@@ -109,6 +109,32 @@ class Probe:
         while time.monotonic() < end:
             self.executor.spin_once(timeout_sec=0.01)
 
+    def preroll(self, clock, first_ns, period_ns, streams, ticks):
+        """
+        Tick /clock a period at a time up to ``first_ns``; each stream must get a message.
+
+        A writer drops what it publishes before it has matched a reader, and
+        the probe sees a match from its own side only: under load a node's
+        first outputs were lost (CI), and a test that steps the clock only
+        once they come waited for them in vain. Each tick waits up to 50 ms
+        for its output on every stream, so the node is not behind when the
+        test's own ticks begin; ``first_ns`` stays on the node's grid, and a
+        test that counts drops what is stamped before it.
+        """
+        msg = Clock()
+        for m in range(ticks, 0, -1):
+            msg.clock.sec, msg.clock.nanosec = divmod(first_ns - m * period_ns, NS)
+            seen = [len(s) for s in streams]
+            clock.publish(msg)
+            try:            # paced by the node: no backlog when the test's own ticks begin
+                self.spin_until(lambda: all(len(s) > n for s, n in zip(streams, seen)), 0.05,
+                                'the output of this tick')
+            except AssertionError:
+                continue
+        if not all(streams):
+            raise AssertionError(f'no output on every stream in {ticks} pre-roll ticks: '
+                                 f'{[len(s) for s in streams]}')
+
     def call(self, future, timeout_s=HANG_S):
         self.spin_until(future.done, timeout_s, 'a service response')
         return future.result()

@@ -82,7 +82,7 @@ def test_a_coarse_clock_gets_every_sample_stamped_with_its_own_time(tmp_path, st
         probe.spin_until(lambda: clock.get_subscription_count() > 0, HANG_S, 'the /clock link')
         msg = Clock()
         start_ns, steps = 1000 * NS, 2000 // step_ms         # 2 s of sim time
-        _preroll(probe, clock, start_ns, (out, truth))
+        probe.preroll(clock, start_ns, 5_000_000, (out, truth), 400)
         for k in range(steps + 1):
             t_ns = start_ns + k * step_ms * 1_000_000
             msg.clock.sec, msg.clock.nanosec = t_ns // NS, t_ns % NS
@@ -143,32 +143,6 @@ JITTER_CUT_NS = 1_500_000
 def _from(messages, t_ns):
     """Return the messages stamped at or after ``t_ns`` (without the pre-roll's)."""
     return [m for m in messages if stamp_ns(m.header) >= t_ns]
-
-
-def _preroll(probe, clock, start_ns, streams, period_ns=5_000_000, ticks=400):
-    """
-    Tick /clock a period at a time up to ``start_ns``; fail unless every stream had a message.
-
-    A reliable writer drops what it publishes before it has matched a
-    reader, and the probe sees a match from its own side only: once, under
-    load, the node's first outputs were lost and the count never reached
-    the samples due. Whole periods before ``start_ns``, so it stays on the
-    node's grid; the caller drops what is stamped before it.
-    """
-    msg = Clock()
-    for m in range(ticks, 0, -1):
-        msg.clock.sec, msg.clock.nanosec = divmod(start_ns - m * period_ns, NS)
-        clock.publish(msg)
-        if all(streams):        # on to start_ns a period at a time: no catch-up burst
-            probe.executor.spin_once(timeout_sec=0.005)
-            continue
-        try:
-            probe.spin_until(lambda: all(streams), 0.05, 'every stream')
-        except AssertionError:
-            continue
-    if not all(streams):
-        raise AssertionError(f'no output on every stream in {ticks} pre-roll ticks: '
-                             f'{[len(s) for s in streams]}')
 
 
 def hog(seconds):

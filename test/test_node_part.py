@@ -49,11 +49,9 @@ BASE_NS = 1000 * NS
 STEP_NS = 4 * NS
 #: How far the temperature commands go ahead of the clock, ns (below max_stamp_lead_s).
 LEAD_NS = 2 * STEP_NS
-#: Clock time of the first pre-roll tick, ns: one tick a second from there until the
-#: node's first sample arrives (:func:`_preroll`); the jump to BASE_NS re-anchors the grid.
-PREROLL_NS = BASE_NS - 600 * NS
-#: Wall time a pre-roll tick waits for a sample before the next tick, s.
-PREROLL_WAIT_S = 0.1
+#: Clock ticks, a record second apart, before the record (``Probe.preroll``): the
+#: node's first samples can be lost to a reliable writer's late match.
+PREROLL_TICKS = 120
 #: Marker terms on the axes the record does not measure (x, y).
 STEP_S, STEP_RAD_S = 4000.0, 0.02
 TAU_S, WARM_RAD_S, DRIFT_RAD_S_H, ORIGIN_S = 1500.0, 0.03, 0.01, 3662.3
@@ -118,7 +116,7 @@ def _play(tmp_path, part_yaml, t_s, temp_c):
         probe.spin_until(lambda: clock.get_subscription_count() > 0 and
                          temp.get_subscription_count() > 0 and imu_publishers(probe) > 0,
                          HANG_S, 'the node on the graph')
-        _preroll(probe, clock, imu)
+        probe.preroll(clock, BASE_NS, NS, (imu,), PREROLL_TICKS)
         command_ns = BASE_NS + np.round(t_s * NS).astype(np.int64)
         sent = 0
         for clock_ns in range(BASE_NS, int(command_ns[-1]) + STEP_NS, STEP_NS):
@@ -137,28 +135,6 @@ def _play(tmp_path, part_yaml, t_s, temp_c):
     played = [m for m in imu if stamp_ns(m.header) >= BASE_NS]     # without the pre-roll's
     stamps = np.array([stamp_ns(m.header) for m in played], dtype=np.int64)
     return stamps, np.array([vector(m.angular_velocity) for m in played])
-
-
-def _preroll(probe, clock, imu):
-    """
-    Tick the clock a second at a time before the record until a sample arrives.
-
-    A reliable writer drops what it publishes before it has matched a reader,
-    and the probe sees a match from its own side only: once, under load, the
-    node's samples of the first step were lost and the clock waited for them
-    in vain (one more tick would have brought new ones). Ticks before
-    ``BASE_NS`` are record time < 0; :func:`_play` drops their samples.
-    """
-    for clock_ns in range(PREROLL_NS, BASE_NS, NS):
-        msg = Clock()
-        msg.clock.sec, msg.clock.nanosec = divmod(clock_ns, NS)
-        clock.publish(msg)
-        try:
-            probe.spin_until(lambda: bool(imu), PREROLL_WAIT_S, 'a sample')
-            return
-        except AssertionError:
-            continue
-    raise AssertionError(f'no sample in {(BASE_NS - PREROLL_NS) // NS} pre-roll ticks')
 
 
 def imu_publishers(probe):
@@ -250,6 +226,8 @@ def test_the_record_time_follows_the_node_clock_across_a_jump(tmp_path):
         probe.spin_until(lambda: clock.get_subscription_count() > 0 and
                          probe.node.count_publishers('/jump/imu/data_raw') > 0, HANG_S,
                          'the node on the graph')
+        # record time 0 is the node's first sample: in the pre-roll, at most 4 s before 100 s
+        probe.preroll(clock, 100 * NS, NS // 10, (imu,), 40)
 
         def outputs(t0_s, count):
             """Step the clock by 0.1 s from t0_s; return the span (ns) of those steps."""
@@ -264,9 +242,9 @@ def test_the_record_time_follows_the_node_clock_across_a_jump(tmp_path):
                         break
             return int(round(t0_s * NS)), int(round((t0_s + 0.1 * count) * NS))
 
-        steps = [outputs(100.0, 5),                 # record time 0 .. 0.4 s
-                 outputs(130.0, 5),                 # 30 .. 30.4 s
-                 outputs(100.5, 10)]                # 0.5 .. 1.4 s
+        steps = [outputs(100.0, 5),                 # record time below 4.4 s: off
+                 outputs(130.0, 5),                 # 30-34.4 s: on
+                 outputs(100.5, 10)]                # back below 5.4 s: off
     finally:
         probe.close()
         assert node.stop() == 0

@@ -37,6 +37,7 @@ def test_clock_jumps_of_plus_minus_1e9_s_keep_the_node_publishing(tmp_path):
         probe.spin_until(lambda: clock.get_subscription_count() > 0 and
                          probe.node.count_publishers('/jumps/imu/data_raw') > 0, HANG_S,
                          'the node on the graph')
+        probe.preroll(clock, 10 * NS, NS // 10, (imu,), 40)
 
         def outputs(t0_s, count):
             """Step the clock by 0.1 s from t0_s; return the span (ns) of those steps."""
