@@ -115,7 +115,7 @@ def test_a_coarse_clock_gets_every_sample_stamped_with_its_own_time(tmp_path, st
     assert code == 0 and 'Traceback' not in log
     truth, out = _from(truth, start_ns), _from(out, start_ns - JITTER_CUT_NS)
     sample_ns = [stamp_ns(m.header) for m in truth]
-    # Every sample on the 5 ms grid from the first tick to the last /clock, in order.
+    # Every sample on the 5 ms grid from start_ns to the last /clock, in order.
     assert np.all(consecutive(sample_ns, 5_000_000) == 1)
     assert sample_ns[-1] == end_ns and len(sample_ns) == window
     assert np.all(np.diff(sample_ns) == 5_000_000)
