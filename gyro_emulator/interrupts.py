@@ -11,8 +11,11 @@ library in a broken state.
 
 :class:`StartupInterrupt` defers the signal instead: inside the block a
 SIGINT only sets a flag, and the caller stops cleanly at the end of the block.
+A library left half done can also crash the interpreter's exit, so a command
+that a signal stopped ends without it (:func:`end_process`).
 """
 
+import os
 import signal
 import sys
 
@@ -133,8 +136,7 @@ class TerminateOnSignal:
         back) or ran this handler while Python was finalizing (a crash, not
         one line). Ignored, not blocked: a mask is one thread's, and the
         kernel hands a process's signal to any thread that does not block
-        it (a Dask thread of ``fleet``: the likely cause of a SIGSEGV in CI
-        on a SIGHUP late in the run). The previous handlers are not restored on leaving.
+        it (DDS's, Dask's). The previous handlers are not restored on leaving.
         """
         if self.signals:
             self.restore()
@@ -163,3 +165,26 @@ class TerminateOnSignal:
         """Restore the previous handlers; exceptions pass."""
         self.restore()
         return False
+
+
+def end_process(status):
+    """
+    End the process at once with ``status``: no interpreter finalization, no exit hooks.
+
+    For a command a signal stopped, once its clean-up has run (its
+    unfinished outputs removed, its cluster closed). The signal may have
+    cut a compiled library short anywhere (see the module docstring), and
+    the exit that follows runs that library's C exit hooks and static
+    destructors after Python is gone: in CI, ``fleet`` stopped by SIGTERM
+    died there ("PyThreadState_Get ... Python runtime state: finalizing",
+    SIGABRT) instead of ending with 143. Python's own exit hooks
+    (``atexit``) are skipped too, so nothing that needs them may be left
+    open: the standard streams are flushed here, and anything else is
+    closed by the command before it returns.
+    """
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):           # a closed pipe or stream: nothing to keep
+            pass
+    os._exit(status)

@@ -4,6 +4,7 @@ from dataclasses import replace
 import glob
 import json
 import os
+import signal
 import time
 
 from conftest import ROOT
@@ -11,6 +12,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from gyro_emulator.analysis.fleet import config as fleet_config
 from gyro_emulator.analysis.fleet import engine, evaluate, report, run, sampling
 from gyro_emulator.cli import main
+from gyro_emulator.interrupts import Terminated
 from gyro_emulator.physics import first_order
 from gyro_emulator.sensor import noise
 from gyro_emulator.units import rad_s_sqrt_hz_to_arw_deg_sqrt_h
@@ -903,3 +905,27 @@ def test_a_run_logged_to_a_file_says_its_progress_every_minute():
     short = run.LogProgress(10, clock=lambda: 0.0, stream=quiet)
     short.update(10)
     assert quiet.getvalue() == ''
+
+
+class _ClosingCluster:
+    """A cluster's closer thread that a signal interrupts while it is joined, once."""
+
+    def __init__(self):
+        self.joins = 0
+
+    def is_alive(self):
+        return self.joins < 2
+
+    def join(self):
+        self.joins += 1
+        if self.joins == 1:
+            raise Terminated(signal.SIGTERM)
+
+
+def test_a_signal_while_the_cluster_closes_is_raised_once_it_is_closed():
+    """The process then ends without the interpreter's exit: nothing else would close it."""
+    dask_run = object.__new__(run._DaskRun)
+    dask_run.closer = _ClosingCluster()
+    with pytest.raises(Terminated):
+        dask_run.join()
+    assert dask_run.closer.joins == 2

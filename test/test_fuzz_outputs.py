@@ -258,9 +258,9 @@ def _signalled(args, cwd, signum, cpu_s):
     ignored, and the run ends with the command's own status: the caller
     tries again with less).
     """
-    # PYTHONFAULTHANDLER: a crash leaves its stacks in stderr (fleet died of SIGSEGV
-    # after a late SIGHUP in loaded CI runs; likely a Dask thread took the signal the
-    # main thread had blocked once the work was done: it is ignored process-wide since)
+    # PYTHONFAULTHANDLER: a crash leaves its stacks in stderr (fleet died in CI in the
+    # interpreter's exit after a stop: SIGSEGV once, SIGABRT once; a stopped command now
+    # ends without it, interrupts.end_process)
     proc = subprocess.Popen([PY, '-m', 'gyro_emulator.cli', *args], cwd=cwd, text=True,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             env=dict(os.environ, PYTHONPATH=ROOT, PYTHONFAULTHANDLER='1'))

@@ -352,6 +352,36 @@ def test_after_close_a_signal_another_thread_takes_is_ignored_too():
     assert (proc.returncode, proc.stdout, proc.stderr) == (3, 'finished None\n', '')
 
 
+#: A native exit hook that needs the interpreter, as a compiled library that a signal
+#: cut short can leave: a ctypes callback that the C library runs at exit(), after
+#: Python's finalization.
+_EXIT_HOOK = (
+    'import ctypes\n'
+    'hook = ctypes.CFUNCTYPE(None, ctypes.c_void_p)(lambda _: None)\n'
+    'ctypes.CDLL("libc.so.6").__cxa_atexit(hook, None, None)\n')
+
+
+def test_a_command_stopped_by_a_signal_ends_without_the_interpreter_s_exit(tmp_path):
+    """A stopped command ends with its status, even where a library's exit would crash."""
+    out = tmp_path / 'truth.csv'
+    script = _EXIT_HOOK + (
+        'import os, signal, sys\n'
+        'from gyro_emulator.cli import main\n'
+        # SIGTERM after 0.05 s of CPU: while the command line is parsed (its modules
+        # imported) or the truth is drawn, always after the guard is in place
+        'signal.signal(signal.SIGPROF, lambda *_: os.kill(os.getpid(), signal.SIGTERM))\n'
+        'signal.setitimer(signal.ITIMER_PROF, 0.05)\n'
+        f'sys.exit(main(["truth", {str(out)!r}, "--seed", "3", "--profile", "static", '
+        '"--duration", "3000", "--rate", "50"], signals=True))\n')
+    proc = _python(script)
+    assert proc.returncode == 143, proc.stderr
+    assert proc.stderr == ('gyro-emulator truth: stopped by SIGTERM; unfinished outputs '
+                           'removed\n') and _files(tmp_path) == []
+    # the hook is a real hazard: an exit through the interpreter's finalization dies of it
+    proc = _python(_EXIT_HOOK + 'raise SystemExit(3)\n')
+    assert proc.returncode < 0, (proc.returncode, proc.stderr)
+
+
 def test_a_signal_raised_inside_a_callback_is_kept_without_a_traceback():
     """A weakref callback cannot pass the exception on: no 'Exception ignored', it is kept."""
     script = (

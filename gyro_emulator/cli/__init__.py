@@ -137,10 +137,12 @@ def main(argv=None, signals=False):
     stop a command as Ctrl-C does: its unfinished outputs are removed
     (:class:`gyro_emulator.interrupts.Terminated`), and the status is 143 or
     129; once the command's work is done they are ignored until the process
-    exits (the outputs are complete by then). ``gyro-emulator ros`` keeps the
-    ROS programs' own handling.
+    exits (the outputs are complete by then). A command stopped by a signal
+    (SIGINT too) ends the process once its clean-up has run, without the
+    interpreter's finalization (:func:`gyro_emulator.interrupts.end_process`).
+    ``gyro-emulator ros`` keeps the ROS programs' own handling.
     """
-    from gyro_emulator.interrupts import TERMINATING_SIGNALS, TerminateOnSignal
+    from gyro_emulator.interrupts import TERMINATING_SIGNALS, TerminateOnSignal, end_process
 
     args = None
     guard = TerminateOnSignal(TERMINATING_SIGNALS if signals else (), defer=True)
@@ -156,7 +158,11 @@ def main(argv=None, signals=False):
             raise guard.received
         return status
     except BaseException as exc:                # noqa: B902 (a signal may surface as any)
-        return _failed(args, guard.received or exc)
+        stop = guard.received or exc
+        status = _failed(args, stop)
+        if signals and isinstance(stop, KeyboardInterrupt):
+            end_process(status)                 # see there: no exit after a cut-short library
+        return status
 
 
 def _failed(args, exc):

@@ -279,9 +279,21 @@ class _DaskRun:
         self.closer.start()
 
     def join(self):
-        """Wait until the cluster is closed."""
-        if self.closer is not None:
-            self.closer.join()
+        """
+        Wait until the cluster is closed, through a signal too (raised once it is).
+
+        A stop by a signal ends the process without the interpreter's exit
+        (:func:`gyro_emulator.interrupts.end_process`), which would
+        otherwise close a cluster left half closed.
+        """
+        stop = None
+        while self.closer is not None and self.closer.is_alive():
+            try:
+                self.closer.join()
+            except KeyboardInterrupt as exc:    # SIGINT, or the first SIGTERM/SIGHUP
+                stop = stop or exc
+        if stop is not None:
+            raise stop
 
 
 def _first_line(exc):
