@@ -15,12 +15,37 @@ A library left half done can also crash the interpreter's exit, so a command
 that a signal stopped ends without it (:func:`end_process`).
 """
 
+import math
 import os
 import signal
 import sys
+import time
 
 #: Exit status of a program stopped by SIGINT (128 + 2, the shell's convention).
 INTERRUPTED_STATUS = 130
+#: Longest blocking wait of a main thread between two looks at pending signals, s.
+SIGNAL_POLL_S = 0.1
+
+
+def wait_sliced(wait, done, timeout_s=math.inf):
+    """
+    Call ``wait(slice_s)`` until ``done()`` or ``timeout_s``; return ``done()``.
+
+    In slices of :data:`SIGNAL_POLL_S`: a signal the kernel delivers to
+    another thread of the process (DDS and Dask start several) only marks
+    the Python handler pending and does not wake a main thread blocked in
+    one long wait, so the handler would run only once that wait ends (a
+    ``replay --delay 600`` once slept on through SIGINT). For an event:
+    ``wait_sliced(event.wait, event.is_set, t)``; for a thread:
+    ``wait_sliced(thread.join, lambda: not thread.is_alive())``.
+    """
+    deadline = time.monotonic() + timeout_s
+    while not done():
+        left = deadline - time.monotonic()
+        if left <= 0.0:
+            return False
+        wait(min(left, SIGNAL_POLL_S))
+    return True
 
 
 class StartupInterrupt:

@@ -5,6 +5,8 @@ import glob
 import json
 import os
 import signal
+import sys
+import threading
 import time
 
 from conftest import ROOT
@@ -12,7 +14,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from gyro_emulator.analysis.fleet import config as fleet_config
 from gyro_emulator.analysis.fleet import engine, evaluate, report, run, sampling
 from gyro_emulator.cli import main
-from gyro_emulator.interrupts import Terminated
+from gyro_emulator.interrupts import Terminated, TerminateOnSignal
 from gyro_emulator.physics import first_order
 from gyro_emulator.sensor import noise
 from gyro_emulator.units import rad_s_sqrt_hz_to_arw_deg_sqrt_h
@@ -907,25 +909,59 @@ def test_a_run_logged_to_a_file_says_its_progress_every_minute():
     assert quiet.getvalue() == ''
 
 
-class _ClosingCluster:
-    """A cluster's closer thread that a signal interrupts while it is joined, once."""
+class _InterruptedOnce:
+    """A thread's end (an event) whose first wait a signal interrupts; set after two waits."""
 
     def __init__(self):
-        self.joins = 0
+        self.waits = 0
 
-    def is_alive(self):
-        return self.joins < 2
+    def is_set(self):
+        return self.waits >= 2
 
-    def join(self):
-        self.joins += 1
-        if self.joins == 1:
+    def wait(self, timeout=None):
+        self.waits += 1
+        if self.waits == 1:
             raise Terminated(signal.SIGTERM)
 
 
 def test_a_signal_while_the_cluster_closes_is_raised_once_it_is_closed():
     """The process then ends without the interpreter's exit: nothing else would close it."""
     dask_run = object.__new__(run._DaskRun)
-    dask_run.closer = _ClosingCluster()
+    dask_run.closed = _InterruptedOnce()
     with pytest.raises(Terminated):
         dask_run.join()
-    assert dask_run.closer.joins == 2
+    assert dask_run.closed.waits == 2
+
+
+def test_a_signal_another_thread_takes_while_the_cluster_starts_is_handled_at_once():
+    """The kernel may hand SIGTERM to any thread; the main thread's wait must look at it."""
+    main_thread = threading.get_ident()
+    release = threading.Event()
+
+    def waiting_in_run():
+        frame = sys._current_frames()[main_thread]
+        top = frame.f_code.co_name
+        while frame is not None and frame.f_code is not run._DaskRun.run.__code__:
+            frame = frame.f_back
+        return frame is not None and top == 'wait'
+
+    def start():                        # the cluster's start, on until it is released
+        while not waiting_in_run():     # until the main thread waits for the start
+            time.sleep(0.001)
+        signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
+        release.wait(30)
+        dask_run.started.set()
+
+    dask_run = object.__new__(run._DaskRun)
+    dask_run.started = threading.Event()
+    starter = threading.Thread(target=start)
+    try:
+        with TerminateOnSignal():
+            starter.start()
+            with pytest.raises(Terminated):
+                dask_run.run(None, [], None, None)
+            starting = not dask_run.started.is_set()
+    finally:
+        release.set()
+        starter.join()
+    assert starting                     # handled while the start went on, not after it

@@ -15,9 +15,8 @@ the two players, whose loops read a flag between steps, and
 import signal
 import sys
 import threading
-import time
 
-from gyro_emulator.interrupts import INTERRUPTED_STATUS, StartupInterrupt
+from gyro_emulator.interrupts import INTERRUPTED_STATUS, StartupInterrupt, wait_sliced
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -50,27 +49,15 @@ def flag_signals(stop):
             for signum in (signal.SIGINT, signal.SIGTERM)}
 
 
-#: Longest blocking wait of a main thread between two looks at pending signals, s.
-SIGNAL_POLL_S = 0.1
-
-
 def wait_until_set(stop, timeout_s):
     """
     Wait up to ``timeout_s`` for ``stop`` (a threading.Event); return whether it is set.
 
-    In slices of :data:`SIGNAL_POLL_S`: a signal the kernel delivers to
-    another thread of the process (DDS starts several) only marks the
-    Python handler pending and does not wake a main thread blocked in one
-    long ``Event.wait``, so the handler that sets ``stop`` would run only
-    at its timeout (a ``replay --delay 600`` once slept on through SIGINT).
+    In slices (:func:`gyro_emulator.interrupts.wait_sliced`), so that a
+    signal that one of DDS's threads takes is handled within
+    :data:`~gyro_emulator.interrupts.SIGNAL_POLL_S`.
     """
-    deadline = time.monotonic() + timeout_s
-    while not stop.is_set():
-        left = deadline - time.monotonic()
-        if left <= 0.0:
-            return False
-        stop.wait(min(left, SIGNAL_POLL_S))
-    return True
+    return wait_sliced(stop.wait, stop.is_set, timeout_s)
 
 
 def spin_once(executor, timeout_sec):

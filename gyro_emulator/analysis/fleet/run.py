@@ -27,6 +27,7 @@ import time
 
 from gyro_emulator import atomic
 from gyro_emulator.analysis.fleet import engine, report, resources, sampling, state
+from gyro_emulator.interrupts import wait_sliced
 from gyro_emulator.validation import check_range
 from tqdm import tqdm
 
@@ -159,14 +160,20 @@ class _DaskRun:
     it is up, this process runs tasks itself, so the 1-3 s a process cluster
     takes to start costs no time. The cluster closes in a thread too, while
     the summary and plots are written (:meth:`join` waits for it).
+
+    The threads' ends are events (:attr:`started`, :attr:`closed`), not
+    ``Thread.join``: on Python 3.11 a join that a signal's exception
+    interrupts marks the thread it waited for as stopped while it still runs
+    (``threading._wait_for_tstate_lock``, bpo-45274), and every later join
+    and ``is_alive`` would then pass over the start or the close.
     """
 
     def __init__(self, scheduler, workers):
         self.scheduler, self.workers = scheduler, workers
-        self.cluster = self.client = self.error = self.closer = None
+        self.cluster = self.client = self.error = None
         self.here = self.resubmitted = 0
-        self.starter = threading.Thread(target=self._start, daemon=True)
-        self.starter.start()
+        self.started, self.closed = threading.Event(), None
+        threading.Thread(target=self._start, daemon=True).start()
 
     def _start(self):
         from dask.distributed import Client  # lazy: see local_cluster
@@ -179,6 +186,8 @@ class _DaskRun:
                 self.client = Client(self.scheduler, timeout='20s')
         except Exception as exc:        # raised in the caller's thread by run()
             self.error = exc
+        finally:
+            self.started.set()
 
     def run(self, job, tasks, bar, finished):
         """
@@ -195,14 +204,15 @@ class _DaskRun:
         """
         results = {}
         queue = list(enumerate(tasks))
-        while queue and self.starter.is_alive():
+        while queue and not self.started.is_set():
             index, blocks = queue.pop(0)
             results[blocks[0]] = engine.run_task(job, blocks[:1], progress=bar.update)
             finished(results[blocks[0]])
             if len(blocks) > 1:
                 queue.insert(0, (index, blocks[1:]))
         self.here = len(results)
-        self.starter.join()
+        # sliced: a signal that a Dask thread takes is handled now, not once the start ends
+        wait_sliced(self.started.wait, self.started.is_set)
         try:
             if self.error is not None:
                 raise self.error
@@ -268,15 +278,18 @@ class _DaskRun:
                 '--resume to finish') from None
 
     def close(self):
-        """Close the client and the cluster in a thread."""
+        """Close the client and the cluster in a thread (once they are up)."""
         def stop():
-            self.starter.join()
-            if self.client is not None:
-                self.client.close()
-            if self.cluster is not None:
-                self.cluster.close()
-        self.closer = threading.Thread(target=stop, daemon=True)
-        self.closer.start()
+            try:
+                self.started.wait()
+                if self.client is not None:
+                    self.client.close()
+                if self.cluster is not None:
+                    self.cluster.close()
+            finally:
+                closed.set()
+        self.closed = closed = threading.Event()
+        threading.Thread(target=stop, daemon=True).start()
 
     def join(self):
         """
@@ -287,9 +300,9 @@ class _DaskRun:
         otherwise close a cluster left half closed.
         """
         stop = None
-        while self.closer is not None and self.closer.is_alive():
+        while self.closed is not None and not self.closed.is_set():
             try:
-                self.closer.join()
+                wait_sliced(self.closed.wait, self.closed.is_set)
             except KeyboardInterrupt as exc:    # SIGINT, or the first SIGTERM/SIGHUP
                 stop = stop or exc
         if stop is not None:
