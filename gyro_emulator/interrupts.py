@@ -36,8 +36,9 @@ def wait_sliced(wait, done, timeout_s=math.inf):
     the Python handler pending and does not wake a main thread blocked in
     one long wait, so the handler would run only once that wait ends (a
     ``replay --delay 600`` once slept on through SIGINT). For an event:
-    ``wait_sliced(event.wait, event.is_set, t)``; for a thread:
-    ``wait_sliced(thread.join, lambda: not thread.is_alive())``.
+    ``wait_sliced(event.wait, event.is_set, t)``. For a thread, an event it
+    sets as it ends: on Python 3.11 a ``Thread.join`` that a signal's
+    exception interrupts marks the thread as stopped while it still runs.
     """
     deadline = time.monotonic() + timeout_s
     while not done():
