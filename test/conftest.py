@@ -37,19 +37,27 @@ def pytest_configure(config):
 @pytest.fixture(autouse=True)
 def _signal_mask_is_left_as_found():
     """
-    Fail the test that leaves signals blocked in the test process (then unblock them).
+    Fail the test that leaves signals blocked or their handlers changed (then restore them).
 
-    Every child a later test starts inherits the mask: a blocked SIGTERM
-    cannot stop it (``test_atomic``'s writer once outlived a SIGTERM by
-    60 s in a full run; the cause was not found, and no code path known
-    blocks the mask in-process). This turns such a leak into a failure of
-    the test that caused it.
+    Every child a later test starts inherits the mask, and an ignored
+    signal stays ignored through exec: a blocked SIGTERM cannot stop it
+    (``test_atomic``'s writer once outlived a SIGTERM by 60 s in a full
+    run; the cause was not found, and no test is known to change either
+    in-process). This turns such a leak into a failure of the test that
+    caused it.
     """
+    watched = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
     before = signal.pthread_sigmask(signal.SIG_BLOCK, [])
+    handlers = {sig: signal.getsignal(sig) for sig in watched}
     yield
     after = signal.pthread_sigmask(signal.SIG_SETMASK, before)
+    changed = sorted(sig.name for sig in watched if signal.getsignal(sig) != handlers[sig])
+    for sig, handler in handlers.items():
+        signal.signal(sig, handler)
     if after != before:
         pytest.fail(f'the test left signals blocked: {sorted(after - before)}')
+    if changed:
+        pytest.fail(f'the test left the handlers of {changed} changed')
 
 
 def _next_domain():
