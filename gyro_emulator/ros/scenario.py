@@ -438,7 +438,15 @@ def main(args=None):
     """Entry point of ``ros2 run gyro_emulator scenario``; returns the exit status."""
     argv = sys.argv[1:] if args is None else list(args)
     opts = build_parser().parse_args(remove_ros_args(['scenario'] + argv)[1:])
-    signal.signal(signal.SIGTERM, _interrupt)
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        return _run(opts, argv)
+    finally:
+        signal.signal(signal.SIGTERM, previous)     # a caller in-process keeps its own
+
+
+def _run(opts, argv):
+    """Play the scenario of the parsed options; return the exit status (see :func:`main`)."""
     try:
         if not 0.0 <= opts.wait < math.inf:
             raise ValueError(f'--wait = {opts.wait:g} is out of range: allowed [0, inf) s')
