@@ -965,3 +965,18 @@ def test_a_signal_another_thread_takes_while_the_cluster_starts_is_handled_at_on
         release.set()
         starter.join()
     assert starting                     # handled while the start went on, not after it
+
+
+def test_ctrl_c_gives_the_resume_hint_and_stops_as_the_command_line_does(
+        tmp_path, monkeypatch, capsys):
+    """A Ctrl-C reaches the command line: status 130, and from the entry point no exit hooks."""
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+    monkeypatch.setattr(run, 'run_fleet', interrupted)
+    out = tmp_path / 'o'
+    status = main(['fleet', os.path.join(ROOT, 'config', 'fleet_paper_etch2.yaml'),
+                   '--devices', '10', '--out', str(out)])
+    assert status == 130
+    assert capsys.readouterr().err.splitlines() == [
+        f'gyro-emulator fleet: interrupted; the finished tasks are kept in {out}: run again '
+        'with --resume to finish', 'gyro-emulator fleet: interrupted']

@@ -88,7 +88,7 @@ def run(args):
         print(f'gyro-emulator fleet: {"stopped by " + how if how else "interrupted"}; the '
               f'finished tasks are kept in {args.out}: run again with --resume to finish',
               file=sys.stderr)
-        return getattr(exc, 'status', 130)
+        raise           # the command line's stop: its status, and no interpreter exit
     run_info = summary['run']
     print(f'{summary["devices"]} parts ({summary["invalid"]} invalid, {summary["clipped"]} '
           f'clipped) over {len(summary["temperatures_c"])} temperatures in '
