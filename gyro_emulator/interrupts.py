@@ -49,6 +49,39 @@ def wait_sliced(wait, done, timeout_s=math.inf):
     return True
 
 
+class SignalFlag:
+    """
+    A flag that a signal handler sets and a main loop reads: ``set``, ``is_set``, ``wait``.
+
+    Not a ``threading.Event``: its ``set`` takes the lock that its ``wait``
+    holds over several bytecodes, and Python runs a signal handler in the
+    main thread between bytecodes, so a handler that sets the event while
+    the main thread is inside its ``wait`` waits for the main thread, i.e.
+    for itself, forever (``replay --delay``, sent SIGINT as its wait began,
+    hung so on a loaded machine). Here ``set`` is one assignment and
+    ``wait`` sleeps in slices (:func:`wait_sliced`): no lock is taken.
+    """
+
+    def __init__(self):
+        self._set = False
+
+    def set(self):  # noqa: A003 - threading.Event's name, as every caller uses
+        """Raise the flag (safe in a signal handler)."""
+        self._set = True
+
+    def clear(self):
+        """Lower the flag."""
+        self._set = False
+
+    def is_set(self):
+        """Return whether the flag is raised."""
+        return self._set
+
+    def wait(self, timeout_s=math.inf):
+        """Wait up to ``timeout_s`` for the flag; return whether it is raised."""
+        return wait_sliced(time.sleep, self.is_set, timeout_s)
+
+
 class StartupInterrupt:
     """
     Context manager that defers SIGINT until the end of a start-up phase.

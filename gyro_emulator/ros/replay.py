@@ -27,9 +27,9 @@ refused with one line that names the ``--topics`` to replay instead
 
 import argparse
 import sys
-import threading
 import time
 
+from gyro_emulator.interrupts import SignalFlag
 from gyro_emulator.recording import bag, topics as table
 from gyro_emulator.ros import codec, program, spinning
 from gyro_emulator.units import NS_PER_S
@@ -184,7 +184,7 @@ class Player:
         Publish ``/clock`` at this rate.
     reliable : bool
         Force reliable publishers.
-    stop : threading.Event, optional
+    stop : gyro_emulator.interrupts.SignalFlag, optional
         Set to stop between two messages (the signal handlers set it).
 
     """
@@ -201,7 +201,7 @@ class Player:
         self.published = 0
         #: Set by SIGINT/SIGTERM; checked between messages, so a signal never
         #: lands between a publish and its count.
-        self.stop = threading.Event() if stop is None else stop
+        self.stop = SignalFlag() if stop is None else stop
         remap = remap or {}
         for name in sorted(set(remap) - set(reader.topics)):
             raise ValueError(f'--remap {name}:={remap[name]}: topic {name} is not in bag '
@@ -348,7 +348,7 @@ def main(args=None):
         # Signals only set a flag: the loop stops between messages and the final
         # count is exact (rclpy's handler would raise in the middle of a step).
         rclpy.init(args=argv, signal_handler_options=SignalHandlerOptions.NO)
-        stop = threading.Event()
+        stop = SignalFlag()
         spinning.flag_signals(stop)
         run.node = Node('gyro_replay')
         player = Player(run.node, reader, opts.topics, remap, opts.rate, opts.clock,
@@ -364,7 +364,7 @@ def _play(player, opts, reader, start_ns):
     if opts.wait_for_subscribers > 0:
         player.wait_for_subscribers(opts.wait_for_subscribers)
     if opts.delay > 0:              # SIGINT or SIGTERM ends the wait (they set stop)
-        spinning.wait_until_set(player.stop, opts.delay)
+        player.stop.wait(opts.delay)
     if start_ns > reader.start_time_ns:
         left_s = (reader.end_time_ns - start_ns) / NS_PER_S
         player.node.get_logger().info(

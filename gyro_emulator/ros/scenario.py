@@ -36,12 +36,12 @@ import math
 import os
 import signal
 import sys
-import threading
 import time
 
 from gyro_emulator import atomic, outputs
 from gyro_emulator.emulation.scenario import format_summary, interruption_note, \
     load_scenario, results_json, summarize, unmeasured
+from gyro_emulator.interrupts import SignalFlag
 from gyro_emulator.recording import topics
 from gyro_emulator.ros.codec import topic_class, topic_qos
 from gyro_emulator.ros.spinning import flag_signals, spin_once
@@ -317,7 +317,7 @@ def play(profile, collect=True, wait_s=120.0, loop=False, progress=None, args=No
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     player = ScenarioPlayer(node, profile, collect=collect, loop=loop)
-    stop = threading.Event()
+    stop = SignalFlag()
     previous = flag_signals(stop)
     try:
         _wait_for_emulator(player, executor, stop, wait_s, waiting)

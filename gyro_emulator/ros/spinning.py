@@ -8,15 +8,14 @@ compiled code loads is deferred, a signal while the node is built ends the
 run quietly, and the spin loop sees the context go down instead of a
 traceback. Its parts :func:`spin_once` and :func:`close` also serve the
 recorder, the replay and the scenario player; :func:`flag_signals` serves
-the two players, whose loops read a flag between steps, and
-:func:`wait_until_set` waits for that flag.
+the two players, whose loops read a flag between steps.
 """
 
 import signal
 import sys
 import threading
 
-from gyro_emulator.interrupts import INTERRUPTED_STATUS, StartupInterrupt, wait_sliced
+from gyro_emulator.interrupts import INTERRUPTED_STATUS, SignalFlag, StartupInterrupt
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -30,12 +29,12 @@ ERROR_STATUS = 2
 INPUT_ERRORS = (ValueError, ParameterException, OSError)
 #: Set by the SIGINT handler under rclpy's (:func:`_quiet_sigint`): a SIGINT that
 #: came before ``rclpy.init`` installed its handler reached only that one.
-_SIGINT_SEEN = threading.Event()
+_SIGINT_SEEN = SignalFlag()
 
 
 def flag_signals(stop):
     """
-    Make SIGINT and SIGTERM only set ``stop`` (a threading.Event); return their handlers.
+    Make SIGINT and SIGTERM only set ``stop`` (a SignalFlag); return their handlers.
 
     For a loop that reads ``stop`` between its steps, with rclpy initialised
     with ``SignalHandlerOptions.NO``: raised inside rclpy, an interrupt can
@@ -47,17 +46,6 @@ def flag_signals(stop):
         return {}
     return {signum: signal.signal(signum, lambda *_: stop.set())
             for signum in (signal.SIGINT, signal.SIGTERM)}
-
-
-def wait_until_set(stop, timeout_s):
-    """
-    Wait up to ``timeout_s`` for ``stop`` (a threading.Event); return whether it is set.
-
-    In slices (:func:`gyro_emulator.interrupts.wait_sliced`), so that a
-    signal that one of DDS's threads takes is handled within
-    :data:`~gyro_emulator.interrupts.SIGNAL_POLL_S`.
-    """
-    return wait_sliced(stop.wait, stop.is_set, timeout_s)
 
 
 def spin_once(executor, timeout_sec):
