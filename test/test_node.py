@@ -931,8 +931,8 @@ def test_presets_stamp_their_latency_and_signals_shut_down_cleanly(tmp_path, sig
                        '-p', 'rate_hz:=100.0')
     probe = Probe(env)
     try:
-        got = probe.listen(Imu, 'imu/data_raw')
-        truth = probe.listen(Vector3Stamped, 'gyro_emulator/truth/rate')
+        got = probe.listen(Imu, 'imu/data_raw', BEST_EFFORT_DEEP)
+        truth = probe.listen(Vector3Stamped, 'gyro_emulator/truth/rate', BEST_EFFORT_DEEP)
         probe.spin_until(lambda: len(got) > 150 and len(truth) > 150, HANG_S, 'Imu and truth')
     finally:
         probe.close()
