@@ -20,7 +20,7 @@ import os
 
 from gyro_emulator import outputs
 from gyro_emulator.cli.jsonout import add_overwrite, write_json
-from gyro_emulator.emulation.truth.drawn import SAMPLED_PROFILES
+from gyro_emulator.emulation.truth import SAMPLED_PROFILES
 from gyro_emulator.emulation.truth.effects import TRUTH_EFFECTS
 from gyro_emulator.validation import check_range
 

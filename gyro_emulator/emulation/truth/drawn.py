@@ -26,11 +26,10 @@ from dataclasses import replace
 
 from gyro_emulator.emulation.profiles import (paper_rate_steps, rate_about_z, sample_times,
                                               SampledProfile, static_profile, temperature_ramp)
+from gyro_emulator.emulation.truth import SAMPLED_PROFILES
 from gyro_emulator.units import deg_s_to_rad_s, STANDARD_GRAVITY_M_S2
 import numpy as np
 
-#: Sampled profile names :func:`draw_profile` accepts.
-SAMPLED_PROFILES = ('lab', 'paper', 'thermal_ramp', 'thermal_cycle', 'static')
 #: Minutes at each point of the ``paper`` profile (the paper averaged 5 minutes per point).
 PAPER_MINUTES_PER_POINT = 5.0
 
