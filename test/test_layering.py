@@ -119,6 +119,17 @@ def test_the_core_imports_without_ros():
     assert subprocess.run([sys.executable, '-c', code], cwd=ROOT).returncode == 0
 
 
+def test_the_command_lines_parser_loads_no_numerics():
+    """``gyro-emulator --help`` and an option error load no scipy or numba (they cost 2 s)."""
+    import subprocess
+    import sys
+    code = ('import sys; from gyro_emulator.cli import build_parser; build_parser(); '
+            'heavy = sorted(m for m in ("scipy", "numba", "matplotlib", "rclpy") '
+            'if m in sys.modules); print(heavy); sys.exit(1 if heavy else 0)')
+    run = subprocess.run([sys.executable, '-c', code], cwd=ROOT, capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout + run.stderr
+
+
 #: Size limits of the house (issue 11): small rooms are easier to read and test.
 MAX_FUNCTION_LINES = 100
 MAX_MODULE_LINES = 700
