@@ -227,18 +227,8 @@ def main(args=None):
             print(params_file_text(instance), end='')
         return 0
     stop = []
-    previous = {sig: signal.signal(sig, lambda signum, frame: stop.append(signum))
-                for sig in (signal.SIGINT, signal.SIGTERM)}
-    try:
-        codes = _run_nodes(instances, ros_args, stop)
-    finally:
-        for sig, handler in previous.items():     # a caller in-process keeps its own
-            signal.signal(sig, handler)
-    return exit_status(codes, stopped=bool(stop))
-
-
-def _run_nodes(instances, ros_args, stop):
-    """Start a node per instance, run until ``stop`` fills or one ends; return statuses."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda signum, frame: stop.append(signum))
     with tempfile.TemporaryDirectory(prefix='gyro_array_') as tmp:
         procs = []
         for k, instance in enumerate(instances):
@@ -257,7 +247,7 @@ def _run_nodes(instances, ros_args, stop):
             if p.poll() is None:
                 p.send_signal(stop[0] if stop else signal.SIGINT)
         codes = _wait_for_nodes(procs, stop)
-    return codes
+    return exit_status(codes, stopped=bool(stop))
 
 
 def _wait_for_nodes(procs, stop):
