@@ -165,7 +165,10 @@ def _node_run(tilt, tmp_path):
     truth, imu = replay_into_node(
         env, node, '/imu/data_raw',
         [(Imu, f'/{topics.NODE_NAME}/truth/imu'), (Imu, '/imu/data_raw')],
-        [out, '--clock', '100', '--wait-for-subscribers', '60', '--reliable', '--topics',
+        # --delay: /clock holds the bag's first instant, so the node starts there even
+        # when discovery comes late (a loaded CI run heard it only from 0.56 s in)
+        [out, '--clock', '100', '--wait-for-subscribers', '60', '--delay', '2', '--reliable',
+         '--topics',
          '/cmd/angular_velocity', '/cmd/temperature', '/cmd/linear_acceleration'],
         end_ns, 60.0)
     return tuple(((np.array([stamp_ns(m.header) for m in messages]) - START_NS) / NS_PER_S,

@@ -71,7 +71,8 @@ def test_replay_keeps_timing_scaled_by_rate_and_publishes_clock(tmp_path):
                        '/imu/data_raw', '/clock'], env, stdout=subprocess.DEVNULL,
                       stderr=subprocess.DEVNULL)
     replay = _start(['gyro_emulator.ros.replay', source, '--rate', '2', '--clock', '50',
-                     '--wait-for-subscribers', '60'], env, stdout=subprocess.PIPE, text=True)
+                     '--wait-for-subscribers', '60', '--delay', '1'], env,
+                    stdout=subprocess.PIPE, text=True)
     try:
         assert replay.wait(timeout=120) == 0
         assert 'published 200 messages' in replay.stdout.read()
@@ -94,11 +95,18 @@ def test_replay_keeps_timing_scaled_by_rate_and_publishes_clock(tmp_path):
     lag_ms = ((imu.log_time_ns - imu.log_time_ns[0]) - (imu.stamp_ns - imu.stamp_ns[0]) / 2) / 1e6
     quarter = lag_ms.size // 4
     assert abs(np.min(lag_ms[-quarter:]) - np.min(lag_ms[:quarter])) < 40.0
+    clock_log_ns = np.array([item.log_time_ns for item in reader.messages(['/clock'])])
     clock_values = [msg.clock.sec * 10**9 + msg.clock.nanosec
                     for _, msg in reader.decoded_messages('/clock')]
     assert len(clock_values) >= 10
     assert np.all(np.diff(clock_values) >= 0)
     assert T0_NS <= clock_values[0] and clock_values[-1] <= stamps[-1] + 500_000_000
+    # During the 1 s --delay /clock holds the bag's first instant (50 Hz: about
+    # 50 messages; without the hold, one), so a node that matched late starts there.
+    held = np.asarray(clock_values) == T0_NS
+    assert held[0] and held.sum() >= 10, held.sum()
+    held_s = (clock_log_ns[held][-1] - clock_log_ns[held][0]) / 1e9
+    assert held_s >= 0.5, held_s
 
 
 def test_replay_loops_until_interrupted(tmp_path):

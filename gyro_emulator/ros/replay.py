@@ -11,6 +11,8 @@ reliable delivery). With ``--clock`` the bag time at the current instant,
 (rosgraph_msgs/Clock) at HZ, so nodes with ``use_sim_time`` follow the bag
 (``--wait-for-subscribers`` then also waits for a ``/clock`` subscriber).
 ``--loop`` starts over at the end (the bag clock jumps back, as rosbag2 does).
+During ``--delay`` the ``/clock`` holds the first instant replayed, so a node
+that matched late still starts there (:meth:`Player.hold_clock`).
 
 Bags the recorder could not finish (SIGKILL) are read tolerantly: what was
 recovered is replayed and the loss is reported. A topic whose message type is
@@ -46,7 +48,8 @@ MAX_SLEEP_S = 0.05
 #: Options in seconds, each at least 0: flag -> (default, help).
 SECONDS_OPTIONS = {
     '--start-offset': (0.0, 'skip the first S seconds of the bag'),
-    '--delay': (0.0, 'wait S seconds before the first message'),
+    '--delay': (0.0, 'wait S seconds before the first message (with --clock, /clock '
+                'holds the first instant meanwhile)'),
     '--wait-for-subscribers': (0.0, 'wait up to S seconds until every publisher has a '
                                'subscriber'),
 }
@@ -301,6 +304,28 @@ class Player:
         for publisher in self.publishers.values():
             publisher.wait_for_all_acked(Duration(nanoseconds=int(timeout_s * NS_PER_S)))
 
+    def hold_clock(self, bag_time_ns, duration_s):
+        """
+        Wait ``duration_s`` (or until stopped), ``/clock`` held at ``bag_time_ns`` (if published).
+
+        A node with ``use_sim_time`` starts its samples at the first ``/clock``
+        it sees; on a loaded machine its side of discovery, or its first
+        ``/clock`` callback, can come after the writer saw its subscription
+        (a loaded CI run heard a node only from 0.56 s into the bag on). Held at the bag's
+        first instant, ``/clock`` gives it that instant whenever it matches
+        within the delay.
+        """
+        if self.clock_publisher is None:
+            self.stop.wait(duration_s)
+            return
+        deadline = time.monotonic() + duration_s
+        while not self.stop.is_set() and rclpy.ok():
+            self._publish_clock(bag_time_ns)
+            left = deadline - time.monotonic()
+            if left <= 0.0:
+                return
+            self.stop.wait(min(left, self.clock_period_s))
+
     def _publish_clock(self, bag_time_ns):
         msg = self._clock_msg
         msg.clock.sec, msg.clock.nanosec = divmod(int(bag_time_ns), NS_PER_S)
@@ -364,7 +389,7 @@ def _play(player, opts, reader, start_ns):
     if opts.wait_for_subscribers > 0:
         player.wait_for_subscribers(opts.wait_for_subscribers)
     if opts.delay > 0:              # SIGINT or SIGTERM ends the wait (they set stop)
-        player.stop.wait(opts.delay)
+        player.hold_clock(start_ns, opts.delay)
     if start_ns > reader.start_time_ns:
         left_s = (reader.end_time_ns - start_ns) / NS_PER_S
         player.node.get_logger().info(
