@@ -311,9 +311,9 @@ class Player:
         A node with ``use_sim_time`` starts its samples at the first ``/clock``
         it sees; on a loaded machine its side of discovery, or its first
         ``/clock`` callback, can come after the writer saw its subscription
-        (a loaded CI run heard a node only from 0.56 s into the bag on). Held at the bag's
-        first instant, ``/clock`` gives it that instant whenever it matches
-        within the delay.
+        (a loaded CI run heard a node only from 0.56 s into the bag on).
+        Held at the bag's first instant, ``/clock`` gives it that instant
+        whenever it matches within the delay.
         """
         if self.clock_publisher is None:
             self.stop.wait(duration_s)

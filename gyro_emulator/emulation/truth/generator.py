@@ -291,7 +291,7 @@ def make_truth(effect, seed, profile='lab', sample_rate_hz=25.0, levels=5, param
     seed : int
         Seed of the one ``numpy.random.Generator`` used.
     profile : str
-        One of :data:`gyro_emulator.emulation.truth.drawn.SAMPLED_PROFILES`.
+        One of :data:`gyro_emulator.emulation.truth.SAMPLED_PROFILES`.
     sample_rate_hz : float
         Output data rate, Hz.
     levels : int
