@@ -83,6 +83,11 @@ def _open_staged(tmp, path):
         raise
 
 
+def column_names(path):
+    """Return the header's column names of a CSV file (all of them, read or not)."""
+    return _header(path)[0]
+
+
 def _header(path):
     """Return (header names, number of lines before the data)."""
     skipped = 0

@@ -255,7 +255,12 @@ def _gyro_column(record, axis):
                          f'read one of {", ".join(per_axis)}')
     raise ValueError(f'{record.path}: missing required column gyro_rad_s'
                      + (f' (or gyro_{axis}_rad_s)' if axis else '')
-                     + f'; the file has {", ".join(record.names)}')
+                     + f'; the file has {", ".join(_file_columns(record))}')
+
+
+def _file_columns(record):
+    """Return every column of a CSV record's file (those diagnose did not read too)."""
+    return record.names if record.is_bag else csvio.column_names(record.path)
 
 
 def _from_columns(record, axis=None, static=False):
