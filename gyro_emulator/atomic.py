@@ -143,7 +143,8 @@ def staged(path):
         _fsync_dir(os.path.dirname(os.path.abspath(path)))
     except OSError as exc:
         remove(tmp)
-        if exc.errno in _NO_ROOM:     # say which output, and that it is absent
+        if exc.errno in _NO_ROOM or exc.filename == tmp:
+            # say which output, and that it is absent (not the temporary's name)
             raise OSError(exc.errno, f'{path} not written ({exc.strerror}); nothing of it '
                           'was left') from None
         raise

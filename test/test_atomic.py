@@ -59,6 +59,17 @@ def test_nothing_written_is_an_error_and_leaves_nothing(tmp_path):
     assert os.listdir(tmp_path) == []
 
 
+def test_an_output_that_cannot_be_opened_is_named_not_its_temporary(tmp_path):
+    # the folder of the output is a file: opening the temporary beside it fails
+    (tmp_path / 'folder').write_text('a file\n')
+    target = tmp_path / 'folder' / 'out.csv'
+    with pytest.raises(NotADirectoryError) as caught:
+        atomic.write_text(target, 'x\n')
+    assert str(caught.value) == (f'[Errno {caught.value.errno}] {target} not written (Not a '
+                                 'directory); nothing of it was left')
+    assert atomic.TMP_SUFFIX not in str(caught.value)
+
+
 def test_full_file_size_limit_leaves_no_partial_file(tmp_path):
     """RLIMIT_FSIZE stops the write half way: the target stays absent."""
     script = textwrap.dedent(f"""
