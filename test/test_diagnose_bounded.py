@@ -12,8 +12,11 @@ carried into the end folds past a temperature-driven bias or scale factor
 1.49-1.95x (bounds 1.13-1.44x).
 """
 
+from dataclasses import replace
+
 from gyro_emulator.analysis.diagnose import cv as cv_mod
-from gyro_emulator.analysis.diagnose import generic, models, noise_model, pipeline, screening
+from gyro_emulator.analysis.diagnose import (generic, intervals, models, noise_model, pipeline,
+                                             screening, searched, selection)
 from gyro_emulator.analysis.diagnose.data import DEFAULT_MAX_BINS, measured
 from gyro_emulator.emulation.truth.generator import make_truth
 from gyro_emulator.physics.presets import physics_preset
@@ -96,6 +99,28 @@ def test_the_sutherland_law_is_still_found_at_share_one():
     none, _ = make_truth('none', 0)
     _, _, ev0 = _ratio_and_bound(_cv(none), 'viscosity_temperature')
     assert abs(ev0.model.report(ev0.full.beta, ev0.full.phis)[-1]['sutherland_share']) < 0.01
+
+
+def test_a_searched_parameter_at_the_end_of_its_range_gets_an_interval():
+    # the Sutherland constant's range ends at 1000 K, where the gas model
+    # refuses 1001 K: a derivative across that end stopped a held-out
+    # round's diagnosis (mode_split_drift seed 4) with a range error
+    record, _ = make_truth('viscosity_temperature', 0)
+    cv = _cv(record)
+    _, _, ev = _ratio_and_bound(cv, 'viscosity_temperature')
+    effect = ev.model.effects[-1]
+    last = float(np.max(effect.grids(cv.ctx)[0]))
+    assert last == 1000.0
+    ev.full = replace(ev.full, phis=((last,),))
+    wander = selection.Selector(cv, noise_model.SuperBins(
+        cv.prep.binned, cv.fold_of_bin, cv.prep.dt_s)).wander_of(ev)
+    resid = cv.prep.binned.gyro - models.predict(ev.model, cv.ctx, cv.prep.binned, ev.full)
+    n_eff = cv_mod.effective_bins(resid, cv.prep.binned.weight)
+    found = intervals.estimates(effect, ev, cv.ctx, cv.prep.binned, n_eff, wander)
+    low, high = found['sutherland_constant_k'].interval
+    assert low < last and high == last            # open at the range's end, not past it
+    sigma = searched.searched_sigma(ev, cv.ctx, cv.prep.binned, wander, (0.0, last))
+    assert 0.0 < sigma < np.inf
 
 
 def _origin_sses(cv, ev, k, model):

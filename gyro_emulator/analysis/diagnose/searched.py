@@ -24,14 +24,16 @@ NOTE = ('; widened to the larger of the jackknife over the folds and the '
 JACOBIAN_STEP = 1e-3
 
 
-def searched_sigma(evaluated, ctx, frame, wander):
+def searched_sigma(evaluated, ctx, frame, wander, span):
     """
     Return the sandwich 1-sigma of the last cause's one searched parameter, linearised.
 
     Near the fit the prediction is linear in (beta, phi) (Gauss-Newton;
     Seber & Wild 1989, ch. 5): phi's column is the derivative of the
     prediction, J = d pred / d phi (central difference, relative step
-    :data:`JACOBIAN_STEP`, the coefficients held), and phi's weights on the
+    :data:`JACOBIAN_STEP`, the coefficients held; one-sided where phi is
+    within a step of an end of the searched range ``span`` = (first, last),
+    whose parameters may not exist beyond it), and phi's weights on the
     bin means are the last row of the regularised normal matrix's inverse of
     [X, J] times [X, J]' W (the causes' ridge on X, none on J). Its variance
     under the record's noise law (white noise and the walk the local level
@@ -46,7 +48,11 @@ def searched_sigma(evaluated, ctx, frame, wander):
     def predict_at(value):
         return models.predict(model, ctx, frame, replace(full, phis=head + ((value,),)))
 
-    jac = (predict_at(phi + step) - predict_at(phi - step)) / (2.0 * step)
+    low, high = max(phi - step, span[0]), min(phi + step, span[1])
+    if high <= low:
+        return 0.0
+    inside = (low, high) == (phi - step, phi + step)
+    jac = (predict_at(high) - predict_at(low)) / (2.0 * step if inside else high - low)
     n, w = len(frame), frame.weight
     if not measured(jac, w):
         return 0.0
@@ -85,11 +91,12 @@ def widen(effect, evaluated, ctx, frame, wander, ends):
     searched range (an end there is open). Returns (ends, widened).
     """
     lo, hi, olo, ohi = ends
-    sigma = max(searched_sigma(evaluated, ctx, frame, wander), fold_sigma(evaluated))
-    phi = float(evaluated.full.phis[-1][0])
-    half = float(stdtrit(len(evaluated.fits) - 1, 0.5 + LEVEL / 2.0)) * sigma
     grid = np.asarray(effect.grids(ctx)[0], dtype=float)
     first, last = float(grid.min()), float(grid.max())
+    sigma = max(searched_sigma(evaluated, ctx, frame, wander, (first, last)),
+                fold_sigma(evaluated))
+    phi = float(evaluated.full.phis[-1][0])
+    half = float(stdtrit(len(evaluated.fits) - 1, 0.5 + LEVEL / 2.0)) * sigma
     new_lo, new_hi = max(min(lo, phi - half), first), min(max(hi, phi + half), last)
     widened = (new_lo, new_hi) != (lo, hi)
     return (new_lo, new_hi, olo or (widened and new_lo <= first),
