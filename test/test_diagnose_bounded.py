@@ -101,6 +101,25 @@ def test_the_sutherland_law_is_still_found_at_share_one():
     assert abs(ev0.model.report(ev0.full.beta, ev0.full.phis)[-1]['sutherland_share']) < 0.01
 
 
+def test_a_cause_added_to_a_chosen_law_leaves_to_the_law_what_the_rows_cannot_part():
+    # an SF polynomial beside the Sutherland law on a part that follows the law:
+    # with the least ridge of a cause on the law's share too, every fold moved
+    # the share to 0.91-0.98 and the polynomial took the rest, and the two
+    # parted beyond the training temperatures: 1.21x the law's RMSE (bound 1.014x)
+    record, _ = make_truth('viscosity_temperature', 7)
+    cv = _cv(record)
+    law = cv.evaluate(models.Model((generic.effect('viscosity_temperature'),)))
+    both = models.Model(law.model.effects + (generic.effect('scale_factor_temperature'),))
+    ev = cv.evaluate(both, {k: f.phis for k, f in law.fits.items()}, law.full.phis, law)
+    bound = cv.interval(law.sse_fold)[1] / law.rmse
+    assert ev.rmse / law.rmse <= bound, (ev.rmse / law.rmse, bound)
+    for fit in list(ev.fits.values()) + [ev.full]:
+        share = both.report(fit.beta, fit.phis)[0]['sutherland_share']
+        assert share == pytest.approx(1.0, abs=0.01)
+    penalty = both.penalty(cv.ctx)
+    assert list(penalty[:3]) == [0.0, 0.0, models.HELD_BY_DATA] and np.all(penalty[3:] > 0.0)
+
+
 def test_a_searched_parameter_at_the_end_of_its_range_gets_an_interval():
     # the Sutherland constant's range ends at 1000 K, where the gas model
     # refuses 1001 K: a derivative across that end stopped a held-out
@@ -241,7 +260,7 @@ def test_the_simulations_carry_a_shape_in_time_on_as_the_fits_do():
     drift = ((sb.time_s - sb.time_s.mean()) / np.ptp(sb.time_s))[:, None]
     sims = rng.normal(size=(len(sb), 64)) + 1.0 * np.cumsum(rng.normal(size=(len(sb), 64)),
                                                             axis=0) / 10.0
-    pen = (np.zeros(1), np.zeros(1))
+    pen = (np.zeros(1), np.zeros(2))
     always = noise_model.null_gain(current, [drift], sb, sims, pen)
     shaped = noise_model.Searched(None, lambda v: drift, lambda train: 0.0, time_shaped=True)
     got = noise_model.null_gain(current, shaped, sb, sims, pen)

@@ -17,7 +17,12 @@ a delay's interval became the union over the applied rate's shapes between
 its samples: ``time_delay``'s interval and bound, 2.85 to 2.94 ms at the
 top; and when a continuous searched parameter's interval was widened as a
 coefficient's: those intervals, their methods, and the ruled-out bounds
-read from them): :func:`to_json` must give them back, the same keys in the
+read from them; and when the causes already chosen came to take, from the
+cause added last, what the training rows cannot tell apart
+(:data:`.models.HELD_RIDGE`): ``sf_tempco``'s second step, its held-out
+figures and the order its candidates rank in, and the ruled-out share of
+the Sutherland law beside the SF tempco chosen, 7.7 to 12.5 %; the verdict
+and the cause chosen are the same): :func:`to_json` must give them back, the same keys in the
 same order and the same text. Its numbers are compared within
 :data:`REL_TOL` (and :data:`ABS_TOL`), not bit for bit: the figures move
 with the machine's floating point (numpy's SIMD exp and log, and the

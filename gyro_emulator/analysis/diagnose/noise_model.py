@@ -473,8 +473,10 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None, white_sigm
     sims : numpy.ndarray
         Simulated noise, (groups, n_sim).
     penalty : tuple, optional
-        The ridge of the current model's columns and of the candidate's
-        added ones (:meth:`.models.Model.penalty`): (p,) and (q,) arrays.
+        The ridge of the current model's columns, and that of the model
+        extended's, the current model's columns first, as they are in it
+        (:meth:`.models.Model.penalty`: a cause before the last keeps only
+        the least ridge): (p,) and (p + q,) arrays.
     white_sigma : float, optional
         The noise's short-term per-sample spread, rad/s: each group's
         (n_g - 1) sigma^2 of within-group noise is added to the SSEs that
@@ -490,8 +492,7 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None, white_sigm
 
     """
     w = superbins.weight
-    pen0, pen1 = (None, None) if penalty is None else penalty
-    pen = None if penalty is None else np.r_[pen0, pen1]
+    pen0, pen = (None, None) if penalty is None else penalty
     out = []
     if isinstance(candidate, tuple):
         _, g, start = candidate

@@ -230,22 +230,24 @@ class Selector:
         one set per value of its grid, thinned to at most 10 values, that
         the simulations search per fold as its fits do
         (:class:`.noise_model.Searched`). Returned with the ridge of the
-        added columns (:meth:`.models.Model.penalty`).
+        columns of the model extended, the current model's first, as they are
+        in it (:meth:`.models.Model.penalty`).
         """
         b = self.cv.prep.binned
         phis = current.full.phis
         basis = current.model.basis(self.ctx, b, phis)
-        own = candidate_eval.model.penalty(self.ctx)[len(current.model.penalty(self.ctx)):]
+        extended = candidate_eval.model.penalty(self.ctx)
+        held, own = np.split(extended, [len(current.model.penalty(self.ctx))])
         if getattr(effect, 'change_point', False):
             g = self.superbins.aggregate(effect.multiplier(b, basis))
-            return ('step', g, self.superbins.start_s), own
+            return ('step', g, self.superbins.start_s), extended
         grids = effect.grids(self.ctx)
         if len(grids) > 1 or effect.n_columns == 0:
             full = candidate_eval.model.columns(self.ctx, b, candidate_eval.full.phis)
             new = [full[1] - basis.sr] + full[2 + sum(e.n_columns for e in
                                                       current.model.effects):]
             return [np.column_stack([self.superbins.aggregate(c) for c in new])], \
-                np.r_[0.0, own]
+                np.r_[held, 0.0, own]
         sets = {}
 
         def column_set(v):
@@ -261,7 +263,7 @@ class Selector:
         # every other grid value at most 10: the simulations search a coarser grid
         values = None if not grids else \
             np.asarray(grids[0])[::max(1, len(grids[0]) // 10)]
-        return noise_model.Searched(values, column_set, unseen_of, effect.time_shaped), own
+        return noise_model.Searched(values, column_set, unseen_of, effect.time_shaped), extended
 
     def null_reduction(self, current, effect, candidate_eval):
         """
@@ -281,8 +283,8 @@ class Selector:
         up to at least half a fold; a bursty record's is not).
         """
         cols = self.group_columns(current.model, current.full.phis)
-        spec, own = self._candidate_spec(current, effect, candidate_eval)
-        penalty = (current.model.penalty(self.ctx), own)
+        spec, extended = self._candidate_spec(current, effect, candidate_eval)
+        penalty = (current.model.penalty(self.ctx), extended)
         alt = self.noise_of(candidate_eval)
         wide = alt.wider(self.noise_of(current))
         sims = noise_model.null_gain(cols, spec, self.superbins, self.sims_of(alt), penalty,
