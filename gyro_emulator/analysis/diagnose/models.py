@@ -34,8 +34,8 @@ STEP_MARGIN = 0.02
 MIN_RIDGE = 1e-6
 #: Ridge of a cause before the last of a model on the unit-scaled normal equations: between
 #: the baseline's (1e-12) and :data:`MIN_RIDGE`, so where the training rows cannot tell
-#: columns apart the baseline takes it first, then the causes already chosen, the last one
-#: least (:meth:`Model.penalty`).
+#: columns apart the baseline takes it first, then the causes already chosen, and the cause
+#: added last only what is left (:meth:`Model.penalty`).
 HELD_RIDGE = 1e-9
 #: :meth:`Model.penalty`'s mark of a column that gets :data:`HELD_RIDGE`.
 HELD_BY_DATA = -1.0

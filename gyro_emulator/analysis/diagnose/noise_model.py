@@ -475,8 +475,8 @@ def null_gain(current_cols, candidate, superbins, sims, penalty=None, white_sigm
     penalty : tuple, optional
         The ridge of the current model's columns, and that of the model
         extended's, the current model's columns first, as they are in it
-        (:meth:`.models.Model.penalty`: a cause before the last keeps only
-        the least ridge): (p,) and (p + q,) arrays.
+        (:meth:`.models.Model.penalty`: a cause before the last gets only
+        :data:`.models.HELD_RIDGE`): (p,) and (p + q,) arrays.
     white_sigma : float, optional
         The noise's short-term per-sample spread, rad/s: each group's
         (n_g - 1) sigma^2 of within-group noise is added to the SSEs that
