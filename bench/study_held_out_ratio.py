@@ -77,6 +77,8 @@ def ratios(record, label):
     by_ids = {}
     for cv, ev in rec.evaluated:
         by_ids.setdefault(ev.model.ids, (cv, ev))
+    cv_base, base = by_ids[()]
+    base_bound = cv_base.interval(base.sse_fold)[1] / base.rmse
     rows = []
     for number, step in enumerate(result.steps, 1):
         for cand in step.candidates:
@@ -85,13 +87,11 @@ def ratios(record, label):
             cv, ev = by_ids[key]
             cv_ref, ref = by_ids[key[:-1]]
             low, high = cv_ref.interval(ref.sse_fold)
-            cv_base, base = by_ids[()]
-            base_high = cv_base.interval(base.sse_fold)[1]
             rows.append({'record': label, 'step': number, 'effect': cand.effect,
                          'model': list(key[:-1]), 'candidates': len(step.candidates),
                          'ratio': ev.rmse / ref.rmse, 'bound': high / ref.rmse,
                          'ratio_to_baseline': ev.rmse / base.rmse,
-                         'bound_to_baseline': base_high / base.rmse,
+                         'bound_to_baseline': base_bound,
                          'p_worse': fold_test(ev.sse_fold, ref.sse_fold),
                          'significant': cand.significant})
     return rows
