@@ -237,15 +237,15 @@ class Selector:
         phis = current.full.phis
         basis = current.model.basis(self.ctx, b, phis)
         extended = candidate_eval.model.penalty(self.ctx)
-        held, own = np.split(extended, [len(current.model.penalty(self.ctx))])
+        n_current = 2 + sum(e.n_columns for e in current.model.effects)
+        held, own = np.split(extended, [n_current])
         if getattr(effect, 'change_point', False):
             g = self.superbins.aggregate(effect.multiplier(b, basis))
             return ('step', g, self.superbins.start_s), extended
         grids = effect.grids(self.ctx)
         if len(grids) > 1 or effect.n_columns == 0:
             full = candidate_eval.model.columns(self.ctx, b, candidate_eval.full.phis)
-            new = [full[1] - basis.sr] + full[2 + sum(e.n_columns for e in
-                                                      current.model.effects):]
+            new = [full[1] - basis.sr] + full[n_current:]
             return [np.column_stack([self.superbins.aggregate(c) for c in new])], \
                 np.r_[held, 0.0, own]
         sets = {}
