@@ -48,7 +48,7 @@ import numpy as np  # noqa: E402
 import study_real_injections as sri  # noqa: E402
 
 
-class _Recorder:
+class Recorder:
     """Wraps ``CrossValidation.evaluate`` to keep every evaluated model's fold SSEs."""
 
     def __init__(self):
@@ -72,7 +72,7 @@ class _Recorder:
 
 def ratios(record, label):
     """Diagnose ``record``; return one row per candidate of every step."""
-    with _Recorder() as rec:
+    with Recorder() as rec:
         result = diagnose(record)
     by_ids = {}
     for cv, ev in rec.evaluated:
