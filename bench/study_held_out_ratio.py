@@ -48,7 +48,7 @@ import numpy as np  # noqa: E402
 import study_real_injections as sri  # noqa: E402
 
 
-class Recorder:
+class _Recorder:
     """Wraps ``CrossValidation.evaluate`` to keep every evaluated model's fold SSEs."""
 
     def __init__(self):
@@ -70,13 +70,24 @@ class Recorder:
         CrossValidation.evaluate = self._original
 
 
-def ratios(record, label):
-    """Diagnose ``record``; return one row per candidate of every step."""
-    with Recorder() as rec:
+def evaluated_models(record):
+    """
+    Diagnose ``record``; return its diagnosis and every model it evaluated.
+
+    The models as {cause ids: (cross-validation, evaluated model)}, each at
+    its first evaluation.
+    """
+    with _Recorder() as rec:
         result = diagnose(record)
     by_ids = {}
     for cv, ev in rec.evaluated:
         by_ids.setdefault(ev.model.ids, (cv, ev))
+    return result, by_ids
+
+
+def ratios(record, label):
+    """Diagnose ``record``; return one row per candidate of every step."""
+    result, by_ids = evaluated_models(record)
     cv_base, base = by_ids[()]
     base_bound = cv_base.interval(base.sse_fold)[1] / base.rmse
     rows = []

@@ -34,7 +34,7 @@ import time
 
 import benchenv  # one core: pins the BLAS thread pools before numpy loads
 
-from gyro_emulator.analysis.diagnose import diagnose, noise_model, statespace  # noqa: E402
+from gyro_emulator.analysis.diagnose import noise_model, statespace  # noqa: E402
 import numpy as np  # noqa: E402
 import study_held_out_ratio as study  # noqa: E402
 
@@ -79,12 +79,7 @@ def record_of(label):
 @functools.lru_cache(maxsize=1)
 def evaluated(label):
     """Diagnose the record ``label``; return {cause ids: (cross-validation, evaluated model)}."""
-    with study.Recorder() as rec:
-        diagnose(record_of(label))
-    out = {}
-    for cv, ev in rec.evaluated:
-        out.setdefault(ev.model.ids, (cv, ev))
-    return out
+    return study.evaluated_models(record_of(label))[1]
 
 
 def walk_fit_sse(cv, ev):
