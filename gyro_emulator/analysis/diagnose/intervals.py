@@ -178,7 +178,7 @@ def _cause_columns(evaluated, ctx, frame):
     """Return the last cause's columns on ``frame`` at the full fit."""
     model = evaluated.model
     cols = model.columns(ctx, frame, evaluated.full.phis)
-    start = 2 + sum(e.n_columns for e in model.effects[:-1])
+    start = model.n_columns - model.effects[-1].n_columns
     return cols[start:]
 
 
@@ -186,7 +186,7 @@ def _cause_weights(model, ctx, frame, phis):
     """Return the last cause's coefficients' weights on the bin means, (k, bins), and x."""
     n = len(frame)
     x = np.column_stack([np.broadcast_to(c, (n,)) for c in model.columns(ctx, frame, phis)])
-    start = 2 + sum(e.n_columns for e in model.effects[:-1])
+    start = model.n_columns - model.effects[-1].n_columns
     rows = models.coefficient_map(x, frame.weight, model.penalty(ctx))[start:]
     return rows @ (x * frame.weight[:, None]).T, x
 

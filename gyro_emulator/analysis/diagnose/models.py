@@ -64,6 +64,11 @@ class Model:
         return tuple(e.effect_id for e in self.effects)
 
     @property
+    def n_columns(self):
+        """Regressor columns (:meth:`columns`): the baseline's two and every cause's."""
+        return 2 + sum(e.n_columns for e in self.effects)
+
+    @property
     def n_params(self):
         """Free parameters, b0 and s0 included."""
         return 2 + sum(e.n_params for e in self.effects)

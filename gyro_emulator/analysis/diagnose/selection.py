@@ -237,7 +237,7 @@ class Selector:
         phis = current.full.phis
         basis = current.model.basis(self.ctx, b, phis)
         extended = candidate_eval.model.penalty(self.ctx)
-        n_current = 2 + sum(e.n_columns for e in current.model.effects)
+        n_current = current.model.n_columns
         held, own = np.split(extended, [n_current])
         if getattr(effect, 'change_point', False):
             g = self.superbins.aggregate(effect.multiplier(b, basis))
